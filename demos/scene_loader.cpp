@@ -1,0 +1,831 @@
+// tearables: the headless scene loader (../shared/SCENE_FORMAT.md, "tearables-scene/1").
+// Every field is checked where it is read; a bad one throws InvalidInput whose field() is the
+// field's JSON path ("strings[0].material.tensile.rupture") and whose problem() says what is
+// wrong and what was found.
+#include "tearables/scene.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <climits>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <map>
+#include <memory>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+namespace tearables::scene {
+
+namespace {
+
+using json = nlohmann::json;
+
+constexpr const char* kFormat = "tearables-scene/1";
+
+/// Name -> path of the object that defined it (for "duplicate name" messages).
+using NameMap = std::map<std::string, std::string>;
+
+// =============================================================================================
+// Paths and message text
+// =============================================================================================
+
+bool isIdentifier(const std::string& s) {
+    if (s.empty() || std::isdigit(static_cast<unsigned char>(s[0]))) return false;
+    return std::all_of(s.begin(), s.end(), [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; });
+}
+
+/// A string as a JSON string literal, for messages and paths.
+std::string jsonQuoted(const std::string& s) {
+    return json(s).dump(-1, ' ', false, json::error_handler_t::replace);
+}
+
+/// The path of member `key` of the object at `base`: `base.key`, or `base["key"]` when the
+/// key is not an identifier (`particle_masses["-1"]`).
+std::string memberPath(const std::string& base, const std::string& key) {
+    if (isIdentifier(key)) return base.empty() ? key : base + "." + key;
+    return base + "[" + jsonQuoted(key) + "]";
+}
+
+/// The path of element `index` of the array at `base`.
+std::string elementPath(const std::string& base, std::size_t index) {
+    return base + "[" + std::to_string(index) + "]";
+}
+
+std::string formatNumber(double v) {
+    std::ostringstream s;
+    s.precision(9);
+    s << v;
+    return s.str();
+}
+
+/// What a JSON value is, for "expected X, got Y" messages: "a string", "an array of 2 elements".
+std::string describe(const json& v) {
+    switch (v.type()) {
+        case json::value_t::null: return "null";
+        case json::value_t::boolean: return "a boolean";
+        case json::value_t::string: return "a string";
+        case json::value_t::object: return "an object";
+        case json::value_t::array:
+            return "an array of " + std::to_string(v.size()) + (v.size() == 1 ? " element" : " elements");
+        case json::value_t::number_integer:
+        case json::value_t::number_unsigned:
+        case json::value_t::number_float: return "a number";
+        default: return "a " + std::string(v.type_name());
+    }
+}
+
+/// "a, b, c" from a list of names.
+template <class Names>
+std::string joinNames(const Names& names) {
+    std::string out;
+    for (const auto& n : names) out += (out.empty() ? "" : ", ") + std::string(n);
+    return out;
+}
+
+/// " (bodies: a, b)" or " (the scene has no bodies)", to follow "no body named ...".
+std::string knownNames(const std::vector<std::string>& names, const std::string& plural) {
+    if (names.empty()) return " (the scene has no " + plural + ")";
+    return " (" + plural + ": " + joinNames(names) + ")";
+}
+
+// =============================================================================================
+// JSON text -> DOM, with the path of whatever the parser itself rejects
+// =============================================================================================
+
+/// A SAX handler that builds the DOM (like json::parse) while tracking the JSON path of the
+/// value being read, so that what only the parser sees still names its place: numbers too
+/// large for a double ("1e999") and duplicate keys. Syntax errors report line, column and byte.
+class PathTrackingBuilder : public nlohmann::json_sax<json> {
+public:
+    json root;                          ///< the document, once parsing succeeded
+    std::optional<InvalidInput> error;  ///< the first problem found
+
+    bool null() override { return add(nullptr); }
+    bool boolean(bool v) override { return add(v); }
+    bool number_integer(number_integer_t v) override { return add(v); }
+    bool number_unsigned(number_unsigned_t v) override { return add(v); }
+    bool number_float(number_float_t v, const string_t& /*text*/) override { return add(v); }
+    bool string(string_t& v) override { return add(std::move(v)); }
+    bool binary(binary_t& v) override { return add(json::binary(v)); }
+    bool start_object(std::size_t /*size*/) override { return open(json::object()); }
+    bool start_array(std::size_t /*size*/) override { return open(json::array()); }
+    bool end_object() override { return close(); }
+    bool end_array() override { return close(); }
+
+    bool key(string_t& k) override {
+        Frame& f = stack_.back();
+        f.key = k;
+        if (f.value->contains(k)) {
+            error.emplace(memberPath(f.path, k), "duplicate field (each field may appear only once)");
+            return false;
+        }
+        return true;
+    }
+
+    bool parse_error(std::size_t position, const std::string& last_token, const json::exception& ex) override {
+        if (ex.id == 406) {  // out_of_range.406: a number that does not fit a double
+            error.emplace(nextPath(), "must be a finite number (got " + last_token + ", too large for a double)");
+            return false;
+        }
+        // "[json.exception.parse_error.101] parse error at line 2, column 5: syntax error ..."
+        std::string message = ex.what();
+        if (const auto bracket = message.find("] "); bracket != std::string::npos) message.erase(0, bracket + 2);
+        const std::string prefix = "parse error at ";
+        const auto colon = message.find(": ");
+        if (message.rfind(prefix, 0) == 0 && colon != std::string::npos) {
+            message = "invalid JSON at " + message.substr(prefix.size(), colon - prefix.size()) + " (byte " +
+                      std::to_string(position) + "): " + message.substr(colon + 2);
+        } else {
+            message = "invalid JSON at byte " + std::to_string(position) + ": " + message;
+        }
+        error.emplace("", message);
+        return false;
+    }
+
+private:
+    struct Frame {
+        json* value;      ///< the open object or array
+        std::string path; ///< its path
+        std::string key;  ///< object: the key of the value being read
+    };
+    std::vector<Frame> stack_;
+
+    /// The path of the value about to be read.
+    std::string nextPath() const {
+        if (stack_.empty()) return "";
+        const Frame& f = stack_.back();
+        return f.value->is_array() ? elementPath(f.path, f.value->size()) : memberPath(f.path, f.key);
+    }
+
+    /// Stores `v` where the next value goes and returns where it went.
+    json* place(json&& v) {
+        if (stack_.empty()) {
+            root = std::move(v);
+            return &root;
+        }
+        Frame& f = stack_.back();
+        if (f.value->is_array()) {
+            f.value->push_back(std::move(v));
+            return &f.value->back();
+        }
+        json& slot = (*f.value)[f.key];
+        slot = std::move(v);
+        return &slot;
+    }
+
+    bool add(json v) {
+        place(std::move(v));
+        return true;
+    }
+    bool open(json v) {
+        std::string path = nextPath();
+        json* where = place(std::move(v));
+        stack_.push_back({where, std::move(path), {}});
+        return true;
+    }
+    bool close() {
+        stack_.pop_back();
+        return true;
+    }
+};
+
+/// Parses JSON text with // and /* */ comments allowed. Throws InvalidInput.
+json parseJson(const std::string& text) {
+    PathTrackingBuilder builder;
+    bool ok = false;
+    try {
+        ok = json::sax_parse(text, &builder, json::input_format_t::json, /*strict=*/true, /*ignore_comments=*/true);
+    } catch (const json::exception& e) {
+        throw InvalidInput("", std::string("invalid JSON: ") + e.what());
+    }
+    if (builder.error) throw *builder.error;
+    if (!ok) throw InvalidInput("", "invalid JSON");
+    return std::move(builder.root);
+}
+
+// =============================================================================================
+// Number ranges
+// =============================================================================================
+
+/// An interval of accepted values for a number field, with the text for its error message.
+struct Range {
+    double lo = -std::numeric_limits<double>::infinity();
+    double hi = std::numeric_limits<double>::infinity();
+    bool lo_open = false;
+    bool hi_open = false;
+
+    static Range any() { return {}; }
+    static Range positive() { return {0.0, std::numeric_limits<double>::infinity(), true, false}; }
+    static Range atLeast(double lo) { return {lo, std::numeric_limits<double>::infinity(), false, false}; }
+    static Range closed(double lo, double hi) { return {lo, hi, false, false}; }
+    static Range leftOpen(double lo, double hi) { return {lo, hi, true, false}; }
+
+    bool contains(double v) const {
+        return std::isfinite(v) && (lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi);
+    }
+    /// "greater than 0", "at least 0", "in (0, 0.1]", ...
+    std::string text() const {
+        const bool has_lo = std::isfinite(lo), has_hi = std::isfinite(hi);
+        if (has_lo && has_hi)
+            return std::string("in ") + (lo_open ? "(" : "[") + formatNumber(lo) + ", " + formatNumber(hi) +
+                   (hi_open ? ")" : "]");
+        if (has_lo) return (lo_open ? "greater than " : "at least ") + formatNumber(lo);
+        if (has_hi) return (hi_open ? "less than " : "at most ") + formatNumber(hi);
+        return "a finite number";
+    }
+};
+
+/// "in [1, 8]" for an integer range; "at least 0" / "at most 9" when the other side is open
+/// (LLONG_MIN, LLONG_MAX) and the value is `below` / above the range.
+std::string integerRangeText(long long lo, long long hi, bool below) {
+    if (lo == LLONG_MIN || hi == LLONG_MAX) return below ? "at least " + std::to_string(lo) : "at most " + std::to_string(hi);
+    return "in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+}
+
+// =============================================================================================
+// Node: a JSON value and its path, with checked accessors
+// =============================================================================================
+
+/// A JSON value of the scene together with its path. Its accessors check the value and throw
+/// InvalidInput naming the path of the offending field. The referenced JSON must outlive it.
+class Node {
+public:
+    Node(const json& value, std::string path) : value_(&value), path_(std::move(path)) {}
+
+    const json& value() const { return *value_; }
+    const std::string& path() const { return path_; }
+
+    /// Throws InvalidInput(path, problem).
+    [[noreturn]] void fail(const std::string& problem) const { throw InvalidInput(path_, problem); }
+
+    // --- this value, checked ------------------------------------------------------------------
+
+    const Node& expectObject() const {
+        if (!value_->is_object()) fail("expected an object, got " + describe(*value_));
+        return *this;
+    }
+
+    /// The elements of this array.
+    std::vector<Node> asArray() const {
+        if (!value_->is_array()) fail("expected an array, got " + describe(*value_));
+        std::vector<Node> out;
+        out.reserve(value_->size());
+        for (std::size_t i = 0; i < value_->size(); ++i) out.emplace_back((*value_)[i], elementPath(path_, i));
+        return out;
+    }
+
+    /// The members of this object, in key order.
+    std::vector<std::pair<std::string, Node>> members() const {
+        expectObject();
+        std::vector<std::pair<std::string, Node>> out;
+        for (const auto& [key, v] : value_->items()) out.emplace_back(key, Node(v, memberPath(path_, key)));
+        return out;
+    }
+
+    double asNumber(const Range& range = Range::any()) const {
+        if (!value_->is_number()) fail("expected a number, got " + describe(*value_));
+        const double v = value_->get<double>();
+        if (!range.contains(v)) fail("must be " + range.text() + " (got " + gotText() + ")");
+        return v;
+    }
+
+    /// A whole number in [lo, hi]; 3.0 is accepted, 2.5 is not.
+    long long asInteger(long long lo = LLONG_MIN, long long hi = LLONG_MAX) const {
+        if (!value_->is_number()) fail("expected an integer, got " + describe(*value_));
+        long long v = 0;
+        bool in_range = true;
+        if (value_->is_number_unsigned()) {
+            const auto u = value_->get<std::uint64_t>();
+            in_range = u <= static_cast<std::uint64_t>(LLONG_MAX);
+            v = in_range ? static_cast<long long>(u) : LLONG_MAX;
+        } else if (value_->is_number_integer()) {
+            v = value_->get<std::int64_t>();
+        } else {
+            const double d = value_->get<double>();
+            if (std::floor(d) != d) fail("must be a whole number (got " + gotText() + ")");
+            in_range = std::fabs(d) <= 9007199254740992.0;  // 2^53: exact as a double
+            v = in_range ? static_cast<long long>(d) : 0;
+        }
+        if (!in_range || v < lo || v > hi) {
+            const bool below = in_range ? v < lo : value_->get<double>() < 0.0;
+            fail("must be " + integerRangeText(lo, hi, below) + " (got " + gotText() + ")");
+        }
+        return v;
+    }
+
+    bool asBool() const {
+        if (!value_->is_boolean()) fail("expected a boolean (true or false), got " + describe(*value_));
+        return value_->get<bool>();
+    }
+
+    std::string asString() const {
+        if (!value_->is_string()) fail("expected a string, got " + describe(*value_));
+        return value_->get<std::string>();
+    }
+
+    /// An array of exactly `count` numbers, each in `range` (errors name the element: box[1]).
+    std::vector<double> asNumbers(std::size_t count, const Range& range = Range::any()) const {
+        if (!value_->is_array() || value_->size() != count)
+            fail("expected an array of " + std::to_string(count) + " numbers, got " + describe(*value_));
+        std::vector<double> out;
+        for (const Node& e : asArray()) out.push_back(e.asNumber(range));
+        return out;
+    }
+
+    Vec3 asVec3() const {
+        const std::vector<double> v = asNumbers(3);
+        return {v[0], v[1], v[2]};
+    }
+
+    // --- fields of this object ----------------------------------------------------------------
+
+    /// The field `key`, or nullopt when absent.
+    std::optional<Node> field(const std::string& key) const {
+        expectObject();
+        const auto it = value_->find(key);
+        if (it == value_->end()) return std::nullopt;
+        return Node(*it, memberPath(path_, key));
+    }
+
+    bool has(const std::string& key) const { return field(key).has_value(); }
+
+    /// The field `key`; throws "missing required field" at its path when absent.
+    Node required(const std::string& key) const {
+        if (auto f = field(key)) return *f;
+        throw InvalidInput(memberPath(path_, key), "missing required field");
+    }
+
+    /// Requires an object whose fields are all among `allowed`; an unknown one is reported at its path.
+    void checkNoUnknownFields(const std::vector<const char*>& allowed) const {
+        for (const auto& member : members()) {
+            const auto is_key = [&](const char* a) { return member.first == a; };
+            if (std::none_of(allowed.begin(), allowed.end(), is_key))
+                member.second.fail("unknown field (allowed: " + joinNames(allowed) + ")");
+        }
+    }
+
+    double number(const std::string& key, double fallback, const Range& range = Range::any()) const {
+        const auto f = field(key);
+        return f ? f->asNumber(range) : fallback;
+    }
+    long long integer(const std::string& key, long long fallback, long long lo, long long hi) const {
+        const auto f = field(key);
+        return f ? f->asInteger(lo, hi) : fallback;
+    }
+    bool boolean(const std::string& key, bool fallback) const {
+        const auto f = field(key);
+        return f ? f->asBool() : fallback;
+    }
+    Vec3 vec3(const std::string& key, const Vec3& fallback) const {
+        const auto f = field(key);
+        return f ? f->asVec3() : fallback;
+    }
+    /// The elements of the array field `key`; none when absent.
+    std::vector<Node> array(const std::string& key) const {
+        const auto f = field(key);
+        return f ? f->asArray() : std::vector<Node>{};
+    }
+
+private:
+    /// The value as the user wrote it (numbers), for "(got ...)".
+    std::string gotText() const { return value_->dump(-1, ' ', false, json::error_handler_t::replace); }
+
+    const json* value_;
+    std::string path_;
+};
+
+// =============================================================================================
+// Shared field readers
+// =============================================================================================
+
+/// The required, non-empty "name" field.
+std::string requiredName(const Node& n) {
+    const Node field = n.required("name");
+    std::string name = field.asString();
+    if (name.empty()) field.fail("must not be empty");
+    return name;
+}
+
+/// Records `name` (of the object at `owner`) as taken; throws at `owner.name` if it already is.
+void claimName(NameMap& names, const std::string& name, const std::string& owner, const std::string& what) {
+    const auto [it, fresh] = names.emplace(name, owner);
+    if (!fresh)
+        throw InvalidInput(memberPath(owner, "name"),
+                           "duplicate " + what + " name " + jsonQuoted(name) + " (also used by " + it->second + ")");
+}
+
+std::vector<std::string> namesOf(const NameMap& names) {
+    std::vector<std::string> out;
+    for (const auto& entry : names) out.push_back(entry.first);
+    return out;
+}
+
+/// Resolves particle index `i` of a string with `count` particles (negative counts from the
+/// end) to [0, count); throws at `where` when it is out of range.
+int resolveParticle(const Node& where, long long i, long long count) {
+    if (i < -count || i >= count)
+        where.fail("particle index out of range (got " + std::to_string(i) + "; the string has " + std::to_string(count) +
+                   " particles: 0.." + std::to_string(count - 1) + ", or -" + std::to_string(count) + "..-1 from the end)");
+    return static_cast<int>(i < 0 ? i + count : i);
+}
+
+/// The particle index held by `n`, resolved to [0, count).
+int particleIndex(const Node& n, long long count) { return resolveParticle(n, n.asInteger(), count); }
+
+// =============================================================================================
+// Bodies
+// =============================================================================================
+
+Shape parseShape(const Node& n) {
+    n.checkNoUnknownFields({"box", "sphere", "capsule", "plane"});
+    if (n.value().size() != 1) {
+        std::vector<std::string> given;
+        for (const auto& member : n.members()) given.push_back(member.first);
+        n.fail("needs exactly one of box, sphere, capsule, plane (got " + (given.empty() ? "none" : joinNames(given)) + ")");
+    }
+    Shape s;
+    if (const auto box = n.field("box")) {
+        s.kind = Shape::Kind::Box;
+        const std::vector<double> h = box->asNumbers(3, Range::positive());
+        s.half_extents = {h[0], h[1], h[2]};
+    } else if (const auto sphere = n.field("sphere")) {
+        s.kind = Shape::Kind::Sphere;
+        s.radius = sphere->asNumber(Range::positive());
+    } else if (const auto capsule = n.field("capsule")) {
+        s.kind = Shape::Kind::Capsule;
+        const std::vector<double> c = capsule->asNumbers(2, Range::positive());
+        s.radius = c[0];
+        s.half_height = c[1];
+    } else {
+        const Node plane = n.required("plane");
+        s.kind = Shape::Kind::Plane;
+        const std::vector<double> p = plane.asNumbers(4);
+        const Vec3 normal(p[0], p[1], p[2]);
+        const double length = normal.norm();
+        if (!(length > 1e-12)) plane.fail("the normal [nx, ny, nz] must not be zero");
+        // n . x = d with n as written: scale both so that the normal is a unit vector.
+        s.plane_normal = normal / length;
+        s.plane_offset = p[3] / length;
+    }
+    return s;
+}
+
+/// A rigid body (in bodies[] or a spawn driver). Its name's uniqueness is checked by the caller.
+Body parseBody(const Node& n) {
+    n.checkNoUnknownFields({"name", "shape", "mass", "kinematic", "position", "orientation", "linear_velocity",
+                            "angular_velocity", "friction", "restitution"});
+    Body b;
+    b.name = requiredName(n);
+    b.shape = parseShape(n.required("shape"));
+    const bool plane = b.shape.kind == Shape::Kind::Plane;
+    b.mass = n.number("mass", plane ? 0.0 : b.mass, Range::atLeast(0.0));
+    if (plane && b.mass != 0.0)
+        n.required("mass").fail("a plane must be static: mass 0 (got " + formatNumber(b.mass) + ")");
+    b.kinematic = n.boolean("kinematic", b.kinematic);
+    if (plane && b.kinematic) n.required("kinematic").fail("a plane cannot be kinematic (it is static)");
+    b.position = n.vec3("position", b.position);
+    if (const auto q = n.field("orientation")) {
+        const std::vector<double> v = q->asNumbers(4);
+        const Quat quat(v[3], v[0], v[1], v[2]);  // written [x, y, z, w]
+        if (!(quat.norm() > 1e-12)) q->fail("must be a non-zero quaternion [x, y, z, w]");
+        b.orientation = quat.normalized();
+    }
+    b.linear_velocity = n.vec3("linear_velocity", b.linear_velocity);
+    b.angular_velocity = n.vec3("angular_velocity", b.angular_velocity);
+    b.friction = n.number("friction", b.friction, Range::atLeast(0.0));
+    b.restitution = n.number("restitution", b.restitution, Range::closed(0.0, 1.0));
+    return b;
+}
+
+// =============================================================================================
+// Strings
+// =============================================================================================
+
+/// The particle rest positions: "points", or "from", "to" and "segments".
+std::vector<Vec3> parseGeometry(const Node& n) {
+    if (const auto points = n.field("points")) {
+        for (const char* key : {"from", "to", "segments"})
+            if (const auto extra = n.field(key))
+                extra->fail("not allowed together with points (give either points, or from, to and segments)");
+        const std::vector<Node> list = points->asArray();
+        if (list.size() < 2) points->fail("a string needs at least 2 points (got " + std::to_string(list.size()) + ")");
+        std::vector<Vec3> out;
+        out.reserve(list.size());
+        for (const Node& p : list) out.push_back(p.asVec3());
+        return out;  // zero-length segments: validate() reports points[i]
+    }
+    if (!n.has("from") && !n.has("to") && !n.has("segments"))
+        n.fail("needs its geometry: points, or from, to and segments");
+    const Vec3 from = n.required("from").asVec3();
+    const Node to_node = n.required("to");
+    const Vec3 to = to_node.asVec3();
+    const long long segments = n.integer("segments", 10, 1, 1'000'000);
+    const double length = (to - from).norm();
+    if (!(length > 1e-9)) to_node.fail("must differ from from (the string would have zero length)");
+    if (!(length / static_cast<double>(segments) > 1e-9))
+        to_node.fail("is too close to from for " + std::to_string(segments) + " segments (each would be shorter than 1e-9 m)");
+    return StringDesc::straight(from, to, static_cast<int>(segments)).points;
+}
+
+/// {"index": mass, ...}: keys are particle indices as strings, negative from the end.
+std::vector<std::pair<int, double>> parseParticleMasses(const Node& n, long long particles) {
+    std::vector<std::pair<int, double>> out;
+    std::map<int, std::string> seen;  // resolved index -> key path
+    for (const auto& [key, value] : n.members()) {
+        const std::size_t digits = key.size() - (key.rfind('-', 0) == 0 ? 1 : 0);
+        const bool integer = digits >= 1 && digits <= 10 &&
+                             std::all_of(key.end() - static_cast<std::ptrdiff_t>(digits), key.end(),
+                                         [](char c) { return std::isdigit(static_cast<unsigned char>(c)); });
+        if (!integer) value.fail("the key must be a particle index such as \"0\" or \"-1\" (got " + jsonQuoted(key) + ")");
+        const long long index = std::stoll(key);
+        const int resolved = resolveParticle(value, index, particles);
+        const auto [it, fresh] = seen.emplace(resolved, value.path());
+        if (!fresh) value.fail("particle " + std::to_string(resolved) + " already has a mass (" + it->second + ")");
+        out.emplace_back(static_cast<int>(index), value.asNumber(Range::positive()));
+    }
+    return out;
+}
+
+void parseMaterial(const Node& n, Material& m) {
+    n.checkNoUnknownFields({"tensile", "torsion", "variation"});
+    if (const auto t = n.field("tensile")) {
+        t->checkNoUnknownFields({"young", "yield", "plastic_modulus", "rupture"});
+        TensileCurve& c = m.tensile;
+        c.young = t->number("young", c.young, Range::positive());
+        c.yield = t->number("yield", c.yield, Range::positive());
+        c.plastic_modulus = t->number("plastic_modulus", c.plastic_modulus, Range::positive());
+        c.rupture = t->number("rupture", c.rupture, Range::positive());  // > yield: validate()
+    }
+    if (const auto t = n.field("torsion")) {
+        t->checkNoUnknownFields({"modulus", "yield", "plastic_modulus", "rupture"});
+        TorsionCurve& c = m.torsion;
+        c.modulus = t->number("modulus", c.modulus, Range::positive());
+        c.yield = t->number("yield", c.yield, Range::positive());
+        c.plastic_modulus = t->number("plastic_modulus", c.plastic_modulus, Range::positive());
+        c.rupture = t->number("rupture", c.rupture, Range::positive());  // > yield: validate()
+    }
+    m.variation = n.number("variation", m.variation, Range::closed(0.0, 0.5));
+}
+
+/// One half-width for all segments, or an array with one per segment.
+std::vector<int> parseTwistHalfWidth(const Node& n, std::size_t segments) {
+    if (n.value().is_number()) return {static_cast<int>(n.asInteger(1, 8))};
+    if (!n.value().is_array())
+        n.fail("expected an integer or an array of integers (one per segment), got " + describe(n.value()));
+    const std::vector<Node> list = n.asArray();
+    if (list.size() != segments)
+        n.fail("needs one value per segment (" + std::to_string(segments) + "), got " + std::to_string(list.size()));
+    std::vector<int> out;
+    for (const Node& e : list) out.push_back(static_cast<int>(e.asInteger(1, 8)));
+    return out;
+}
+
+TensionEstimator parseTension(const Node& n) {
+    const std::string v = n.asString();
+    if (v == "momentum") return TensionEstimator::Momentum;
+    if (v == "local") return TensionEstimator::Local;
+    n.fail("must be \"momentum\" or \"local\" (got " + jsonQuoted(v) + ")");
+}
+
+std::vector<Attachment> parseAttachments(const Node& list, long long particles, const NameMap& bodies) {
+    std::vector<Attachment> out;
+    std::map<int, std::string> taken;  // resolved particle -> attachment path
+    for (const Node& n : list.asArray()) {
+        n.checkNoUnknownFields({"particle", "body", "local", "world"});
+        Attachment a;
+        const Node particle = n.required("particle");
+        a.particle = particleIndex(particle, particles);
+        if (const auto [it, fresh] = taken.emplace(a.particle, n.path()); !fresh)
+            particle.fail("particle " + std::to_string(a.particle) + " already has an attachment (" + it->second + ")");
+        const auto body = n.field("body");
+        const auto world = n.field("world");
+        const auto local = n.field("local");
+        if (body && world) world->fail("give either body or world, not both");
+        if (!body && !world) n.fail("needs body (a body's name) or world (a point)");
+        if (body) {
+            a.body = body->asString();
+            if (bodies.count(*a.body) == 0) body->fail("no body named " + jsonQuoted(*a.body) + knownNames(namesOf(bodies), "bodies"));
+            if (local) a.local = local->asVec3();
+        } else {
+            if (local) local->fail("only allowed with body");
+            a.world = world->asVec3();
+        }
+        out.push_back(std::move(a));
+    }
+    return out;
+}
+
+/// A string; `seed` is its material variation seed, `bodies` the bodies it may attach to.
+String parseString(const Node& n, std::uint64_t seed, const NameMap& bodies) {
+    n.checkNoUnknownFields({"name", "points", "from", "to", "segments", "radius", "density", "particle_masses",
+                            "material", "csm_half_width", "twist_half_width", "tension", "tearable", "damping",
+                            "attachments"});
+    String s;
+    StringDesc& d = s.desc;
+    d.name = requiredName(n);
+    d.points = parseGeometry(n);
+    const auto particles = static_cast<long long>(d.points.size());
+    d.radius = n.number("radius", d.radius, Range::positive());
+    d.density = n.number("density", d.density, Range::positive());
+    if (const auto m = n.field("particle_masses")) d.particle_masses = parseParticleMasses(*m, particles);
+    if (const auto m = n.field("material")) parseMaterial(*m, d.material);
+    d.csm_half_width = static_cast<int>(n.integer("csm_half_width", d.csm_half_width, 1, 8));
+    if (const auto t = n.field("twist_half_width")) d.twist_half_width = parseTwistHalfWidth(*t, d.points.size() - 1);
+    if (const auto t = n.field("tension")) d.tension = parseTension(*t);
+    d.tearable = n.boolean("tearable", d.tearable);
+    d.damping = n.number("damping", d.damping, Range::atLeast(0.0));
+    d.seed = seed;
+    try {
+        validate(d);  // what the fields above cannot check alone: rupture > yield, zero-length segments, ...
+    } catch (const InvalidInput& e) {
+        throw InvalidInput(e.field().empty() ? n.path() : n.path() + "." + e.field(), e.problem());
+    }
+    if (const auto a = n.field("attachments")) s.attachments = parseAttachments(*a, particles, bodies);
+    return s;
+}
+
+// =============================================================================================
+// Drivers
+// =============================================================================================
+
+/// A driver type: its name in the file and the fields it allows.
+struct DriverKind {
+    const char* name;
+    Driver::Type type;
+    std::vector<const char*> fields;
+
+    bool allows(const char* field) const {
+        return std::any_of(fields.begin(), fields.end(), [&](const char* f) { return std::strcmp(f, field) == 0; });
+    }
+};
+
+const std::vector<DriverKind>& driverKinds() {
+    static const std::vector<DriverKind> kinds = {
+        {"force", Driver::Type::Force, {"type", "target", "particle", "value", "from", "until"}},
+        {"ramp", Driver::Type::Ramp, {"type", "target", "particle", "value", "rate", "from"}},
+        {"twist", Driver::Type::Twist, {"type", "target", "end", "rate", "from", "until"}},
+        {"move", Driver::Type::Move, {"type", "target", "particle", "velocity", "from", "until"}},
+        {"release", Driver::Type::Release, {"type", "target", "particle", "at"}},
+        {"wind", Driver::Type::Wind, {"type", "value", "gust", "from", "until"}},
+        {"spawn", Driver::Type::Spawn, {"type", "body", "at"}},
+    };
+    return kinds;
+}
+
+/// A driver; `strings` are the scene's strings (targets), `body_names` all bodies so far
+/// (a spawned body's name must be new; it is added).
+Driver parseDriver(const Node& n, const std::vector<String>& strings, NameMap& body_names) {
+    n.expectObject();
+    const Node type = n.required("type");
+    const std::string type_name = type.asString();
+    const auto& kinds = driverKinds();
+    const auto kind = std::find_if(kinds.begin(), kinds.end(), [&](const DriverKind& k) { return type_name == k.name; });
+    if (kind == kinds.end()) {
+        std::vector<const char*> names;
+        for (const DriverKind& k : kinds) names.push_back(k.name);
+        type.fail("unknown driver type " + jsonQuoted(type_name) + " (allowed: " + joinNames(names) + ")");
+    }
+    n.checkNoUnknownFields(kind->fields);
+
+    Driver d;
+    d.type = kind->type;
+    long long particles = 0;
+    if (kind->allows("target")) {
+        const Node target = n.required("target");
+        d.target = target.asString();
+        const auto s = std::find_if(strings.begin(), strings.end(), [&](const String& x) { return x.desc.name == d.target; });
+        if (s == strings.end()) {
+            std::vector<std::string> names;
+            for (const String& x : strings) names.push_back(x.desc.name);
+            target.fail("no string named " + jsonQuoted(d.target) + knownNames(names, "strings"));
+        }
+        particles = static_cast<long long>(s->desc.points.size());
+    }
+    if (kind->allows("particle")) {
+        const auto p = n.field("particle");
+        d.particle = p ? particleIndex(*p, particles) : static_cast<int>(particles - 1);
+    }
+
+    switch (d.type) {
+        case Driver::Type::Force: d.value = n.required("value").asVec3(); break;
+        case Driver::Type::Ramp: {
+            const Node value = n.required("value");
+            d.value = value.asVec3();
+            if (!(d.value.norm() > 1e-12)) value.fail("must be a non-zero direction");
+            d.value.normalize();
+            d.rate = n.required("rate").asNumber(Range::positive());
+            break;
+        }
+        case Driver::Type::Twist: {
+            if (const auto end = n.field("end")) {
+                const long long e = end->asInteger();
+                if (e != 0 && e != -1) end->fail("must be 0 (the first end) or -1 (the last end) (got " + std::to_string(e) + ")");
+                d.end = static_cast<int>(e);
+            }
+            d.rate = n.required("rate").asNumber();
+            break;
+        }
+        case Driver::Type::Move: d.velocity = n.required("velocity").asVec3(); break;
+        case Driver::Type::Release: break;
+        case Driver::Type::Wind:
+            d.value = n.required("value").asVec3();
+            d.gust = n.number("gust", d.gust, Range::closed(0.0, 10.0));
+            break;
+        case Driver::Type::Spawn: {
+            const Node body = n.required("body");
+            d.body = parseBody(body);
+            claimName(body_names, d.body->name, body.path(), "body");
+            break;
+        }
+    }
+
+    if (kind->allows("from")) d.from = n.number("from", d.from, Range::atLeast(0.0));
+    if (kind->allows("until")) {
+        if (const auto until = n.field("until")) {
+            d.until = until->asNumber();
+            if (!(d.until > d.from))
+                until->fail("must be greater than from (got " + formatNumber(d.until) + " <= " + formatNumber(d.from) + ")");
+        }
+    }
+    if (kind->allows("at")) d.at = n.number("at", d.at, Range::atLeast(0.0));
+    return d;
+}
+
+// =============================================================================================
+// The scene
+// =============================================================================================
+
+/// "papers" and "cloths" are part of the format but not of this build: only absent or [] pass.
+void rejectUnavailable(const Node& top, const char* key, const char* problem) {
+    if (const auto list = top.field(key); list && !list->asArray().empty()) list->fail(problem);
+}
+
+}  // namespace
+
+Scene parseScene(const std::string& json_text) {
+    const json root = parseJson(json_text);
+    if (!root.is_object()) throw InvalidInput("", "a scene must be a JSON object, got " + describe(root));
+    const Node top(root, "");
+
+    // The format first: a newer one may have fields this build does not know.
+    if (const auto format = top.field("format")) {
+        const std::string f = format->asString();
+        if (f != kFormat)
+            format->fail("unsupported format " + jsonQuoted(f) + " (this build reads " + jsonQuoted(kFormat) + ")");
+    }
+    top.checkNoUnknownFields({"format", "description", "camera", "dt", "steps", "gravity", "seed", "bodies",
+                              "strings", "papers", "cloths", "drivers", "output"});
+    if (const auto description = top.field("description")) description->asString();
+    if (const auto camera = top.field("camera")) camera->expectObject();  // reserved for the viewer
+
+    Scene scene;
+    scene.dt = top.number("dt", scene.dt, Range::leftOpen(0.0, 0.1));
+    scene.steps = top.integer("steps", scene.steps, 0, 1'000'000'000);
+    scene.gravity = top.vec3("gravity", scene.gravity);
+    scene.seed = static_cast<std::uint64_t>(top.integer("seed", static_cast<long long>(scene.seed), 0, LLONG_MAX));
+
+    NameMap body_names;
+    for (const Node& n : top.array("bodies")) {
+        scene.bodies.push_back(parseBody(n));
+        claimName(body_names, scene.bodies.back().name, n.path(), "body");
+    }
+
+    NameMap string_names;
+    const std::vector<Node> strings = top.array("strings");
+    for (std::size_t i = 0; i < strings.size(); ++i) {
+        scene.strings.push_back(parseString(strings[i], scene.seed + i, body_names));
+        claimName(string_names, scene.strings.back().desc.name, strings[i].path(), "string");
+    }
+
+    rejectUnavailable(top, "papers", "paper sheets are not available in this build yet");
+    rejectUnavailable(top, "cloths", "cloths are not available in this build yet");
+
+    for (const Node& n : top.array("drivers")) scene.drivers.push_back(parseDriver(n, scene.strings, body_names));
+
+    if (const auto output = top.field("output")) {
+        output->checkNoUnknownFields({"every"});
+        scene.output_every = static_cast<int>(output->integer("every", scene.output_every, 1, 1'000'000'000));
+    }
+    return scene;
+}
+
+Scene loadSceneFile(const std::string& path) {
+    const std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(path.c_str(), "rb"), &std::fclose);
+    if (!file) throw std::runtime_error("cannot read " + path + ": " + std::strerror(errno));
+    std::string text;
+    char buffer[1 << 16];
+    std::size_t n = 0;
+    while ((n = std::fread(buffer, 1, sizeof buffer, file.get())) > 0) text.append(buffer, n);
+    if (std::ferror(file.get())) throw std::runtime_error("cannot read " + path + ": " + std::strerror(errno));
+    Scene scene = parseScene(text);
+    scene.source = path;
+    return scene;
+}
+
+}  // namespace tearables::scene

@@ -1,0 +1,391 @@
+// Runs a loaded scene: builds the Bullet world, its bodies and the strings, applies the
+// drivers every step, and writes trace.jsonl, events.jsonl and summary.json.
+#include "tearables/bullet.hpp"
+#include "tearables/scene.hpp"
+
+#include <btBulletDynamicsCommon.h>
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <sstream>
+
+namespace tearables::scene {
+
+namespace {
+
+using json = nlohmann::json;
+
+/// The Bullet side of a scene, torn down in the right order.
+struct BulletScene {
+    btDefaultCollisionConfiguration config;
+    btCollisionDispatcher dispatcher{&config};
+    btDbvtBroadphase broadphase;
+    btSequentialImpulseConstraintSolver solver;
+    btDiscreteDynamicsWorld world{&dispatcher, &broadphase, &solver, &config};
+    std::vector<std::unique_ptr<btCollisionShape>> shapes;
+    std::vector<std::unique_ptr<btRigidBody>> bodies;
+    std::vector<Body> specs;                    // same order as bodies
+    std::map<std::string, btRigidBody*> by_name;
+
+    ~BulletScene() {
+        for (auto& b : bodies) world.removeRigidBody(b.get());
+    }
+};
+
+std::unique_ptr<btCollisionShape> makeShape(const Shape& s) {
+    switch (s.kind) {
+        case Shape::Kind::Box: return std::make_unique<btBoxShape>(toBullet(s.half_extents));
+        case Shape::Kind::Sphere: return std::make_unique<btSphereShape>(static_cast<btScalar>(s.radius));
+        case Shape::Kind::Capsule:
+            return std::make_unique<btCapsuleShape>(static_cast<btScalar>(s.radius), static_cast<btScalar>(2.0 * s.half_height));
+        case Shape::Kind::Plane:
+            return std::make_unique<btStaticPlaneShape>(toBullet(s.plane_normal), static_cast<btScalar>(s.plane_offset));
+    }
+    throw std::runtime_error("unknown shape");
+}
+
+btRigidBody* addBody(BulletScene& bs, const Body& spec) {
+    auto shape = makeShape(spec.shape);
+    const bool dynamic = spec.mass > 0.0 && !spec.kinematic && spec.shape.kind != Shape::Kind::Plane;
+    btVector3 inertia(0, 0, 0);
+    if (dynamic) shape->calculateLocalInertia(static_cast<btScalar>(spec.mass), inertia);
+    btRigidBody::btRigidBodyConstructionInfo info(dynamic ? static_cast<btScalar>(spec.mass) : 0.0f, nullptr, shape.get(), inertia);
+    info.m_startWorldTransform.setOrigin(toBullet(spec.position));
+    const Quat& q = spec.orientation;
+    info.m_startWorldTransform.setRotation(btQuaternion(static_cast<btScalar>(q.x()), static_cast<btScalar>(q.y()),
+                                                        static_cast<btScalar>(q.z()), static_cast<btScalar>(q.w())));
+    info.m_friction = static_cast<btScalar>(spec.friction);
+    info.m_restitution = static_cast<btScalar>(spec.restitution);
+    auto body = std::make_unique<btRigidBody>(info);
+    if (spec.kinematic) {
+        body->setCollisionFlags(body->getCollisionFlags() | btCollisionObject::CF_KINEMATIC_OBJECT);
+        body->setActivationState(DISABLE_DEACTIVATION);
+    }
+    body->setLinearVelocity(toBullet(spec.linear_velocity));
+    body->setAngularVelocity(toBullet(spec.angular_velocity));
+    bs.world.addRigidBody(body.get());
+    btRigidBody* raw = body.get();
+    bs.shapes.push_back(std::move(shape));
+    bs.bodies.push_back(std::move(body));
+    bs.specs.push_back(spec);
+    bs.by_name[spec.name] = raw;
+    return raw;
+}
+
+/// Kinematic bodies move by their scene velocities (Bullet reads their transform).
+void moveKinematic(BulletScene& bs, double h) {
+    for (std::size_t i = 0; i < bs.bodies.size(); ++i) {
+        const Body& spec = bs.specs[i];
+        if (!spec.kinematic) continue;
+        btRigidBody* b = bs.bodies[i].get();
+        btTransform xf = b->getWorldTransform();
+        btTransform next;
+        btTransformUtil::integrateTransform(xf, toBullet(spec.linear_velocity), toBullet(spec.angular_velocity),
+                                            static_cast<btScalar>(h), next);
+        b->setWorldTransform(next);
+        b->setInterpolationWorldTransform(next);
+        b->setLinearVelocity(toBullet(spec.linear_velocity));
+        b->setAngularVelocity(toBullet(spec.angular_velocity));
+    }
+}
+
+/// FNV-1a over the bytes of the final state.
+class Digest {
+public:
+    void add(const void* data, std::size_t size) {
+        const auto* p = static_cast<const unsigned char*>(data);
+        for (std::size_t i = 0; i < size; ++i) {
+            hash_ ^= p[i];
+            hash_ *= 1099511628211ull;
+        }
+    }
+    void add(double v) { add(&v, sizeof v); }
+    void add(const Vec3& v) {
+        add(v.x());
+        add(v.y());
+        add(v.z());
+    }
+    std::string hex() const {
+        char buf[17];
+        std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(hash_));
+        return buf;
+    }
+
+private:
+    std::uint64_t hash_ = 1469598103934665603ull;
+};
+
+json vec(const Vec3& v) { return json::array({v.x(), v.y(), v.z()}); }
+json vec(const btVector3& v) { return json::array({v.x(), v.y(), v.z()}); }
+
+json frame(long long step, double t, const Scene& scene, const std::vector<StringId>& ids, const World& core,
+           const BulletScene& bs) {
+    json f;
+    f["step"] = step;
+    f["t"] = t;
+    json strings = json::object();
+    for (std::size_t i = 0; i < ids.size(); ++i) {
+        const StringView v = core.view(ids[i]);
+        json s;
+        json x = json::array(), tension = json::array(), twist = json::array(), rest = json::array(), broken = json::array();
+        for (const Vec3& p : *v.positions) x.push_back(vec(p));
+        for (std::size_t j = 0; j < v.segmentCount(); ++j) {
+            if ((*v.broken)[j]) {
+                tension.push_back(nullptr);
+                broken.push_back(j);
+            } else {
+                tension.push_back((*v.tension)[j]);
+            }
+            twist.push_back((*v.twist)[j]);
+            rest.push_back((*v.rest_length)[j]);
+        }
+        s["x"] = std::move(x);
+        s["tension"] = std::move(tension);
+        s["twist"] = std::move(twist);
+        s["rest_length"] = std::move(rest);
+        s["broken"] = std::move(broken);
+        strings[scene.strings[i].desc.name] = std::move(s);
+    }
+    f["strings"] = std::move(strings);
+    json bodies = json::object();
+    for (std::size_t i = 0; i < bs.bodies.size(); ++i) {
+        const btRigidBody* b = bs.bodies[i].get();
+        const btTransform& xf = b->getWorldTransform();
+        const btQuaternion q = xf.getRotation();
+        bodies[bs.specs[i].name] = {{"p", vec(xf.getOrigin())},
+                                    {"q", json::array({q.x(), q.y(), q.z(), q.w()})},
+                                    {"v", vec(b->getLinearVelocity())}};
+    }
+    f["bodies"] = std::move(bodies);
+    return f;
+}
+
+json eventJson(const Event& e) {
+    json j = {{"step", e.step}, {"t", e.time}, {"type", toString(e.type)}, {"object", e.object}};
+    if (e.segment >= 0) j["segment"] = e.segment;
+    if (e.particle >= 0) j["particle"] = e.particle;
+    j["cause"] = toString(e.cause);
+    if (e.type == EventType::Tear || e.type == EventType::Yield) j["stress"] = e.stress;
+    return j;
+}
+
+std::ofstream openOut(const std::filesystem::path& path) {
+    std::ofstream out(path);
+    if (!out) throw std::runtime_error("cannot write " + path.string());
+    return out;
+}
+
+void drawProgress(long long done, long long total) {
+    const int width = 40;
+    const int filled = total > 0 ? static_cast<int>(width * done / total) : width;
+    std::fprintf(stderr, "\r[%s%s] %3lld%% step %lld/%lld", std::string(filled, '#').c_str(),
+                 std::string(width - filled, ' ').c_str(), total > 0 ? 100 * done / total : 100, done, total);
+    if (done == total) std::fprintf(stderr, "\n");
+    std::fflush(stderr);
+}
+
+}  // namespace
+
+RunResult runScene(const Scene& scene, const RunOptions& options) {
+    const long long steps = options.steps.value_or(scene.steps);
+    const int every = options.every.value_or(scene.output_every);
+    if (steps < 0) throw InvalidInput("--steps", "must be >= 0");
+    if (every < 1) throw InvalidInput("--every", "must be >= 1");
+    const double dt = scene.dt;
+
+    for (std::size_t d = 0; d < scene.drivers.size(); ++d) {
+        const Driver& drv = scene.drivers[d];
+        const std::string path = "drivers[" + std::to_string(d) + "]";
+        if (drv.type == Driver::Type::Twist)
+            throw InvalidInput(path + ".type", "twist drivers need the twist model, which this build does not have yet");
+        if (drv.type == Driver::Type::Move)
+            for (const String& s : scene.strings)
+                if (s.desc.name == drv.target)
+                    for (const Attachment& a : s.attachments) {
+                        const int n = static_cast<int>(s.desc.points.size());
+                        if (a.body && (a.particle + n) % n == (drv.particle + n) % n)
+                            throw InvalidInput(path + ".particle", "is glued to body \"" + *a.body + "\" and cannot be moved");
+                    }
+    }
+
+    // --- build ------------------------------------------------------------------------
+    BulletScene bs;
+    bs.world.setGravity(toBullet(scene.gravity));
+    for (const Body& b : scene.bodies) addBody(bs, b);
+    BulletWorld ropes(bs.world);
+    std::vector<StringId> ids;
+    for (std::size_t i = 0; i < scene.strings.size(); ++i) {
+        const String& s = scene.strings[i];
+        const std::string path = "strings[" + std::to_string(i) + "]";
+        try {
+            ids.push_back(ropes.addString(s.desc));
+            for (std::size_t k = 0; k < s.attachments.size(); ++k) {
+                const Attachment& a = s.attachments[k];
+                if (a.world) {
+                    ropes.attach(ids.back(), a.particle, toBullet(*a.world));
+                } else {
+                    ropes.attach(ids.back(), a.particle, *bs.by_name.at(*a.body), toBullet(a.local));
+                }
+            }
+        } catch (const InvalidInput& e) {
+            throw InvalidInput(path + "." + e.field(), e.problem());
+        }
+    }
+    std::map<std::string, StringId> string_ids;
+    for (std::size_t i = 0; i < ids.size(); ++i) string_ids[scene.strings[i].desc.name] = ids[i];
+
+    // --- outputs ----------------------------------------------------------------------
+    std::ofstream trace, events;
+    const bool write = !options.out_dir.empty();
+    std::filesystem::path dir(options.out_dir);
+    if (write) {
+        std::error_code ec;
+        std::filesystem::create_directories(dir, ec);
+        if (ec) throw std::runtime_error("cannot create " + dir.string() + ": " + ec.message());
+        trace = openOut(dir / "trace.jsonl");
+        events = openOut(dir / "events.jsonl");
+        trace << frame(0, 0.0, scene, ids, ropes.core(), bs).dump() << '\n';
+    }
+
+    // --- run --------------------------------------------------------------------------
+    std::vector<std::uint8_t> done(scene.drivers.size(), 0);
+    std::map<std::string, long long> counts;
+    double wall = 0.0;
+    const long long progress_every = std::max<long long>(1, steps / 100);
+    std::uint64_t wind_state = scene.seed * 0x9E3779B97F4A7C15ull + 1;
+    for (long long step = 1; step <= steps; ++step) {
+        const double t0 = static_cast<double>(step - 1) * dt;
+        World& core = ropes.core();
+        for (std::size_t d = 0; d < scene.drivers.size(); ++d) {
+            const Driver& drv = scene.drivers[d];
+            const bool active = t0 >= drv.from && t0 < drv.until;
+            switch (drv.type) {
+                case Driver::Type::Force:
+                    if (active) core.applyForce(string_ids.at(drv.target), drv.particle, drv.value);
+                    break;
+                case Driver::Type::Ramp:
+                    if (active) core.applyForce(string_ids.at(drv.target), drv.particle, drv.value * (drv.rate * (t0 - drv.from)));
+                    break;
+                case Driver::Type::Move:
+                    if (active) {
+                        const StringId id = string_ids.at(drv.target);
+                        Vec3 target;
+                        if (!core.pinTarget(id, drv.particle, &target)) {
+                            if (core.isAttached(id, drv.particle))
+                                throw InvalidInput("drivers[" + std::to_string(d) + "].particle", "is glued to a body and cannot be moved");
+                            target = (*core.view(id).positions)[core.resolveParticle(id, drv.particle)];
+                            core.attachToPoint(id, drv.particle, target);
+                        }
+                        core.movePin(id, drv.particle, target + dt * drv.velocity);
+                    }
+                    break;
+                case Driver::Type::Release:
+                    if (!done[d] && t0 >= drv.at) {
+                        core.detach(string_ids.at(drv.target), drv.particle);
+                        done[d] = 1;
+                    }
+                    break;
+                case Driver::Type::Spawn:
+                    if (!done[d] && t0 >= drv.at) {
+                        addBody(bs, *drv.body);
+                        done[d] = 1;
+                    }
+                    break;
+                case Driver::Type::Wind:
+                    if (active) {
+                        // Quadratic drag of air (1.2 kg/m^3, C_d 1.2) on each segment's
+                        // projected area, from the wind relative to the segment, with a
+                        // seeded random gust factor that changes every 0.1 s.
+                        if ((step - 1) % std::max<long long>(1, static_cast<long long>(0.1 / dt)) == 0)
+                            wind_state = wind_state * 6364136223846793005ull + 1442695040888963407ull;
+                        const double u = static_cast<double>(wind_state >> 11) * (1.0 / 9007199254740992.0);
+                        const Vec3 wind = drv.value * (1.0 + drv.gust * (2.0 * u - 1.0));
+                        for (StringId id : ids) {
+                            const StringView v = core.view(id);
+                            for (std::size_t j = 0; j < v.segmentCount(); ++j) {
+                                if ((*v.broken)[j]) continue;
+                                const Vec3 seg = (*v.positions)[j + 1] - (*v.positions)[j];
+                                const double len = seg.norm();
+                                if (len <= 0.0) continue;
+                                const Vec3 axis = seg / len;
+                                Vec3 rel = wind - 0.5 * ((*v.velocities)[j] + (*v.velocities)[j + 1]);
+                                rel -= axis * axis.dot(rel);
+                                const Vec3 f = 0.5 * 1.2 * 1.2 * (2.0 * v.radius * len) * rel.norm() * rel;
+                                core.applyForce(id, static_cast<int>(j), 0.5 * f);
+                                core.applyForce(id, static_cast<int>(j + 1), 0.5 * f);
+                            }
+                        }
+                    }
+                    break;
+                case Driver::Type::Twist:  // refused before the run
+                    break;
+            }
+        }
+        moveKinematic(bs, dt);
+
+        const auto a = std::chrono::steady_clock::now();
+        bs.world.stepSimulation(static_cast<btScalar>(dt), 1, static_cast<btScalar>(dt));
+        wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count();
+        if (!ropes.lastError().empty()) throw std::runtime_error("step " + std::to_string(step) + ": " + ropes.lastError());
+
+        for (const Event& e : ropes.events()) {
+            ++counts[toString(e.type)];
+            if (write) events << eventJson(e).dump() << '\n';
+        }
+        ropes.clearEvents();
+        if (write && (step % every == 0 || step == steps))
+            trace << frame(step, static_cast<double>(step) * dt, scene, ids, ropes.core(), bs).dump() << '\n';
+        if (options.progress && (step % progress_every == 0 || step == steps)) drawProgress(step, steps);
+    }
+
+    // --- summary ----------------------------------------------------------------------
+    RunResult result;
+    result.steps = steps;
+    result.simulated_seconds = static_cast<double>(steps) * dt;
+    result.wall_seconds = wall;
+    for (const auto& [type, n] : counts) result.event_counts.emplace_back(type, n);
+    Digest digest;
+    for (StringId id : ids) {
+        const StringView v = ropes.core().view(id);
+        for (const Vec3& p : *v.positions) digest.add(p);
+        for (const Vec3& p : *v.velocities) digest.add(p);
+        for (double l : *v.rest_length) digest.add(l);
+        digest.add(v.broken->data(), v.broken->size());
+    }
+    for (const auto& b : bs.bodies) {
+        const btTransform& xf = b->getWorldTransform();
+        digest.add(toCore(xf.getOrigin()));
+        const btQuaternion q = xf.getRotation();
+        digest.add(Vec3(q.x(), q.y(), q.z()));
+        digest.add(static_cast<double>(q.w()));
+        digest.add(toCore(b->getLinearVelocity()));
+        digest.add(toCore(b->getAngularVelocity()));
+    }
+    result.digest = digest.hex();
+
+    if (write) {
+        const StageTimes& st = ropes.totalStageTimes();
+        json stages = {{"predict", st.predict},           {"shape_matching", st.shape_matching},
+                       {"twist", st.twist},               {"collision", st.collision},
+                       {"strain_limit", st.strain_limit}, {"tension", st.tension},
+                       {"material", st.material},         {"velocities", st.velocities},
+                       {"rigid_bodies", std::max(0.0, wall - st.total())}};
+        json ev = json::object();
+        for (const auto& [type, n] : counts) ev[type] = n;
+        json summary = {{"steps", steps},          {"simulated_seconds", result.simulated_seconds},
+                        {"wall_seconds", wall},    {"stage_seconds", stages},
+                        {"events", ev},            {"digest", result.digest}};
+        std::ofstream out = openOut(dir / "summary.json");
+        out << summary.dump(2) << '\n';
+        if (!trace || !events || !out) throw std::runtime_error("writing the outputs in " + dir.string() + " failed");
+    }
+    return result;
+}
+
+}  // namespace tearables::scene

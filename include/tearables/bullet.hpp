@@ -1,0 +1,97 @@
+// tearables: the Bullet plugin. Attach a tearables world to your btDiscreteDynamicsWorld;
+// it then steps inside stepSimulation, at Bullet's fixed internal time step, after Bullet
+// has integrated the rigid bodies (a btActionInterface).
+//
+//   btDiscreteDynamicsWorld world(...);
+//   tearables::BulletWorld ropes(world);
+//   auto rope = ropes.addString(tearables::StringDesc::straight({0, 2, 0}, {0, 1, 0}, 50));
+//   ropes.attach(rope, 0, btVector3(0, 2, 0));          // pinned in the world
+//   ropes.attach(rope, -1, *crate, btVector3(0, 0.2f, 0)); // glued to a body, two-way
+//   world.stepSimulation(1.0f / 60.0f);
+//   double t = ropes.core().view(rope).tension->front();   // newtons
+//
+// Lifetime: destroying the BulletWorld detaches it from Bullet; destroying the Bullet
+// world first is safe too (the plugin notices and never touches it again). A body that
+// strings are glued to may be removed from the Bullet world at any time: at the next
+// step its attachments are dropped with Release events (cause body_removed). Before you
+// *delete* such a body, remove it from the world and step, or call forgetBody().
+#pragma once
+
+#include "tearables/events.hpp"
+#include "tearables/string.hpp"
+#include "tearables/world.hpp"
+
+#include <LinearMath/btVector3.h>
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+class btDiscreteDynamicsWorld;
+class btRigidBody;
+
+namespace tearables {
+
+/// Converts between Bullet and the core (the only place that does).
+inline Vec3 toCore(const btVector3& v) { return Vec3(v.x(), v.y(), v.z()); }
+inline btVector3 toBullet(const Vec3& v) {
+    return btVector3(static_cast<btScalar>(v.x()), static_cast<btScalar>(v.y()), static_cast<btScalar>(v.z()));
+}
+
+/// A tearables world living inside a Bullet dynamics world.
+class BulletWorld {
+public:
+    /// Attaches to `world`; strings use the world's gravity at every step.
+    explicit BulletWorld(btDiscreteDynamicsWorld& world, const WorldSettings& settings = {});
+    /// Detaches from Bullet (if the Bullet world still exists).
+    ~BulletWorld();
+    BulletWorld(const BulletWorld&) = delete;
+    BulletWorld& operator=(const BulletWorld&) = delete;
+
+    /// The core world: views, events, settings, forces.
+    World& core();
+    const World& core() const;
+
+    /// Validates and creates a string (throws InvalidInput naming the field).
+    StringId addString(const StringDesc& desc);
+    /// Removes a string.
+    void removeString(StringId id);
+    /// Pins a particle (negative index counts from the end) to a world point.
+    void attach(StringId id, int particle, const btVector3& world_point);
+    /// Glues a particle to a rigid body at a point in the body's frame (relative to its
+    /// centre of mass). The body must be in this Bullet world. Two-way: the string holds
+    /// the body with the body's mass and inertia, and the body pulls the string.
+    void attach(StringId id, int particle, btRigidBody& body, const btVector3& local_point);
+    /// Frees a particle (a Release event is reported).
+    void detach(StringId id, int particle);
+    /// Drops every attachment to `body` now (call before deleting a body strings hold).
+    void forgetBody(const btRigidBody& body);
+
+    /// Events since the last clearEvents(), over every internal step Bullet took.
+    const std::vector<Event>& events() const;
+    void clearEvents();
+    /// Stage times summed over all steps so far, s.
+    const StageTimes& totalStageTimes() const;
+    /// False once the Bullet world was destroyed (or this plugin was removed from it).
+    bool attachedToBullet() const;
+    /// The last error caught inside a step (the step never throws into Bullet), or "".
+    const std::string& lastError() const;
+
+private:
+    class Action;
+    void substep(double h);
+    RigidId proxyFor(btRigidBody& body);
+
+    btDiscreteDynamicsWorld* world_;
+    std::unique_ptr<World> core_;
+    std::unique_ptr<Action> action_;
+    std::map<const btRigidBody*, RigidId> proxies_;  // ordered: deterministic iteration
+    std::vector<Event> events_;
+    StageTimes total_;
+    std::string last_error_;
+
+    friend class Action;
+};
+
+}  // namespace tearables

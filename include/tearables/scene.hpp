@@ -1,0 +1,118 @@
+// tearables: headless scenes (the format is ../shared/SCENE_FORMAT.md, "tearables-scene/1").
+// Loading checks every field; a bad one throws InvalidInput whose field() is the JSON path
+// ("strings[0].material.tensile.rupture") and whose problem() says what is wrong.
+#pragma once
+
+#include "tearables/string.hpp"
+#include "tearables/types.hpp"
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace tearables::scene {
+
+/// A collision shape of a rigid body.
+struct Shape {
+    enum class Kind { Box, Sphere, Capsule, Plane };
+    Kind kind = Kind::Box;
+    Vec3 half_extents{0.5, 0.5, 0.5};  ///< box, m, each > 0
+    double radius = 0.5;               ///< sphere and capsule, m, > 0
+    double half_height = 0.5;          ///< capsule: half the cylinder's length (axis y), m, > 0
+    Vec3 plane_normal{0.0, 1.0, 0.0};  ///< plane: unit normal (normalised on load; non-zero)
+    double plane_offset = 0.0;         ///< plane: n . x = offset, m
+};
+
+/// A Bullet rigid body.
+struct Body {
+    std::string name;                    ///< unique among bodies, non-empty
+    Shape shape;
+    double mass = 1.0;                   ///< kg, >= 0; 0 = static (planes must be static)
+    bool kinematic = false;              ///< moved only by its velocities
+    Vec3 position = Vec3::Zero();        ///< m
+    Quat orientation = Quat::Identity(); ///< from [x, y, z, w], normalised on load; non-zero
+    Vec3 linear_velocity = Vec3::Zero(); ///< m/s
+    Vec3 angular_velocity = Vec3::Zero();///< rad/s
+    double friction = 0.5;               ///< >= 0
+    double restitution = 0.0;            ///< [0, 1]
+};
+
+/// What holds a string's particle.
+struct Attachment {
+    int particle = 0;                  ///< index; negative counts from the end; checked in range
+    std::optional<std::string> body;   ///< the body's name (must exist), or
+    Vec3 local = Vec3::Zero();         ///< with body: point in the body's frame, m
+    std::optional<Vec3> world;         ///< a world point, m (exactly one of body / world)
+};
+
+/// A string of the scene.
+struct String {
+    StringDesc desc;                      ///< name, points, material, ... (name unique, non-empty)
+    std::vector<Attachment> attachments;  ///< at most one per particle
+};
+
+/// A scripted action.
+struct Driver {
+    enum class Type { Force, Ramp, Twist, Move, Release, Wind, Spawn };
+    Type type = Type::Force;
+    std::string target;       ///< string name (force, ramp, twist, move, release)
+    int particle = -1;        ///< particle index (force, ramp, move, release)
+    int end = -1;             ///< twist: 0 or -1 (which clamped end)
+    Vec3 value = Vec3::Zero();///< force: N; ramp: direction (non-zero, normalised on load); wind: m/s
+    double rate = 0.0;        ///< ramp: N/s (> 0); twist: rad/s
+    Vec3 velocity = Vec3::Zero(); ///< move: m/s
+    double gust = 0.0;        ///< wind: relative gust amplitude, [0, 10]
+    double from = 0.0;        ///< s, >= 0
+    double until = 1e300;     ///< s, > from (default: the whole run)
+    double at = 0.0;          ///< release, spawn: s, >= 0
+    std::optional<Body> body; ///< spawn: the body (its name unique among all bodies)
+};
+
+/// A whole scene.
+struct Scene {
+    double dt = 0.01;                 ///< fixed internal step, s, (0, 0.1]
+    long long steps = 500;            ///< >= 0
+    Vec3 gravity{0.0, -9.81, 0.0};    ///< m/s^2
+    std::uint64_t seed = 1;           ///< seeds every random choice (string i gets seed + i)
+    std::vector<Body> bodies;
+    std::vector<String> strings;
+    std::vector<Driver> drivers;
+    int output_every = 1;             ///< write a trace frame every this many steps, >= 1
+    std::string source;               ///< file name or built-in scene name, for messages
+};
+
+/// Parses and checks a scene given as JSON text (with // comments allowed).
+/// Throws InvalidInput with the JSON path of the first bad field.
+Scene parseScene(const std::string& json_text);
+
+/// Reads a file and parses it. Throws InvalidInput (bad content) or std::runtime_error (unreadable).
+Scene loadSceneFile(const std::string& path);
+
+/// The built-in scenes: (name, one-line description).
+std::vector<std::pair<std::string, std::string>> builtinScenes();
+/// The JSON text of a built-in scene, or nullopt.
+std::optional<std::string> builtinSceneText(const std::string& name);
+
+/// How to run a scene.
+struct RunOptions {
+    std::string out_dir;               ///< where trace.jsonl, events.jsonl, summary.json go; "" = write nothing
+    std::optional<long long> steps;    ///< overrides Scene::steps
+    std::optional<int> every;          ///< overrides Scene::output_every
+    bool progress = false;             ///< draw a progress bar on stderr
+};
+
+/// What a run did.
+struct RunResult {
+    long long steps = 0;
+    double simulated_seconds = 0.0;
+    double wall_seconds = 0.0;                      ///< time spent stepping (not loading or writing)
+    std::vector<std::pair<std::string, long long>> event_counts;  ///< by type, sorted by name
+    std::string digest;                             ///< of the final state: equal for equal runs
+};
+
+/// Builds the Bullet world and the strings of `scene`, runs it and writes the outputs.
+/// Throws InvalidInput (a field that cannot be honoured, e.g. a driver on a particle
+/// that cannot be moved) before simulating, std::runtime_error for anything else.
+RunResult runScene(const Scene& scene, const RunOptions& options);
+
+}  // namespace tearables::scene

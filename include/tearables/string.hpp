@@ -1,0 +1,48 @@
+// tearables: the string (rope, thread) descriptor.
+#pragma once
+
+#include "tearables/material.hpp"
+#include "tearables/types.hpp"
+
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace tearables {
+
+/// How per-segment tension is estimated after strain limiting.
+enum class TensionEstimator {
+    /// Yarn, Sec. 3.2: the tensions that explain the constrained motion by momentum
+    /// balance, solved directly (O(n), tridiagonal normal equations) for a chain. Default.
+    Momentum,
+    /// Strings, Eq. 12: T = k (|x'_{i+1}-x'_i| - |x_{i+1}-x_i|), a local estimate.
+    Local,
+};
+
+/// Everything needed to create a string. A string is a chain of `points.size()`
+/// particles joined by `points.size() - 1` segments whose rest lengths are the
+/// distances between consecutive points.
+struct StringDesc {
+    std::string name;              ///< for events and traces; may be empty
+    std::vector<Vec3> points;      ///< particle rest positions, m; at least 2, finite, no zero-length segment
+    double radius = 0.002;         ///< cross-section radius, m, > 0
+    double density = 1150.0;       ///< kg/m^3, > 0; segment mass = density * pi r^2 * length, split over its ends
+    /// Replaced particle masses, kg, > 0: (particle index, mass); a negative index counts from the end (-1 = last).
+    std::vector<std::pair<int, double>> particle_masses;
+    Material material;             ///< stress-strain curves
+    int csm_half_width = 2;        ///< chain shape matching region half-width w, 1..8 (bending stiffness)
+    /// Twist region half-width, 1..8: one value for all segments, or one per segment.
+    std::vector<int> twist_half_width = {2};
+    TensionEstimator tension = TensionEstimator::Momentum;  ///< tension estimator
+    bool tearable = true;          ///< segments break where their stress passes rupture
+    double damping = 0.0;          ///< linear velocity damping, 1/s, >= 0 (air drag stand-in)
+    std::uint64_t seed = 1;        ///< seeds the per-segment material variation
+
+    /// A straight string from `from` to `to` with `segments` equal segments.
+    static StringDesc straight(const Vec3& from, const Vec3& to, int segments);
+};
+
+/// Throws InvalidInput naming the field when `desc` is not valid.
+void validate(const StringDesc& desc);
+
+}  // namespace tearables

@@ -1,0 +1,144 @@
+// tearables: the core world. Knows nothing of Bullet: rigid bodies appear as RigidState
+// proxies that a host (the Bullet plugin) fills before a step and reads back after it.
+#pragma once
+
+#include "tearables/events.hpp"
+#include "tearables/string.hpp"
+#include "tearables/types.hpp"
+
+#include <memory>
+#include <vector>
+
+namespace tearables {
+
+/// World-wide solver settings.
+struct WorldSettings {
+    Vec3 gravity{0.0, -9.81, 0.0};  ///< m/s^2, finite
+    int strain_iterations = 4;       ///< Newton iterations of the direct chain projection, 1..64
+    int coupling_iterations = 8;     ///< Gauss-Seidel sweeps over strings sharing a dynamic body, 1..64
+    double strain_tolerance = 1e-6;  ///< relative stretch past L_max accepted, (0, 0.01]
+    double max_speed = 500.0;        ///< particle speed clamp, m/s, > 0 (guards against blow-ups)
+};
+
+/// A rigid body as the core sees it: the host writes it before World::step and reads it
+/// back after (position, orientation and velocities change where ropes pull it).
+struct RigidState {
+    Vec3 position = Vec3::Zero();        ///< centre of mass, m
+    Quat orientation = Quat::Identity(); ///< body to world
+    Vec3 linear_velocity = Vec3::Zero();   ///< m/s
+    Vec3 angular_velocity = Vec3::Zero();  ///< rad/s, world frame
+    double inverse_mass = 0.0;             ///< 1/kg; 0 = static or kinematic (moved by the host only)
+    Mat3 inverse_inertia_local = Mat3::Zero();  ///< 1/(kg m^2), principal frame of the body
+    bool awake = true;                     ///< a sleeping body is treated as immovable this step
+    bool present = true;                   ///< false once the host has removed the body
+    // Written by the core during a step:
+    Vec3 impulse = Vec3::Zero();           ///< total linear impulse the strings applied this step, N s
+
+    /// World-frame inverse inertia.
+    Mat3 inverseInertiaWorld() const {
+        const Mat3 r = orientation.toRotationMatrix();
+        return r * inverse_inertia_local * r.transpose();
+    }
+};
+
+/// Read-only view of a string's state, valid until the next step or change.
+struct StringView {
+    const std::vector<Vec3>* positions = nullptr;     ///< per particle, m
+    const std::vector<Vec3>* velocities = nullptr;    ///< per particle, m/s
+    const std::vector<double>* masses = nullptr;      ///< per particle, kg
+    const std::vector<double>* tension = nullptr;     ///< per segment, N (0 where broken)
+    const std::vector<double>* twist = nullptr;       ///< per segment, rad
+    const std::vector<double>* rest_length = nullptr; ///< per segment, m
+    const std::vector<double>* max_length = nullptr;  ///< per segment strain limit L_max, m
+    const std::vector<std::uint8_t>* broken = nullptr;///< per segment, 1 = torn
+    double radius = 0.0;                              ///< m
+    bool frozen = false;                              ///< stopped after a non-finite state
+    std::size_t particleCount() const { return positions->size(); }
+    std::size_t segmentCount() const { return rest_length->size(); }
+};
+
+/// Per-stage wall time of the last step and accumulated over all steps, seconds.
+struct StageTimes {
+    double predict = 0, shape_matching = 0, twist = 0, collision = 0, strain_limit = 0,
+           tension = 0, material = 0, velocities = 0;
+    double total() const {
+        return predict + shape_matching + twist + collision + strain_limit + tension + material +
+               velocities;
+    }
+    StageTimes& operator+=(const StageTimes& o);
+};
+
+/// The core simulation of strings. Single-threaded; deterministic for equal inputs.
+class World {
+public:
+    explicit World(const WorldSettings& settings = {});
+    ~World();
+    World(const World&) = delete;
+    World& operator=(const World&) = delete;
+
+    /// Validates and creates a string. Throws InvalidInput naming the field; nothing is created then.
+    StringId addString(const StringDesc& desc);
+    /// Removes a string; its id becomes invalid.
+    void removeString(StringId id);
+    /// Strings that exist, in creation order.
+    std::vector<StringId> strings() const;
+    /// True when `id` names a string of this world.
+    bool contains(StringId id) const;
+
+    /// Pins a particle to a world point (m). A negative particle index counts from the end.
+    void attachToPoint(StringId id, int particle, const Vec3& point);
+    /// Glues a particle to a rigid body at a point given in the body's frame (m).
+    void attachToRigid(StringId id, int particle, RigidId body, const Vec3& local_point);
+    /// Moves a particle's world pin (kinematic driving); throws if it is not pinned to a point.
+    void movePin(StringId id, int particle, const Vec3& point);
+    /// Removes whatever holds the particle (a Release event is emitted); no-op when free.
+    void detach(StringId id, int particle);
+    /// True when the particle is pinned or glued.
+    bool isAttached(StringId id, int particle) const;
+    /// The world pin of a particle, if it has one.
+    bool pinTarget(StringId id, int particle, Vec3* point) const;
+
+    /// Adds a force (N) on a particle for the next step only (cleared after it).
+    void applyForce(StringId id, int particle, const Vec3& force);
+
+    /// Registers a rigid body proxy; the host keeps it up to date.
+    RigidId addRigid(const RigidState& state);
+    /// The proxy for the host to write before and read after a step.
+    RigidState& rigid(RigidId id);
+    const RigidState& rigid(RigidId id) const;
+    /// Drops the proxy and every attachment to it (Release events with cause BodyRemoved).
+    void removeRigid(RigidId id);
+    /// True when some string is glued to this body.
+    bool rigidInUse(RigidId id) const;
+
+    /// Advances all strings by `h` seconds (> 0, finite). Never throws; an object that
+    /// goes non-finite is frozen with a Freeze event.
+    void step(double h);
+
+    /// Read-only state of a string.
+    StringView view(StringId id) const;
+    /// The descriptor a string was created from.
+    const StringDesc& desc(StringId id) const;
+    /// Events of the last step, in order.
+    const std::vector<Event>& events() const;
+    /// Stage times of the last step.
+    const StageTimes& lastStageTimes() const;
+    /// Simulated time, s, and steps taken.
+    double time() const;
+    std::int64_t stepCount() const;
+
+    WorldSettings& settings();
+    const WorldSettings& settings() const;
+
+    /// Resolves a particle index (negative counts from the end); throws InvalidInput("particle").
+    int resolveParticle(StringId id, int particle) const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+/// Throws InvalidInput naming the field when `settings` is not valid.
+void validate(const WorldSettings& settings);
+
+}  // namespace tearables

@@ -1,0 +1,79 @@
+// Stage 7: material response to the estimated tension (Strings, Sec. 5.3-5.4; Yarn, Sec. 3.3-3.4).
+//
+// Stress sigma = T / (pi r^2) (Strings Eq. 8). The tensile curve is bilinear: strain
+// sigma/E up to the yield stress, then yield/E + (sigma - yield)/E_p (Strings Sec. 5.1:
+// "a line with a constant slope that fits the curve best"). Choices where the papers
+// are vague, documented here:
+//  - L_max = L_rest (1 + sigma/E): the strain limit follows the elastic strain of the
+//    current stress (Strings Sec. 5.4, Yarn Sec. 3.3), so an unloaded rope is
+//    inextensible and a loaded one lengthens as its modulus says.
+//  - Past yield the material hardens: the peak stress reached sets a permanent strain
+//    eps_perm = eps_curve(peak) - peak/E (unloading runs parallel to the elastic line),
+//    and the rest length becomes L0 (1 + eps_perm) (Yarn Sec. 3.4: rest length grows).
+//  - The radius keeps the segment's volume: r = r0 sqrt(L0 / L_max).
+//  - A segment whose stress reaches its rupture stress breaks (if the string is
+//    tearable): it is removed, its two particles stay, and a Tear event is emitted.
+#include "string/string_state.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace tearables::detail {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+double strainOnCurve(const SegmentMaterial& mat, double stress) {
+    if (stress <= mat.yield) return stress / mat.young;
+    return mat.yield / mat.young + (stress - mat.yield) / mat.plastic_modulus;
+}
+
+Event makeEvent(const StringState& s, StringId id, EventType type, EventCause cause, int segment, double stress,
+                const StepContext& ctx) {
+    Event e;
+    e.type = type;
+    e.cause = cause;
+    e.string = id;
+    e.object = s.desc.name;
+    e.segment = segment;
+    e.stress = stress;
+    e.time = ctx.time;
+    e.step = ctx.step;
+    return e;
+}
+
+}  // namespace
+
+void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::vector<Event>& events) {
+    const std::size_t m = s.segments();
+    const double r0 = s.desc.radius;
+    for (std::size_t j = 0; j < m; ++j) {
+        if (s.broken[j]) continue;
+        const SegmentMaterial& mat = s.material[j];
+        const double area = kPi * s.radius[j] * s.radius[j];
+        const double stress = std::max(0.0, s.tension[j]) / area;
+
+        if (s.desc.tearable && stress >= mat.rupture) {
+            s.broken[j] = 1;
+            s.tension[j] = 0.0;
+            events.push_back(makeEvent(s, id, EventType::Tear, EventCause::Tension, static_cast<int>(j), stress, ctx));
+            continue;
+        }
+        if (stress > mat.yield) {
+            if (!s.yielded[j]) {
+                s.yielded[j] = 1;
+                events.push_back(makeEvent(s, id, EventType::Yield, EventCause::Tension, static_cast<int>(j), stress, ctx));
+            }
+            if (stress > s.peak_stress[j]) {
+                s.peak_stress[j] = stress;
+                const double permanent = strainOnCurve(mat, stress) - stress / mat.young;
+                s.rest_length[j] = s.original_length[j] * (1.0 + permanent);
+            }
+        }
+        s.max_length[j] = s.rest_length[j] * (1.0 + stress / mat.young);
+        s.radius[j] = r0 * std::sqrt(s.original_length[j] / s.max_length[j]);
+    }
+}
+
+}  // namespace tearables::detail

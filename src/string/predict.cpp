@@ -1,0 +1,47 @@
+// Stages 2 and 8 of a step: unconstrained prediction x' and velocities from positions.
+#include "string/string_state.hpp"
+
+#include <cmath>
+
+namespace tearables::detail {
+
+// Symplectic Euler prediction (Strings, Sec. 3: particles move independently under
+// external forces before shape matching and strain limiting). Held particles follow
+// their hold: a pin's target, or the glue point on the body the host has already
+// integrated this step (Bullet integrates rigid bodies before actions run).
+void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
+    const double h = ctx.h;
+    const double damp = 1.0 / (1.0 + s.desc.damping * h);
+    const double max_speed = ctx.settings->max_speed;
+    const std::size_t n = s.particles();
+    for (std::size_t p = 0; p < n; ++p) {
+        s.x_prev[p] = s.x[p];
+        const ParticleHold& hold = s.hold[p];
+        switch (hold.kind) {
+            case ParticleHold::Kind::Pin:
+                s.x[p] = hold.point;
+                break;
+            case ParticleHold::Kind::Glue:
+                s.x[p] = gluePoint(rigids.bodies[hold.body.index], hold.point);
+                break;
+            case ParticleHold::Kind::Free: {
+                Vec3 v = s.v[p] + h * (ctx.gravity + s.inv_mass[p] * s.force[p]);
+                v *= damp;
+                const double speed2 = v.squaredNorm();
+                if (speed2 > max_speed * max_speed) v *= max_speed / std::sqrt(speed2);
+                s.v[p] = v;
+                s.x[p] += h * v;
+                break;
+            }
+        }
+    }
+}
+
+// Position-based velocity update: v = (x - x_prev) / h, for every particle (held ones
+// included, so a moved pin or a swinging body gives its particle the right velocity).
+void updateVelocities(StringState& s, const StepContext& ctx) {
+    const std::size_t n = s.particles();
+    for (std::size_t p = 0; p < n; ++p) s.v[p] = (s.x[p] - s.x_prev[p]) * ctx.inv_h;
+}
+
+}  // namespace tearables::detail

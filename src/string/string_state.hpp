@@ -1,0 +1,104 @@
+// The per-instance state of a string, structure of arrays, indices not pointers.
+#pragma once
+
+#include "tearables/string.hpp"
+#include "tearables/world.hpp"
+
+#include <cstdint>
+#include <random>
+#include <vector>
+
+namespace tearables::detail {
+
+/// What holds a particle.
+struct ParticleHold {
+    enum class Kind : std::uint8_t { Free, Pin, Glue };
+    Kind kind = Kind::Free;
+    Vec3 point = Vec3::Zero();  ///< Pin: world target, m; Glue: point in the body frame, m
+    RigidId body;               ///< Glue: the body
+};
+
+/// Per-step context rebuilt each step (Box2D's b2StepContext).
+struct StepContext {
+    double h = 0.0;       ///< step, s
+    double inv_h = 0.0;   ///< 1/h
+    Vec3 gravity = Vec3::Zero();
+    const WorldSettings* settings = nullptr;
+    double time = 0.0;           ///< simulated time at the end of this step
+    std::int64_t step = 0;       ///< number of this step
+};
+
+/// Per-segment material constants after random variation (Strings, Sec. 7).
+struct SegmentMaterial {
+    double young, yield, plastic_modulus, rupture;                  ///< tensile, Pa
+    double shear_modulus, torsion_yield, torsion_plastic, torsion_rupture;  ///< torsion
+};
+
+struct StringState {
+    StringDesc desc;
+    bool alive = true;
+    bool frozen = false;
+
+    // --- particles (n + 1) --------------------------------------------------------------
+    std::vector<Vec3> x;          ///< position, m
+    std::vector<Vec3> v;          ///< velocity, m/s
+    std::vector<Vec3> x_prev;     ///< position at the start of the step
+    std::vector<Vec3> x_pred;     ///< position before strain limiting (for the tension solve)
+    std::vector<Vec3> force;      ///< user force for this step, N
+    std::vector<double> mass;     ///< kg
+    std::vector<double> inv_mass; ///< 1/kg of the free particle (holds are separate)
+    std::vector<ParticleHold> hold;
+    std::vector<Vec3> glue_impulse;  ///< Glue: impulse x h the segments gave the body this step, kg m
+    std::vector<std::uint8_t> glue_movable;  ///< Glue: the body could move this step (dynamic and awake)
+
+    // --- segments (n) ---------------------------------------------------------------------
+    std::vector<double> rest_length;  ///< L0, m (grows with plasticity)
+    std::vector<double> max_length;   ///< strain limit L_max, m
+    std::vector<double> tension;      ///< N
+    std::vector<double> twist;        ///< rad
+    std::vector<double> radius;       ///< m (volume preserving under stretch)
+    std::vector<std::uint8_t> broken; ///< 1 = torn
+    std::vector<std::uint8_t> yielded;///< 1 = passed the tensile yield point once
+    std::vector<double> original_length;  ///< L0 at creation, m
+    std::vector<double> peak_stress;      ///< highest tensile stress past yield so far, Pa (hardening)
+    std::vector<SegmentMaterial> material;
+
+    // --- solver scratch (reused, no allocation in the step) ------------------------------
+    std::vector<Vec3> dir;            ///< unit segment directions
+    std::vector<double> diag, off, rhs, scratch, violation;
+    std::vector<double> impulse;      ///< accumulated strain-limit impulse per segment this step, kg m
+    std::vector<std::uint8_t> active;
+
+    std::mt19937_64 rng;
+
+    std::size_t particles() const { return x.size(); }
+    std::size_t segments() const { return rest_length.size(); }
+};
+
+/// Table of rigid proxies; slots are reused, `present` false = empty.
+struct RigidTable {
+    std::vector<RigidState> bodies;
+    std::vector<std::uint8_t> used;
+    // per-step bookkeeping
+    std::vector<Vec3> start_position;
+    std::vector<Quat> start_orientation;
+    bool movable(RigidId id) const {
+        const RigidState& b = bodies[id.index];
+        return b.present && b.awake && b.inverse_mass > 0.0;
+    }
+};
+
+// Stage kernels, one file each.
+void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx);
+void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& ctx);
+void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx);
+void estimateTension(StringState& s, const StepContext& ctx);
+void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::vector<Event>& events);
+void updateVelocities(StringState& s, const StepContext& ctx);
+
+/// World position of a glued particle.
+inline Vec3 gluePoint(const RigidState& body, const Vec3& local) {
+    return body.position + body.orientation * local;
+}
+
+}  // namespace tearables::detail

@@ -1,0 +1,109 @@
+// Stage 6: per-segment tension.
+//
+// Momentum (default; Yarn, Sec. 3.2). With forward Euler, a particle i of mass m_i whose
+// constrained motion is x''_i must satisfy
+//     m_i (x''_i - x'_i) / h^2 = sum_j T_j a_ij,     a_ij = +e_j if i starts segment j, -e_j if it ends it,
+// where x'_i is its position before strain limiting. Stacking the free particles gives
+// A T = b with 3 equations per particle and one unknown per segment. We solve it in the
+// least-squares sense, (A^T A + lambda) T = A^T b (every equation in newtons, as Yarn
+// writes it; the weighting does not matter where the system is consistent), which for a
+// chain is tridiagonal (segments j and j+1 share one particle) and is solved
+// directly in O(n). Clamped particles carry an unknown support force and give no equation;
+// a particle glued to a rigid body gives the equation "the segments pull the body with
+// the impulse the limiter applied to it" (accumulated in glue_impulse), so the chain stays
+// determined when it ends on a body. Tikhonov lambda = 1e-6 (Yarn's value, relative to
+// the largest diagonal entry) keeps a straight segment between two clamps determined;
+// we divide it by the number of segments because on a chain its pull adds up along the
+// length (a uniform tension t is biased by t * n * lambda), so the bias stays 1e-6.
+//
+// Local (Strings, Eq. 12): T_j = k (|x'_{j+1} - x'_j| - |x_{j+1} - x_j|) with k chosen
+// as the reduced mass of the segment's ends over h^2, so that a single free segment gives
+// the same value as the momentum solve. It only sees the stretch this step produced: a
+// rope hanging at rest, whose particles all fall by the same g h^2 before limiting, reads
+// the tension of its clamped segment only and almost zero below it. Momentum balance
+// sees the weight below every segment; that is why it is the default.
+#include "core/tridiagonal.hpp"
+#include "string/string_state.hpp"
+
+#include <algorithm>
+
+namespace tearables::detail {
+
+namespace {
+
+constexpr double kRegularisation = 1e-6;
+
+/// Weight of particle p's equation (1), or 0 when it gives none: clamped, or glued to an
+/// immovable body; both carry an unknown support force.
+double rowWeight(const StringState& s, std::size_t p) {
+    const ParticleHold& hold = s.hold[p];
+    if (hold.kind == ParticleHold::Kind::Pin) return 0.0;
+    if (hold.kind == ParticleHold::Kind::Glue) return s.glue_movable[p] ? 1.0 : 0.0;
+    return 1.0;
+}
+
+/// b_p: the impulse (x h, kg m) the segments gave particle p.
+Vec3 rowImpulse(const StringState& s, std::size_t p) {
+    if (s.hold[p].kind == ParticleHold::Kind::Glue) return s.glue_impulse[p];
+    return s.mass[p] * (s.x[p] - s.x_pred[p]);
+}
+
+void momentumTension(StringState& s, const StepContext& ctx) {
+    const std::size_t m = s.segments();
+    for (std::size_t j = 0; j < m; ++j) {
+        const Vec3 d = s.x[j + 1] - s.x[j];
+        const double len = d.norm();
+        if (len > 1e-15) s.dir[j] = d / len;
+    }
+    double max_diag = 0.0;
+    for (std::size_t j = 0; j < m; ++j) {
+        if (s.broken[j]) {
+            s.diag[j] = 1.0;
+            s.off[j] = 0.0;
+            s.rhs[j] = 0.0;
+            continue;
+        }
+        const Vec3& e = s.dir[j];
+        const double wa = rowWeight(s, j);
+        const double wb = rowWeight(s, j + 1);
+        s.diag[j] = wa + wb;
+        s.rhs[j] = (wa > 0.0 ? wa * e.dot(rowImpulse(s, j)) : 0.0) - (wb > 0.0 ? wb * e.dot(rowImpulse(s, j + 1)) : 0.0);
+        s.off[j] = 0.0;
+        if (j + 1 < m && !s.broken[j + 1]) s.off[j] = -wb * e.dot(s.dir[j + 1]);
+        max_diag = std::max(max_diag, s.diag[j]);
+    }
+    const double reg = kRegularisation * (max_diag > 0.0 ? max_diag : 1.0) / static_cast<double>(m);
+    for (std::size_t j = 0; j < m; ++j)
+        if (!s.broken[j]) s.diag[j] += reg;
+    solveSymmetricTridiagonal(s.diag, s.off, s.rhs, s.scratch);
+    const double inv_h2 = ctx.inv_h * ctx.inv_h;
+    for (std::size_t j = 0; j < m; ++j) s.tension[j] = s.broken[j] ? 0.0 : s.rhs[j] * inv_h2;
+}
+
+void localTension(StringState& s, const StepContext& ctx) {
+    const std::size_t m = s.segments();
+    const double inv_h2 = ctx.inv_h * ctx.inv_h;
+    for (std::size_t j = 0; j < m; ++j) {
+        if (s.broken[j]) {
+            s.tension[j] = 0.0;
+            continue;
+        }
+        const double wa = s.hold[j].kind == ParticleHold::Kind::Free ? s.inv_mass[j] : 0.0;
+        const double wb = s.hold[j + 1].kind == ParticleHold::Kind::Free ? s.inv_mass[j + 1] : 0.0;
+        const double w = wa + wb;
+        const double k = w > 0.0 ? inv_h2 / w : 0.0;
+        const double stretch = (s.x_pred[j + 1] - s.x_pred[j]).norm() - (s.x[j + 1] - s.x[j]).norm();
+        s.tension[j] = k * stretch;
+    }
+}
+
+}  // namespace
+
+void estimateTension(StringState& s, const StepContext& ctx) {
+    if (s.desc.tension == TensionEstimator::Local)
+        localTension(s, ctx);
+    else
+        momentumTension(s, ctx);
+}
+
+}  // namespace tearables::detail

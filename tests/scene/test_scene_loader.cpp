@@ -1,0 +1,556 @@
+// Tests of the headless scene loader: values, defaults, and the JSON path of every error.
+#include "tearables/scene.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <vector>
+
+namespace tearables::scene {
+namespace {
+
+// ---------------------------------------------------------------------------------------------
+// Helpers
+// ---------------------------------------------------------------------------------------------
+
+/// A scene with one static beam and one string "rope" of 10 segments (11 particles) whose
+/// remaining fields are `fields` (with a leading comma when not empty).
+std::string ropeScene(const std::string& fields) {
+    return R"({"bodies": [{"name": "beam", "shape": {"box": [1, 0.1, 0.1]}, "mass": 0}],
+               "strings": [{"name": "rope", "from": [0, 2, 0], "to": [0, 1, 0])" +
+           fields + "}]}";
+}
+
+/// ropeScene with a single driver.
+std::string driverScene(const std::string& driver) {
+    return R"({"strings": [{"name": "rope", "from": [0, 2, 0], "to": [0, 1, 0]}], "drivers": [)" + driver + "]}";
+}
+
+/// A scene with the given bodies array content.
+std::string bodiesScene(const std::string& bodies) { return R"({"bodies": [)" + bodies + "]}"; }
+
+// ---------------------------------------------------------------------------------------------
+// Valid scenes
+// ---------------------------------------------------------------------------------------------
+
+TEST(SceneLoader, FullSceneParsesEveryField) {
+    const Scene s = parseScene(R"({
+      "format": "tearables-scene/1",
+      "description": "everything",
+      "camera": {"eye": [0, 1, 3]},
+      "dt": 0.005, "steps": 1200, "gravity": [0, -3.5, 0.5], "seed": 42,
+      "bodies": [
+        {"name": "beam", "shape": {"box": [1, 0.1, 0.2]}, "mass": 0, "kinematic": true,
+         "position": [0, 3, 0], "orientation": [0, 0, 0, 2],
+         "linear_velocity": [1, 0, 0], "angular_velocity": [0, 1, 0],
+         "friction": 0.8, "restitution": 0.25},
+        {"name": "ball", "shape": {"sphere": 0.3}, "mass": 2},
+        {"name": "pill", "shape": {"capsule": [0.1, 0.4]}},
+        {"name": "ground", "shape": {"plane": [0, 2, 0, 1]}}
+      ],
+      "strings": [
+        {"name": "rope", "from": [0, 3, 0], "to": [0, 1, 0], "segments": 4,
+         "radius": 0.004, "density": 1000, "particle_masses": {"-1": 0.5, "1": 0.01},
+         "material": {"tensile": {"young": 1e9, "yield": 2e7, "plastic_modulus": 1e8, "rupture": 5e7},
+                      "torsion": {"modulus": 2e9, "yield": 0.02, "plastic_modulus": 2e8, "rupture": 0.2},
+                      "variation": 0.01},
+         "csm_half_width": 3, "twist_half_width": [1, 2, 3, 4], "tension": "local",
+         "tearable": false, "damping": 0.5,
+         "attachments": [{"particle": 0, "body": "beam", "local": [0, -0.1, 0]},
+                         {"particle": -1, "world": [0, 1, 0]}]},
+        {"name": "thread", "points": [[0, 0, 0], [1, 0, 0], [1, 1, 0]], "twist_half_width": 5}
+      ],
+      "papers": [], "cloths": [],
+      "drivers": [
+        {"type": "force", "target": "rope", "particle": -1, "value": [0, -20, 0], "from": 0, "until": 2},
+        {"type": "ramp", "target": "rope", "particle": 2, "value": [0, -3, 4], "rate": 5, "from": 1},
+        {"type": "twist", "target": "thread", "end": 0, "rate": 6.28, "from": 0.5, "until": 3},
+        {"type": "move", "target": "rope", "velocity": [0.1, 0, 0], "from": 0, "until": 1},
+        {"type": "release", "target": "rope", "particle": 0, "at": 2.5},
+        {"type": "wind", "value": [2, 0, 0], "gust": 0.5, "from": 1},
+        {"type": "spawn", "body": {"name": "crate", "shape": {"box": [0.2, 0.2, 0.2]}, "mass": 5,
+                                   "position": [0, 4, 0]}, "at": 1.5}
+      ],
+      "output": {"every": 10}
+    })");
+
+    EXPECT_DOUBLE_EQ(s.dt, 0.005);
+    EXPECT_EQ(s.steps, 1200);
+    EXPECT_EQ(s.gravity, Vec3(0, -3.5, 0.5));
+    EXPECT_EQ(s.seed, 42u);
+    EXPECT_EQ(s.output_every, 10);
+    EXPECT_TRUE(s.source.empty());
+
+    ASSERT_EQ(s.bodies.size(), 4u);
+    const Body& beam = s.bodies[0];
+    EXPECT_EQ(beam.name, "beam");
+    EXPECT_EQ(beam.shape.kind, Shape::Kind::Box);
+    EXPECT_EQ(beam.shape.half_extents, Vec3(1, 0.1, 0.2));
+    EXPECT_EQ(beam.mass, 0.0);
+    EXPECT_TRUE(beam.kinematic);
+    EXPECT_EQ(beam.position, Vec3(0, 3, 0));
+    EXPECT_DOUBLE_EQ(beam.orientation.w(), 1.0);  // [0, 0, 0, 2] normalised
+    EXPECT_DOUBLE_EQ(beam.orientation.vec().norm(), 0.0);
+    EXPECT_EQ(beam.linear_velocity, Vec3(1, 0, 0));
+    EXPECT_EQ(beam.angular_velocity, Vec3(0, 1, 0));
+    EXPECT_DOUBLE_EQ(beam.friction, 0.8);
+    EXPECT_DOUBLE_EQ(beam.restitution, 0.25);
+    EXPECT_EQ(s.bodies[1].shape.kind, Shape::Kind::Sphere);
+    EXPECT_DOUBLE_EQ(s.bodies[1].shape.radius, 0.3);
+    EXPECT_DOUBLE_EQ(s.bodies[1].mass, 2.0);
+    EXPECT_EQ(s.bodies[2].shape.kind, Shape::Kind::Capsule);
+    EXPECT_DOUBLE_EQ(s.bodies[2].shape.radius, 0.1);
+    EXPECT_DOUBLE_EQ(s.bodies[2].shape.half_height, 0.4);
+    const Body& ground = s.bodies[3];
+    EXPECT_EQ(ground.shape.kind, Shape::Kind::Plane);
+    EXPECT_EQ(ground.shape.plane_normal, Vec3(0, 1, 0));  // normalised
+    EXPECT_DOUBLE_EQ(ground.shape.plane_offset, 0.5);    // 2y = 1 is y = 0.5
+    EXPECT_EQ(ground.mass, 0.0);                          // planes default to static
+
+    ASSERT_EQ(s.strings.size(), 2u);
+    const StringDesc& rope = s.strings[0].desc;
+    EXPECT_EQ(rope.name, "rope");
+    ASSERT_EQ(rope.points.size(), 5u);
+    EXPECT_TRUE(rope.points[0].isApprox(Vec3(0, 3, 0)));
+    EXPECT_TRUE(rope.points[2].isApprox(Vec3(0, 2, 0)));
+    EXPECT_TRUE(rope.points[4].isApprox(Vec3(0, 1, 0)));
+    EXPECT_DOUBLE_EQ(rope.radius, 0.004);
+    EXPECT_DOUBLE_EQ(rope.density, 1000.0);
+    const std::vector<std::pair<int, double>> masses = {{-1, 0.5}, {1, 0.01}};
+    EXPECT_EQ(rope.particle_masses, masses);  // key order: "-1" < "1"
+    EXPECT_DOUBLE_EQ(rope.material.tensile.young, 1e9);
+    EXPECT_DOUBLE_EQ(rope.material.tensile.yield, 2e7);
+    EXPECT_DOUBLE_EQ(rope.material.tensile.plastic_modulus, 1e8);
+    EXPECT_DOUBLE_EQ(rope.material.tensile.rupture, 5e7);
+    EXPECT_DOUBLE_EQ(rope.material.torsion.modulus, 2e9);
+    EXPECT_DOUBLE_EQ(rope.material.torsion.yield, 0.02);
+    EXPECT_DOUBLE_EQ(rope.material.torsion.plastic_modulus, 2e8);
+    EXPECT_DOUBLE_EQ(rope.material.torsion.rupture, 0.2);
+    EXPECT_DOUBLE_EQ(rope.material.variation, 0.01);
+    EXPECT_EQ(rope.csm_half_width, 3);
+    EXPECT_EQ(rope.twist_half_width, (std::vector<int>{1, 2, 3, 4}));
+    EXPECT_EQ(rope.tension, TensionEstimator::Local);
+    EXPECT_FALSE(rope.tearable);
+    EXPECT_DOUBLE_EQ(rope.damping, 0.5);
+    EXPECT_EQ(rope.seed, 42u);  // scene seed + string index
+    EXPECT_EQ(s.strings[1].desc.seed, 43u);
+
+    const std::vector<Attachment>& at = s.strings[0].attachments;
+    ASSERT_EQ(at.size(), 2u);
+    EXPECT_EQ(at[0].particle, 0);
+    EXPECT_EQ(at[0].body, std::optional<std::string>("beam"));
+    EXPECT_EQ(at[0].local, Vec3(0, -0.1, 0));
+    EXPECT_FALSE(at[0].world.has_value());
+    EXPECT_EQ(at[1].particle, 4);  // -1 resolved
+    EXPECT_FALSE(at[1].body.has_value());
+    EXPECT_EQ(at[1].world, std::optional<Vec3>(Vec3(0, 1, 0)));
+
+    const StringDesc& thread = s.strings[1].desc;
+    ASSERT_EQ(thread.points.size(), 3u);
+    EXPECT_EQ(thread.points[2], Vec3(1, 1, 0));
+    EXPECT_EQ(thread.twist_half_width, std::vector<int>{5});
+
+    ASSERT_EQ(s.drivers.size(), 7u);
+    const Driver& force = s.drivers[0];
+    EXPECT_EQ(force.type, Driver::Type::Force);
+    EXPECT_EQ(force.target, "rope");
+    EXPECT_EQ(force.particle, 4);
+    EXPECT_EQ(force.value, Vec3(0, -20, 0));
+    EXPECT_DOUBLE_EQ(force.from, 0.0);
+    EXPECT_DOUBLE_EQ(force.until, 2.0);
+    const Driver& ramp = s.drivers[1];
+    EXPECT_EQ(ramp.type, Driver::Type::Ramp);
+    EXPECT_EQ(ramp.particle, 2);
+    EXPECT_TRUE(ramp.value.isApprox(Vec3(0, -0.6, 0.8)));  // normalised
+    EXPECT_DOUBLE_EQ(ramp.rate, 5.0);
+    EXPECT_DOUBLE_EQ(ramp.from, 1.0);
+    const Driver& twist = s.drivers[2];
+    EXPECT_EQ(twist.type, Driver::Type::Twist);
+    EXPECT_EQ(twist.target, "thread");
+    EXPECT_EQ(twist.end, 0);
+    EXPECT_DOUBLE_EQ(twist.rate, 6.28);
+    EXPECT_DOUBLE_EQ(twist.from, 0.5);
+    EXPECT_DOUBLE_EQ(twist.until, 3.0);
+    const Driver& move = s.drivers[3];
+    EXPECT_EQ(move.type, Driver::Type::Move);
+    EXPECT_EQ(move.particle, 4);  // default: the last particle
+    EXPECT_EQ(move.velocity, Vec3(0.1, 0, 0));
+    const Driver& release = s.drivers[4];
+    EXPECT_EQ(release.type, Driver::Type::Release);
+    EXPECT_EQ(release.particle, 0);
+    EXPECT_DOUBLE_EQ(release.at, 2.5);
+    const Driver& wind = s.drivers[5];
+    EXPECT_EQ(wind.type, Driver::Type::Wind);
+    EXPECT_EQ(wind.value, Vec3(2, 0, 0));
+    EXPECT_DOUBLE_EQ(wind.gust, 0.5);
+    EXPECT_DOUBLE_EQ(wind.from, 1.0);
+    EXPECT_DOUBLE_EQ(wind.until, 1e300);
+    const Driver& spawn = s.drivers[6];
+    EXPECT_EQ(spawn.type, Driver::Type::Spawn);
+    ASSERT_TRUE(spawn.body.has_value());
+    EXPECT_EQ(spawn.body->name, "crate");
+    EXPECT_DOUBLE_EQ(spawn.body->mass, 5.0);
+    EXPECT_EQ(spawn.body->position, Vec3(0, 4, 0));
+    EXPECT_DOUBLE_EQ(spawn.at, 1.5);
+}
+
+TEST(SceneLoader, AbsentFieldsTakeTheirDefaults) {
+    const Scene s = parseScene(R"({"bodies": [{"name": "b", "shape": {"sphere": 1}}],
+                                   "strings": [{"name": "r", "from": [0, 0, 0], "to": [1, 0, 0]}]})");
+    const Scene defaults;
+    EXPECT_EQ(s.dt, defaults.dt);
+    EXPECT_EQ(s.steps, 500);
+    EXPECT_EQ(s.gravity, Vec3(0, -9.81, 0));
+    EXPECT_EQ(s.seed, 1u);
+    EXPECT_EQ(s.output_every, 1);
+    EXPECT_TRUE(s.drivers.empty());
+
+    const Body& b = s.bodies.at(0);
+    EXPECT_DOUBLE_EQ(b.mass, 1.0);
+    EXPECT_FALSE(b.kinematic);
+    EXPECT_EQ(b.position, Vec3::Zero());
+    EXPECT_TRUE(b.orientation.isApprox(Quat::Identity()));
+    EXPECT_EQ(b.linear_velocity, Vec3::Zero());
+    EXPECT_EQ(b.angular_velocity, Vec3::Zero());
+    EXPECT_DOUBLE_EQ(b.friction, 0.5);
+    EXPECT_DOUBLE_EQ(b.restitution, 0.0);
+
+    const StringDesc& d = s.strings.at(0).desc;
+    const StringDesc desc_defaults;
+    EXPECT_EQ(d.points.size(), 11u);  // 10 segments
+    EXPECT_EQ(d.radius, desc_defaults.radius);
+    EXPECT_EQ(d.density, desc_defaults.density);
+    EXPECT_TRUE(d.particle_masses.empty());
+    EXPECT_EQ(d.material.tensile.young, desc_defaults.material.tensile.young);
+    EXPECT_EQ(d.material.tensile.rupture, desc_defaults.material.tensile.rupture);
+    EXPECT_EQ(d.material.torsion.modulus, desc_defaults.material.torsion.modulus);
+    EXPECT_EQ(d.material.variation, desc_defaults.material.variation);
+    EXPECT_EQ(d.csm_half_width, 2);
+    EXPECT_EQ(d.twist_half_width, std::vector<int>{2});
+    EXPECT_EQ(d.tension, TensionEstimator::Momentum);
+    EXPECT_TRUE(d.tearable);
+    EXPECT_EQ(d.damping, 0.0);
+    EXPECT_EQ(d.seed, 1u);
+    EXPECT_TRUE(s.strings[0].attachments.empty());
+}
+
+TEST(SceneLoader, EmptyObjectIsAValidScene) {
+    const Scene s = parseScene("{}");
+    EXPECT_TRUE(s.bodies.empty());
+    EXPECT_TRUE(s.strings.empty());
+    EXPECT_EQ(s.steps, 500);
+}
+
+TEST(SceneLoader, CommentsAreAccepted) {
+    const Scene s = parseScene(R"(// a scene
+    {
+      "dt": 0.02,   // the step
+      /* block comments too */ "steps": 7
+    })");
+    EXPECT_DOUBLE_EQ(s.dt, 0.02);
+    EXPECT_EQ(s.steps, 7);
+}
+
+TEST(SceneLoader, WholeNumbersWrittenAsDecimalsAreIntegers) {
+    const Scene s = parseScene(ropeScene(R"(, "segments": 4.0, "csm_half_width": 3e0)"));
+    EXPECT_EQ(s.strings[0].desc.points.size(), 5u);
+    EXPECT_EQ(s.strings[0].desc.csm_half_width, 3);
+}
+
+TEST(SceneLoader, PartialMaterialKeepsOtherDefaults) {
+    const Scene s = parseScene(ropeScene(R"(, "material": {"tensile": {"rupture": 9e7}})"));
+    const Material& m = s.strings[0].desc.material;
+    EXPECT_EQ(m.tensile.rupture, 9e7);
+    EXPECT_EQ(m.tensile.yield, Material().tensile.yield);
+    EXPECT_EQ(m.torsion.rupture, Material().torsion.rupture);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Errors: each names the exact JSON path of the offending field
+// ---------------------------------------------------------------------------------------------
+
+struct ErrorCase {
+    const char* label;     ///< test name suffix
+    std::string scene;     ///< JSON text
+    std::string field;     ///< expected InvalidInput::field()
+    std::string message;   ///< expected to occur in problem()
+};
+
+std::ostream& operator<<(std::ostream& os, const ErrorCase& c) { return os << c.label; }
+
+class SceneErrors : public ::testing::TestWithParam<ErrorCase> {};
+
+TEST_P(SceneErrors, NamesTheField) {
+    const ErrorCase& c = GetParam();
+    try {
+        parseScene(c.scene);
+        FAIL() << "no error; expected one at " << c.field;
+    } catch (const InvalidInput& e) {
+        EXPECT_EQ(e.field(), c.field) << e.what();
+        EXPECT_NE(e.problem().find(c.message), std::string::npos) << "problem: " << e.problem();
+        EXPECT_EQ(std::string(e.what()), c.field.empty() ? e.problem() : c.field + ": " + e.problem());
+    }
+}
+
+const ErrorCase kErrorCases[] = {
+    // --- JSON text and the top level
+    {"SyntaxError", "{\"dt\": 0.01,\n \"steps\": }", "", "byte"},
+    {"SyntaxErrorHasLine", "{\"dt\": 0.01,\n \"steps\": }", "", "line 2"},
+    {"TrailingGarbage", "{} x", "", "invalid JSON"},
+    {"NotAnObject", "[1, 2]", "", "a scene must be a JSON object, got an array"},
+    {"NumberTooLarge", R"({"dt": 1e999})", "dt", "finite"},
+    {"NumberTooLargeNested", ropeScene(R"(, "radius": -1e999)"), "strings[0].radius", "1e999"},
+    {"NumberTooLargeInArray", R"({"strings": [{"name": "r", "points": [[0, 0, 0], [1, 1, 1e400]]}]})",
+     "strings[0].points[1][2]", "finite"},
+    {"DuplicateKey", R"({"dt": 0.01, "dt": 0.02})", "dt", "duplicate field"},
+    {"UnknownTopLevelField", R"({"dtt": 0.01})", "dtt", "unknown field (allowed: format,"},
+    {"UnknownOddField", R"({"a b": 1})", "[\"a b\"]", "unknown field"},
+    {"BadFormat", R"({"format": "tearables-scene/2"})", "format", "unsupported format \"tearables-scene/2\""},
+    {"FormatNotString", R"({"format": 1})", "format", "expected a string, got a number"},
+    {"DescriptionNotString", R"({"description": 1})", "description", "expected a string"},
+    {"CameraNotObject", R"({"camera": [1]})", "camera", "expected an object, got an array of 1 element"},
+    {"DtTooLarge", R"({"dt": 0.5})", "dt", "must be in (0, 0.1] (got 0.5)"},
+    {"DtZero", R"({"dt": 0})", "dt", "must be in (0, 0.1] (got 0)"},
+    {"DtString", R"({"dt": "0.01"})", "dt", "expected a number, got a string"},
+    {"StepsNegative", R"({"steps": -1})", "steps", "must be in [0, 1000000000] (got -1)"},
+    {"StepsTooMany", R"({"steps": 2e9})", "steps", "must be in [0, 1000000000]"},
+    {"StepsFraction", R"({"steps": 2.5})", "steps", "must be a whole number (got 2.5)"},
+    {"SeedNegative", R"({"seed": -3})", "seed", "must be at least 0 (got -3)"},
+    {"SeedTooLarge", R"({"seed": 18446744073709551615})", "seed", "must be at most 9223372036854775807"},
+    {"GravityTooShort", R"({"gravity": [0, -9.81]})", "gravity", "expected an array of 3 numbers, got an array of 2 elements"},
+    {"GravityElementType", R"({"gravity": [0, null, 0]})", "gravity[1]", "expected a number, got null"},
+    {"OutputEveryZero", R"({"output": {"every": 0}})", "output.every", "must be in [1, 1000000000] (got 0)"},
+    {"OutputUnknownField", R"({"output": {"evry": 2}})", "output.evry", "unknown field (allowed: every)"},
+    {"PapersNotYet", R"({"papers": [{"name": "sheet"}]})", "papers", "paper sheets are not available in this build yet"},
+    {"ClothsNotYet", R"({"cloths": [{}]})", "cloths", "cloths are not available in this build yet"},
+    {"PapersNotArray", R"({"papers": {}})", "papers", "expected an array, got an object"},
+    // --- bodies
+    {"BodyNegativeMass", bodiesScene(R"({"name": "b", "shape": {"sphere": 1}, "mass": -1})"), "bodies[0].mass",
+     "must be at least 0 (got -1)"},
+    {"BodyMissingName", bodiesScene(R"({"shape": {"sphere": 1}})"), "bodies[0].name", "missing required field"},
+    {"BodyEmptyName", bodiesScene(R"({"name": "", "shape": {"sphere": 1}})"), "bodies[0].name", "must not be empty"},
+    {"BodyMissingShape", bodiesScene(R"({"name": "b"})"), "bodies[0].shape", "missing required field"},
+    {"DuplicateBodyName",
+     bodiesScene(R"({"name": "b", "shape": {"sphere": 1}}, {"name": "b", "shape": {"sphere": 2}})"), "bodies[1].name",
+     "duplicate body name \"b\" (also used by bodies[0])"},
+    {"BodyUnknownField", bodiesScene(R"({"name": "b", "shape": {"sphere": 1}, "colour": "red"})"),
+     "bodies[0].colour", "unknown field"},
+    {"ShapeUnknownKind", bodiesScene(R"({"name": "b", "shape": {"cone": 1}})"), "bodies[0].shape.cone",
+     "unknown field (allowed: box, sphere, capsule, plane)"},
+    {"ShapeTwoKinds", bodiesScene(R"({"name": "b", "shape": {"sphere": 1, "box": [1, 1, 1]}})"), "bodies[0].shape",
+     "needs exactly one of box, sphere, capsule, plane (got box, sphere)"},
+    {"ShapeNoKind", bodiesScene(R"({"name": "b", "shape": {}})"), "bodies[0].shape", "(got none)"},
+    {"BoxNonPositive", bodiesScene(R"({"name": "b", "shape": {"box": [1, 0, 1]}})"), "bodies[0].shape.box[1]",
+     "must be greater than 0 (got 0)"},
+    {"SphereNegative", bodiesScene(R"({"name": "b", "shape": {"sphere": -2}})"), "bodies[0].shape.sphere",
+     "must be greater than 0 (got -2)"},
+    {"CapsuleShort", bodiesScene(R"({"name": "b", "shape": {"capsule": [1]}})"), "bodies[0].shape.capsule",
+     "expected an array of 2 numbers"},
+    {"PlaneZeroNormal", bodiesScene(R"({"name": "g", "shape": {"plane": [0, 0, 0, 1]}})"), "bodies[0].shape.plane",
+     "normal"},
+    {"PlaneWithMass", bodiesScene(R"({"name": "g", "shape": {"plane": [0, 1, 0, 0]}, "mass": 3})"), "bodies[0].mass",
+     "a plane must be static"},
+    {"PlaneKinematic", bodiesScene(R"({"name": "g", "shape": {"plane": [0, 1, 0, 0]}, "kinematic": true})"),
+     "bodies[0].kinematic", "cannot be kinematic"},
+    {"ZeroQuaternion", bodiesScene(R"({"name": "b", "shape": {"sphere": 1}, "orientation": [0, 0, 0, 0]})"),
+     "bodies[0].orientation", "non-zero quaternion"},
+    {"RestitutionTooLarge", bodiesScene(R"({"name": "b", "shape": {"sphere": 1}, "restitution": 2})"),
+     "bodies[0].restitution", "must be in [0, 1] (got 2)"},
+    {"KinematicNotBool", bodiesScene(R"({"name": "b", "shape": {"sphere": 1}, "kinematic": 1})"),
+     "bodies[0].kinematic", "expected a boolean"},
+    // --- strings
+    {"StringMissingName", R"({"strings": [{"from": [0, 0, 0], "to": [1, 0, 0]}]})", "strings[0].name",
+     "missing required field"},
+    {"DuplicateStringName",
+     R"({"strings": [{"name": "r", "from": [0, 0, 0], "to": [1, 0, 0]}, {"name": "r", "from": [0, 0, 0], "to": [1, 0, 0]}]})",
+     "strings[1].name", "duplicate string name \"r\""},
+    {"UnknownStringField", ropeScene(R"(, "colour": "red")"), "strings[0].colour", "unknown field"},
+    {"UnknownTensileField", ropeScene(R"(, "material": {"tensile": {"foo": 1}})"), "strings[0].material.tensile.foo",
+     "unknown field (allowed: young, yield, plastic_modulus, rupture)"},
+    {"UnknownMaterialField", ropeScene(R"(, "material": {"colour": 1})"), "strings[0].material.colour",
+     "unknown field"},
+    {"RadiusString", ropeScene(R"(, "radius": "thick")"), "strings[0].radius", "expected a number, got a string"},
+    {"RadiusNegative", ropeScene(R"(, "radius": -1)"), "strings[0].radius", "must be greater than 0 (got -1)"},
+    {"RadiusZero", ropeScene(R"(, "radius": 0)"), "strings[0].radius", "must be greater than 0 (got 0)"},
+    {"DensityZero", ropeScene(R"(, "density": 0)"), "strings[0].density", "must be greater than 0"},
+    {"ZeroLengthSegment",
+     R"({"strings": [{"name": "r", "points": [[0, 0, 0], [1, 0, 0], [1, 0, 0], [2, 0, 0]]}]})",
+     "strings[0].points[2]", "zero-length segment"},
+    {"TooFewPoints", R"({"strings": [{"name": "r", "points": [[0, 0, 0]]}]})", "strings[0].points",
+     "at least 2 points (got 1)"},
+    {"PointNotVec3", R"({"strings": [{"name": "r", "points": [[0, 0, 0], [1, 0]]}]})", "strings[0].points[1]",
+     "expected an array of 3 numbers"},
+    {"FromEqualsTo", R"({"strings": [{"name": "r", "from": [0, 1, 0], "to": [0, 1, 0]}]})", "strings[0].to",
+     "must differ from from"},
+    {"MissingTo", R"({"strings": [{"name": "r", "from": [0, 1, 0]}]})", "strings[0].to", "missing required field"},
+    {"NoGeometry", R"({"strings": [{"name": "r"}]})", "strings[0]", "needs its geometry"},
+    {"PointsAndFrom", R"({"strings": [{"name": "r", "points": [[0, 0, 0], [1, 0, 0]], "from": [0, 0, 0]}]})",
+     "strings[0].from", "not allowed together with points"},
+    {"PointsAndSegments", R"({"strings": [{"name": "r", "points": [[0, 0, 0], [1, 0, 0]], "segments": 3}]})",
+     "strings[0].segments", "not allowed together with points"},
+    {"SegmentsFraction", ropeScene(R"(, "segments": 2.5)"), "strings[0].segments", "must be a whole number (got 2.5)"},
+    {"SegmentsZero", ropeScene(R"(, "segments": 0)"), "strings[0].segments", "must be in [1, 1000000] (got 0)"},
+    {"TensileRuptureBelowYield", ropeScene(R"(, "material": {"tensile": {"yield": 5e7, "rupture": 4e7}})"),
+     "strings[0].material.tensile.rupture", "must be greater than yield"},
+    {"TorsionRuptureBelowYield", ropeScene(R"(, "material": {"torsion": {"yield": 0.2, "rupture": 0.1}})"),
+     "strings[0].material.torsion.rupture", "must be greater than yield"},
+    {"YoungNegative", ropeScene(R"(, "material": {"tensile": {"young": -3e9}})"), "strings[0].material.tensile.young",
+     "must be greater than 0"},
+    {"VariationTooLarge", ropeScene(R"(, "material": {"variation": 0.9})"), "strings[0].material.variation",
+     "must be in [0, 0.5] (got 0.9)"},
+    {"CsmHalfWidthTooLarge", ropeScene(R"(, "csm_half_width": 9)"), "strings[0].csm_half_width", "must be in [1, 8]"},
+    {"TwistHalfWidthWrongCount", ropeScene(R"(, "twist_half_width": [1, 2])"), "strings[0].twist_half_width",
+     "one value per segment (10), got 2"},
+    {"TwistHalfWidthElement", ropeScene(R"(, "twist_half_width": [1, 2, 3, 4, 5, 6, 7, 8, 9, 1])"),
+     "strings[0].twist_half_width[8]", "must be in [1, 8] (got 9)"},
+    {"TwistHalfWidthType", ropeScene(R"(, "twist_half_width": "2")"), "strings[0].twist_half_width",
+     "expected an integer or an array of integers"},
+    {"TensionUnknown", ropeScene(R"(, "tension": "global")"), "strings[0].tension",
+     "must be \"momentum\" or \"local\" (got \"global\")"},
+    {"TearableNotBool", ropeScene(R"(, "tearable": 1)"), "strings[0].tearable", "expected a boolean"},
+    {"DampingNegative", ropeScene(R"(, "damping": -0.1)"), "strings[0].damping", "must be at least 0"},
+    {"DampingTooLargeForValidate", ropeScene(R"(, "damping": 1e4)"), "strings[0].damping", "must be in [0, 1000]"},
+    {"ParticleMassOutOfRange", ropeScene(R"(, "particle_masses": {"-12": 1})"), "strings[0].particle_masses[\"-12\"]",
+     "particle index out of range"},
+    {"ParticleMassOutOfRangeHigh", ropeScene(R"(, "particle_masses": {"11": 1})"),
+     "strings[0].particle_masses[\"11\"]", "the string has 11 particles"},
+    {"ParticleMassBadKey", ropeScene(R"(, "particle_masses": {"last": 1})"), "strings[0].particle_masses.last",
+     "particle index such as"},
+    {"ParticleMassNotPositive", ropeScene(R"(, "particle_masses": {"-1": 0})"), "strings[0].particle_masses[\"-1\"]",
+     "must be greater than 0 (got 0)"},
+    {"ParticleMassTwice", ropeScene(R"(, "particle_masses": {"0": 1, "-11": 2})"), "strings[0].particle_masses[\"0\"]",
+     "already has a mass"},
+    // --- attachments
+    {"AttachmentUnknownBody",
+     ropeScene(R"(, "attachments": [{"particle": 0, "body": "beam"}, {"particle": -1, "body": "beem"}])"),
+     "strings[0].attachments[1].body", "no body named \"beem\" (bodies: beam)"},
+    {"AttachmentParticleOutOfRange", ropeScene(R"(, "attachments": [{"particle": 11, "world": [0, 0, 0]}])"),
+     "strings[0].attachments[0].particle", "particle index out of range"},
+    {"AttachmentParticleMissing", ropeScene(R"(, "attachments": [{"world": [0, 0, 0]}])"),
+     "strings[0].attachments[0].particle", "missing required field"},
+    {"AttachmentTwiceOnAParticle",
+     ropeScene(R"(, "attachments": [{"particle": 10, "world": [0, 0, 0]}, {"particle": -1, "body": "beam"}])"),
+     "strings[0].attachments[1].particle", "particle 10 already has an attachment (strings[0].attachments[0])"},
+    {"AttachmentBodyAndWorld", ropeScene(R"(, "attachments": [{"particle": 0, "body": "beam", "world": [0, 0, 0]}])"),
+     "strings[0].attachments[0].world", "either body or world"},
+    {"AttachmentNeither", ropeScene(R"(, "attachments": [{"particle": 0}])"), "strings[0].attachments[0]",
+     "needs body"},
+    {"AttachmentLocalWithWorld",
+     ropeScene(R"(, "attachments": [{"particle": 0, "world": [0, 0, 0], "local": [0, 0, 0]}])"),
+     "strings[0].attachments[0].local", "only allowed with body"},
+    {"AttachmentUnknownField", ropeScene(R"(, "attachments": [{"particle": 0, "world": [0, 0, 0], "offset": 1}])"),
+     "strings[0].attachments[0].offset", "unknown field"},
+    // --- drivers
+    {"DriverUnknownType", driverScene(R"({"type": "shake", "target": "rope"})"), "drivers[0].type",
+     "unknown driver type \"shake\" (allowed: force, ramp, twist, move, release, wind, spawn)"},
+    {"DriverMissingType", driverScene(R"({"target": "rope"})"), "drivers[0].type", "missing required field"},
+    {"DriverUnknownTarget", driverScene(R"({"type": "force", "target": "rop", "value": [0, 1, 0]})"),
+     "drivers[0].target", "no string named \"rop\" (strings: rope)"},
+    {"DriverParticleOutOfRange", driverScene(R"({"type": "force", "target": "rope", "particle": -12, "value": [0, 1, 0]})"),
+     "drivers[0].particle", "particle index out of range"},
+    {"DriverParticleFraction", driverScene(R"({"type": "release", "target": "rope", "particle": 1.5})"),
+     "drivers[0].particle", "whole number"},
+    {"DriverFieldOfAnotherType", driverScene(R"({"type": "ramp", "target": "rope", "value": [0, 1, 0], "rate": 1, "until": 2})"),
+     "drivers[0].until", "unknown field (allowed: type, target, particle, value, rate, from)"},
+    {"DriverUntilBeforeFrom", driverScene(R"({"type": "force", "target": "rope", "value": [0, 1, 0], "from": 2, "until": 1})"),
+     "drivers[0].until", "must be greater than from"},
+    {"DriverFromNegative", driverScene(R"({"type": "wind", "value": [1, 0, 0], "from": -1})"), "drivers[0].from",
+     "must be at least 0"},
+    {"DriverForceNeedsValue", driverScene(R"({"type": "force", "target": "rope"})"), "drivers[0].value",
+     "missing required field"},
+    {"RampZeroDirection", driverScene(R"({"type": "ramp", "target": "rope", "value": [0, 0, 0], "rate": 1})"),
+     "drivers[0].value", "non-zero direction"},
+    {"RampRateZero", driverScene(R"({"type": "ramp", "target": "rope", "value": [0, 1, 0], "rate": 0})"),
+     "drivers[0].rate", "must be greater than 0"},
+    {"TwistBadEnd", driverScene(R"({"type": "twist", "target": "rope", "end": 3, "rate": 1})"), "drivers[0].end",
+     "must be 0 (the first end) or -1 (the last end)"},
+    {"ReleaseAtNegative", driverScene(R"({"type": "release", "target": "rope", "at": -1})"), "drivers[0].at",
+     "must be at least 0"},
+    {"WindGustTooLarge", driverScene(R"({"type": "wind", "value": [1, 0, 0], "gust": 11})"), "drivers[0].gust",
+     "must be in [0, 10]"},
+    {"WindHasNoTarget", driverScene(R"({"type": "wind", "target": "rope", "value": [1, 0, 0]})"), "drivers[0].target",
+     "unknown field"},
+    {"SpawnBodyBadField", driverScene(R"({"type": "spawn", "body": {"name": "c", "shape": {"sphere": 1}, "size": 1}})"),
+     "drivers[0].body.size", "unknown field"},
+    {"SpawnBodyBadBox", driverScene(R"({"type": "spawn", "body": {"name": "c", "shape": {"box": [1, -1, 1]}}})"),
+     "drivers[0].body.shape.box[1]", "must be greater than 0"},
+    {"SpawnDuplicatesBodyName",
+     R"({"bodies": [{"name": "crate", "shape": {"sphere": 1}}],
+         "drivers": [{"type": "spawn", "body": {"name": "crate", "shape": {"sphere": 1}}, "at": 1}]})",
+     "drivers[0].body.name", "duplicate body name \"crate\" (also used by bodies[0])"},
+    {"DriverNotObject", driverScene("3"), "drivers[0]", "expected an object, got a number"},
+};
+
+INSTANTIATE_TEST_SUITE_P(SceneLoader, SceneErrors, ::testing::ValuesIn(kErrorCases),
+                         [](const ::testing::TestParamInfo<ErrorCase>& param) { return std::string(param.param.label); });
+
+// ---------------------------------------------------------------------------------------------
+// Files and built-in scenes
+// ---------------------------------------------------------------------------------------------
+
+TEST(SceneLoader, LoadSceneFileSetsTheSource) {
+    const std::string path = ::testing::TempDir() + "tearables_scene_loader_test.json";
+    {
+        std::ofstream out(path);
+        out << "// from a file\n{\"steps\": 12}\n";
+    }
+    const Scene s = loadSceneFile(path);
+    EXPECT_EQ(s.steps, 12);
+    EXPECT_EQ(s.source, path);
+    std::remove(path.c_str());
+}
+
+TEST(SceneLoader, LoadSceneFileReportsAnUnreadableFile) {
+    const std::string path = ::testing::TempDir() + "tearables_no_such_scene.json";
+    try {
+        loadSceneFile(path);
+        FAIL() << "no error";
+    } catch (const InvalidInput&) {
+        FAIL() << "an unreadable file is not invalid input";
+    } catch (const std::runtime_error& e) {
+        EXPECT_EQ(std::string(e.what()).rfind("cannot read " + path + ": ", 0), 0u) << e.what();
+    }
+}
+
+TEST(SceneLoader, LoadSceneFileReportsADirectory) {
+    EXPECT_THROW(loadSceneFile(::testing::TempDir()), std::runtime_error);
+}
+
+TEST(SceneLoader, LoadSceneFileReportsBadContent) {
+    const std::string path = ::testing::TempDir() + "tearables_bad_scene.json";
+    {
+        std::ofstream out(path);
+        out << "{\"dt\": -1}";
+    }
+    try {
+        loadSceneFile(path);
+        FAIL() << "no error";
+    } catch (const InvalidInput& e) {
+        EXPECT_EQ(e.field(), "dt");
+    }
+    std::remove(path.c_str());
+}
+
+TEST(BuiltinScenes, EveryBuiltinSceneParses) {
+    const auto scenes = builtinScenes();  // may be empty in a build without demos/scenes/*.json
+    for (const auto& [name, description] : scenes) {
+        SCOPED_TRACE(name);
+        EXPECT_FALSE(name.empty());
+        const std::optional<std::string> text = builtinSceneText(name);
+        ASSERT_TRUE(text.has_value());
+        try {
+            parseScene(*text);
+        } catch (const InvalidInput& e) {
+            ADD_FAILURE() << "built-in scene " << name << ": " << e.what();
+        }
+    }
+}
+
+TEST(BuiltinScenes, UnknownNameHasNoText) {
+    EXPECT_FALSE(builtinSceneText("no such scene").has_value());
+}
+
+}  // namespace
+}  // namespace tearables::scene

@@ -1,0 +1,207 @@
+// The string core without Bullet, against analytic results (Strings Sec. 5.2; Yarn Sec. 3.2).
+#include "tearables/world.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace {
+
+using tearables::StringDesc;
+using tearables::StringId;
+using tearables::Vec3;
+using tearables::World;
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kG = 9.81;
+
+StringDesc rope(const Vec3& from, const Vec3& to, int segments) {
+    StringDesc d = StringDesc::straight(from, to, segments);
+    d.material.variation = 0.0;
+    return d;
+}
+
+double ropeMass(const StringDesc& d, double length) { return d.density * kPi * d.radius * d.radius * length; }
+
+double length(const tearables::StringView& v) {
+    double sum = 0.0;
+    for (std::size_t j = 0; j < v.segmentCount(); ++j) sum += ((*v.positions)[j + 1] - (*v.positions)[j]).norm();
+    return sum;
+}
+
+}  // namespace
+
+// A rope of 1 m hanging from a fixed point with a tip mass 10x its own: at rest its length
+// is within 0.1% of rest length, and every segment carries the weight below it within 2%.
+TEST(Chain, HangingRopeTensionEqualsWeightBelow) {
+    for (int segments : {10, 50, 200}) {
+        World world;
+        StringDesc d = rope({0, 1, 0}, {0, 0, 0}, segments);
+        d.particle_masses = {{-1, 10.0 * ropeMass(d, 1.0)}};
+        const StringId id = world.addString(d);
+        world.attachToPoint(id, 0, {0, 1, 0});
+        for (int i = 0; i < 500; ++i) world.step(0.01);
+        const auto v = world.view(id);
+        EXPECT_NEAR(length(v), 1.0, 1e-3) << segments;
+        double below = 0.0;
+        for (int j = segments - 1; j >= 0; --j) {
+            below += (*v.masses)[j + 1] * kG;
+            EXPECT_NEAR((*v.tension)[j], below, 0.02 * below) << "segment " << j << " of " << segments;
+        }
+    }
+}
+
+// The same rope at Bullet's default 60 Hz and with a tip 1000x the rope: no stretch past
+// 0.1% (what makes Bullet's anchored soft bodies stretch is the mass ratio).
+TEST(Chain, HeavyTipDoesNotStretchTheRope) {
+    World world;
+    StringDesc d = rope({0, 1, 0}, {0, 0, 0}, 100);
+    d.particle_masses = {{-1, 1000.0 * ropeMass(d, 1.0)}};
+    d.tearable = false;
+    const StringId id = world.addString(d);
+    world.attachToPoint(id, 0, {0, 1, 0});
+    for (int i = 0; i < 300; ++i) world.step(1.0 / 60.0);
+    const auto v = world.view(id);
+    // Elastic strain of nylon at this load is sigma / E = 1.2e-3 / ... well below 0.1%.
+    EXPECT_LT(std::abs(length(v) - 1.0), 1e-3);
+    EXPECT_NEAR((*v.tension)[0], (1000.0 + 1.0) * ropeMass(d, 1.0) * kG, 0.02 * 1001.0 * ropeMass(d, 1.0) * kG);
+}
+
+// A light string with a bob released from 60 degrees: tension at the bottom of the swing
+// m g (3 - 2 cos 60deg) = 2 m g within 5%.
+TEST(Chain, PendulumTensionAtBottomOfSwing) {
+    const double L = 1.0;
+    const double a = kPi / 3.0;
+    World world;
+    StringDesc d = rope({0, 0, 0}, {L * std::sin(a), -L * std::cos(a), 0}, 20);
+    d.radius = 0.0005;
+    const double bob = 1.0;
+    d.particle_masses = {{-1, bob}};
+    d.tearable = false;
+    const StringId id = world.addString(d);
+    world.attachToPoint(id, 0, {0, 0, 0});
+    double max_tension = 0.0;
+    double lowest = 0.0;
+    for (int i = 0; i < 100; ++i) {  // a quarter period is ~0.53 s
+        world.step(0.005);
+        const auto v = world.view(id);
+        const Vec3& p = v.positions->back();
+        if (p.y() < lowest) lowest = p.y();
+        max_tension = std::max(max_tension, (*v.tension)[0]);
+    }
+    EXPECT_NEAR(lowest, -L, 2e-3);
+    const double string_weight = ropeMass(d, L) * kG;
+    EXPECT_NEAR(max_tension, bob * kG * (3.0 - 2.0 * std::cos(a)) + string_weight, 0.05 * 2.0 * bob * kG);
+}
+
+// Clamped at both ends (Strings Sec. 5.2, case 2): a rope sagging between two pins comes
+// to rest with every segment within its limit, and the vertical components of the two
+// end tensions carry its whole weight (statics) within 2%.
+TEST(Chain, BothEndsClampedCarriesItsWeight) {
+    World world;
+    // 1.2 m of rope between pins 1 m apart: it hangs in a catenary.
+    StringDesc d = rope({0, 0, 0}, {1.2, 0, 0}, 60);
+    d.damping = 2.0;
+    const StringId id = world.addString(d);
+    world.attachToPoint(id, 0, {0, 0, 0});
+    world.attachToPoint(id, -1, {1.0, 0, 0});
+    for (int i = 0; i < 1500; ++i) world.step(0.01);
+    const auto v = world.view(id);
+    for (std::size_t j = 0; j < v.segmentCount(); ++j)
+        EXPECT_LT(((*v.positions)[j + 1] - (*v.positions)[j]).norm(), (*v.max_length)[j] * (1 + 1e-5));
+    const auto& x = *v.positions;
+    const std::size_t m = v.segmentCount();
+    const Vec3 e0 = (x[1] - x[0]).normalized();
+    const Vec3 e1 = (x[m - 1] - x[m]).normalized();
+    const double vertical = (*v.tension)[0] * e0.y() + (*v.tension)[m - 1] * e1.y();
+    double weight = 0.0;
+    for (std::size_t p = 1; p < m; ++p) weight += (*v.masses)[p] * kG;
+    EXPECT_NEAR(vertical, weight, 0.02 * weight);
+    // Symmetric sag: the middle is the lowest point and below the pins.
+    EXPECT_LT(x[m / 2].y(), -0.2);
+}
+
+// Clamped at several points (case 3): pins at both ends and in the middle; each half
+// hangs on its own and the middle pin's two segments split the load symmetrically.
+TEST(Chain, SeveralClampsSplitTheString) {
+    World world;
+    StringDesc d = rope({0, 0, 0}, {2.4, 0, 0}, 40);
+    d.damping = 2.0;
+    const StringId id = world.addString(d);
+    world.attachToPoint(id, 0, {0, 0, 0});
+    world.attachToPoint(id, 20, {1.0, 0, 0});
+    world.attachToPoint(id, -1, {2.0, 0, 0});
+    for (int i = 0; i < 1500; ++i) world.step(0.01);
+    const auto v = world.view(id);
+    EXPECT_NEAR((*v.tension)[0], (*v.tension)[39], 0.02 * (*v.tension)[0]);
+    EXPECT_NEAR((*v.tension)[19], (*v.tension)[20], 0.02 * (*v.tension)[19]);
+    EXPECT_NEAR((*v.positions)[10].y(), (*v.positions)[30].y(), 1e-3);
+    EXPECT_NEAR((*v.positions)[20].y(), 0.0, 1e-12);
+}
+
+// Momentum balance (Yarn) against the local estimate (Strings Eq. 12) on a rope at rest:
+// the local estimate sees only this step's stretch, so below the clamped segment it
+// reads almost nothing while the momentum solve reads the weight.
+TEST(Chain, LocalEstimateMissesTheStaticLoadMomentumSeesIt) {
+    auto run = [](tearables::TensionEstimator estimator) {
+        World world;
+        StringDesc d = rope({0, 1, 0}, {0, 0, 0}, 20);
+        d.tension = estimator;
+        const StringId id = world.addString(d);
+        world.attachToPoint(id, 0, {0, 1, 0});
+        for (int i = 0; i < 200; ++i) world.step(0.01);
+        return *world.view(id).tension;
+    };
+    const auto momentum = run(tearables::TensionEstimator::Momentum);
+    const auto local = run(tearables::TensionEstimator::Local);
+    EXPECT_GT(momentum[10], 0.3 * momentum[0]);
+    EXPECT_LT(std::abs(local[10]), 0.01 * momentum[10]);
+    // At the clamp both see the whole weight (there the stretch of one step is all of it).
+    EXPECT_NEAR(local[0], momentum[0], 0.05 * momentum[0]);
+}
+
+// A rope under a load that ramps up slowly tears when the load reaches
+// sigma_rupture * pi r^2 within 5%, and only one segment tears.
+TEST(Chain, RampedLoadTearsAtRuptureStress) {
+    World world;
+    StringDesc d = rope({0, 1, 0}, {0, 0, 0}, 20);
+    d.radius = 0.001;
+    d.material.tensile.rupture = 8e7;  // 251 N on 1 mm radius
+    const StringId id = world.addString(d);
+    world.attachToPoint(id, 0, {0, 1, 0});
+    const double rate = 50.0;  // N/s
+    double load_at_tear = -1.0;
+    int tears = 0;
+    for (int i = 0; i < 2000 && tears == 0; ++i) {
+        const double load = rate * i * 0.01;
+        world.applyForce(id, -1, {0, -load, 0});
+        world.step(0.01);
+        for (const auto& e : world.events())
+            if (e.type == tearables::EventType::Tear) {
+                ++tears;
+                load_at_tear = load;
+                EXPECT_EQ(e.cause, tearables::EventCause::Tension);
+            }
+    }
+    const double expected = 8e7 * kPi * 1e-6;
+    ASSERT_EQ(tears, 1);
+    // The tear happens where stress is highest: the top segment carries load + weight.
+    EXPECT_NEAR(load_at_tear, expected, 0.05 * expected);
+    const auto v = world.view(id);
+    EXPECT_EQ((*v.broken)[0], 1);
+}
+
+// Bad input to the step and to the setters changes nothing and the world steps on.
+TEST(Chain, NonFiniteInputIsRefusedAndTheWorldStepsOn) {
+    World world;
+    const StringId id = world.addString(rope({0, 1, 0}, {0, 0, 0}, 10));
+    world.attachToPoint(id, 0, {0, 1, 0});
+    EXPECT_THROW(world.applyForce(id, -1, {std::nan(""), 0, 0}), tearables::InvalidInput);
+    EXPECT_THROW(world.applyForce(id, 11, {0, 1, 0}), tearables::InvalidInput);
+    EXPECT_THROW(world.attachToPoint(id, 3, {0, INFINITY, 0}), tearables::InvalidInput);
+    world.step(std::nan(""));
+    world.step(-0.01);
+    EXPECT_EQ(world.stepCount(), 0);
+    for (int i = 0; i < 10; ++i) world.step(0.01);
+    for (const Vec3& p : *world.view(id).positions) EXPECT_TRUE(p.allFinite());
+}
