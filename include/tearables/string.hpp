@@ -36,6 +36,9 @@ struct StringDesc {
     TensionEstimator tension = TensionEstimator::Momentum;  ///< tension estimator
     bool tearable = true;          ///< segments break where their stress passes rupture
     double damping = 0.0;          ///< linear velocity damping, 1/s, >= 0 (air drag stand-in)
+    /// Retardation time of the material's stretch (Kelvin-Voigt), s, [0, 1]: damps the
+    /// axial vibration of a loaded rope; 0 = undamped.
+    double axial_damping = 0.01;
     std::uint64_t seed = 1;        ///< seeds the per-segment material variation
 
     /// A straight string from `from` to `to` with `segments` equal segments.

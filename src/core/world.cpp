@@ -167,6 +167,8 @@ StringId World::addString(const StringDesc& desc) {
         sm.torsion_rupture = std::max(vary(s.rng, mat.torsion.rupture, mat.variation), sm.torsion_yield * (1.0 + 1e-12));
         s.peak_stress[j] = sm.yield;
     }
+    s.compliance.resize(m);
+    for (std::size_t j = 0; j < m; ++j) s.compliance[j] = s.rest_length[j] / (s.material[j].young * area);
     s.dir.resize(m);
     for (std::size_t j = 0; j < m; ++j) s.dir[j] = (s.x[j + 1] - s.x[j]) / s.rest_length[j];
     s.diag.assign(m, 0.0);
@@ -176,6 +178,11 @@ StringId World::addString(const StringDesc& desc) {
     s.violation.assign(m, 0.0);
     s.impulse.assign(m, 0.0);
     s.active.assign(m, 0);
+    s.blk_diag.assign(n, Mat3::Zero());
+    s.blk_off.assign(n, Mat3::Zero());
+    s.blk_rhs.assign(n, Vec3::Zero());
+    s.prev_stretch.assign(m, 0.0);
+    s.shortest_rest = *std::min_element(s.rest_length.begin(), s.rest_length.end());
 
     // Reuse a free slot so ids stay small; the order of strings is the slot order.
     for (std::size_t i = 0; i < impl_->strings.size(); ++i)

@@ -94,6 +94,7 @@ void validate(const StringDesc& d) {
             throw InvalidInput(d.twist_half_width.size() == 1 ? "twist_half_width" : "twist_half_width[" + std::to_string(i) + "]",
                                "must be in [1, 8] (got " + std::to_string(d.twist_half_width[i]) + ")");
     requireRange("damping", d.damping, 0.0, 1e3);
+    requireRange("axial_damping", d.axial_damping, 0.0, 1.0);
 }
 
 void validate(const WorldSettings& s) {

@@ -1,18 +1,23 @@
 // Stage 7: material response to the estimated tension (Strings, Sec. 5.3-5.4; Yarn, Sec. 3.3-3.4).
 //
-// Stress sigma = T / (pi r^2) (Strings Eq. 8). The tensile curve is bilinear: strain
+// Stress sigma = T / (pi r0^2) (Strings Eq. 8, engineering stress on the original section). The tensile curve is bilinear: strain
 // sigma/E up to the yield stress, then yield/E + (sigma - yield)/E_p (Strings Sec. 5.1:
 // "a line with a constant slope that fits the curve best"). Choices where the papers
 // are vague, documented here:
 //  - L_max = L_rest (1 + sigma/E): the strain limit follows the elastic strain of the
 //    current stress (Strings Sec. 5.4, Yarn Sec. 3.3), so an unloaded rope is
-//    inextensible and a loaded one lengthens as its modulus says.
+//    inextensible and a loaded one lengthens as its modulus says. The limiter meets it
+//    implicitly through the compliance L_rest / (E A) (strain_limit.cpp); L_max is
+//    kept for the trace.
 //  - Past yield the material hardens: the peak stress reached sets a permanent strain
 //    eps_perm = eps_curve(peak) - peak/E (unloading runs parallel to the elastic line),
 //    and the rest length becomes L0 (1 + eps_perm) (Yarn Sec. 3.4: rest length grows).
 //  - The radius keeps the segment's volume: r = r0 sqrt(L0 / L_max).
 //  - A segment whose stress reaches its rupture stress breaks (if the string is
-//    tearable): it is removed, its two particles stay, and a Tear event is emitted.
+//    tearable): it is removed, its two particles stay, and a Tear event is emitted. Per
+//    string and step only the most overloaded segment breaks (a uniform rope would
+//    otherwise shatter into all its segments at once; after the first tear the rest
+//    is unloaded).
 #include "string/string_state.hpp"
 
 #include <algorithm>
@@ -48,16 +53,25 @@ Event makeEvent(const StringState& s, StringId id, EventType type, EventCause ca
 void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::vector<Event>& events) {
     const std::size_t m = s.segments();
     const double r0 = s.desc.radius;
+    const double area0 = kPi * r0 * r0;
+    int worst = -1;
+    double worst_ratio = 0.0, worst_stress = 0.0;
     for (std::size_t j = 0; j < m; ++j) {
         if (s.broken[j]) continue;
         const SegmentMaterial& mat = s.material[j];
-        const double area = kPi * s.radius[j] * s.radius[j];
-        const double stress = std::max(0.0, s.tension[j]) / area;
+        // Engineering stress (force over the original section), as stress-strain
+        // curves and rupture stresses are measured; the thinned radius below is geometry.
+        const double stress = std::max(0.0, s.tension[j]) / area0;
 
         if (s.desc.tearable && stress >= mat.rupture) {
-            s.broken[j] = 1;
-            s.tension[j] = 0.0;
-            events.push_back(makeEvent(s, id, EventType::Tear, EventCause::Tension, static_cast<int>(j), stress, ctx));
+            // Tear the most overloaded segment only: once it is gone the others are
+            // unloaded, and the next step's tension says whether they still tear.
+            const double ratio = stress / mat.rupture;
+            if (ratio > worst_ratio) {
+                worst_ratio = ratio;
+                worst = static_cast<int>(j);
+                worst_stress = stress;
+            }
             continue;
         }
         if (stress > mat.yield) {
@@ -65,14 +79,23 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
                 s.yielded[j] = 1;
                 events.push_back(makeEvent(s, id, EventType::Yield, EventCause::Tension, static_cast<int>(j), stress, ctx));
             }
-            if (stress > s.peak_stress[j]) {
-                s.peak_stress[j] = stress;
-                const double permanent = strainOnCurve(mat, stress) - stress / mat.young;
+            // A string that cannot tear stops flowing at its rupture stress (otherwise
+            // the thinning of a yielding segment would run away).
+            const double flow = std::min(stress, mat.rupture);
+            if (flow > s.peak_stress[j]) {
+                s.peak_stress[j] = flow;
+                const double permanent = strainOnCurve(mat, flow) - flow / mat.young;
                 s.rest_length[j] = s.original_length[j] * (1.0 + permanent);
             }
         }
         s.max_length[j] = s.rest_length[j] * (1.0 + stress / mat.young);
         s.radius[j] = r0 * std::sqrt(s.original_length[j] / s.max_length[j]);
+        s.compliance[j] = s.rest_length[j] / (mat.young * kPi * s.radius[j] * s.radius[j]);
+    }
+    if (worst >= 0) {
+        s.broken[worst] = 1;
+        s.tension[worst] = 0.0;
+        events.push_back(makeEvent(s, id, EventType::Tear, EventCause::Tension, worst, worst_stress, ctx));
     }
 }
 

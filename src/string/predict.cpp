@@ -12,7 +12,6 @@ namespace tearables::detail {
 void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
     const double h = ctx.h;
     const double damp = 1.0 / (1.0 + s.desc.damping * h);
-    const double max_speed = ctx.settings->max_speed;
     const std::size_t n = s.particles();
     for (std::size_t p = 0; p < n; ++p) {
         s.x_prev[p] = s.x[p];
@@ -25,10 +24,7 @@ void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
                 s.x[p] = gluePoint(rigids.bodies[hold.body.index], hold.point);
                 break;
             case ParticleHold::Kind::Free: {
-                Vec3 v = s.v[p] + h * (ctx.gravity + s.inv_mass[p] * s.force[p]);
-                v *= damp;
-                const double speed2 = v.squaredNorm();
-                if (speed2 > max_speed * max_speed) v *= max_speed / std::sqrt(speed2);
+                const Vec3 v = damp * (s.v[p] + h * (ctx.gravity + s.inv_mass[p] * s.force[p]));
                 s.v[p] = v;
                 s.x[p] += h * v;
                 break;
@@ -39,9 +35,17 @@ void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
 
 // Position-based velocity update: v = (x - x_prev) / h, for every particle (held ones
 // included, so a moved pin or a swinging body gives its particle the right velocity).
+// The speed clamp (a guard against blow-ups) acts here, on the constrained result: a
+// force on a light particle may predict a huge speed that the limiter then removes.
 void updateVelocities(StringState& s, const StepContext& ctx) {
+    const double max_speed = ctx.settings->max_speed;
     const std::size_t n = s.particles();
-    for (std::size_t p = 0; p < n; ++p) s.v[p] = (s.x[p] - s.x_prev[p]) * ctx.inv_h;
+    for (std::size_t p = 0; p < n; ++p) {
+        Vec3 v = (s.x[p] - s.x_prev[p]) * ctx.inv_h;
+        const double speed2 = v.squaredNorm();
+        if (speed2 > max_speed * max_speed) v *= max_speed / std::sqrt(speed2);
+        s.v[p] = v;
+    }
 }
 
 }  // namespace tearables::detail

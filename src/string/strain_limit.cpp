@@ -4,33 +4,41 @@
 // from a clamped end (one end clamped), back and forth (both ends), or per piece between
 // clamps (several points). Those sweeps move one particle at a time and need many passes
 // when masses differ; a rope holding a body 1000x heavier than itself then stretches
-// (this is why Bullet's anchored soft-body ropes do). We choose the exact mass-weighted
+// (this is why Bullet's anchored soft-body ropes do). We choose an exact, mass-weighted
 // projection instead, which covers all three cases at once:
 //
-//   For the active (stretched) segments j, with C_j = |x_{j+1} - x_j| - L_max_j and unit
-//   direction e_j, find impulses mu_j >= 0 (kg m: force x h^2) such that moving every
-//   particle p by  dx_p = K_p * sum_j a_pj mu_j  (a_pj = +e_j if p starts segment j,
-//   -e_j if it ends it) removes C to first order:  (J K J^T) mu = C.
+//   x = argmin  sum_p m_p/(2h^2) |x_p - x'_p|^2  +  sum_j k_j/2 max(0, |x_{j+1}-x_j| - L_j)^2
 //
-// J K J^T is tridiagonal for a chain (segment j shares one particle with j-1 and j+1),
-// so one Newton iteration is an O(n) Thomas solve; 2-4 iterations reach the tolerance.
-// Clamped particles (pins) have K = 0, which splits the system into independent pieces
-// exactly as case 3 of the paper prescribes. A particle glued to a rigid body has the
-// body's generalised inverse mass at the glue point, K = 1/M - [r]x I^-1 [r]x, so the
-// rope holds the body with its real mass and inertia and the body pulls the rope; the
-// body is moved by the same impulses (two-way). Strings that share a body are coupled
-// by Gauss-Seidel sweeps over the strings in World::step.
+// i.e. backward Euler on segments of the material's own stiffness k_j = E A / L_j (the
+// compliance form of strain limiting: the limit L_max = L (1 + sigma/E) of Strings Sec.
+// 5.4 is met implicitly in the solve instead of lagging a step behind the stress, which
+// would make a loaded rope alternate between slack and caught). At fibre moduli this is
+// inextensible to within sigma/E. Newton's method on it, with the geometric stiffness of
+// each stretched segment, gives a symmetric block-tridiagonal system (3x3 blocks, a
+// segment couples two neighbouring particles) solved directly in O(n); 2-4 iterations
+// converge. Without the geometric term (plain Gauss-Newton / XPBD) a light rope under a
+// heavy load converges so slowly that it stretches without bound.
+//
+// Clamped particles are fixed rows, which splits the system into independent pieces as
+// case 3 of the paper prescribes. A particle glued to a rigid body carries the body's
+// effective mass at the glue point, K^-1 with K = 1/M - [r]x I^-1 [r]x, so the rope holds
+// the body with its real mass and inertia, and the body, moved by the same impulses,
+// pulls the rope (two-way). Strings that share a body are coupled by Gauss-Seidel sweeps
+// over the strings in World::step.
 #include "core/tridiagonal.hpp"
 #include "string/string_state.hpp"
 
+#include <Eigen/Cholesky>
+
+#include <algorithm>
 #include <cmath>
 
 namespace tearables::detail {
 
 namespace {
 
-/// A segment shorter than L_max by less than this fraction counts as taut.
-constexpr double kTautSlack = 1e-3;
+/// A segment shorter than its rest length by less than this fraction counts as taut.
+constexpr double kTautSlack = 1e-4;
 
 Mat3 cross(const Vec3& r) {
     Mat3 m;
@@ -69,6 +77,32 @@ Mobility mobility(const StringState& s, const RigidTable& rigids, std::size_t p)
     return m;
 }
 
+/// True when particle p does not move in the solve (pinned, or glued to an immovable body).
+bool fixedRow(const StringState& s, std::size_t p) {
+    const ParticleHold& hold = s.hold[p];
+    return hold.kind == ParticleHold::Kind::Pin || (hold.kind == ParticleHold::Kind::Glue && !s.glue_movable[p]);
+}
+
+/// Solves the symmetric block-tridiagonal system (3x3 blocks: blk_diag, blk_off) for
+/// blk_rhs in place: block Thomas algorithm, O(n). The blocks are mass/h^2 plus spring
+/// Hessians, symmetric positive definite, so no pivoting is needed.
+void solveBlockTridiagonal(StringState& s) {
+    const std::size_t n = s.particles();
+    // Forward elimination: blk_diag[i] <- D'_i, blk_rhs[i] <- r'_i.
+    for (std::size_t i = 1; i < n; ++i) {
+        const Mat3& u = s.blk_off[i - 1];  // couples i-1 and i
+        if (u.isZero(0.0)) continue;
+        const Eigen::LLT<Mat3> prev(s.blk_diag[i - 1]);
+        const Mat3 w = prev.solve(u);       // D'^-1 U
+        s.blk_diag[i] -= u.transpose() * w;
+        s.blk_rhs[i] -= w.transpose() * s.blk_rhs[i - 1];
+    }
+    // Back substitution.
+    s.blk_rhs[n - 1] = Eigen::LLT<Mat3>(s.blk_diag[n - 1]).solve(s.blk_rhs[n - 1]);
+    for (std::size_t i = n - 1; i-- > 0;)
+        s.blk_rhs[i] = Eigen::LLT<Mat3>(s.blk_diag[i]).solve(s.blk_rhs[i] - s.blk_off[i] * s.blk_rhs[i + 1]);
+}
+
 }  // namespace
 
 void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& ctx) {
@@ -87,96 +121,102 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
     }
     s.x_pred = s.x;
     std::fill(s.impulse.begin(), s.impulse.end(), 0.0);
+    for (std::size_t j = 0; j < s.segments(); ++j)
+        s.prev_stretch[j] = (s.x_prev[j + 1] - s.x_prev[j]).norm() - s.rest_length[j];
 }
 
 void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     const std::size_t m = s.segments();
     const std::size_t n = s.particles();
+    const double inv_h2 = ctx.inv_h * ctx.inv_h;
     const double tol = ctx.settings->strain_tolerance;
+
     for (int iter = 0; iter < ctx.settings->strain_iterations; ++iter) {
-        // Glued particles sit on their (possibly just moved) bodies.
+        // Inertia: free particles are pulled back toward their prediction x'; a glued
+        // particle carries its body's effective mass K^-1 at the glue point and starts
+        // each iteration on the body (which absorbed the earlier corrections).
         for (std::size_t p = 0; p < n; ++p) {
             const ParticleHold& hold = s.hold[p];
-            if (hold.kind == ParticleHold::Kind::Glue) s.x[p] = gluePoint(rigids.bodies[hold.body.index], hold.point);
+            s.blk_rhs[p].setZero();
+            if (p < m) s.blk_off[p].setZero();
+            switch (hold.kind) {
+                case ParticleHold::Kind::Free:
+                    s.blk_diag[p] = (s.mass[p] * inv_h2) * Mat3::Identity();
+                    s.blk_rhs[p] = -(s.mass[p] * inv_h2) * (s.x[p] - s.x_pred[p]);
+                    break;
+                case ParticleHold::Kind::Glue:
+                    s.x[p] = gluePoint(rigids.bodies[hold.body.index], hold.point);
+                    if (s.glue_movable[p]) {
+                        // The body's inertia resists this string's own accumulated pull
+                        // (what other strings did to the body is, for this string, part
+                        // of the body's prediction): M_eff (x - x') / h^2 = P / h^2.
+                        s.blk_diag[p] = mobility(s, rigids, p).K.inverse() * inv_h2;
+                        s.blk_rhs[p] = -s.glue_impulse[p] * inv_h2;
+                        break;
+                    }
+                    [[fallthrough]];
+                case ParticleHold::Kind::Pin:
+                    s.blk_diag[p] = Mat3::Identity();  // fixed: its row is dx = 0
+                    break;
+            }
         }
-        // Geometry and the active set: segments stretched past L_max.
-        bool any = false;
+        // Springs of the material's stiffness k = E A / L_rest on the stretched segments:
+        // gradient k C e and Hessian k (e e^T + C/l (I - e e^T)) (the geometric term keeps
+        // Newton convergent when a heavy load pulls light particles).
+        double worst = 0.0;
         for (std::size_t j = 0; j < m; ++j) {
             s.active[j] = 0;
-            s.violation[j] = 0.0;
             if (s.broken[j]) continue;
             const Vec3 d = s.x[j + 1] - s.x[j];
             const double len = d.norm();
             if (len > 1e-15) s.dir[j] = d / len;
-            const double c = len - s.max_length[j];
-            s.violation[j] = c;
-            // Taut segments join the system too (a correction of their neighbours would
-            // stretch them); those that would have to push drop out in the passes below.
-            if (c > -kTautSlack * s.max_length[j]) s.active[j] = 1;
-            if (c > tol * s.max_length[j]) any = true;
-        }
-        if (!any) break;
-
-        auto w_of = [&](std::size_t p, const Vec3& a, const Vec3& b) -> double {
-            const ParticleHold::Kind kind = s.hold[p].kind;
-            if (kind == ParticleHold::Kind::Free) return s.inv_mass[p] * a.dot(b);
-            if (kind == ParticleHold::Kind::Pin) return 0.0;
-            return mobility(s, rigids, p).along(a, b);
-        };
-
-        // Up to three passes: a segment that would need to push (mu < 0) is slack and
-        // leaves the active set (a rope resists stretching only).
-        for (int pass = 0; pass < 3; ++pass) {
-            for (std::size_t j = 0; j < m; ++j) {
-                if (!s.active[j]) {
-                    s.diag[j] = 1.0;
-                    s.off[j] = 0.0;
-                    s.rhs[j] = 0.0;
-                    continue;
-                }
-                const Vec3& e = s.dir[j];
-                const double d = w_of(j, e, e) + w_of(j + 1, e, e);
-                if (!(d > 0.0)) {  // both ends immovable: nothing can be done
-                    s.active[j] = 0;
-                    s.diag[j] = 1.0;
-                    s.off[j] = 0.0;
-                    s.rhs[j] = 0.0;
-                    continue;
-                }
-                s.diag[j] = d;
-                s.rhs[j] = s.violation[j];
-                s.off[j] = (j + 1 < m && s.active[j + 1]) ? -w_of(j + 1, e, s.dir[j + 1]) : 0.0;
+            const double stretch = len - s.rest_length[j];
+            // Kelvin-Voigt: the segment's force is k (C + tau dC/dt), tau the material's
+            // retardation time; it damps the rope's axial (bungee) vibration, which a
+            // real fibre's internal friction kills within a few periods.
+            const double rate_gain = s.desc.axial_damping * ctx.inv_h;
+            const double effective = stretch + rate_gain * (stretch - s.prev_stretch[j]);
+            // Slack segments carry nothing (a rope does not push). Taut ones (within
+            // kTautSlack of rest) join with their stiffness but no force, so that one
+            // Newton step sees the whole taut chain a correction would stretch; a
+            // segment the step compresses leaves again at the next iteration.
+            if (stretch <= -kTautSlack * s.rest_length[j] && effective <= 0.0) continue;
+            const double c = std::max(effective, 0.0);
+            s.active[j] = 1;
+            const double k = 1.0 / s.compliance[j];
+            const Vec3& e = s.dir[j];
+            const Mat3 eet = e * e.transpose();
+            const Mat3 hess = k * ((1.0 + rate_gain) * eet + (c / len) * (Mat3::Identity() - eet));
+            const Vec3 force = k * c * e;  // pulls j toward j+1
+            const bool fa = !fixedRow(s, j), fb = !fixedRow(s, j + 1);
+            if (fa) {
+                s.blk_diag[j] += hess;
+                s.blk_rhs[j] += force;
             }
-            for (std::size_t j = 0; j + 1 < m; ++j)
-                if (!s.active[j + 1]) s.off[j] = 0.0;
-            solveSymmetricTridiagonal(s.diag, s.off, s.rhs, s.scratch);
-            bool slack = false;
-            for (std::size_t j = 0; j < m; ++j)
-                if (s.active[j] && s.rhs[j] < 0.0) {
-                    s.active[j] = 0;
-                    slack = true;
-                }
-            if (!slack) break;
+            if (fb) {
+                s.blk_diag[j + 1] += hess;
+                s.blk_rhs[j + 1] -= force;
+            }
+            if (fa && fb) s.blk_off[j] = -hess;
         }
-
-        // Apply dx_p = K_p sum_j a_pj mu_j.
+        solveBlockTridiagonal(s);
+        // Apply: free particles move, glued ones move their body by the impulse K^-1 dx.
         for (std::size_t p = 0; p < n; ++p) {
-            Vec3 pull = Vec3::Zero();
-            if (p > 0 && s.active[p - 1]) pull -= s.rhs[p - 1] * s.dir[p - 1];
-            if (p < m && s.active[p]) pull += s.rhs[p] * s.dir[p];
-            if (pull.isZero(0.0)) continue;
-            const ParticleHold& hold = s.hold[p];
-            if (hold.kind == ParticleHold::Kind::Free) {
-                s.x[p] += s.inv_mass[p] * pull;
-            } else if (hold.kind == ParticleHold::Kind::Glue && rigids.movable(hold.body)) {
-                RigidState& b = rigids.bodies[hold.body.index];
-                s.glue_impulse[p] += pull;
-                b.impulse += pull * ctx.inv_h;
-                applyBodyImpulse(b, s.x[p] - b.position, pull);
+            if (fixedRow(s, p)) continue;
+            const Vec3& dx = s.blk_rhs[p];
+            if (!dx.allFinite()) continue;
+            worst = std::max(worst, dx.norm());
+            if (s.hold[p].kind == ParticleHold::Kind::Free) {
+                s.x[p] += dx;
+            } else {
+                RigidState& b = rigids.bodies[s.hold[p].body.index];
+                const Vec3 impulse = mobility(s, rigids, p).K.inverse() * dx;
+                s.glue_impulse[p] += impulse;
+                b.impulse += impulse * ctx.inv_h;
+                applyBodyImpulse(b, s.x[p] - b.position, impulse);
             }
         }
-        for (std::size_t j = 0; j < m; ++j)
-            if (s.active[j]) s.impulse[j] += s.rhs[j];
+        if (worst < tol * s.shortest_rest) break;
     }
     // Leave glued particles on their bodies.
     for (std::size_t p = 0; p < n; ++p) {

@@ -53,7 +53,8 @@ struct StringState {
 
     // --- segments (n) ---------------------------------------------------------------------
     std::vector<double> rest_length;  ///< L0, m (grows with plasticity)
-    std::vector<double> max_length;   ///< strain limit L_max, m
+    std::vector<double> max_length;   ///< strain limit L_max = L_rest (1 + sigma/E), m (reported)
+    std::vector<double> compliance;   ///< L_rest / (E A), m/N: elastic stretch per newton
     std::vector<double> tension;      ///< N
     std::vector<double> twist;        ///< rad
     std::vector<double> radius;       ///< m (volume preserving under stretch)
@@ -68,6 +69,10 @@ struct StringState {
     std::vector<double> diag, off, rhs, scratch, violation;
     std::vector<double> impulse;      ///< accumulated strain-limit impulse per segment this step, kg m
     std::vector<std::uint8_t> active;
+    std::vector<Mat3> blk_diag, blk_off;  ///< block-tridiagonal Newton system (particles)
+    std::vector<Vec3> blk_rhs;
+    std::vector<double> prev_stretch;     ///< segment stretch at the start of the step, m
+    double shortest_rest = 0.0;           ///< m, for the convergence tolerance
 
     std::mt19937_64 rng;
 

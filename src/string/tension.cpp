@@ -20,7 +20,7 @@
 // as the reduced mass of the segment's ends over h^2, so that a single free segment gives
 // the same value as the momentum solve. It only sees the stretch this step produced: a
 // rope hanging at rest, whose particles all fall by the same g h^2 before limiting, reads
-// the tension of its clamped segment only and almost zero below it. Momentum balance
+// about one particle's weight at its clamp and almost zero below it. Momentum balance
 // sees the weight below every segment; that is why it is the default.
 #include "core/tridiagonal.hpp"
 #include "string/string_state.hpp"
