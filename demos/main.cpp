@@ -29,6 +29,21 @@ tearables::scene::Scene loadNamed(const std::string& what) {
                                                "\" (see `tearables list`)");
 }
 
+/// Runs `body`, mapping refusals to exit status 2 and other failures to 1.
+template <class Body>
+int guarded(const std::string& what, Body&& body) {
+    try {
+        body();
+        return 0;
+    } catch (const tearables::InvalidInput& e) {
+        std::fprintf(stderr, "tearables: %s: %s\n", what.c_str(), e.what());
+        return kInvalid;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "tearables: %s\n", e.what());
+        return kFailed;
+    }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -62,16 +77,11 @@ int main(int argc, char** argv) {
     }
 
     ts::Scene scene;
-    try {
-        if (png) throw tearables::InvalidInput("--png", "frame images are not available in this build yet");
-        scene = loadNamed(scene_arg);
-    } catch (const tearables::InvalidInput& e) {
-        std::fprintf(stderr, "tearables: %s: %s\n", scene_arg.c_str(), e.what());
-        return kInvalid;
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "tearables: %s\n", e.what());
-        return kFailed;
-    }
+    if (const int status = guarded(scene_arg, [&] {
+            if (png) throw tearables::InvalidInput("--png", "frame images are not available in this build yet");
+            scene = loadNamed(scene_arg);
+        }))
+        return status;
 
     ts::RunOptions options;
     if (out_dir.empty()) out_dir = "tearables-out/" + std::filesystem::path(scene_arg).stem().string();
@@ -79,20 +89,12 @@ int main(int argc, char** argv) {
     if (steps >= 0) options.steps = steps;
     if (every > 0) options.every = every;
     options.progress = !quiet && isatty(fileno(stderr));
-    try {
+    return guarded(scene_arg, [&] {
         const ts::RunResult r = ts::runScene(scene, options);
-        if (!quiet) {
-            std::printf("simulated %lld steps (%.3g s) in %.3g s of stepping; digest %s\n", r.steps, r.simulated_seconds,
-                        r.wall_seconds, r.digest.c_str());
-            for (const auto& [type, n] : r.event_counts) std::printf("  %s: %lld\n", type.c_str(), n);
-            std::printf("output: %s/{trace.jsonl,events.jsonl,summary.json}\n", out_dir.c_str());
-        }
-    } catch (const tearables::InvalidInput& e) {
-        std::fprintf(stderr, "tearables: %s: %s\n", scene_arg.c_str(), e.what());
-        return kInvalid;
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "tearables: %s\n", e.what());
-        return kFailed;
-    }
-    return 0;
+        if (quiet) return;
+        std::printf("simulated %lld steps (%.3g s) in %.3g s of stepping; digest %s\n", r.steps, r.simulated_seconds,
+                    r.wall_seconds, r.digest.c_str());
+        for (const auto& [type, n] : r.event_counts) std::printf("  %s: %lld\n", type.c_str(), n);
+        std::printf("output: %s/{trace.jsonl,events.jsonl,summary.json}\n", out_dir.c_str());
+    });
 }

@@ -34,8 +34,9 @@ struct Physics {
         if (world)
             for (auto& b : bodies) world->removeRigidBody(b.get());
     }
-    btRigidBody& box(const btVector3& half, double mass, const btVector3& at) {
-        shapes.push_back(std::make_unique<btBoxShape>(half));
+    /// A dynamic body of `shape` and `mass` at `at`, added to the world.
+    btRigidBody& add(std::unique_ptr<btCollisionShape> shape, double mass, const btVector3& at) {
+        shapes.push_back(std::move(shape));
         btVector3 inertia(0, 0, 0);
         shapes.back()->calculateLocalInertia(static_cast<btScalar>(mass), inertia);
         bodies.push_back(std::make_unique<btRigidBody>(
@@ -44,15 +45,11 @@ struct Physics {
         world->addRigidBody(bodies.back().get());
         return *bodies.back();
     }
+    btRigidBody& box(const btVector3& half, double mass, const btVector3& at) {
+        return add(std::make_unique<btBoxShape>(half), mass, at);
+    }
     btRigidBody& sphere(double r, double mass, const btVector3& at) {
-        shapes.push_back(std::make_unique<btSphereShape>(static_cast<btScalar>(r)));
-        btVector3 inertia(0, 0, 0);
-        shapes.back()->calculateLocalInertia(static_cast<btScalar>(mass), inertia);
-        bodies.push_back(std::make_unique<btRigidBody>(
-            btRigidBody::btRigidBodyConstructionInfo(static_cast<btScalar>(mass), nullptr, shapes.back().get(), inertia)));
-        bodies.back()->setWorldTransform(btTransform(btQuaternion::getIdentity(), at));
-        world->addRigidBody(bodies.back().get());
-        return *bodies.back();
+        return add(std::make_unique<btSphereShape>(static_cast<btScalar>(r)), mass, at);
     }
     void step(int n, double dt = 0.01) {
         for (int i = 0; i < n; ++i) world->stepSimulation(static_cast<btScalar>(dt), 1, static_cast<btScalar>(dt));
