@@ -14,7 +14,7 @@ namespace tearables {
 /// World-wide solver settings.
 struct WorldSettings {
     Vec3 gravity{0.0, -9.81, 0.0};  ///< m/s^2, finite
-    int strain_iterations = 4;       ///< Newton iterations of the direct chain projection, 1..64
+    int strain_iterations = 8;       ///< at most this many Newton iterations of the chain solve, 1..64 (stops when converged)
     int coupling_iterations = 8;     ///< Gauss-Seidel sweeps over strings sharing a dynamic body, 1..64
     double strain_tolerance = 1e-6;  ///< relative stretch past L_max accepted, (0, 0.01]
     double max_speed = 500.0;        ///< particle speed clamp, m/s, > 0 (guards against blow-ups)

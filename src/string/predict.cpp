@@ -24,7 +24,10 @@ void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
                 s.x[p] = gluePoint(rigids.bodies[hold.body.index], hold.point);
                 break;
             case ParticleHold::Kind::Free: {
-                const Vec3 v = damp * (s.v[p] + h * (ctx.gravity + s.inv_mass[p] * s.force[p]));
+                // Drag damps the motion, not the load: a rope at rest still feels all of
+                // gravity (damping the whole update would hide a fraction of the weight
+                // from the momentum-balance tension).
+                const Vec3 v = damp * s.v[p] + h * (ctx.gravity + s.inv_mass[p] * s.force[p]);
                 s.v[p] = v;
                 s.x[p] += h * v;
                 break;
