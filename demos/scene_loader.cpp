@@ -2,6 +2,7 @@
 // Every field is checked where it is read; a bad one throws InvalidInput whose field() is the
 // field's JSON path ("strings[0].material.tensile.rupture") and whose problem() says what is
 // wrong and what was found.
+#include "tearables/presets.hpp"
 #include "tearables/scene.hpp"
 
 #include <nlohmann/json.hpp>
@@ -553,7 +554,18 @@ std::vector<std::pair<int, double>> parseParticleMasses(const Node& n, long long
 }
 
 void parseMaterial(const Node& n, Material& m) {
-    n.checkNoUnknownFields({"tensile", "torsion", "variation"});
+    n.checkNoUnknownFields({"preset", "tensile", "torsion", "variation"});
+    // A named preset first (presets.hpp); the fields below override parts of it.
+    if (const auto p = n.field("preset")) {
+        const std::string name = p->asString();
+        const MaterialPreset* preset = findMaterialPreset(name);
+        if (!preset) {
+            std::vector<const char*> names;
+            for (const MaterialPreset& mp : materialPresets()) names.push_back(mp.name);
+            p->fail("unknown material preset " + jsonQuoted(name) + " (known: " + joinNames(names) + ")");
+        }
+        m = preset->material;
+    }
     if (const auto t = n.field("tensile")) {
         t->checkNoUnknownFields({"young", "yield", "plastic_modulus", "rupture"});
         TensileCurve& c = m.tensile;
@@ -625,7 +637,7 @@ std::vector<Attachment> parseAttachments(const Node& list, long long particles, 
 String parseString(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     n.checkNoUnknownFields({"name", "points", "from", "to", "segments", "radius", "density", "particle_masses",
                             "material", "csm_half_width", "twist_half_width", "tension", "tearable", "damping",
-                            "attachments"});
+                            "axial_damping", "attachments"});
     String s;
     StringDesc& d = s.desc;
     d.name = requiredName(n);
@@ -640,6 +652,7 @@ String parseString(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     if (const auto t = n.field("tension")) d.tension = parseTension(*t);
     d.tearable = n.boolean("tearable", d.tearable);
     d.damping = n.number("damping", d.damping, Range::atLeast(0.0));
+    d.axial_damping = n.number("axial_damping", d.axial_damping, Range::closed(0.0, 1.0));
     d.seed = seed;
     try {
         validate(d);  // what the fields above cannot check alone: rupture > yield, zero-length segments, ...

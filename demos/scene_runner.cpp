@@ -6,6 +6,7 @@
 #include <btBulletDynamicsCommon.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -203,7 +204,17 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         const Driver& drv = scene.drivers[d];
         const std::string path = "drivers[" + std::to_string(d) + "]";
         if (drv.type == Driver::Type::Twist)
-            throw InvalidInput(path + ".type", "twist drivers need the twist model, which this build does not have yet");
+            for (const String& s : scene.strings)
+                if (s.desc.name == drv.target) {
+                    const int n = static_cast<int>(s.desc.points.size());
+                    const int end = drv.end == 0 ? 0 : n - 1;
+                    const bool pinned = std::any_of(s.attachments.begin(), s.attachments.end(), [&](const Attachment& a) {
+                        return a.world && (a.particle + n) % n == end;
+                    });
+                    if (!pinned)
+                        throw InvalidInput(path + ".end", "that end of \"" + s.desc.name +
+                                                              "\" is not clamped: attach its particle to a world point");
+                }
         if (drv.type == Driver::Type::Move)
             for (const String& s : scene.strings)
                 if (s.desc.name == drv.target)
@@ -323,7 +334,8 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
                         }
                     }
                     break;
-                case Driver::Type::Twist:  // refused before the run
+                case Driver::Type::Twist:
+                    if (active) core.turnEnd(string_ids.at(drv.target), drv.end, drv.rate * dt);
                     break;
             }
         }

@@ -98,6 +98,12 @@ public:
     /// The world pin of a particle, if it has one.
     bool pinTarget(StringId id, int particle, Vec3* point) const;
 
+    /// Turns a clamped (pinned) end of a string about its segment's axis by `angle` rad
+    /// (end 0 = first, -1 = last); the end then holds the angle reached.
+    void turnEnd(StringId id, int end, double angle);
+    /// The angle a clamped end holds, rad.
+    double endTwist(StringId id, int end) const;
+
     /// Adds a force (N) on a particle for the next step only (cleared after it).
     void applyForce(StringId id, int particle, const Vec3& force);
 

@@ -182,6 +182,23 @@ StringId World::addString(const StringDesc& desc) {
     s.blk_off.assign(n, Mat3::Zero());
     s.blk_rhs.assign(n, Vec3::Zero());
     s.prev_stretch.assign(m, 0.0);
+    s.twist_velocity.assign(m, 0.0);
+    s.twist_old.assign(m, 0.0);
+    s.twist_inertia.resize(m);
+    s.twist_width.resize(m);
+    for (std::size_t j = 0; j < m; ++j) {
+        const double seg_mass = desc.density * area * s.rest_length[j];
+        s.twist_inertia[j] = 0.5 * seg_mass * desc.radius * desc.radius;
+        s.twist_width[j] = desc.twist_half_width.size() == 1 ? desc.twist_half_width[0] : desc.twist_half_width[j];
+    }
+    const std::size_t joints = m > 0 ? m - 1 : 0;
+    s.rest_twist.assign(joints, 0.0);
+    s.joint_stiffness.assign(joints, 0.0);
+    s.torsion_peak.assign(joints, 0.0);
+    s.joint_strain.assign(joints, 0.0);
+    s.torsion_yielded.assign(joints, 0);
+    s.twist_force.assign(n, Vec3::Zero());
+    detail::updateTwistStiffness(s);
     s.shortest_rest = *std::min_element(s.rest_length.begin(), s.rest_length.end());
 
     // Reuse a free slot so ids stay small; the order of strings is the slot order.
@@ -220,6 +237,9 @@ void World::attachToPoint(StringId id, int particle, const Vec3& point) {
     s.hold[p].kind = ParticleHold::Kind::Pin;
     s.hold[p].point = point;
     s.hold[p].body = RigidId{};
+    // A pinned end clamps its segment's twist at the angle it has now.
+    if (p == 0) s.end_twist[0] = s.twist.front();
+    if (p + 1 == static_cast<int>(s.particles())) s.end_twist[1] = s.twist.back();
     s.x[p] = point;
     s.v[p].setZero();
 }
@@ -260,6 +280,22 @@ bool World::pinTarget(StringId id, int particle, Vec3* point) const {
     if (hold.kind != ParticleHold::Kind::Pin) return false;
     if (point) *point = hold.point;
     return true;
+}
+
+void World::turnEnd(StringId id, int end, double angle) {
+    StringState& s = impl_->get(id);
+    if (end != 0 && end != -1) throw InvalidInput("end", "must be 0 (first) or -1 (last), got " + std::to_string(end));
+    const std::size_t p = end == 0 ? 0 : s.particles() - 1;
+    if (s.hold[p].kind != ParticleHold::Kind::Pin)
+        throw InvalidInput("end", "is not clamped: pin its particle to a point before turning it");
+    if (!std::isfinite(angle)) throw InvalidInput("angle", "must be finite");
+    s.end_twist[end == 0 ? 0 : 1] += angle;
+}
+
+double World::endTwist(StringId id, int end) const {
+    const StringState& s = impl_->get(id);
+    if (end != 0 && end != -1) throw InvalidInput("end", "must be 0 (first) or -1 (last), got " + std::to_string(end));
+    return s.end_twist[end == 0 ? 0 : 1];
 }
 
 void World::applyForce(StringId id, int particle, const Vec3& force) {
@@ -362,6 +398,12 @@ void World::step(double h) {
     t.strain_limit = seconds(t1, t2);
 
     for (StringState& s : w.strings)
+        if (live(s)) detail::solveTwist(s, rigids, ctx);
+    auto t2b = Clock::now();
+    t.twist = seconds(t2, t2b);
+    t2 = t2b;
+
+    for (StringState& s : w.strings)
         if (live(s)) detail::estimateTension(s, ctx);
     auto t3 = Clock::now();
     t.tension = seconds(t2, t3);
@@ -374,6 +416,7 @@ void World::step(double h) {
     for (std::size_t i = 0; i < w.strings.size(); ++i) {
         StringState& s = w.strings[i];
         if (!live(s)) continue;
+        detail::computeTwistForces(s);
         detail::updateVelocities(s, ctx);
         bool ok = true;
         for (std::size_t p = 0; p < s.particles() && ok; ++p) ok = finite(s.x[p]) && finite(s.v[p]);

@@ -92,10 +92,56 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
         s.radius[j] = r0 * std::sqrt(s.original_length[j] / s.max_length[j]);
         s.compliance[j] = s.rest_length[j] / (mat.young * kPi * s.radius[j] * s.radius[j]);
     }
+    // Torsion (Strings Sec. 5.4, Eq. 11 with the division by length): per joint between
+    // segments k and k+1, gamma = r (theta_{k+1} - theta_k) / l. Past the yield strain the
+    // joint's rest twist grows (hardening as in tension, unloading parallel to G); a
+    // segment whose torsional strain (the mean of its joints') reaches rupture breaks.
+    EventCause worst_cause = EventCause::Tension;
+    const std::size_t joints = s.rest_twist.size();
+    for (std::size_t k = 0; k < joints; ++k) {
+        if (s.broken[k] || s.broken[k + 1]) continue;
+        const double l = 0.5 * (s.rest_length[k] + s.rest_length[k + 1]);
+        const double r = 0.5 * (s.radius[k] + s.radius[k + 1]);
+        const double total = r * (s.twist[k + 1] - s.twist[k]) / l;
+        const double elastic = total - r * s.rest_twist[k] / l;
+        const SegmentMaterial& mat = s.material[k];
+        if (std::abs(elastic) > mat.torsion_yield) {
+            if (!s.torsion_yielded[k]) {
+                s.torsion_yielded[k] = 1;
+                events.push_back(makeEvent(s, id, EventType::Yield, EventCause::Torsion, static_cast<int>(k), std::abs(total), ctx));
+            }
+            const double strain = std::min(std::abs(total), mat.torsion_rupture);
+            if (strain > s.torsion_peak[k]) {
+                s.torsion_peak[k] = strain;
+                const double stress = mat.shear_modulus * mat.torsion_yield + mat.torsion_plastic * (strain - mat.torsion_yield);
+                const double permanent = strain - stress / mat.shear_modulus;
+                s.rest_twist[k] = std::copysign(permanent, total) * l / r;
+            }
+        }
+        s.joint_strain[k] = std::abs(total);
+    }
+    if (s.desc.tearable && joints > 0) {
+        for (std::size_t j = 0; j < m; ++j) {
+            if (s.broken[j]) continue;
+            double sum = 0.0;
+            int count = 0;
+            if (j > 0 && !s.broken[j - 1]) sum += s.joint_strain[j - 1], ++count;
+            if (j < joints && !s.broken[j + 1]) sum += s.joint_strain[j], ++count;
+            if (count == 0) continue;
+            const double gamma = sum / count;
+            const double ratio = gamma / s.material[j].torsion_rupture;
+            if (ratio >= 1.0 && ratio > worst_ratio) {
+                worst_ratio = ratio;
+                worst = static_cast<int>(j);
+                worst_stress = gamma;
+                worst_cause = EventCause::Torsion;
+            }
+        }
+    }
     if (worst >= 0) {
         s.broken[worst] = 1;
         s.tension[worst] = 0.0;
-        events.push_back(makeEvent(s, id, EventType::Tear, EventCause::Tension, worst, worst_stress, ctx));
+        events.push_back(makeEvent(s, id, EventType::Tear, worst_cause, worst, worst_stress, ctx));
     }
 }
 

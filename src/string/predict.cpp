@@ -27,7 +27,14 @@ void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
                 // Drag damps the motion, not the load: a rope at rest still feels all of
                 // gravity (damping the whole update would hide a fraction of the weight
                 // from the momentum-balance tension).
-                const Vec3 v = damp * s.v[p] + h * (ctx.gravity + s.inv_mass[p] * s.force[p]);
+                // The twist force of the previous step (Eq. 6) is explicit: cap the
+                // displacement it can cause in one step at a tenth of a segment, a
+                // safety limit that only acts on a string twisted far past its strength.
+                Vec3 twist = s.twist_force[p];
+                const double cap = 0.1 * s.shortest_rest * s.mass[p] * ctx.inv_h * ctx.inv_h;
+                const double f = twist.norm();
+                if (f > cap) twist *= cap / f;
+                const Vec3 v = damp * s.v[p] + h * (ctx.gravity + s.inv_mass[p] * (s.force[p] + twist));
                 s.v[p] = v;
                 s.x[p] += h * v;
                 break;

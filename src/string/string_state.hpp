@@ -72,6 +72,21 @@ struct StringState {
     std::vector<Mat3> blk_diag, blk_off;  ///< block-tridiagonal Newton system (particles)
     std::vector<Vec3> blk_rhs;
     std::vector<double> prev_stretch;     ///< segment stretch at the start of the step, m
+
+    // --- twist (Strings Sec. 4) --------------------------------------------------------
+    std::vector<double> twist_velocity;   ///< per segment, rad/s
+    std::vector<double> twist_old;        ///< per segment, angle at the start of the stage
+    std::vector<double> twist_inertia;    ///< per segment, m r^2 / 2, kg m^2
+    std::vector<double> twist_width;      ///< per segment w_twist (rigidity factor w/2)
+    std::vector<double> rest_twist;       ///< per joint (segments k, k+1), rad (torsion plasticity)
+    std::vector<double> joint_stiffness;  ///< per joint, G J w / (2 l), N m / rad
+    std::vector<double> torsion_peak;     ///< per joint, peak torsional strain past yield
+    std::vector<double> joint_strain;     ///< per joint, |gamma| this step
+    std::vector<std::uint8_t> torsion_yielded;  ///< per joint
+    std::vector<Vec3> twist_force;        ///< per particle, N (Eq. 6), applied next step
+    double end_twist[2] = {0.0, 0.0};     ///< held angle of clamped ends (first, last segment), rad
+    double twist_glued_pred[2] = {0.0, 0.0};
+    double twist_glued_axis_inertia[2] = {0.0, 0.0};
     double shortest_rest = 0.0;           ///< m, for the convergence tolerance
 
     std::mt19937_64 rng;
@@ -100,6 +115,9 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx);
 void estimateTension(StringState& s, const StepContext& ctx);
 void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::vector<Event>& events);
 void updateVelocities(StringState& s, const StepContext& ctx);
+void updateTwistStiffness(StringState& s);
+void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx);
+void computeTwistForces(StringState& s);
 
 /// World position of a glued particle.
 inline Vec3 gluePoint(const RigidState& body, const Vec3& local) {

@@ -133,8 +133,8 @@ TEST(Cli, InvalidScenesExitTwoNamingTheField) {
          "strings[0].attachments[0].particle"},
         {"driver-particle", "{" + rope + R"(} ], "drivers": [ {"type": "force", "target": "rope", "particle": 40, "value": [0,1,0]} ]})",
          "drivers[0].particle"},
-        {"twist-not-yet", "{" + rope + R"(, "attachments": [ {"particle": 0, "world": [0,2,0]} ]} ], "drivers": [ {"type": "twist", "target": "rope", "end": 0, "rate": 1} ]})",
-         "drivers[0].type"},
+        {"twist-unclamped-end", "{" + rope + R"(, "attachments": [ {"particle": 0, "world": [0,2,0]} ]} ], "drivers": [ {"type": "twist", "target": "rope", "end": -1, "rate": 1} ]})",
+         "drivers[0].end"},
     };
     for (const Case& c : cases) {
         const fs::path scene = writeScene(c.name, c.text);

@@ -1,0 +1,184 @@
+// Chain shape matching (Strings, Sec. 3; Rungjiratananon, Kanamori, Nishita 2010).
+//
+// Regions. On a piece [first, last] of N particles, region k holds the particles
+// max(first, k-w) .. min(last, k+w); particle i belongs to N_i = min(last, i+w) -
+// max(first, i-w) + 1 regions (2w+1 inside the chain, fewer near the piece's ends).
+//
+// Per-region mass. The paper weighs "the goal position of each particle in the
+// overlapping regions by particle per-region mass". We read this as in lattice shape
+// matching (Rivers & James, FastLSM 2007), which CSM simplifies: a particle's mass is split
+// equally among the regions that contain it, m~_i = m_i / N_i, and m~_i is the mass the
+// particle has in each of its regions, both when a region is fitted (centroids and the
+// moment matrix A) and when its goals are blended. Blending then is a plain average over
+// the particle's regions,
+//     g_i = sum_k m~_i g_ik / sum_k m~_i = (1/N_i) sum_{k containing i} g_ik,
+// and, because every region conserves the momentum of its per-region masses, the goals
+// conserve the linear momentum of the piece exactly: sum_i m_i g_i = sum_i m_i x_i
+// (fitting with the full m_i instead would break this at the piece's ends, where N_i
+// varies). A heavier particle (e.g. a colliding one, made 3x heavier by the caller, Sec.
+// 6) pulls its regions' centroids and rotations towards itself and so moves less.
+//
+// Fit of region k (per-region masses): c = sum m~ x / M, c0 = sum m~ x0 / M,
+//     A = sum m~ (x - c)(x0 - c0)^T = sum m~ x x0^T - M c c0^T,
+// R = rotational part of A, goals g_ik = R (x0_i - c0) + c.
+//
+// O(1) per region. The brief for this kernel suggested prefix sums of m, m x, m x0 and
+// m x x0^T along the chain with A_k = S_k - M c c0^T. Differences of global prefix sums
+// cancel catastrophically: their terms grow with the distance from the origin and with the
+// chain's length, while A_k is of the order of the region's own (small) extent squared
+// (a 746-particle rope of 1 cm segments would lose about 8 digits in A of a w = 2 region).
+// We keep the O(1) cost without any subtraction (the van Herk / Gil-Werman sliding-window
+// scheme): the piece is cut into blocks of B = 2w+1 particles; inside each block we keep
+// prefix sums (block start .. i) and suffix sums (i .. block end) of the moments taken
+// about the block's first particle. A region has at most B particles, so it is a suffix
+// of one block plus a prefix of the next (or, at the piece's ends, a prefix or a suffix of
+// one block). Both parts are shifted exactly to the region's centre particle (x_k, x0_k)
+// and added; every quantity then has the size of a few regions, and A_k = S - M c c0^T
+// (about that centre) loses only a couple of digits. Goals are blended as
+// x_i + mean_k [R_k (x0_i - c0_k) + (c_k - x_i)], again with local differences only.
+//
+// Rotation. csmRotation takes the rotational part of A from a 3x3 JacobiSVD, A = U S V^T,
+// R = U diag(1, 1, det(U V^T)) V^T (the reflection fix flips the singular vector of the
+// smallest singular value). JacobiSVD is unconditionally convergent and accurate, needs no
+// state (no warm start, so results do not depend on call order), and handles planar
+// regions (rank 2) and sign-indefinite A. When A has rank <= 1 (sigma_2 <= 1e-12 sigma_1:
+// all particles of the region collinear, now or at rest: a straight chain being stretched
+// or a straight rest shape), every rotation taking the rest direction v_1 to the current
+// one u_1 is optimal and the rotation about the line is undetermined; we then take the
+// smallest such rotation (about v_1 x u_1), the one closest to identity, so a curved rest
+// shape pulled straight keeps its plane instead of a spin picked by round-off. A straight
+// rest shape makes every region rank 1; its goals only depend on R v_1 = u_1, which both
+// branches give exactly.
+#include "string/shape_matching.hpp"
+
+#include <Eigen/SVD>
+
+#include <algorithm>
+
+namespace tearables::detail {
+
+namespace {
+
+/// sigma_2 / sigma_1 at or below which a region's A counts as rank 1 (collinear region).
+/// Round-off in A (assembled about the region's centre) is ~1e-15 sigma_1, so below this
+/// the rotation about the line would be picked by round-off.
+constexpr double kRankOneTolerance = 1e-12;
+
+/// Adds a particle of per-region mass m at (dx, dx0) relative to the moments' reference.
+inline void addParticle(CsmMoments& s, double m, const Vec3& dx, const Vec3& dx0) {
+    s.m += m;
+    const Vec3 mdx = m * dx;
+    s.mx += mdx;
+    s.mx0 += m * dx0;
+    s.mxx0.noalias() += mdx * dx0.transpose();
+}
+
+/// Adds moments `s` taken about (p, p0) to `acc` taken about (q, q0); d = p - q, d0 = p0 - q0:
+/// sum m (x-q)(x0-q0)^T = S + mx d0^T + d mx0^T + m d d0^T.
+inline void addShifted(CsmMoments& acc, const CsmMoments& s, const Vec3& d, const Vec3& d0) {
+    acc.m += s.m;
+    acc.mx += s.mx + s.m * d;
+    acc.mx0 += s.mx0 + s.m * d0;
+    acc.mxx0 += s.mxx0;
+    acc.mxx0.noalias() += (s.mx + s.m * d) * d0.transpose();  // mx d0^T + m d d0^T
+    acc.mxx0.noalias() += d * s.mx0.transpose();
+}
+
+}  // namespace
+
+Mat3 csmRotation(const Mat3& a) {
+    const Eigen::JacobiSVD<Mat3, Eigen::NoQRPreconditioner> svd(a, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    const Vec3& sigma = svd.singularValues();
+    if (!(sigma(0) > 0.0)) return Mat3::Identity();  // A = 0 (a single point), or NaN input
+    if (sigma(1) <= kRankOneTolerance * sigma(0)) {
+        // Rank 1: A ~ sigma_1 u_1 v_1^T. The smallest rotation taking v_1 to u_1 (sign
+        // pairs of u_1, v_1 are consistent, so the pair is well defined).
+        return Quat::FromTwoVectors(svd.matrixV().col(0), svd.matrixU().col(0)).toRotationMatrix();
+    }
+    Mat3 u = svd.matrixU();
+    const Mat3& v = svd.matrixV();
+    if (u.determinant() * v.determinant() < 0.0) u.col(2) = -u.col(2);
+    return u * v.transpose();
+}
+
+void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass, std::size_t first,
+                             std::size_t last, int w, Vec3* goal, CsmScratch& scratch) {
+    if (w < 1) throw InvalidInput("w", "region half-width must be >= 1");
+    if (first > last) throw InvalidInput("first", "piece is empty (first > last)");
+    const std::size_t n = last - first + 1;
+    x += first;
+    rest += first;
+    mass += first;
+    goal += first;
+    // A half-width beyond the piece gives the same regions as n-1 (whole piece).
+    const std::size_t hw = std::min(static_cast<std::size_t>(w), n - 1);
+    const std::size_t block = 2 * hw + 1;
+    const auto regionLo = [hw](std::size_t k) { return k > hw ? k - hw : 0; };
+    const auto regionHi = [hw, n](std::size_t k) { return std::min(n - 1, k + hw); };
+
+    if (scratch.prefix.size() < n) scratch.prefix.resize(n);
+    if (scratch.suffix.size() < n) scratch.suffix.resize(n);
+    if (scratch.rotation.size() < n) scratch.rotation.resize(n);
+    if (scratch.centroid.size() < n) scratch.centroid.resize(n);
+    if (scratch.rest_centroid.size() < n) scratch.rest_centroid.resize(n);
+    CsmMoments* prefix = scratch.prefix.data();
+    CsmMoments* suffix = scratch.suffix.data();
+
+    // Pass 1: per block, prefix and suffix moments about the block's first particle, with
+    // per-region masses m_i / N_i (N_i = number of regions containing i = size of region i).
+    for (std::size_t s = 0; s < n; s += block) {
+        const std::size_t e = std::min(s + block, n) - 1;
+        const Vec3& p = x[s];
+        const Vec3& p0 = rest[s];
+        CsmMoments run;
+        for (std::size_t i = s; i <= e; ++i) {
+            const double m = mass[i] / static_cast<double>(regionHi(i) - regionLo(i) + 1);
+            addParticle(run, m, x[i] - p, rest[i] - p0);
+            prefix[i] = run;
+        }
+        run = CsmMoments();
+        for (std::size_t i = e + 1; i-- > s;) {
+            const double m = mass[i] / static_cast<double>(regionHi(i) - regionLo(i) + 1);
+            addParticle(run, m, x[i] - p, rest[i] - p0);
+            suffix[i] = run;
+        }
+    }
+
+    // Pass 2: fit every region, moments about its centre particle k.
+    for (std::size_t k = 0; k < n; ++k) {
+        const std::size_t lo = regionLo(k);
+        const std::size_t hi = regionHi(k);
+        const std::size_t blo = lo - lo % block;  // first particle of lo's block
+        const std::size_t bhi = hi - hi % block;
+        CsmMoments sum;
+        if (blo == bhi) {
+            // One block: a region shorter than a block touches the piece's start (a block
+            // prefix) or its end (a block suffix); a full-size one is the whole block.
+            addShifted(sum, lo == blo ? prefix[hi] : suffix[lo], x[blo] - x[k], rest[blo] - rest[k]);
+        } else {
+            addShifted(sum, suffix[lo], x[blo] - x[k], rest[blo] - rest[k]);
+            addShifted(sum, prefix[hi], x[bhi] - x[k], rest[bhi] - rest[k]);
+        }
+        const Vec3 dc = sum.mx / sum.m;    // c - x_k
+        const Vec3 dc0 = sum.mx0 / sum.m;  // c0 - x0_k
+        const Mat3 a = sum.mxx0 - sum.mx * dc0.transpose();
+        scratch.rotation[k] = csmRotation(a);
+        scratch.centroid[k] = x[k] + dc;
+        scratch.rest_centroid[k] = rest[k] + dc0;
+    }
+
+    // Pass 3: blend, g_i = x_i + mean over regions k containing i of (g_ik - x_i). Region k
+    // contains i iff |k - i| <= hw, so those regions are regionLo(i) .. regionHi(i).
+    const Mat3* rot = scratch.rotation.data();
+    const Vec3* c = scratch.centroid.data();
+    const Vec3* c0 = scratch.rest_centroid.data();
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::size_t lo = regionLo(i);
+        const std::size_t hi = regionHi(i);
+        Vec3 acc = Vec3::Zero();
+        for (std::size_t k = lo; k <= hi; ++k) acc.noalias() += rot[k] * (rest[i] - c0[k]) + (c[k] - x[i]);
+        goal[i] = x[i] + acc / static_cast<double>(hi - lo + 1);
+    }
+}
+
+}  // namespace tearables::detail

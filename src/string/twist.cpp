@@ -1,0 +1,174 @@
+// Stage 3 (after strain limiting, so that it sees this step's geometry): twist.
+//
+// Strings, Sec. 4 gives every segment j a twist angle theta_j between its twist-free
+// (Bishop) frame and its material frame, and spreads a twist applied at an end along the
+// string by averaging the increments over overlapping regions of half-width w_twist
+// (Eq. 1-3), with a rotational velocity (Eq. 4-5). The averaging's fixed point is the
+// same linear twist whatever the widths, so it cannot give the paper's Fig. 6e, where a
+// more rigid range twists less. We therefore solve the balance the averaging
+// approximates, implicitly (backward Euler, stable at any stiffness):
+//
+//   minimise  sum_j I_j/(2h^2) (theta_j - theta'_j)^2 + sum_k k_k/2 (theta_{k+1} - theta_k - tau0_k)^2
+//
+// with theta'_j = theta_j + h omega_j (Eq. 5: first rotated by the rotational velocity),
+// I_j = m_j r^2 / 2 (a solid cylinder about its axis), joint stiffness
+// k_k = G J w_k / (2 l_k), J = pi r^4 / 2, l_k the distance between the segments' centres,
+// and tau0_k the rest twist of the joint (plasticity). The paper's knob survives as a
+// rigidity factor w/2: w_twist = 2 (the paper's default) is the material's own G J, and
+// a range with twice the width is twice as rigid, so at rest it twists half as much
+// (Fig. 6d-e). The system is tridiagonal: O(n). omega_j = (theta_j - theta_j^old) / h
+// afterwards (the rotational velocity of Eq. 4, from the solve instead of "I dtheta").
+//
+// Ends: a pinned end particle clamps its segment's twist (twist drivers turn it); a free
+// end is torque-free; an end glued to a rigid body turns with the body about the segment
+// axis and the body feels the string's torque (implicitly: its moment of inertia about
+// that axis joins the solve).
+//
+// The twist force on the particles (Strings Eq. 6) is the gradient of the same twist
+// energy with respect to positions, in the general form of Bergou et al. 2008 that Eq. 6
+// is derived from: with m_p = theta_p - theta_{p-1} at interior particle p and its moment
+// M_p = k (m_p - tau0), dm_p/dx_{p-1} = kb_p / (2|e_{p-1}|), dm_p/dx_{p+1} = -kb_p / (2|e_p|),
+// and dm_p/dx_p = -(the sum), kb_p = 2 e_{p-1} x e_p / (|e_{p-1}||e_p| + e_{p-1}.e_p)
+// (Eq. 7). It acts in the next step's prediction.
+#include "core/tridiagonal.hpp"
+#include "string/string_state.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace tearables::detail {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+bool clamped(const StringState& s, std::size_t particle) { return s.hold[particle].kind == ParticleHold::Kind::Pin; }
+
+}  // namespace
+
+void updateTwistStiffness(StringState& s) {
+    const std::size_t m = s.segments();
+    for (std::size_t k = 0; k + 1 < m; ++k) {
+        if (s.broken[k] || s.broken[k + 1]) {
+            s.joint_stiffness[k] = 0.0;
+            continue;
+        }
+        const double r = 0.5 * (s.radius[k] + s.radius[k + 1]);
+        const double polar = 0.5 * kPi * r * r * r * r;
+        const double g = 0.5 * (s.material[k].shear_modulus + s.material[k + 1].shear_modulus);
+        const double w = 0.5 * (s.twist_width[k] + s.twist_width[k + 1]);
+        const double l = 0.5 * (s.rest_length[k] + s.rest_length[k + 1]);
+        s.joint_stiffness[k] = g * polar * (w / 2.0) / l;
+    }
+}
+
+void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx) {
+    const std::size_t m = s.segments();
+    const std::size_t n = s.particles();
+    if (m < 2 && !(clamped(s, 0) || clamped(s, n - 1))) {
+        // A single free segment: nothing resists its spin but its own inertia.
+        for (std::size_t j = 0; j < m; ++j) s.twist[j] += ctx.h * s.twist_velocity[j];
+        return;
+    }
+    updateTwistStiffness(s);
+    const double inv_h2 = ctx.inv_h * ctx.inv_h;
+    // Rows: inertia about the axis (or fixed for a clamped end), springs between joints.
+    for (std::size_t j = 0; j < m; ++j) {
+        s.twist_old[j] = s.twist[j];
+        s.diag[j] = s.twist_inertia[j] * inv_h2;
+        s.rhs[j] = s.twist_inertia[j] * inv_h2 * (s.twist[j] + ctx.h * s.twist_velocity[j]);
+        s.off[j] = 0.0;
+    }
+    // Ends glued to a body: the segment turns with the body; the body's moment of
+    // inertia about the segment axis joins the row.
+    for (int end = 0; end < 2; ++end) {
+        s.twist_glued_axis_inertia[end] = 0.0;
+        const std::size_t p = end == 0 ? 0 : n - 1;
+        const std::size_t j = end == 0 ? 0 : m - 1;
+        const ParticleHold& hold = s.hold[p];
+        if (hold.kind != ParticleHold::Kind::Glue) continue;
+        const RigidState& b = rigids.bodies[hold.body.index];
+        const Vec3& e = s.dir[j];
+        const double predicted = s.twist[j] + ctx.h * b.angular_velocity.dot(e);  // turned with the body
+        s.twist_glued_pred[end] = predicted;
+        if (!s.glue_movable[p]) {
+            s.diag[j] = 1.0;
+            s.rhs[j] = predicted;
+            continue;
+        }
+        const double inv_axis = e.dot(b.inverseInertiaWorld() * e);
+        const double axis_inertia = inv_axis > 0.0 ? 1.0 / inv_axis : 0.0;
+        s.twist_glued_axis_inertia[end] = axis_inertia;
+        s.diag[j] = (s.twist_inertia[j] + axis_inertia) * inv_h2;
+        s.rhs[j] = s.diag[j] * predicted;
+    }
+    for (std::size_t k = 0; k + 1 < m; ++k) {
+        const double kk = s.joint_stiffness[k];
+        if (kk <= 0.0) continue;
+        s.diag[k] += kk;
+        s.diag[k + 1] += kk;
+        s.off[k] = -kk;
+        s.rhs[k] -= kk * s.rest_twist[k];
+        s.rhs[k + 1] += kk * s.rest_twist[k];
+    }
+    // Clamped ends hold their angle (set by twist drivers).
+    if (clamped(s, 0)) {
+        s.diag[0] = 1.0;
+        s.rhs[0] = s.end_twist[0];
+        s.off[0] = 0.0;
+        if (m > 1) s.rhs[1] += s.joint_stiffness[0] * s.end_twist[0];
+    }
+    if (clamped(s, n - 1)) {
+        const std::size_t j = m - 1;
+        s.diag[j] = 1.0;
+        s.rhs[j] = s.end_twist[1];
+        if (j > 0) {
+            s.off[j - 1] = 0.0;
+            s.rhs[j - 1] += s.joint_stiffness[j - 1] * s.end_twist[1];
+        }
+    }
+    // The clamped rows were decoupled above by moving their known angle to the right.
+    if (clamped(s, 0) && m > 1) s.off[0] = 0.0;
+    solveSymmetricTridiagonal(s.diag, s.off, s.rhs, s.scratch);
+    for (std::size_t j = 0; j < m; ++j) {
+        s.twist[j] = s.rhs[j];
+        s.twist_velocity[j] = (s.twist[j] - s.twist_old[j]) * ctx.inv_h;
+    }
+    // The string's torque back on glued bodies: the body turns by what the solve moved
+    // its end away from where the body alone would have taken it (World::step turns that
+    // rotation into angular velocity, like the strain limiter's corrections).
+    for (int end = 0; end < 2; ++end) {
+        const double axis_inertia = s.twist_glued_axis_inertia[end];
+        if (axis_inertia <= 0.0) continue;
+        const std::size_t p = end == 0 ? 0 : n - 1;
+        const std::size_t j = end == 0 ? 0 : m - 1;
+        RigidState& b = rigids.bodies[s.hold[p].body.index];
+        const Vec3 rotation = b.inverseInertiaWorld() * (axis_inertia * (s.twist[j] - s.twist_glued_pred[end]) * s.dir[j]);
+        const double angle = rotation.norm();
+        if (angle > 0.0 && std::isfinite(angle))
+            b.orientation = (Quat(Eigen::AngleAxisd(angle, rotation / angle)) * b.orientation).normalized();
+    }
+}
+
+void computeTwistForces(StringState& s) {
+    const std::size_t n = s.particles();
+    std::fill(s.twist_force.begin(), s.twist_force.end(), Vec3::Zero());
+    for (std::size_t p = 1; p + 1 < n; ++p) {
+        const std::size_t a = p - 1, b = p;  // segments meeting at particle p (joint a)
+        if (s.broken[a] || s.broken[b] || s.joint_stiffness[a] <= 0.0) continue;
+        const Vec3 ea = s.x[p] - s.x[p - 1];
+        const Vec3 eb = s.x[p + 1] - s.x[p];
+        const double la = ea.norm(), lb = eb.norm();
+        const double denom = la * lb + ea.dot(eb);
+        if (!(denom > 1e-12 * la * lb)) continue;  // folded back on itself: undefined
+        const Vec3 kb = 2.0 * ea.cross(eb) / denom;
+        const double moment = s.joint_stiffness[a] * (s.twist[b] - s.twist[a] - s.rest_twist[a]);
+        const Vec3 d_prev = kb / (2.0 * la);
+        const Vec3 d_next = -kb / (2.0 * lb);
+        s.twist_force[p - 1] -= moment * d_prev;
+        s.twist_force[p + 1] -= moment * d_next;
+        s.twist_force[p] += moment * (d_prev + d_next);
+    }
+}
+
+}  // namespace tearables::detail

@@ -1,0 +1,374 @@
+// Chain shape matching kernel: rigid invariance, straightening, mass weighting, the O(1)
+// per-region moment sums against a brute-force fit, and degenerate (collinear) regions.
+#include "string/shape_matching.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+namespace {
+
+using tearables::Mat3;
+using tearables::Quat;
+using tearables::Vec3;
+using tearables::detail::chainShapeMatchingGoals;
+using tearables::detail::CsmScratch;
+
+constexpr double kPi = 3.14159265358979323846;
+
+Vec3 randomUnit(std::mt19937_64& rng) {
+    std::normal_distribution<double> g(0.0, 1.0);
+    Vec3 v;
+    do v = Vec3(g(rng), g(rng), g(rng));
+    while (v.norm() < 1e-3);
+    return v.normalized();
+}
+
+Quat randomRotation(std::mt19937_64& rng) {
+    std::normal_distribution<double> g(0.0, 1.0);
+    Quat q(g(rng), g(rng), g(rng), g(rng));
+    q.normalize();
+    return q;
+}
+
+/// A random walk of n particles with segments of length 0.1 .. 1 starting at `start`.
+std::vector<Vec3> randomChain(std::mt19937_64& rng, std::size_t n, const Vec3& start) {
+    std::uniform_real_distribution<double> len(0.1, 1.0);
+    std::vector<Vec3> p(n);
+    if (n == 0) return p;
+    p[0] = start;
+    for (std::size_t i = 1; i < n; ++i) p[i] = p[i - 1] + len(rng) * randomUnit(rng);
+    return p;
+}
+
+std::vector<double> randomMasses(std::mt19937_64& rng, std::size_t n) {
+    std::uniform_real_distribution<double> u(0.5, 2.0);
+    std::vector<double> m(n);
+    for (double& v : m) v = u(rng);
+    return m;
+}
+
+std::vector<Vec3> goalsOf(const std::vector<Vec3>& x, const std::vector<Vec3>& rest, const std::vector<double>& m,
+                          int w) {
+    CsmScratch scratch;
+    std::vector<Vec3> g(x.size(), Vec3::Constant(std::nan("")));
+    chainShapeMatchingGoals(x.data(), rest.data(), m.data(), 0, x.size() - 1, w, g.data(), scratch);
+    return g;
+}
+
+/// Optimal rotation by Horn's quaternion method (independent of the kernel's SVD): the
+/// unit quaternion maximising sum m (x-c) . R (x0-c0) is the top eigenvector of N(S),
+/// S = A^T = sum m (x0-c0)(x-c)^T.
+Mat3 hornRotation(const Mat3& a) {
+    const Mat3 s = a.transpose();
+    const double sxx = s(0, 0), sxy = s(0, 1), sxz = s(0, 2);
+    const double syx = s(1, 0), syy = s(1, 1), syz = s(1, 2);
+    const double szx = s(2, 0), szy = s(2, 1), szz = s(2, 2);
+    Eigen::Matrix4d nm;
+    nm << sxx + syy + szz, syz - szy, szx - sxz, sxy - syx,  //
+        syz - szy, sxx - syy - szz, sxy + syx, szx + sxz,    //
+        szx - sxz, sxy + syx, -sxx + syy - szz, syz + szy,   //
+        sxy - syx, szx + sxz, syz + szy, -sxx - syy + szz;
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> es(nm);
+    const Eigen::Vector4d q = es.eigenvectors().col(3);  // largest eigenvalue
+    return Quat(q(0), q(1), q(2), q(3)).normalized().toRotationMatrix();
+}
+
+/// Brute force: every region fitted from scratch with per-region masses m_i / N_i, goals
+/// averaged over the regions containing each particle. Writes goal[first..last].
+void bruteForceGoals(const std::vector<Vec3>& x, const std::vector<Vec3>& rest, const std::vector<double>& mass,
+                     std::size_t first, std::size_t last, int w, std::vector<Vec3>& goal) {
+    const long f = static_cast<long>(first), l = static_cast<long>(last);
+    const auto lo = [&](long k) { return std::max(f, k - w); };
+    const auto hi = [&](long k) { return std::min(l, k + w); };
+    std::vector<Vec3> sum(x.size(), Vec3::Zero());
+    std::vector<int> count(x.size(), 0);
+    for (long k = f; k <= l; ++k) {
+        double m = 0.0;
+        Vec3 c = Vec3::Zero(), c0 = Vec3::Zero();
+        for (long i = lo(k); i <= hi(k); ++i) {
+            const double mi = mass[i] / static_cast<double>(hi(i) - lo(i) + 1);
+            m += mi;
+            c += mi * x[i];
+            c0 += mi * rest[i];
+        }
+        c /= m;
+        c0 /= m;
+        Mat3 a = Mat3::Zero();
+        for (long i = lo(k); i <= hi(k); ++i) {
+            const double mi = mass[i] / static_cast<double>(hi(i) - lo(i) + 1);
+            a += mi * (x[i] - c) * (rest[i] - c0).transpose();
+        }
+        const Mat3 r = hornRotation(a);
+        for (long i = lo(k); i <= hi(k); ++i) {
+            sum[i] += r * (rest[i] - c0) + c;
+            ++count[i];
+        }
+    }
+    for (long i = f; i <= l; ++i) goal[i] = sum[i] / count[i];
+}
+
+double bendAngle(const Vec3& a, const Vec3& b, const Vec3& c) {
+    const Vec3 u = (b - a).normalized(), v = (c - b).normalized();
+    return std::atan2(u.cross(v).norm(), u.dot(v));
+}
+
+/// Rest: n particles on the x axis, spacing 1. Current: bent by `angle` about z at `joint`.
+void bentChain(std::size_t n, std::size_t joint, double angle, std::vector<Vec3>& rest, std::vector<Vec3>& x) {
+    rest.resize(n);
+    x.resize(n);
+    const Mat3 r = Eigen::AngleAxisd(angle, Vec3::UnitZ()).toRotationMatrix();
+    for (std::size_t i = 0; i < n; ++i) {
+        rest[i] = Vec3(static_cast<double>(i), 0.0, 0.0);
+        x[i] = i <= joint ? rest[i] : rest[joint] + r * (rest[i] - rest[joint]);
+    }
+}
+
+}  // namespace
+
+TEST(ChainShapeMatching, RigidMotionGivesGoalsEqualToPositions) {
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<double> u(-10.0, 10.0);
+    for (std::size_t n : {1, 2, 3, 4, 7, 20, 61, 200}) {
+        for (int w : {1, 2, 3, 5, 9}) {
+            for (int trial = 0; trial < 6; ++trial) {
+                std::vector<Vec3> rest = randomChain(rng, n, Vec3(u(rng), u(rng), u(rng)));
+                if (trial == 0)  // straight rest shape: every region is rank 1
+                    for (std::size_t i = 0; i < n; ++i) rest[i] = Vec3(0.3 * i, 0.0, 1.0);
+                const std::vector<double> m = randomMasses(rng, n);
+                const Mat3 r = randomRotation(rng).toRotationMatrix();
+                const Vec3 t(u(rng), u(rng), u(rng));
+                std::vector<Vec3> x(n);
+                for (std::size_t i = 0; i < n; ++i) x[i] = r * rest[i] + t;
+                const std::vector<Vec3> g = goalsOf(x, rest, m, w);
+                for (std::size_t i = 0; i < n; ++i)
+                    ASSERT_LT((g[i] - x[i]).norm(), 1e-12) << "n=" << n << " w=" << w << " trial=" << trial << " i=" << i;
+            }
+        }
+    }
+}
+
+TEST(ChainShapeMatching, BentChainGoalsAreStraighter) {
+    std::vector<Vec3> rest, x;
+    bentChain(11, 5, kPi / 3.0, rest, x);
+    const std::vector<double> m(11, 1.0);
+    for (int w = 1; w <= 4; ++w) {
+        const std::vector<Vec3> g = goalsOf(x, rest, m, w);
+        const double before = bendAngle(x[4], x[5], x[6]);
+        const double after = bendAngle(g[4], g[5], g[6]);
+        EXPECT_NEAR(before, kPi / 3.0, 1e-12);
+        EXPECT_LT(after, 0.9 * before) << "w=" << w;
+        // The chord across the joint lengthens as the chain straightens.
+        EXPECT_GT((g[6] - g[4]).norm(), (x[6] - x[4]).norm() + 1e-3) << "w=" << w;
+        // Particles none of whose regions holds the joint with both its neighbours stay put.
+        const std::size_t reach = 2 * static_cast<std::size_t>(w);
+        for (std::size_t i = 0; i < 11; ++i) {
+            if (i + reach < 6 || i > 4 + reach) EXPECT_LT((g[i] - x[i]).norm(), 1e-12) << "w=" << w << " i=" << i;
+        }
+        // A bend in the x-y plane keeps the goals in that plane.
+        for (const Vec3& p : g) EXPECT_NEAR(p.z(), 0.0, 1e-12);
+    }
+}
+
+TEST(ChainShapeMatching, TranslationInvariance) {
+    std::mt19937_64 rng(5);
+    for (int w : {1, 2, 4}) {
+        const std::size_t n = 40;
+        const std::vector<Vec3> rest = randomChain(rng, n, Vec3::Zero());
+        std::vector<Vec3> x = randomChain(rng, n, Vec3(1.0, 2.0, 3.0));
+        const std::vector<double> m = randomMasses(rng, n);
+        const std::vector<Vec3> g = goalsOf(x, rest, m, w);
+        const Vec3 t(1234.5, -987.25, 3000.125), t0(-5000.0, 250.5, 77.0);
+        std::vector<Vec3> xs(n), rs(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            xs[i] = x[i] + t;
+            rs[i] = rest[i] + t0;
+        }
+        const std::vector<Vec3> gs = goalsOf(xs, rs, m, w);
+        for (std::size_t i = 0; i < n; ++i) EXPECT_LT((gs[i] - t - g[i]).norm(), 1e-10) << "w=" << w << " i=" << i;
+    }
+}
+
+TEST(ChainShapeMatching, HeavierParticleMovesLessTowardItsGoal) {
+    std::vector<Vec3> rest, x;
+    bentChain(11, 5, kPi / 3.0, rest, x);
+    for (int w = 1; w <= 3; ++w) {
+        // Particles next to and at the joint, and the end particle of a chain bent next to its end.
+        for (std::size_t p : {4u, 5u, 6u, 10u}) {
+            bentChain(11, p == 10 ? 9 : 5, kPi / 3.0, rest, x);
+            std::vector<double> m(11, 1.0);
+            const double light = (goalsOf(x, rest, m, w)[p] - x[p]).norm();
+            m[p] = 3.0;  // a colliding particle (Strings Sec. 6)
+            const double heavy = (goalsOf(x, rest, m, w)[p] - x[p]).norm();
+            EXPECT_GT(light, 1e-3) << "w=" << w << " p=" << p;
+            EXPECT_LT(heavy, 0.9 * light) << "w=" << w << " p=" << p;
+        }
+    }
+}
+
+TEST(ChainShapeMatching, GoalsConserveLinearMomentum) {
+    std::mt19937_64 rng(3);
+    for (int w : {1, 2, 3, 7}) {
+        for (std::size_t n : {2, 3, 9, 50}) {
+            const std::vector<Vec3> rest = randomChain(rng, n, Vec3::Zero());
+            const std::vector<Vec3> x = randomChain(rng, n, Vec3(0.5, 0.0, -1.0));
+            const std::vector<double> m = randomMasses(rng, n);
+            const std::vector<Vec3> g = goalsOf(x, rest, m, w);
+            Vec3 px = Vec3::Zero(), pg = Vec3::Zero();
+            for (std::size_t i = 0; i < n; ++i) {
+                px += m[i] * x[i];
+                pg += m[i] * g[i];
+            }
+            EXPECT_LT((pg - px).norm(), 1e-11 * n) << "w=" << w << " n=" << n;
+        }
+    }
+}
+
+TEST(ChainShapeMatching, MomentSumsMatchBruteForceOnPieces) {
+    std::mt19937_64 rng(2024);
+    std::uniform_int_distribution<std::size_t> len(1, 200), pad(0, 17);
+    CsmScratch scratch;  // reused across calls of different sizes on purpose
+    const Vec3 sentinel(1e300, -1e300, 42.0);
+    for (int trial = 0; trial < 120; ++trial) {
+        const int w = 1 + trial % 8;
+        const std::size_t n = trial < 8 ? static_cast<std::size_t>(1 + trial) : len(rng);
+        const std::size_t before = pad(rng), after = pad(rng);
+        const std::size_t total = before + n + after;
+        const std::vector<Vec3> rest = randomChain(rng, total, Vec3(3.0, -2.0, 1.0));
+        std::vector<Vec3> x = randomChain(rng, total, Vec3(-1.0, 4.0, 0.0));
+        if (trial % 3 == 0)  // small deformations of the rest shape too, not only random shapes
+            for (std::size_t i = 0; i < total; ++i) x[i] = rest[i] + 0.05 * randomUnit(rng);
+        const std::vector<double> m = randomMasses(rng, total);
+        const std::size_t first = before, last = before + n - 1;
+        std::vector<Vec3> goal(total, sentinel), expected(total, sentinel);
+        chainShapeMatchingGoals(x.data(), rest.data(), m.data(), first, last, w, goal.data(), scratch);
+        bruteForceGoals(x, rest, m, first, last, w, expected);
+        for (std::size_t i = 0; i < total; ++i) {
+            if (i < first || i > last) {
+                ASSERT_EQ(goal[i], sentinel) << "wrote outside the piece at " << i;
+                continue;
+            }
+            ASSERT_TRUE(goal[i].allFinite());
+            ASSERT_LT((goal[i] - expected[i]).norm(), 1e-9)
+                << "trial=" << trial << " n=" << n << " w=" << w << " first=" << first << " i=" << i;
+        }
+    }
+}
+
+TEST(ChainShapeMatching, ScratchIsNotReallocatedWhenLargeEnough) {
+    std::mt19937_64 rng(9);
+    const std::vector<Vec3> rest = randomChain(rng, 100, Vec3::Zero());
+    const std::vector<Vec3> x = randomChain(rng, 100, Vec3::Zero());
+    const std::vector<double> m(100, 1.0);
+    std::vector<Vec3> g(100);
+    CsmScratch scratch;
+    chainShapeMatchingGoals(x.data(), rest.data(), m.data(), 0, 99, 3, g.data(), scratch);
+    const void* p0 = scratch.prefix.data();
+    const void* p1 = scratch.rotation.data();
+    chainShapeMatchingGoals(x.data(), rest.data(), m.data(), 10, 59, 2, g.data(), scratch);
+    chainShapeMatchingGoals(x.data(), rest.data(), m.data(), 0, 99, 8, g.data(), scratch);
+    EXPECT_EQ(scratch.prefix.data(), p0);
+    EXPECT_EQ(scratch.rotation.data(), p1);
+}
+
+TEST(ChainShapeMatching, StretchedStraightChainGivesFiniteGoalsOnTheLine) {
+    // Rest straight along x; current straight and stretched 1.5x along x, or along an
+    // arbitrary direction. Every region is collinear (rank-1 A): the rotation about the line
+    // is undetermined and the kernel takes the one closest to identity.
+    std::mt19937_64 rng(17);
+    const std::size_t n = 30;
+    std::vector<Vec3> rest(n);
+    for (std::size_t i = 0; i < n; ++i) rest[i] = Vec3(0.1 * i, 0.0, 0.0);
+    const std::vector<double> m(n, 0.01);
+    for (int dirCase = 0; dirCase < 4; ++dirCase) {
+        const Vec3 dir = dirCase == 0 ? Vec3::UnitX() : randomUnit(rng);
+        const Vec3 origin(0.5, -0.25, 2.0);
+        std::vector<Vec3> x(n);
+        for (std::size_t i = 0; i < n; ++i) x[i] = origin + 0.15 * i * dir;
+        for (int w : {1, 2, 5}) {
+            CsmScratch scratch;
+            std::vector<Vec3> g(n);
+            chainShapeMatchingGoals(x.data(), rest.data(), m.data(), 0, n - 1, w, g.data(), scratch);
+            for (std::size_t i = 0; i < n; ++i) {
+                ASSERT_TRUE(g[i].allFinite()) << "i=" << i;
+                const Vec3 rel = g[i] - origin;
+                EXPECT_LT((rel - rel.dot(dir) * dir).norm(), 1e-12) << "goal off the line, i=" << i;
+                // Each rotation takes the rest direction to the current one.
+                EXPECT_LT((scratch.rotation[i] * Vec3::UnitX() - dir).norm(), 1e-12);
+                EXPECT_NEAR(scratch.rotation[i].determinant(), 1.0, 1e-12);
+            }
+            if (dirCase == 0) {  // aligned: the closest rotation to identity is identity
+                for (std::size_t k = 0; k < n; ++k)
+                    EXPECT_LT((scratch.rotation[k] - Mat3::Identity()).norm(), 1e-12) << "k=" << k;
+            } else {  // the smallest rotation: about x cross dir
+                const Vec3 axis = Vec3::UnitX().cross(dir).normalized();
+                for (std::size_t k = 0; k < n; ++k) EXPECT_LT((scratch.rotation[k] * axis - axis).norm(), 1e-12);
+            }
+            // The goals undo part of the stretch.
+            EXPECT_LT((g[n - 1] - g[0]).norm(), (x[n - 1] - x[0]).norm());
+        }
+    }
+}
+
+TEST(ChainShapeMatching, CurvedRestPulledStraightKeepsItsPlane) {
+    // Rest: a zigzag in the x-y plane; current: straight along x. A has rank 1; of the
+    // optimal rotations the one closest to identity turns about z only, so the goals stay
+    // in the rest plane (any other choice would tilt them out of it).
+    const std::size_t n = 21;
+    std::vector<Vec3> rest(n), x(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        rest[i] = Vec3(0.1 * i + 0.003 * i * i, (i % 2 ? 0.04 : -0.04) + 0.002 * i, 0.0);
+        x[i] = Vec3(0.12 * i, 0.0, 0.0);
+    }
+    std::vector<double> m(n, 1.0);
+    m[7] = 3.0;
+    for (int w : {1, 2, 4}) {
+        CsmScratch scratch;
+        std::vector<Vec3> g(n);
+        chainShapeMatchingGoals(x.data(), rest.data(), m.data(), 0, n - 1, w, g.data(), scratch);
+        for (std::size_t i = 0; i < n; ++i) {
+            ASSERT_TRUE(g[i].allFinite());
+            EXPECT_NEAR(g[i].z(), 0.0, 1e-12) << "w=" << w << " i=" << i;
+            EXPECT_LT((scratch.rotation[i] * Vec3::UnitZ() - Vec3::UnitZ()).norm(), 1e-12);
+        }
+        // The zigzag comes back: goals leave the x axis.
+        double off = 0.0;
+        for (const Vec3& p : g) off = std::max(off, std::abs(p.y()));
+        EXPECT_GT(off, 0.01) << "w=" << w;
+    }
+}
+
+TEST(ChainShapeMatching, CoincidentParticlesAndTinyPieces) {
+    const std::vector<Vec3> rest = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(1, 1, 1)};
+    const std::vector<double> m(4, 1.0);
+    // All current particles at one point: A = 0, rotation identity, goals = rest shape
+    // about the common centroid.
+    const std::vector<Vec3> x(4, Vec3(2.0, 3.0, 4.0));
+    for (int w : {1, 2, 3}) {
+        const std::vector<Vec3> g = goalsOf(x, rest, m, w);
+        for (const Vec3& p : g) EXPECT_TRUE(p.allFinite());
+    }
+    // One-particle piece: its goal is itself. Two-particle piece: the rest length returns.
+    CsmScratch scratch;
+    std::vector<Vec3> xs = {Vec3(5, 5, 5), Vec3(5, 5, 8)}, g(2);
+    chainShapeMatchingGoals(xs.data(), rest.data(), m.data(), 1, 1, 3, g.data(), scratch);
+    EXPECT_EQ(g[1], xs[1]);
+    chainShapeMatchingGoals(xs.data(), rest.data(), m.data(), 0, 1, 1, g.data(), scratch);
+    EXPECT_NEAR((g[1] - g[0]).norm(), 1.0, 1e-12);
+    EXPECT_LT((0.5 * (g[0] + g[1]) - Vec3(5, 5, 6.5)).norm(), 1e-12);
+    EXPECT_NEAR((g[1] - g[0]).normalized().dot(Vec3::UnitZ()), 1.0, 1e-12);
+}
+
+TEST(ChainShapeMatching, RejectsInvalidArguments) {
+    const std::vector<Vec3> p(3, Vec3::Zero());
+    const std::vector<double> m(3, 1.0);
+    std::vector<Vec3> g(3);
+    CsmScratch scratch;
+    EXPECT_THROW(chainShapeMatchingGoals(p.data(), p.data(), m.data(), 0, 2, 0, g.data(), scratch),
+                 tearables::InvalidInput);
+    EXPECT_THROW(chainShapeMatchingGoals(p.data(), p.data(), m.data(), 2, 1, 1, g.data(), scratch),
+                 tearables::InvalidInput);
+}
