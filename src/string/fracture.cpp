@@ -90,7 +90,7 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
         }
         s.max_length[j] = s.rest_length[j] * (1.0 + stress / mat.young);
         s.radius[j] = r0 * std::sqrt(s.original_length[j] / s.max_length[j]);
-        s.compliance[j] = s.rest_length[j] / (mat.young * kPi * s.radius[j] * s.radius[j]);
+        s.compliance[j] = s.rest_length[j] / (mat.young * area0);  // engineering: E on the original section
     }
     // Torsion (Strings Sec. 5.4, Eq. 11 with the division by length): per joint between
     // segments k and k+1, gamma = r (theta_{k+1} - theta_k) / l. Past the yield strain the
