@@ -637,7 +637,7 @@ std::vector<Attachment> parseAttachments(const Node& list, long long particles, 
 String parseString(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     n.checkNoUnknownFields({"name", "points", "from", "to", "segments", "radius", "density", "particle_masses",
                             "material", "csm_half_width", "twist_half_width", "tension", "tearable", "damping",
-                            "axial_damping", "attachments"});
+                            "axial_damping", "bending", "attachments"});
     String s;
     StringDesc& d = s.desc;
     d.name = requiredName(n);
@@ -653,6 +653,7 @@ String parseString(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     d.tearable = n.boolean("tearable", d.tearable);
     d.damping = n.number("damping", d.damping, Range::atLeast(0.0));
     d.axial_damping = n.number("axial_damping", d.axial_damping, Range::closed(0.0, 1.0));
+    d.bending = n.number("bending", d.bending, Range::closed(0.0, 1.0));
     d.seed = seed;
     try {
         validate(d);  // what the fields above cannot check alone: rupture > yield, zero-length segments, ...

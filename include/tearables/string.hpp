@@ -31,6 +31,10 @@ struct StringDesc {
     std::vector<std::pair<int, double>> particle_masses;
     Material material;             ///< stress-strain curves
     int csm_half_width = 2;        ///< chain shape matching region half-width w, 1..8 (bending stiffness)
+    /// Fraction of the shape-matching goal displacement applied per step, [0, 1]: 1 is the
+    /// paper's full step (stiff as a thread or cord), small values make a floppy rope, 0
+    /// turns bending off.
+    double bending = 1.0;
     /// Twist region half-width, 1..8: one value for all segments, or one per segment.
     std::vector<int> twist_half_width = {2};
     TensionEstimator tension = TensionEstimator::Momentum;  ///< tension estimator

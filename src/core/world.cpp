@@ -182,6 +182,12 @@ StringId World::addString(const StringDesc& desc) {
     s.blk_off.assign(n, Mat3::Zero());
     s.blk_rhs.assign(n, Vec3::Zero());
     s.prev_stretch.assign(m, 0.0);
+    s.rest_direction.resize(m);
+    for (std::size_t j = 0; j < m; ++j) s.rest_direction[j] = (desc.points[j + 1] - desc.points[j]) / s.rest_length[j];
+    s.rest_shape.assign(n, Vec3::Zero());
+    s.csm_goal.assign(n, Vec3::Zero());
+    s.csm_mass = s.mass;
+    detail::updateRestShape(s);
     s.twist_velocity.assign(m, 0.0);
     s.twist_old.assign(m, 0.0);
     s.twist_inertia.resize(m);
@@ -375,9 +381,14 @@ void World::step(double h) {
 
     auto t0 = Clock::now();
     for (StringState& s : w.strings)
+        if (live(s)) detail::shapeMatch(s);
+    auto t0b = Clock::now();
+    t.shape_matching = seconds(t0, t0b);
+
+    for (StringState& s : w.strings)
         if (live(s)) detail::predict(s, rigids, ctx);
     auto t1 = Clock::now();
-    t.predict = seconds(t0, t1);
+    t.predict = seconds(t0b, t1);
 
     // Strain limiting. Strings that pull a movable body are coupled through it and are
     // swept Gauss-Seidel style; the others are solved once (their solve is exact).

@@ -85,6 +85,7 @@ void validate(const StringDesc& d) {
     requireRange("material.variation", d.material.variation, 0.0, 0.5);
     if (d.csm_half_width < 1 || d.csm_half_width > 8)
         throw InvalidInput("csm_half_width", "must be in [1, 8] (got " + std::to_string(d.csm_half_width) + ")");
+    requireRange("bending", d.bending, 0.0, 1.0);
     const std::size_t segments = d.points.size() - 1;
     if (d.twist_half_width.size() != 1 && d.twist_half_width.size() != segments)
         throw InvalidInput("twist_half_width", "needs one value or one per segment (" + std::to_string(segments) +

@@ -182,3 +182,58 @@ void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass
 }
 
 }  // namespace tearables::detail
+
+// ---------------------------------------------------------------------------------------
+// The stage: CSM on every piece of a string (Strings Sec. 3), after the prediction.
+// ---------------------------------------------------------------------------------------
+#include "string/string_state.hpp"
+
+namespace tearables::detail {
+
+void updateRestShape(StringState& s) {
+    // The rest shape follows the lengths the material currently allows, L_max = L_rest
+    // (1 + sigma/E) of the last step (L_rest grows with plasticity), along the directions
+    // the string was created with. Shape matching fits rigid motions, so it resists
+    // stretching as well as bending; with the loaded lengths in its rest shape it leaves
+    // the stretch to the material and only bends.
+    s.rest_shape[0] = s.desc.points[0];
+    for (std::size_t j = 0; j < s.segments(); ++j)
+        s.rest_shape[j + 1] = s.rest_shape[j] + s.rest_direction[j] * s.max_length[j];
+}
+
+// Deviation from the paper's order (prediction, then CSM): we match the shape the string
+// has at the start of the step, after the last strain limiting, and add the goal
+// displacement to the prediction. Shape matching conserves momentum and so spreads a
+// force on one particle over its region; run on the prediction it would carry part of
+// every external load itself, and the momentum-balance tension, which must carry all of
+// it, would read low. Run on the constrained shape it sees bending only.
+void shapeMatch(StringState& s) {
+    const std::size_t n = s.particles();
+    std::fill(s.csm_goal.begin(), s.csm_goal.end(), Vec3::Zero());
+    if (n < 3 || s.desc.bending <= 0.0) return;  // nothing to bend
+    updateRestShape(s);
+    const double alpha = s.desc.bending;
+    // Held particles do not move, so in the fits they weigh as if immovable: a clamp then
+    // holds the direction of the string (a cantilever), instead of being rotated along.
+    double heaviest = 0.0;
+    for (double m : s.mass) heaviest = std::max(heaviest, m);
+    for (std::size_t p = 0; p < n; ++p)
+        s.csm_mass[p] = s.hold[p].kind == ParticleHold::Kind::Free ? s.mass[p] : 1e6 * heaviest;
+    std::size_t first = 0;
+    for (std::size_t p = 0; p < n; ++p) {
+        const bool piece_ends = p + 1 == n || s.broken[p];
+        if (!piece_ends) continue;
+        if (p > first + 1) {
+            chainShapeMatchingGoals(s.x.data(), s.rest_shape.data(), s.csm_mass.data(), first, p, s.desc.csm_half_width,
+                                    s.csm_goal.data(), s.csm_scratch);
+            // Particles move all the way to their goals (the paper's full step): the goal
+            // displacement is kept for the prediction. Held particles stay where their hold
+            // puts them and only anchor the regions they belong to.
+            for (std::size_t q = first; q <= p; ++q)
+                s.csm_goal[q] = s.hold[q].kind == ParticleHold::Kind::Free ? Vec3(alpha * (s.csm_goal[q] - s.x[q])) : Vec3::Zero();
+        }
+        first = p + 1;
+    }
+}
+
+}  // namespace tearables::detail

@@ -1,6 +1,7 @@
 // The per-instance state of a string, structure of arrays, indices not pointers.
 #pragma once
 
+#include "string/shape_matching.hpp"
 #include "tearables/string.hpp"
 #include "tearables/world.hpp"
 
@@ -73,6 +74,13 @@ struct StringState {
     std::vector<Vec3> blk_rhs;
     std::vector<double> prev_stretch;     ///< segment stretch at the start of the step, m
 
+    // --- chain shape matching (Strings Sec. 3) -----------------------------------------
+    std::vector<Vec3> rest_direction;     ///< per segment, unit direction at creation
+    std::vector<Vec3> rest_shape;         ///< per particle, rest positions from the rest lengths
+    std::vector<Vec3> csm_goal;           ///< per particle: goal displacement for this step's prediction
+    std::vector<double> csm_mass;         ///< per particle (colliding particles weigh 3x, Sec. 6)
+    CsmScratch csm_scratch;
+
     // --- twist (Strings Sec. 4) --------------------------------------------------------
     std::vector<double> twist_velocity;   ///< per segment, rad/s
     std::vector<double> twist_old;        ///< per segment, angle at the start of the stage
@@ -116,6 +124,8 @@ void estimateTension(StringState& s, const StepContext& ctx);
 void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::vector<Event>& events);
 void updateVelocities(StringState& s, const StepContext& ctx);
 void updateTwistStiffness(StringState& s);
+void updateRestShape(StringState& s);
+void shapeMatch(StringState& s);
 void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx);
 void computeTwistForces(StringState& s);
 

@@ -15,9 +15,11 @@ using tearables::World;
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kG = 9.81;
 
+/// A rope without bending stiffness: these tests are about strain limiting and tension.
 StringDesc rope(const Vec3& from, const Vec3& to, int segments) {
     StringDesc d = StringDesc::straight(from, to, segments);
     d.material.variation = 0.0;
+    d.bending = 0.0;
     return d;
 }
 
@@ -211,4 +213,30 @@ TEST(Chain, NonFiniteInputIsRefusedAndTheWorldStepsOn) {
     EXPECT_EQ(world.stepCount(), 0);
     for (int i = 0; i < 10; ++i) world.step(0.01);
     for (const Vec3& p : *world.view(id).positions) EXPECT_TRUE(p.allFinite());
+}
+
+// CSM bending (Strings Sec. 3): a horizontal cantilever sags less with a larger region
+// half-width, monotonically, and with bending off it hangs straight down.
+TEST(Chain, CantileverSagsLessWithWiderShapeMatchingRegions) {
+    auto tip_sag = [](int w, double bending) {
+        World world;
+        StringDesc d = StringDesc::straight({0, 0, 0}, {0.3, 0, 0}, 30);
+        d.material.variation = 0.0;
+        d.csm_half_width = w;
+        d.bending = bending;
+        d.damping = 2.0;
+        const StringId id = world.addString(d);
+        world.attachToPoint(id, 0, d.points[0]);  // two pins clamp position and direction
+        world.attachToPoint(id, 1, d.points[1]);
+        for (int i = 0; i < 600; ++i) world.step(0.01);
+        return -world.view(id).positions->back().y();
+    };
+    double previous = 1e9;
+    for (int w = 1; w <= 8; ++w) {
+        const double sag = tip_sag(w, 1.0);
+        EXPECT_GT(sag, 0.0) << w;
+        EXPECT_LT(sag, previous) << "w = " << w;
+        previous = sag;
+    }
+    EXPECT_GT(tip_sag(2, 0.0), 0.28);  // no bending: hangs (nearly) straight down
 }
