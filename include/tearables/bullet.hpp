@@ -23,6 +23,7 @@
 
 #include <LinearMath/btVector3.h>
 
+#include <cstdint>
 #include <map>
 #include <memory>
 #include <string>
@@ -80,16 +81,23 @@ public:
 
 private:
     class Action;
+    class Contacts;
     void substep(double h);
     RigidId proxyFor(btRigidBody& body);
+    void findCandidates(double h);
+    bool isCandidate(const btRigidBody* body) const;
 
     btDiscreteDynamicsWorld* world_;
     std::unique_ptr<World> core_;
     std::unique_ptr<Action> action_;
+    std::unique_ptr<Contacts> contacts_;
     std::map<const btRigidBody*, RigidId> proxies_;  // ordered: deterministic iteration
+    std::map<std::uint32_t, std::vector<btRigidBody*>> candidates_;  // per string: bodies near it this step
+    std::vector<std::pair<const btRigidBody*, RigidId>> proxy_order_;  // scratch
     std::vector<Event> events_;
     StageTimes total_;
     std::string last_error_;
+    double step_ = 0.0;  // the internal step Bullet is taking
 
     friend class Action;
 };

@@ -18,6 +18,10 @@ struct WorldSettings {
     int coupling_iterations = 8;     ///< Gauss-Seidel sweeps over strings sharing a dynamic body, 1..64
     double strain_tolerance = 1e-6;  ///< relative stretch past L_max accepted, (0, 0.01]
     double max_speed = 500.0;        ///< particle speed clamp, m/s, > 0 (guards against blow-ups)
+    /// Strings collide with rigid bodies (through the host's ContactProvider). Experimental
+    /// and off by default: the contact solve does not yet converge where a string wraps
+    /// a body's edges (issue 4).
+    bool rigid_contacts = false;
 };
 
 /// A rigid body as the core sees it: the host writes it before World::step and reads it
@@ -39,6 +43,37 @@ struct RigidState {
         const Mat3 r = orientation.toRotationMatrix();
         return r * inverse_inertia_local * r.transpose();
     }
+};
+
+/// A contact between a string segment and a rigid body, found by the host's narrow phase
+/// (the Bullet plugin) during the collision stage of a step.
+struct RigidContact {
+    StringId string;               ///< the string
+    std::uint32_t segment = 0;     ///< its segment
+    double s = 0.0;                ///< fraction along the segment, [0, 1]
+    Vec3 normal = Vec3::UnitY();   ///< unit, from the body toward the string
+    Vec3 point = Vec3::Zero();     ///< on the body's surface, world, m
+    RigidId body;                  ///< the body's proxy (inverse mass 0 = static)
+    double friction = 0.5;         ///< Coulomb coefficient, >= 0
+};
+
+/// Positions a host's collision query sees: every live string's particles after the
+/// prediction (where they would go), and where they were at the start of the step.
+struct CollisionQuery {
+    std::vector<StringId> strings;                 ///< live, unfrozen strings
+    std::vector<const std::vector<Vec3>*> start;   ///< per string, positions at the step start
+    std::vector<const std::vector<Vec3>*> predicted; ///< per string, predicted positions
+    std::vector<const std::vector<double>*> radius;  ///< per string, per segment radius
+    std::vector<const std::vector<std::uint8_t>*> broken;  ///< per string, per segment
+};
+
+/// Finds contacts between strings and rigid bodies; implemented by the host (the Bullet
+/// plugin uses Bullet's broadphase and narrow phase). Called once per step.
+class ContactProvider {
+public:
+    virtual ~ContactProvider() = default;
+    /// Appends the contacts of the swept segments with rigid bodies to `out`.
+    virtual void findContacts(const CollisionQuery& query, std::vector<RigidContact>& out) = 0;
 };
 
 /// Read-only view of a string's state, valid until the next step or change.
@@ -116,6 +151,11 @@ public:
     void removeRigid(RigidId id);
     /// True when some string is glued to this body.
     bool rigidInUse(RigidId id) const;
+    /// The host's contact generation (nullptr: strings do not collide with rigid bodies).
+    /// The provider must outlive the world or be reset first.
+    void setContactProvider(ContactProvider* provider);
+    /// Contacts of the last step (after the collision stage), for inspection and tests.
+    const std::vector<RigidContact>& lastContacts() const;
 
     /// Advances all strings by `h` seconds (> 0, finite). Never throws; an object that
     /// goes non-finite is frozen with a Freeze event.

@@ -52,6 +52,11 @@ double vary(std::mt19937_64& rng, double value, double variation) {
 
 bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
 
+/// True when the string is glued to, or touches, a body that moves.
+bool touchesMovableBody(const StringState& s) {
+    return !s.body_nodes.empty() || std::find(s.glue_movable.begin(), s.glue_movable.end(), 1) != s.glue_movable.end();
+}
+
 }  // namespace
 
 struct World::Impl {
@@ -61,6 +66,9 @@ struct World::Impl {
     std::vector<Event> events;
     std::vector<Event> pending;  // emitted between steps, reported with the next step
     StageTimes last;
+    ContactProvider* contact_provider = nullptr;
+    std::vector<RigidContact> contacts;
+    CollisionQuery query;
     double time = 0.0;
     std::int64_t steps = 0;
 
@@ -89,6 +97,67 @@ struct World::Impl {
         e.time = time;
         e.step = steps;
         pending.push_back(e);
+    }
+
+    /// Asks the host for contacts on the predicted positions and hands each string its own,
+    /// checked (a bad contact from the host is dropped, never trusted).
+    void collectContacts(const StepContext& ctx) {
+        query.strings.clear();
+        query.start.clear();
+        query.predicted.clear();
+        query.radius.clear();
+        query.broken.clear();
+        for (std::size_t i = 0; i < strings.size(); ++i) {
+            const StringState& s = strings[i];
+            if (!s.alive || s.frozen) continue;
+            query.strings.push_back(StringId{static_cast<std::uint32_t>(i)});
+            query.start.push_back(&s.x_prev);
+            query.predicted.push_back(&s.x);
+            query.radius.push_back(&s.radius);
+            query.broken.push_back(&s.broken);
+        }
+        try {
+            contact_provider->findContacts(query, contacts);
+        } catch (...) {
+            contacts.clear();  // the host failed: no contacts this step rather than a broken step
+        }
+        (void)ctx;
+        for (const RigidContact& c : contacts) {
+            if (c.string.index >= strings.size() || !strings[c.string.index].alive) continue;
+            StringState& s = strings[c.string.index];
+            if (s.frozen || c.segment >= s.segments() || s.broken[c.segment]) continue;
+            if (c.body.index >= rigids.bodies.size() || !rigids.used[c.body.index]) continue;
+            if (!finite(c.normal) || !finite(c.point) || !std::isfinite(c.s) || !std::isfinite(c.friction)) continue;
+            const double len = c.normal.norm();
+            if (!(len > 0.5)) continue;
+            // A segment does not collide with the body one of its ends is glued to.
+            const auto glued_to = [&](std::size_t p) {
+                return s.hold[p].kind == ParticleHold::Kind::Glue && s.hold[p].body == c.body;
+            };
+            if (glued_to(c.segment) || glued_to(c.segment + 1)) continue;
+            detail::SegmentContact sc;
+            sc.segment = c.segment;
+            sc.s = std::clamp(c.s, 0.0, 1.0);
+            sc.normal = c.normal / len;
+            const RigidState& body = rigids.bodies[c.body.index];
+            sc.local = body.orientation.conjugate() * (c.point - body.position);
+            sc.body = c.body;
+            sc.friction = std::max(0.0, c.friction);
+            const Vec3 xs = (1.0 - sc.s) * s.x[c.segment] + sc.s * s.x[c.segment + 1];
+            sc.depth = std::max(0.0, -(sc.normal.dot(xs - c.point) - s.radius[c.segment]));
+            if (rigids.movable(c.body)) {
+                int node = -1;
+                for (std::size_t b = 0; b < s.body_nodes.size(); ++b)
+                    if (s.body_nodes[b].body == c.body) node = static_cast<int>(b);
+                if (node < 0) {
+                    s.body_nodes.emplace_back(c.body);
+                    s.node_step.resize(s.body_nodes.size());
+                    node = static_cast<int>(s.body_nodes.size() - 1);
+                }
+                sc.node = node;
+            }
+            s.contacts.push_back(sc);
+        }
     }
 
     void freeze(StringState& s, StringId id, const StepContext& ctx) {
@@ -181,6 +250,10 @@ StringId World::addString(const StringDesc& desc) {
     s.blk_diag.assign(n, Mat3::Zero());
     s.blk_off.assign(n, Mat3::Zero());
     s.blk_rhs.assign(n, Vec3::Zero());
+    s.blk_factor_gain.assign(n, Mat3::Zero());
+    s.blk_factor.resize(n);
+    s.row_projector.assign(n, Mat3::Identity());
+    s.spring_force.assign(m, 0.0);
     s.prev_stretch.assign(m, 0.0);
     s.rest_direction.resize(m);
     for (std::size_t j = 0; j < m; ++j) s.rest_direction[j] = (desc.points[j + 1] - desc.points[j]) / s.rest_length[j];
@@ -390,20 +463,31 @@ void World::step(double h) {
     auto t1 = Clock::now();
     t.predict = seconds(t0b, t1);
 
-    // Strain limiting. Strings that pull a movable body are coupled through it and are
-    // swept Gauss-Seidel style; the others are solved once (their solve is exact).
+    // Collision with rigid bodies: the host's narrow phase on the predicted positions.
+    for (StringState& s : w.strings) {
+        s.contacts.clear();
+        s.body_nodes.clear();
+        std::fill(s.row_projector.begin(), s.row_projector.end(), Mat3::Identity());
+    }
+    w.contacts.clear();
+    if (w.contact_provider && w.settings.rigid_contacts) w.collectContacts(ctx);
+    auto t1c = Clock::now();
+    t.collision = seconds(t1, t1c);
+    t1 = t1c;
+
+    // Strain limiting. Strings that pull or touch a movable body are coupled through it
+    // and are swept Gauss-Seidel style; the others are solved once (their solve is exact).
     bool coupled = false;
     for (StringState& s : w.strings) {
         if (!live(s)) continue;
         detail::prepareStrainLimit(s, rigids, ctx);
-        for (std::uint8_t g : s.glue_movable) coupled = coupled || g;
+        coupled = coupled || touchesMovableBody(s);
     }
     const int sweeps = coupled ? w.settings.coupling_iterations : 1;
     for (int sweep = 0; sweep < sweeps; ++sweep)
         for (StringState& s : w.strings) {
             if (!live(s)) continue;
-            const bool glued = std::find(s.glue_movable.begin(), s.glue_movable.end(), 1) != s.glue_movable.end();
-            if (sweep == 0 || glued) detail::limitStrain(s, rigids, ctx);
+            if (sweep == 0 || touchesMovableBody(s)) detail::limitStrain(s, rigids, ctx);
         }
     auto t2 = Clock::now();
     t.strain_limit = seconds(t1, t2);
@@ -416,6 +500,9 @@ void World::step(double h) {
 
     for (StringState& s : w.strings)
         if (live(s)) detail::estimateTension(s, ctx);
+    // Friction after the tension solve: its tangential corrections are not tension.
+    for (StringState& s : w.strings)
+        if (live(s) && !s.contacts.empty()) detail::applyFriction(s, rigids, ctx);
     auto t3 = Clock::now();
     t.tension = seconds(t2, t3);
 
@@ -471,6 +558,8 @@ StringView World::view(StringId id) const {
 
 const StringDesc& World::desc(StringId id) const { return impl_->get(id).desc; }
 const std::vector<Event>& World::events() const { return impl_->events; }
+void World::setContactProvider(ContactProvider* provider) { impl_->contact_provider = provider; }
+const std::vector<RigidContact>& World::lastContacts() const { return impl_->contacts; }
 const StageTimes& World::lastStageTimes() const { return impl_->last; }
 double World::time() const { return impl_->time; }
 std::int64_t World::stepCount() const { return impl_->steps; }

@@ -19,6 +19,28 @@ struct ParticleHold {
     RigidId body;               ///< Glue: the body
 };
 
+/// A contact of one segment with a rigid body for this step (from RigidContact).
+struct SegmentContact {
+    std::uint32_t segment = 0;
+    double s = 0.0;              ///< fraction along the segment
+    Vec3 normal = Vec3::UnitY(); ///< from the body toward the string
+    Vec3 local = Vec3::Zero();   ///< contact point in the body's frame (follows the body)
+    RigidId body;
+    double friction = 0.5;
+    int node = -1;               ///< index into body_nodes when the body is movable
+    double depth = 0.0;          ///< penetration of the predicted position, m (>= 0)
+    double stiffness = 0.0;      ///< penalty k_c used by the last solve, N/m
+};
+
+/// A movable body touched by a string's contacts: 6 unknowns (translation, rotation) in
+/// the string's Newton solve.
+struct BodyNode {
+    RigidId body;
+    Eigen::Matrix<double, 6, 1> impulse = Eigen::Matrix<double, 6, 1>::Zero();  ///< this string's, x h (kg m, kg m^2)
+    BodyNode() = default;
+    explicit BodyNode(RigidId b) : body(b) {}
+};
+
 /// Per-step context rebuilt each step (Box2D's b2StepContext).
 struct StepContext {
     double h = 0.0;       ///< step, s
@@ -72,6 +94,17 @@ struct StringState {
     std::vector<std::uint8_t> active;
     std::vector<Mat3> blk_diag, blk_off;  ///< block-tridiagonal Newton system (particles)
     std::vector<Vec3> blk_rhs;
+    std::vector<Mat3> blk_factor_gain;    ///< factorisation: U_{i-1}^T D'_{i-1}^-1 (per particle)
+    std::vector<Eigen::LLT<Mat3>> blk_factor;  ///< factorisation: Cholesky of D'_i
+
+    // --- rigid contacts (collision stage) -------------------------------------------------
+    std::vector<SegmentContact> contacts;
+    std::vector<double> spring_force;     ///< per segment: k c of the last Newton iteration, N
+    std::vector<Mat3> row_projector;      ///< per particle: I, or I minus the normals of the bodies pressing it
+    std::vector<BodyNode> body_nodes;
+    std::vector<Eigen::Matrix<double, 6, 1>> node_step;  ///< per body node: this iteration's Newton step
+    std::vector<std::vector<Vec3>> node_columns;  ///< A^-1 C, 6 columns per body node (n each)
+    std::vector<Eigen::Matrix<double, 3, 6>> node_coupling;  ///< scratch, per particle per node
     std::vector<double> prev_stretch;     ///< segment stretch at the start of the step, m
 
     // --- chain shape matching (Strings Sec. 3) -----------------------------------------
@@ -120,6 +153,7 @@ struct RigidTable {
 void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx);
 void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& ctx);
 void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx);
+void applyFriction(StringState& s, RigidTable& rigids, const StepContext& ctx);
 void estimateTension(StringState& s, const StepContext& ctx);
 void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::vector<Event>& events);
 void updateVelocities(StringState& s, const StepContext& ctx);

@@ -42,7 +42,9 @@ double rowWeight(const StringState& s, std::size_t p) {
     return 1.0;
 }
 
-/// b_p: the impulse (x h, kg m) the segments gave particle p.
+/// b_p: the impulse (x h, kg m) the segments gave particle p: its motion away from the
+/// prediction. A particle a body presses has its equation projected across the body's
+/// normal (row_projector), where the unknown contact force does not act.
 Vec3 rowImpulse(const StringState& s, std::size_t p) {
     if (s.hold[p].kind == ParticleHold::Kind::Glue) return s.glue_impulse[p];
     return s.mass[p] * (s.x[p] - s.x_pred[p]);
@@ -66,10 +68,12 @@ void momentumTension(StringState& s, const StepContext& ctx) {
         const Vec3& e = s.dir[j];
         const double wa = rowWeight(s, j);
         const double wb = rowWeight(s, j + 1);
-        s.diag[j] = wa + wb;
-        s.rhs[j] = (wa > 0.0 ? wa * e.dot(rowImpulse(s, j)) : 0.0) - (wb > 0.0 ? wb * e.dot(rowImpulse(s, j + 1)) : 0.0);
+        const Mat3& pa = s.row_projector[j];
+        const Mat3& pb = s.row_projector[j + 1];
+        s.diag[j] = wa * e.dot(pa * e) + wb * e.dot(pb * e);
+        s.rhs[j] = (wa > 0.0 ? wa * e.dot(pa * rowImpulse(s, j)) : 0.0) - (wb > 0.0 ? wb * e.dot(pb * rowImpulse(s, j + 1)) : 0.0);
         s.off[j] = 0.0;
-        if (j + 1 < m && !s.broken[j + 1]) s.off[j] = -wb * e.dot(s.dir[j + 1]);
+        if (j + 1 < m && !s.broken[j + 1]) s.off[j] = -wb * e.dot(pb * s.dir[j + 1]);
         max_diag = std::max(max_diag, s.diag[j]);
     }
     const double reg = kRegularisation * (max_diag > 0.0 ? max_diag : 1.0) / static_cast<double>(m);
@@ -78,6 +82,12 @@ void momentumTension(StringState& s, const StepContext& ctx) {
     solveSymmetricTridiagonal(s.diag, s.off, s.rhs, s.scratch);
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
     for (std::size_t j = 0; j < m; ++j) s.tension[j] = s.broken[j] ? 0.0 : s.rhs[j] * inv_h2;
+    // Where a body presses the string, its motion cannot tell tension from contact force:
+    // there the tension is the spring force of the converged solve (the same quantity,
+    // which the momentum balance recovers elsewhere more robustly).
+    for (std::size_t j = 0; j < m; ++j)
+        if (!s.broken[j] && (!s.row_projector[j].isIdentity(0.0) || !s.row_projector[j + 1].isIdentity(0.0)))
+            s.tension[j] = s.spring_force[j];
 }
 
 void localTension(StringState& s, const StepContext& ctx) {

