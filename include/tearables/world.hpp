@@ -18,10 +18,9 @@ struct WorldSettings {
     int coupling_iterations = 8;     ///< Gauss-Seidel sweeps over strings sharing a dynamic body, 1..64
     double strain_tolerance = 1e-6;  ///< relative stretch past L_max accepted, (0, 0.01]
     double max_speed = 500.0;        ///< particle speed clamp, m/s, > 0 (guards against blow-ups)
-    /// Strings collide with rigid bodies (through the host's ContactProvider). Experimental
-    /// and off by default: the contact solve does not yet converge where a string wraps
-    /// a body's edges (issue 4).
-    bool rigid_contacts = false;
+    /// Strings collide with rigid bodies (through the host's ContactProvider, the Bullet
+    /// plugin's narrow phase). A string does not collide with a body it is glued to.
+    bool rigid_contacts = true;
 };
 
 /// A rigid body as the core sees it: the host writes it before World::step and reads it

@@ -191,7 +191,9 @@ struct PairVisitor {
     const SegmentInfo* info;
     const std::uint32_t* inc_start;
     const std::uint32_t* inc_list;
-    const CellCoord* cell;
+    const CellCoord* cell;     // per particle
+    const Vec3* sorted_x;      // per sorted entry (slot order)
+    const std::uint32_t* sorted_id;
     double margin;
     double dmax2;  // squared bound D^2 (with slack), 27 only
     std::uint32_t skip_neighbours;
@@ -209,12 +211,15 @@ struct PairVisitor {
         }
     }
 
-    void operator()(std::uint32_t pa, std::uint32_t pb) {
+    // Visits the particle pair of the sorted entries ea, eb.
+    void operator()(std::uint32_t ea, std::uint32_t eb) {
         ++stats.particle_pairs;
         if constexpr (!kSeven) {
             // No segment pair can be tested at a particle pair farther apart than D.
-            if ((x[pa] - x[pb]).squaredNorm() > dmax2) return;
+            if ((sorted_x[ea] - sorted_x[eb]).squaredNorm() > dmax2) return;
         }
+        const std::uint32_t pa = sorted_id[ea];
+        const std::uint32_t pb = sorted_id[eb];
         for (std::uint32_t ka = inc_start[pa]; ka < inc_start[pa + 1]; ++ka) {
             const std::uint32_t sa = inc_list[ka];
             for (std::uint32_t kb = inc_start[pb]; kb < inc_start[pb + 1]; ++kb) {
@@ -305,71 +310,98 @@ void SegmentGrid::findPairs(const Vec3* positions, std::size_t particle_count, c
     // Cells, slots and the counting sort of the binned particles by slot.
     const double inv_h = 1.0 / cell_size;
     cell_.resize(particle_count);
+    CellCoord lo{}, hi{};
+    for (std::size_t k = 0; k < binned_.size(); ++k) {
+        const std::uint32_t p = binned_[k];
+        if (!((x[p] * inv_h).cwiseAbs().maxCoeff() < kMaxCell))
+            throw InvalidInput("positions", "more than 2^30 cells from the origin");
+        const CellCoord c = cellOf(x[p], inv_h);
+        cell_[p] = c;
+        if (k == 0) lo = hi = c;
+        lo = {std::min(lo.x, c.x), std::min(lo.y, c.y), std::min(lo.z, c.z)};
+        hi = {std::max(hi.x, c.x), std::max(hi.y, c.y), std::max(hi.z, c.z)};
+    }
     const std::uint32_t table = nextPow2(2 * binned_.size());
-    const std::uint32_t mask = table - 1;
+    SlotLayout layout;
+    layout.choose(lo, hi, table);
     slot_.resize(binned_.size());
     slot_start_.assign(static_cast<std::size_t>(table) + 1, 0);
     for (std::size_t k = 0; k < binned_.size(); ++k) {
-        const std::uint32_t p = binned_[k];
-        const Vec3 g = x[p] * inv_h;
-        if (!(g.cwiseAbs().maxCoeff() < kMaxCell)) throw InvalidInput("positions", "more than 2^30 cells from the origin");
-        cell_[p] = cellOf(x[p], inv_h);
-        slot_[k] = cellSlot(cell_[p], mask);
+        slot_[k] = layout.slot(cell_[binned_[k]]);
         ++slot_start_[slot_[k] + 1];
     }
     for (std::uint32_t s = 0; s < table; ++s) slot_start_[s + 1] += slot_start_[s];
-    sorted_.resize(binned_.size());
-    for (std::size_t k = 0; k < binned_.size(); ++k) sorted_[slot_start_[slot_[k]]++] = binned_[k];
+    // Scatter in particle order (stable): within a slot, particles stay ascending. The
+    // sorted copies of ids, cells and positions make the neighbour scans contiguous.
+    entry_.resize(binned_.size());
+    sorted_id_.resize(binned_.size());
+    sorted_cell_.resize(binned_.size());
+    sorted_x_.resize(binned_.size());
+    for (std::size_t k = 0; k < binned_.size(); ++k) {
+        const std::uint32_t p = binned_[k];
+        const std::uint32_t e = slot_start_[slot_[k]]++;
+        entry_[k] = e;
+        sorted_id_[e] = p;
+        sorted_cell_[e] = cell_[p];
+        sorted_x_[e] = x[p];
+    }
     for (std::uint32_t s = table; s > 0; --s) slot_start_[s] = slot_start_[s - 1];
     slot_start_[0] = 0;
+
+    // Every unordered pair of particles in neighbouring cells, once: from each particle A
+    // (in particle order, which follows the chains, so that consecutive particles share
+    // their neighbour cells and segment data in the caches), the later entries of its own
+    // cell in the slot (higher particle indices) and the entries of its forward neighbour
+    // cells.
+    auto traverse = [&](auto& visit, const int (*forward)[3], int n_forward) {
+        const CellCoord* sc = sorted_cell_.data();
+        const std::uint32_t mx = (1u << layout.bx) - 1, my = (1u << layout.by) - 1, mz = (1u << layout.bz) - 1;
+        std::uint32_t step[13];  // slot step to each forward neighbour inside a block
+        for (int o = 0; o < n_forward; ++o)
+            step[o] = static_cast<std::uint32_t>(forward[o][0]) + (static_cast<std::uint32_t>(forward[o][1]) << layout.bx) +
+                      (static_cast<std::uint32_t>(forward[o][2]) << (layout.bx + layout.by));
+        std::uint32_t nb_begin[13], nb_end[13];
+        CellCoord nb_cell[13];
+        CellCoord cached{};
+        bool have_cached = false;
+        for (std::size_t k = 0; k < binned_.size(); ++k) {
+            const std::uint32_t s = slot_[k];
+            const std::uint32_t ea = entry_[k];
+            const CellCoord ca = sc[ea];
+            for (std::uint32_t eb = ea + 1, end = slot_start_[s + 1]; eb < end; ++eb)
+                if (sc[eb] == ca) visit(ea, eb);
+            // The forward neighbours' slot ranges, looked up once per cell.
+            if (!have_cached || cached != ca) {
+                cached = ca;
+                have_cached = true;
+                const std::uint32_t lx = (static_cast<std::uint32_t>(ca.x) - static_cast<std::uint32_t>(layout.origin.x)) & mx;
+                const std::uint32_t ly = (static_cast<std::uint32_t>(ca.y) - static_cast<std::uint32_t>(layout.origin.y)) & my;
+                const std::uint32_t lz = (static_cast<std::uint32_t>(ca.z) - static_cast<std::uint32_t>(layout.origin.z)) & mz;
+                const bool inner = lx >= 1 && lx < mx && ly >= 1 && ly < my && lz >= 1 && lz < mz;
+                for (int o = 0; o < n_forward; ++o) {
+                    nb_cell[o] = {ca.x + forward[o][0], ca.y + forward[o][1], ca.z + forward[o][2]};
+                    const std::uint32_t ns = inner ? (s + step[o]) & layout.mask : layout.slot(nb_cell[o]);
+                    nb_begin[o] = slot_start_[ns];
+                    nb_end[o] = slot_start_[ns + 1];
+                }
+            }
+            for (int o = 0; o < n_forward; ++o)
+                for (std::uint32_t eb = nb_begin[o]; eb < nb_end[o]; ++eb)
+                    if (sc[eb] == nb_cell[o]) visit(ea, eb);
+        }
+    };
 
     // D^2 in the same form as each pair's D12^2 (so that D12^2 <= D^2 holds after rounding
     // too, and the early rejection never drops a pair that the canonical test relies on).
     const double max_reach = (v.max_radius + v.max_radius) + margin;
     const double dmax2 = (0.25 * (v.max_length2 + v.max_length2) + max_reach * max_reach) * kSlack;
-    auto traverse = [&](auto& visit, const int (*forward)[3], int n_forward) {
-        std::uint32_t nb_begin[13];
-        std::uint32_t nb_end[13];
-        CellCoord nb_cell[13];
-        CellCoord run{};
-        bool have_run = false;
-        for (std::uint32_t s = 0; s < table; ++s) {
-            const std::uint32_t end = slot_start_[s + 1];
-            for (std::uint32_t k = slot_start_[s]; k < end; ++k) {
-                const std::uint32_t pa = sorted_[k];
-                const CellCoord ca = cell_[pa];
-                // Own cell: the later particles of this slot that are in the same cell.
-                for (std::uint32_t k2 = k + 1; k2 < end; ++k2) {
-                    const std::uint32_t pb = sorted_[k2];
-                    if (cell_[pb] == ca) visit(pa, pb);
-                }
-                // Forward neighbours; their slot ranges are looked up once per run of one cell.
-                if (!have_run || run != ca) {
-                    run = ca;
-                    have_run = true;
-                    for (int o = 0; o < n_forward; ++o) {
-                        nb_cell[o] = {ca.x + forward[o][0], ca.y + forward[o][1], ca.z + forward[o][2]};
-                        const std::uint32_t ns = cellSlot(nb_cell[o], mask);
-                        nb_begin[o] = slot_start_[ns];
-                        nb_end[o] = slot_start_[ns + 1];
-                    }
-                }
-                for (int o = 0; o < n_forward; ++o)
-                    for (std::uint32_t k2 = nb_begin[o]; k2 < nb_end[o]; ++k2) {
-                        const std::uint32_t pb = sorted_[k2];
-                        if (cell_[pb] == nb_cell[o]) visit(pa, pb);
-                    }
-            }
-        }
-    };
-
     if (search == NeighbourSearch::Seven) {
         PairVisitor<true> visit{x, segments, seg_info_.data(), inc_start_.data(), inc_list_.data(), cell_.data(),
-                                margin, 0.0, skip_neighbours, out, stats_};
+                                sorted_x_.data(), sorted_id_.data(), margin, 0.0, skip_neighbours, out, stats_};
         traverse(visit, kForward7, 3);
     } else {
         PairVisitor<false> visit{x, segments, seg_info_.data(), inc_start_.data(), inc_list_.data(), cell_.data(),
-                                 margin, dmax2, skip_neighbours, out, stats_};
+                                 sorted_x_.data(), sorted_id_.data(), margin, dmax2, skip_neighbours, out, stats_};
         traverse(visit, kForward27, 13);
     }
     std::sort(out.begin(), out.end(), [](const SegmentPair& l, const SegmentPair& r) {
@@ -379,9 +411,9 @@ void SegmentGrid::findPairs(const Vec3* positions, std::size_t particle_count, c
 
 std::size_t SegmentGrid::reservedBytes() const {
     return seg_info_.capacity() * sizeof(SegmentInfo) +
-           (inc_start_.capacity() + inc_list_.capacity() + binned_.capacity() + slot_.capacity() +
-            slot_start_.capacity() + sorted_.capacity()) * sizeof(std::uint32_t) +
-           cell_.capacity() * sizeof(CellCoord);
+           (inc_start_.capacity() + inc_list_.capacity() + binned_.capacity() + slot_.capacity() + entry_.capacity() +
+            slot_start_.capacity() + sorted_id_.capacity()) * sizeof(std::uint32_t) +
+           (cell_.capacity() + sorted_cell_.capacity()) * sizeof(CellCoord) + sorted_x_.capacity() * sizeof(Vec3);
 }
 
 std::vector<SegmentPair> bruteForcePairs(const Vec3* positions, std::size_t particle_count,

@@ -46,12 +46,13 @@
 // the stencil; the 7-cell search tests a segment pair at its first endpoint pair within
 // the 7-cell stencil. So every segment pair is tested at most once and the output has no
 // duplicates. Both visit every unordered particle pair once (a half stencil: the own cell
-// and the 3 or 13 "forward" neighbours). Cells are hashed into a power-of-two table
-// (2 to 4 slots per particle) and particles are counting-sorted by slot, in particle
-// order, so the traversal and the output are deterministic; the output is sorted by
-// (first, second). All working memory lives in the SegmentGrid and only grows: repeated
-// calls with the same or fewer particles and segments do not allocate (the output vector
-// keeps its capacity too).
+// and the 3 or 13 "forward" neighbours). Cells map to the slots of a power-of-two table
+// (2 to 4 slots per binned particle) by a spatially coherent hash (raster order inside
+// blocks of cells, a hashed offset per block; see SlotLayout in grid.cpp); particles are
+// counting-sorted by slot, stably, so the traversal and the output are deterministic;
+// the output is sorted by (first, second). All working memory lives in the SegmentGrid
+// and only grows: repeated calls with the same or fewer particles and segments do not
+// allocate (the output vector keeps its capacity too).
 //
 // Floating point: the search is exact in exact arithmetic. Rounding in floor(x / h) and in
 // the distances could only matter for a pair that realises the bound D to within about
@@ -163,8 +164,11 @@ private:
     std::vector<CellCoord> cell_;              // per particle
     std::vector<std::uint32_t> binned_;        // particles with at least one segment, ascending
     std::vector<std::uint32_t> slot_;          // hash slot per binned particle
+    std::vector<std::uint32_t> entry_;         // per binned particle: its index in the sorted order
     std::vector<std::uint32_t> slot_start_;    // per slot + 1: counting-sort offsets
-    std::vector<std::uint32_t> sorted_;        // binned particles, by slot then index
+    std::vector<std::uint32_t> sorted_id_;     // binned particles, by slot then index
+    std::vector<CellCoord> sorted_cell_;       // their cells, in the same order
+    std::vector<Vec3> sorted_x_;               // their positions, in the same order
     GridStats stats_;
 };
 

@@ -130,11 +130,14 @@ struct World::Impl {
             if (!finite(c.normal) || !finite(c.point) || !std::isfinite(c.s) || !std::isfinite(c.friction)) continue;
             const double len = c.normal.norm();
             if (!(len > 0.5)) continue;
-            // A segment does not collide with the body one of its ends is glued to.
-            const auto glued_to = [&](std::size_t p) {
-                return s.hold[p].kind == ParticleHold::Kind::Glue && s.hold[p].body == c.body;
-            };
-            if (glued_to(c.segment) || glued_to(c.segment + 1)) continue;
+            // A string does not collide with a body it is glued to: the glue already moves
+            // that body in the string's solve, and a second coupling through contacts would
+            // count the same body twice (a limitation: a rope cannot yet wrap around the
+            // crate it holds).
+            bool glued = false;
+            for (const ParticleHold& hold : s.hold)
+                glued = glued || (hold.kind == ParticleHold::Kind::Glue && hold.body == c.body);
+            if (glued) continue;
             detail::SegmentContact sc;
             sc.segment = c.segment;
             sc.s = std::clamp(c.s, 0.0, 1.0);

@@ -41,6 +41,8 @@ namespace {
 constexpr double kTautSlack = 1e-4;
 /// Contact penalty over the stiffest spring, particle and body inertia it competes with.
 constexpr double kContactStiffnessFactor = 100.0;
+/// Active-set passes of the contact solve.
+constexpr int kContactPasses = 4;
 /// A segment within this fraction of its radius of a body counts as touching it.
 constexpr double kContactSlop = 0.1;
 
@@ -177,8 +179,9 @@ double stepEnergy(const StringState& s, const RigidTable& rigids, const StepCont
             const Vec6& u = s.node_step[static_cast<std::size_t>(c.node)];
             p += alpha * (u.head<3>() + u.tail<3>().cross(p - body.position));
         }
+        if (!c.active) continue;
         const Vec3 xs = (1.0 - c.s) * trial(j) + c.s * trial(j + 1);
-        const double g = std::min(0.0, c.normal.dot(xs - p) - s.radius[j]);
+        const double g = c.normal.dot(xs - p) - s.radius[j];
         e += 0.5 * c.stiffness * g * g;
     }
     return e;
@@ -218,6 +221,14 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     std::vector<Vec6> node_rhs(nodes);
     std::vector<std::vector<std::pair<std::size_t, Mat36>>> coupling(nodes);
 
+    // Contacts start active where the prediction touches or nearly touches the body.
+    for (SegmentContact& c : s.contacts) {
+        const std::size_t j = c.segment;
+        const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
+        c.active = !s.broken[j] && c.normal.dot(xs - gluePoint(rigids.bodies[c.body.index], c.local)) - s.radius[j] < 0.0;
+    }
+    const int passes = s.contacts.empty() ? 1 : kContactPasses;
+    for (int pass = 0; pass < passes; ++pass) {
     for (int iter = 0; iter < ctx.settings->strain_iterations; ++iter) {
         // Inertia: free particles are pulled back toward their prediction x'; a glued
         // particle carries its body's effective mass K^-1 at the glue point and starts
@@ -307,11 +318,11 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
             const RigidState& body = rigids.bodies[c.body.index];
             const Vec3 p = gluePoint(body, c.local);
             const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
-            const double g_now = c.normal.dot(xs - p) - s.radius[j];
-            // Contacts about to close join with their stiffness but no force (like taut
-            // segments), so that a step does not run into a plane it cannot see.
-            if (g_now >= s.radius[j]) continue;
-            const double g = std::min(g_now, 0.0);
+            // Active contacts are held as equalities during a pass (smooth, so Newton
+            // converges fast); the passes below release those that pull and add those
+            // that penetrate (a primal active-set method).
+            if (!c.active) continue;
+            const double g = c.normal.dot(xs - p) - s.radius[j];
             // Stiff enough to dominate the rope's springs, the particles' and the body's
             // inertia: under a load F it gives way by F / k_c only. Fixed for the step, so
             // that the line search below sees one energy.
@@ -415,6 +426,25 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
             }
         }
         if (worst < tol * s.shortest_rest) break;
+    }
+    // Release contacts that pull (the body would have to hold the string), engage those
+    // the solve pushed into the body; solve again if the set changed.
+    bool changed = false;
+    for (SegmentContact& c : s.contacts) {
+        const std::size_t j = c.segment;
+        if (s.broken[j]) continue;
+        const RigidState& body = rigids.bodies[c.body.index];
+        const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
+        const double g = c.normal.dot(xs - gluePoint(body, c.local)) - s.radius[j];
+        if (c.active && g > kContactSlop * s.radius[j] * 1e-3) {
+            c.active = false;
+            changed = true;
+        } else if (!c.active && g < 0.0) {
+            c.active = true;
+            changed = true;
+        }
+    }
+    if (!changed) break;
     }
     // Leave glued particles on their bodies.
     for (std::size_t p = 0; p < n; ++p) {

@@ -30,6 +30,7 @@ struct SegmentContact {
     int node = -1;               ///< index into body_nodes when the body is movable
     double depth = 0.0;          ///< penetration of the predicted position, m (>= 0)
     double stiffness = 0.0;      ///< penalty k_c used by the last solve, N/m
+    bool active = false;         ///< held as an equality in the current pass
 };
 
 /// A movable body touched by a string's contacts: 6 unknowns (translation, rotation) in

@@ -58,8 +58,10 @@ RopePile makeRopePile(int segments) {
     return pile;
 }
 
-void setCounters(benchmark::State& state, std::size_t segments, std::size_t pairs, std::size_t tests) {
+void setCounters(benchmark::State& state, std::size_t segments, std::size_t pairs, std::size_t tests,
+                 std::size_t particle_pairs = 0) {
     state.counters["pairs"] = static_cast<double>(pairs);
+    if (particle_pairs) state.counters["particle_pairs"] = static_cast<double>(particle_pairs);
     state.counters["narrow_tests"] = static_cast<double>(tests);
     state.counters["s_per_segment"] = benchmark::Counter(static_cast<double>(segments),
                                                          benchmark::Counter::kIsIterationInvariantRate |
@@ -75,7 +77,7 @@ void runGrid(benchmark::State& state, NeighbourSearch search) {
         grid.findPairs(pile.x.data(), pile.x.size(), pile.segs, pile.cell, 0.0, search, out);
         benchmark::DoNotOptimize(out.data());
     }
-    setCounters(state, pile.segs.size(), out.size(), grid.lastStats().narrow_tests);
+    setCounters(state, pile.segs.size(), out.size(), grid.lastStats().narrow_tests, grid.lastStats().particle_pairs);
 }
 
 void BM_Grid7(benchmark::State& state) { runGrid(state, NeighbourSearch::Seven); }

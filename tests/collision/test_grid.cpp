@@ -351,6 +351,34 @@ TEST(SegmentGrid, DenseClustersAndManyParticlesPerCell) {
     }
 }
 
+TEST(SegmentGrid, LargeRopePilesMatchBruteForce) {
+    // Thousands of segments: big tables, hash blocks of many cells, runs of cells.
+    std::mt19937_64 rng(77);
+    SegmentGrid grid;
+    std::vector<SegmentPair> out;
+    for (int trial = 0; trial < 3; ++trial) {
+        GenParams g;
+        g.l = 0.01;
+        g.r_min = 0.001;
+        g.r_max = 0.004;
+        g.box = 0.08 + 0.1 * trial;
+        g.origin = Vec3(-0.05, 0.02, -0.3) * trial;
+        g.chains = 40;
+        g.max_chain_segments = 120;
+        g.isolated = 50;
+        g.corner_chains = 10;
+        g.h_hint = requiredCellSize(g.l, g.r_max, 0.001);
+        Config c = randomConfig(rng, g);
+        const auto brute = bruteForcePairs(c.x.data(), c.x.size(), c.segs, c.margin, c.skip_neighbours);
+        EXPECT_GT(brute.size(), 50u);
+        for (double factor : {1.0, 1.7}) {
+            const double h = factor * requiredCellSize(c.x.data(), c.x.size(), c.segs, c.margin);
+            grid.findPairs(c.x.data(), c.x.size(), c.segs, h, c.margin, NeighbourSearch::TwentySeven, out, c.skip_neighbours);
+            ASSERT_TRUE(samePairs(out, brute)) << trial << " " << factor;
+        }
+    }
+}
+
 TEST(SegmentGrid, AdjacentSegmentsOfAChainAreNeverReported) {
     // A tightly folded zig-zag: every segment overlaps its neighbours and the ones after.
     std::vector<Vec3> x;
