@@ -2,11 +2,11 @@
 // proof of the cell-size condition.
 #include "collision/grid.hpp"
 
-#include "collision/capsule.hpp"
-
 #include <algorithm>
 #include <limits>
 #include <string>
+
+#include "collision/capsule.hpp"
 
 namespace tearables::detail {
 
@@ -21,9 +21,7 @@ constexpr double kSlack = 1.0 + 1e-9;
 // Cell coordinates are kept within +-2^30 so that neighbour offsets never overflow int32.
 constexpr double kMaxCell = 1073741824.0;
 
-std::string segField(std::size_t i, const char* member) {
-    return "segments[" + std::to_string(i) + "]." + member;
-}
+std::string segField(std::size_t i, const char* member) { return "segments[" + std::to_string(i) + "]." + member; }
 
 struct Validated {
     double max_length = 0.0;
@@ -31,13 +29,13 @@ struct Validated {
     double max_radius = 0.0;
 };
 
-// Checks the segments and positions, fills `info` for the segments that are not skipped.
+// Checks the segments and positions; fills info[i] (when `info` is given: one entry per
+// segment) for the segments that are not skipped.
 Validated validate(const Vec3* x, std::size_t particle_count, const std::vector<CollisionSegment>& segs, double margin,
-                   std::vector<SegmentInfo>& info) {
+                   SegmentInfo* info) {
     if (!(margin >= 0.0) || !std::isfinite(margin)) throw InvalidInput("margin", "must be finite and >= 0");
     if (segs.size() >= std::numeric_limits<std::uint32_t>::max())
         throw InvalidInput("segments", "too many segments (must fit in uint32)");
-    info.resize(segs.size());
     Validated v;
     for (std::size_t i = 0; i < segs.size(); ++i) {
         const CollisionSegment& sg = segs[i];
@@ -45,16 +43,16 @@ Validated validate(const Vec3* x, std::size_t particle_count, const std::vector<
         if (sg.a >= particle_count) throw InvalidInput(segField(i, "a"), "particle index out of range");
         if (sg.b >= particle_count) throw InvalidInput(segField(i, "b"), "particle index out of range");
         if (sg.a == sg.b) throw InvalidInput(segField(i, "b"), "must differ from a");
-        if (!(sg.radius >= 0.0) || !std::isfinite(sg.radius)) throw InvalidInput(segField(i, "radius"), "must be finite and >= 0");
+        if (!(sg.radius >= 0.0) || !std::isfinite(sg.radius))
+            throw InvalidInput(segField(i, "radius"), "must be finite and >= 0");
         const Vec3& xa = x[sg.a];
         const Vec3& xb = x[sg.b];
         if (!xa.allFinite() || !xb.allFinite()) throw InvalidInput("positions", "must be finite");
-        SegmentInfo& in = info[i];
-        in.mid = 0.5 * (xa + xb);
-        in.length2 = (xb - xa).squaredNorm();
-        in.half_length = 0.5 * std::sqrt(in.length2);
-        v.max_length = std::max(v.max_length, 2.0 * in.half_length);
-        v.max_length2 = std::max(v.max_length2, in.length2);
+        const double length2 = (xb - xa).squaredNorm();
+        const double half_length = 0.5 * std::sqrt(length2);
+        if (info) info[i] = {0.5 * (xa + xb), half_length, length2};
+        v.max_length = std::max(v.max_length, 2.0 * half_length);
+        v.max_length2 = std::max(v.max_length2, length2);
         v.max_radius = std::max(v.max_radius, sg.radius);
     }
     return v;
@@ -145,9 +143,12 @@ struct SlotLayout {
         by = bitsFor(std::int64_t{hi.y} - lo.y + 1);
         bz = bitsFor(std::int64_t{hi.z} - lo.z + 1);
         while (bx + by + bz > budget) {  // shrink the largest (ties: z, then y): near-cubic blocks
-            if (bz >= by && bz >= bx) --bz;
-            else if (by >= bx) --by;
-            else --bx;
+            if (bz >= by && bz >= bx)
+                --bz;
+            else if (by >= bx)
+                --by;
+            else
+                --bx;
         }
     }
 
@@ -157,8 +158,8 @@ struct SlotLayout {
         const std::uint32_t ux = static_cast<std::uint32_t>(c.x) - static_cast<std::uint32_t>(origin.x);
         const std::uint32_t uy = static_cast<std::uint32_t>(c.y) - static_cast<std::uint32_t>(origin.y);
         const std::uint32_t uz = static_cast<std::uint32_t>(c.z) - static_cast<std::uint32_t>(origin.z);
-        const std::uint32_t local = (ux & ((1u << bx) - 1)) | ((uy & ((1u << by) - 1)) << bx) |
-                                    ((uz & ((1u << bz) - 1)) << (bx + by));
+        const std::uint32_t local =
+            (ux & ((1u << bx) - 1)) | ((uy & ((1u << by) - 1)) << bx) | ((uz & ((1u << bz) - 1)) << (bx + by));
         const std::uint64_t block = mix((static_cast<std::uint64_t>(ux >> bx) * 0x9E3779B97F4A7C15ull) ^
                                         (static_cast<std::uint64_t>(uy >> by) * 0xC2B2AE3D27D4EB4Full) ^
                                         (static_cast<std::uint64_t>(uz >> bz) * 0x165667B19E3779F9ull));
@@ -179,9 +180,8 @@ inline bool twentySevenAdjacent(const CellCoord& a, const CellCoord& b) {
 // The "forward" half of each stencil: every unordered pair of distinct neighbouring cells
 // has exactly one of its two offsets here.
 constexpr int kForward7[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-constexpr int kForward27[13][3] = {{1, -1, -1}, {1, -1, 0}, {1, -1, 1}, {1, 0, -1}, {1, 0, 0},
-                                   {1, 0, 1},   {1, 1, -1}, {1, 1, 0},  {1, 1, 1},  {0, 1, -1},
-                                   {0, 1, 0},   {0, 1, 1},  {0, 0, 1}};
+constexpr int kForward27[13][3] = {{1, -1, -1}, {1, -1, 0}, {1, -1, 1}, {1, 0, -1}, {1, 0, 0}, {1, 0, 1}, {1, 1, -1},
+                                   {1, 1, 0},   {1, 1, 1},  {0, 1, -1}, {0, 1, 0},  {0, 1, 1}, {0, 0, 1}};
 
 // Visits the segment pairs of one particle pair (A, B).
 template <bool kSeven>
@@ -191,8 +191,8 @@ struct PairVisitor {
     const SegmentInfo* info;
     const std::uint32_t* inc_start;
     const std::uint32_t* inc_list;
-    const CellCoord* cell;     // per particle
-    const Vec3* sorted_x;      // per sorted entry (slot order)
+    const CellCoord* cell;  // per particle
+    const Vec3* sorted_x;   // per sorted entry (slot order)
     const std::uint32_t* sorted_id;
     double margin;
     double dmax2;  // squared bound D^2 (with slack), 27 only
@@ -261,26 +261,26 @@ double requiredCellSize(double max_segment_length, double max_radius, double mar
     return std::sqrt(0.5 * max_segment_length * max_segment_length + reach * reach);
 }
 
-double requiredCellSize(const Vec3* positions, std::size_t particle_count, const std::vector<CollisionSegment>& segments,
-                        double margin) {
-    std::vector<SegmentInfo> info;
-    const Validated v = validate(positions, particle_count, segments, margin, info);
+double requiredCellSize(const Vec3* positions, std::size_t particle_count,
+                        const std::vector<CollisionSegment>& segments, double margin) {
+    const Validated v = validate(positions, particle_count, segments, margin, nullptr);
     return requiredCellSize(v.max_length, v.max_radius, margin);
 }
 
-void SegmentGrid::findPairs(const Vec3* positions, std::size_t particle_count, const std::vector<CollisionSegment>& segments,
-                            double cell_size, double margin, NeighbourSearch search, std::vector<SegmentPair>& out,
-                            std::uint32_t skip_neighbours) {
+void SegmentGrid::findPairs(const Vec3* positions, std::size_t particle_count,
+                            const std::vector<CollisionSegment>& segments, double cell_size, double margin,
+                            NeighbourSearch search, std::vector<SegmentPair>& out, std::uint32_t skip_neighbours) {
     out.clear();
     stats_ = GridStats{};
     if (!(cell_size > 0.0) || !std::isfinite(cell_size)) throw InvalidInput("cell_size", "must be finite and > 0");
     if (particle_count >= std::numeric_limits<std::uint32_t>::max())
         throw InvalidInput("positions", "too many particles (must fit in uint32)");
-    const Validated v = validate(positions, particle_count, segments, margin, seg_info_);
+    seg_info_.resize(segments.size());
+    const Validated v = validate(positions, particle_count, segments, margin, seg_info_.data());
     const double required = requiredCellSize(v.max_length, v.max_radius, margin);
     if (cell_size < required)
-        throw InvalidInput("cell_size", "must be >= sqrt(l_max^2/2 + (2 r_max + margin)^2) = " + std::to_string(required) +
-                                            " (longest segment, largest radius)");
+        throw InvalidInput("cell_size", "must be >= sqrt(l_max^2/2 + (2 r_max + margin)^2) = " +
+                                            std::to_string(required) + " (longest segment, largest radius)");
     const Vec3* x = positions;
 
     // Segments at each particle (CSR, in segment order); the particles that have any.
@@ -353,12 +353,13 @@ void SegmentGrid::findPairs(const Vec3* positions, std::size_t particle_count, c
     // their neighbour cells and segment data in the caches), the later entries of its own
     // cell in the slot (higher particle indices) and the entries of its forward neighbour
     // cells.
-    auto traverse = [&](auto& visit, const int (*forward)[3], int n_forward) {
+    auto traverse = [&](auto& visit, const int(*forward)[3], int n_forward) {
         const CellCoord* sc = sorted_cell_.data();
         const std::uint32_t mx = (1u << layout.bx) - 1, my = (1u << layout.by) - 1, mz = (1u << layout.bz) - 1;
         std::uint32_t step[13];  // slot step to each forward neighbour inside a block
         for (int o = 0; o < n_forward; ++o)
-            step[o] = static_cast<std::uint32_t>(forward[o][0]) + (static_cast<std::uint32_t>(forward[o][1]) << layout.bx) +
+            step[o] = static_cast<std::uint32_t>(forward[o][0]) +
+                      (static_cast<std::uint32_t>(forward[o][1]) << layout.bx) +
                       (static_cast<std::uint32_t>(forward[o][2]) << (layout.bx + layout.by));
         std::uint32_t nb_begin[13], nb_end[13];
         CellCoord nb_cell[13];
@@ -374,9 +375,12 @@ void SegmentGrid::findPairs(const Vec3* positions, std::size_t particle_count, c
             if (!have_cached || cached != ca) {
                 cached = ca;
                 have_cached = true;
-                const std::uint32_t lx = (static_cast<std::uint32_t>(ca.x) - static_cast<std::uint32_t>(layout.origin.x)) & mx;
-                const std::uint32_t ly = (static_cast<std::uint32_t>(ca.y) - static_cast<std::uint32_t>(layout.origin.y)) & my;
-                const std::uint32_t lz = (static_cast<std::uint32_t>(ca.z) - static_cast<std::uint32_t>(layout.origin.z)) & mz;
+                const std::uint32_t lx =
+                    (static_cast<std::uint32_t>(ca.x) - static_cast<std::uint32_t>(layout.origin.x)) & mx;
+                const std::uint32_t ly =
+                    (static_cast<std::uint32_t>(ca.y) - static_cast<std::uint32_t>(layout.origin.y)) & my;
+                const std::uint32_t lz =
+                    (static_cast<std::uint32_t>(ca.z) - static_cast<std::uint32_t>(layout.origin.z)) & mz;
                 const bool inner = lx >= 1 && lx < mx && ly >= 1 && ly < my && lz >= 1 && lz < mz;
                 for (int o = 0; o < n_forward; ++o) {
                     nb_cell[o] = {ca.x + forward[o][0], ca.y + forward[o][1], ca.z + forward[o][2]};
@@ -396,12 +400,34 @@ void SegmentGrid::findPairs(const Vec3* positions, std::size_t particle_count, c
     const double max_reach = (v.max_radius + v.max_radius) + margin;
     const double dmax2 = (0.25 * (v.max_length2 + v.max_length2) + max_reach * max_reach) * kSlack;
     if (search == NeighbourSearch::Seven) {
-        PairVisitor<true> visit{x, segments, seg_info_.data(), inc_start_.data(), inc_list_.data(), cell_.data(),
-                                sorted_x_.data(), sorted_id_.data(), margin, 0.0, skip_neighbours, out, stats_};
+        PairVisitor<true> visit{x,
+                                segments,
+                                seg_info_.data(),
+                                inc_start_.data(),
+                                inc_list_.data(),
+                                cell_.data(),
+                                sorted_x_.data(),
+                                sorted_id_.data(),
+                                margin,
+                                0.0,
+                                skip_neighbours,
+                                out,
+                                stats_};
         traverse(visit, kForward7, 3);
     } else {
-        PairVisitor<false> visit{x, segments, seg_info_.data(), inc_start_.data(), inc_list_.data(), cell_.data(),
-                                 sorted_x_.data(), sorted_id_.data(), margin, dmax2, skip_neighbours, out, stats_};
+        PairVisitor<false> visit{x,
+                                 segments,
+                                 seg_info_.data(),
+                                 inc_start_.data(),
+                                 inc_list_.data(),
+                                 cell_.data(),
+                                 sorted_x_.data(),
+                                 sorted_id_.data(),
+                                 margin,
+                                 dmax2,
+                                 skip_neighbours,
+                                 out,
+                                 stats_};
         traverse(visit, kForward27, 13);
     }
     std::sort(out.begin(), out.end(), [](const SegmentPair& l, const SegmentPair& r) {
@@ -412,15 +438,16 @@ void SegmentGrid::findPairs(const Vec3* positions, std::size_t particle_count, c
 std::size_t SegmentGrid::reservedBytes() const {
     return seg_info_.capacity() * sizeof(SegmentInfo) +
            (inc_start_.capacity() + inc_list_.capacity() + binned_.capacity() + slot_.capacity() + entry_.capacity() +
-            slot_start_.capacity() + sorted_id_.capacity()) * sizeof(std::uint32_t) +
+            slot_start_.capacity() + sorted_id_.capacity()) *
+               sizeof(std::uint32_t) +
            (cell_.capacity() + sorted_cell_.capacity()) * sizeof(CellCoord) + sorted_x_.capacity() * sizeof(Vec3);
 }
 
 std::vector<SegmentPair> bruteForcePairs(const Vec3* positions, std::size_t particle_count,
                                          const std::vector<CollisionSegment>& segments, double margin,
                                          std::uint32_t skip_neighbours) {
-    std::vector<SegmentInfo> info;
-    validate(positions, particle_count, segments, margin, info);
+    std::vector<SegmentInfo> info(segments.size());
+    validate(positions, particle_count, segments, margin, info.data());
     std::vector<SegmentPair> out;
     const auto n = static_cast<std::uint32_t>(segments.size());
     for (std::uint32_t i = 0; i < n; ++i) {

@@ -35,10 +35,15 @@
 // a cell whenever l < h sqrt(3), i.e. always when h >= l; and for h < l/sqrt(2) even the
 // 27-cell search fails. Counterexample for h = l = 1, r = 0.05 (axis distance 0.085 < 0.1):
 //     (0.97, 0.97, 0.5) - (0.263, 0.263, 0.5)   and   (1.03, 1.03, 0.5) - (1.737, 1.737, 0.5).
-// NeighbourSearch::Seven is kept as the paper's heuristic (it finds exactly the
-// overlapping pairs that have an endpoint pair in the same or face-adjacent cells, a
-// subset of the true pairs; the tests measure what it misses), NeighbourSearch::TwentySeven
-// is exact and is the default to use.
+// It fails even for zero-thickness segments that truly intersect, in 3D: with h = 1,
+//     (0.02, -0.1, 0.5) - (0.02, 0.42, -0.02)   and   (0.1, 0.1, 1.02) - (-0.004, 0.1, 0.084)
+// (lengths 0.735 and 0.942) cross at (0.02, 0.1, 0.3), but their endpoints are in the cells
+// (0,-1,0), (0,0,-1) and (0,0,1), (-1,0,0), no two of them face-adjacent. (The paper's
+// argument enumerates 2D cases only.) NeighbourSearch::Seven is kept as the paper's
+// heuristic: it finds exactly the overlapping pairs that have an endpoint pair in the same
+// or face-adjacent cells, a subset of the true pairs. On random rope piles it misses about
+// 7% of the overlapping pairs, some of them deeply overlapping (see the tests and
+// benchmarks). NeighbourSearch::TwentySeven is exact and is the one to use.
 //
 // Implementation: the 27-cell search also skips, before looking at segments, particle
 // pairs farther apart than D (no segment pair needs them, by the lemma) and tests a
@@ -60,12 +65,12 @@
 // rejected).
 #pragma once
 
-#include "tearables/types.hpp"
-
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
+
+#include "tearables/types.hpp"
 
 namespace tearables::detail {
 
@@ -83,10 +88,10 @@ struct CollisionSegment {
 struct SegmentPair {
     std::uint32_t first = 0;
     std::uint32_t second = 0;
-    double s = 0.0;                  ///< closest point on first = x[a] + s (x[b] - x[a])
-    double t = 0.0;                  ///< closest point on second = x[a] + t (x[b] - x[a])
-    Vec3 normal = Vec3::UnitX();     ///< unit, from the second's closest point to the first's
-    double distance = 0.0;           ///< between the axes (< r1 + r2 + margin)
+    double s = 0.0;               ///< closest point on first: x[a] + s (x[b] - x[a]) of segments[first]
+    double t = 0.0;               ///< closest point on second: x[a] + t (x[b] - x[a]) of segments[second]
+    Vec3 normal = Vec3::UnitX();  ///< unit, from the second's closest point to the first's
+    double distance = 0.0;        ///< between the axes (< r1 + r2 + margin)
 };
 
 enum class NeighbourSearch {
@@ -114,7 +119,8 @@ inline CellCoord cellOf(const Vec3& x, double inv_cell_size) {
 double requiredCellSize(double max_segment_length, double max_radius, double margin);
 
 /// requiredCellSize of the current configuration: the longest current length and largest
-/// radius over the segments that are not skipped (0 when there are none).
+/// radius over the segments that are not skipped (= margin when there are none). O(n), no
+/// allocation; throws InvalidInput like SegmentGrid::findPairs (except for the cell size).
 double requiredCellSize(const Vec3* positions, std::size_t particle_count,
                         const std::vector<CollisionSegment>& segments, double margin);
 
@@ -151,24 +157,24 @@ public:
     /// Bytes of working memory currently reserved (stays constant once warmed up).
     std::size_t reservedBytes() const;
 
-    struct SegmentInfo {  // per-segment data of the current call
+    struct SegmentInfo {  // implementation detail: per-segment data of the current call
         Vec3 mid = Vec3::Zero();
         double half_length = 0.0;
         double length2 = 0.0;
     };
 
 private:
-    std::vector<SegmentInfo> seg_info_;        // per segment
-    std::vector<std::uint32_t> inc_start_;     // per particle + 1: CSR of segments at a particle
-    std::vector<std::uint32_t> inc_list_;      // the incident segments, in segment order
-    std::vector<CellCoord> cell_;              // per particle
-    std::vector<std::uint32_t> binned_;        // particles with at least one segment, ascending
-    std::vector<std::uint32_t> slot_;          // hash slot per binned particle
-    std::vector<std::uint32_t> entry_;         // per binned particle: its index in the sorted order
-    std::vector<std::uint32_t> slot_start_;    // per slot + 1: counting-sort offsets
-    std::vector<std::uint32_t> sorted_id_;     // binned particles, by slot then index
-    std::vector<CellCoord> sorted_cell_;       // their cells, in the same order
-    std::vector<Vec3> sorted_x_;               // their positions, in the same order
+    std::vector<SegmentInfo> seg_info_;      // per segment
+    std::vector<std::uint32_t> inc_start_;   // per particle + 1: CSR of segments at a particle
+    std::vector<std::uint32_t> inc_list_;    // the incident segments, in segment order
+    std::vector<CellCoord> cell_;            // per particle
+    std::vector<std::uint32_t> binned_;      // particles with at least one segment, ascending
+    std::vector<std::uint32_t> slot_;        // hash slot per binned particle
+    std::vector<std::uint32_t> entry_;       // per binned particle: its index in the sorted order
+    std::vector<std::uint32_t> slot_start_;  // per slot + 1: counting-sort offsets
+    std::vector<std::uint32_t> sorted_id_;   // binned particles, by slot then index
+    std::vector<CellCoord> sorted_cell_;     // their cells, in the same order
+    std::vector<Vec3> sorted_x_;             // their positions, in the same order
     GridStats stats_;
 };
 

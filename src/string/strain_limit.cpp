@@ -41,8 +41,10 @@ namespace {
 constexpr double kTautSlack = 1e-4;
 /// Contact penalty over the stiffest spring, particle and body inertia it competes with.
 constexpr double kContactStiffnessFactor = 100.0;
-/// Active-set passes of the contact solve.
+/// Active-set passes of the contact solve, and the iteration budget of a pass with
+/// contacts relative to WorldSettings::strain_iterations.
 constexpr int kContactPasses = 4;
+constexpr int kContactIterationFactor = 4;
 /// A segment within this fraction of its radius of a body counts as touching it.
 constexpr double kContactSlop = 0.1;
 
@@ -228,8 +230,12 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         c.active = !s.broken[j] && c.normal.dot(xs - gluePoint(rigids.bodies[c.body.index], c.local)) - s.radius[j] < 0.0;
     }
     const int passes = s.contacts.empty() ? 1 : kContactPasses;
+    // Impacts are strongly nonlinear (a rope deflected by centimetres in one step): with
+    // contacts a pass may take more iterations before its active set is judged.
+    const int iterations = ctx.settings->strain_iterations * (s.contacts.empty() ? 1 : kContactIterationFactor);
     for (int pass = 0; pass < passes; ++pass) {
-    for (int iter = 0; iter < ctx.settings->strain_iterations; ++iter) {
+    bool converged = false;
+    for (int iter = 0; iter < iterations; ++iter) {
         // Inertia: free particles are pulled back toward their prediction x'; a glued
         // particle carries its body's effective mass K^-1 at the glue point and starts
         // each iteration on the body (which absorbed the earlier corrections).
@@ -425,10 +431,15 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
                 applyBodyImpulse(b, s.x[p] - b.position, impulse);
             }
         }
-        if (worst < tol * s.shortest_rest) break;
+        if (worst < tol * s.shortest_rest) {
+            converged = true;
+            break;
+        }
     }
     // Release contacts that pull (the body would have to hold the string), engage those
-    // the solve pushed into the body; solve again if the set changed.
+    // the solve pushed into the body; solve again if the set changed. An unconverged
+    // state says nothing reliable about pulling, so contacts are only released after
+    // convergence.
     bool changed = false;
     for (SegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
@@ -436,7 +447,7 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         const RigidState& body = rigids.bodies[c.body.index];
         const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
         const double g = c.normal.dot(xs - gluePoint(body, c.local)) - s.radius[j];
-        if (c.active && g > kContactSlop * s.radius[j] * 1e-3) {
+        if (c.active && converged && g > kContactSlop * s.radius[j] * 1e-3) {
             c.active = false;
             changed = true;
         } else if (!c.active && g < 0.0) {

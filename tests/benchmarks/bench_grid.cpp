@@ -3,8 +3,6 @@
 // 4 mm) laid as smooth random walks in a box at 5% volume fraction, 100-segment chains.
 // Counters: pairs found, narrow-phase tests, and the time per segment (s_per_segment).
 // Registered into the suite's executable (bench_string.cpp has the main).
-#include "collision/grid.hpp"
-
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -12,6 +10,8 @@
 #include <cstdint>
 #include <random>
 #include <vector>
+
+#include "collision/grid.hpp"
 
 namespace {
 
@@ -49,8 +49,8 @@ RopePile makeRopePile(int segments) {
                 }
             p = q;
             pile.x.push_back(p);
-            pile.segs.push_back({first + static_cast<std::uint32_t>(k), first + static_cast<std::uint32_t>(k) + 1, chain,
-                                 static_cast<std::uint32_t>(k), r, false});
+            pile.segs.push_back({first + static_cast<std::uint32_t>(k), first + static_cast<std::uint32_t>(k) + 1,
+                                 chain, static_cast<std::uint32_t>(k), r, false});
         }
         done += len;
     }
@@ -63,9 +63,8 @@ void setCounters(benchmark::State& state, std::size_t segments, std::size_t pair
     state.counters["pairs"] = static_cast<double>(pairs);
     if (particle_pairs) state.counters["particle_pairs"] = static_cast<double>(particle_pairs);
     state.counters["narrow_tests"] = static_cast<double>(tests);
-    state.counters["s_per_segment"] = benchmark::Counter(static_cast<double>(segments),
-                                                         benchmark::Counter::kIsIterationInvariantRate |
-                                                             benchmark::Counter::kInvert);
+    state.counters["s_per_segment"] = benchmark::Counter(
+        static_cast<double>(segments), benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
 
 void runGrid(benchmark::State& state, NeighbourSearch search) {

@@ -1,9 +1,6 @@
 // The capsule narrow phase against a dense-sampling reference, and the hash-grid broad
 // phase against brute force, including the configurations around cell edges and corners
 // that decide whether a neighbour stencil is complete (Strings, Sec. 6).
-#include "collision/capsule.hpp"
-#include "collision/grid.hpp"
-
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -12,6 +9,9 @@
 #include <iostream>
 #include <random>
 #include <vector>
+
+#include "collision/capsule.hpp"
+#include "collision/grid.hpp"
 
 namespace {
 
@@ -54,7 +54,10 @@ double referenceDistance(const Vec3& p0, const Vec3& p1, const Vec3& q0, const V
     for (int it = 0; it < 200; ++it) {
         const double m1 = lo + (hi - lo) / 3.0;
         const double m2 = hi - (hi - lo) / 3.0;
-        if (g(m1) <= g(m2)) hi = m2; else lo = m1;
+        if (g(m1) <= g(m2))
+            hi = m2;
+        else
+            lo = m1;
     }
     return std::min(best_d, g(0.5 * (lo + hi)));
 }
@@ -102,7 +105,8 @@ TEST(CapsuleClosestPoints, ParallelAntiParallelCollinearAndNearlyParallel) {
     for (int trial = 0; trial < 400; ++trial) {
         const Vec3 d = randomUnit(rng) * (0.1 + std::abs(u(rng)));
         const Vec3 p0(u(rng), u(rng), u(rng));
-        const Vec3 off = (trial % 4 == 0) ? Vec3(Vec3::Zero()) : Vec3(Vec3(u(rng), u(rng), u(rng)) * 0.3);  // collinear or not
+        const Vec3 off =
+            (trial % 4 == 0) ? Vec3(Vec3::Zero()) : Vec3(Vec3(u(rng), u(rng), u(rng)) * 0.3);  // collinear or not
         const double shift = 2.0 * u(rng), k = (trial % 2 ? 1.0 : -1.0) * (0.2 + std::abs(u(rng)));
         const Vec3 q0 = p0 + off + shift * d;
         expectClosestConsistent(p0, p0 + d, q0, q0 + k * d, "parallel");
@@ -161,15 +165,15 @@ struct Config {
 };
 
 struct GenParams {
-    double l = 1.0;            // nominal segment length (the longest)
+    double l = 1.0;  // nominal segment length (the longest)
     double r_min = 0.05, r_max = 0.4;
-    double box = 6.0;          // random walks start in [0, box)^3 (shifted by `origin`)
+    double box = 6.0;  // random walks start in [0, box)^3 (shifted by `origin`)
     Vec3 origin = Vec3::Zero();
     int chains = 4;
     int max_chain_segments = 30;
-    int isolated = 6;          // isolated segments
-    int corner_chains = 6;     // short chains grown from points near cell edges / corners
-    double h_hint = 1.0;       // the cell size the corner chains aim at
+    int isolated = 6;       // isolated segments
+    int corner_chains = 6;  // short chains grown from points near cell edges / corners
+    double h_hint = 1.0;    // the cell size the corner chains aim at
 };
 
 // Adds a chain of n segments starting at x0 (a persistent random walk with step lengths
@@ -297,10 +301,12 @@ TEST(SegmentGrid, TwentySevenEqualsBruteForceAndSevenIsItsStencilSubset) {
         const double required = requiredCellSize(c.x.data(), c.x.size(), c.segs, c.margin);
         const double h = trial % 3 == 0 ? required : std::max(required, g.h_hint);
 
-        const std::vector<SegmentPair> brute = bruteForcePairs(c.x.data(), c.x.size(), c.segs, c.margin, c.skip_neighbours);
-        grid.findPairs(c.x.data(), c.x.size(), c.segs, h, c.margin, NeighbourSearch::TwentySeven, out27, c.skip_neighbours);
-        ASSERT_TRUE(samePairs(out27, brute)) << "trial " << trial << ": 27-cell search " << out27.size()
-                                             << " pairs, brute force " << brute.size();
+        const std::vector<SegmentPair> brute =
+            bruteForcePairs(c.x.data(), c.x.size(), c.segs, c.margin, c.skip_neighbours);
+        grid.findPairs(c.x.data(), c.x.size(), c.segs, h, c.margin, NeighbourSearch::TwentySeven, out27,
+                       c.skip_neighbours);
+        ASSERT_TRUE(samePairs(out27, brute))
+            << "trial " << trial << ": 27-cell search " << out27.size() << " pairs, brute force " << brute.size();
         expectValidOutput(c, brute);
 
         // Seven: exactly the brute-force pairs that have an endpoint pair in the 7-cell stencil.
@@ -322,9 +328,10 @@ TEST(SegmentGrid, TwentySevenEqualsBruteForceAndSevenIsItsStencilSubset) {
         ++configs;
     }
     EXPECT_GT(total, 10000u);  // the configurations do collide
-    std::cout << "[ info ] " << configs << " configurations, " << total << " overlapping pairs; the 7-cell search missed "
-              << missed7 << " (" << 100.0 * missed7 / total << "%) in " << configs_with_miss7
-              << " configurations, up to " << 100.0 * deepest_miss7 << "% of r1+r2 deep\n";
+    std::cout << "[ info ] " << configs << " configurations, " << total
+              << " overlapping pairs; the 7-cell search missed " << missed7 << " (" << 100.0 * missed7 / total
+              << "%) in " << configs_with_miss7 << " configurations, up to " << 100.0 * deepest_miss7
+              << "% of r1+r2 deep\n";
 }
 
 TEST(SegmentGrid, DenseClustersAndManyParticlesPerCell) {
@@ -345,7 +352,8 @@ TEST(SegmentGrid, DenseClustersAndManyParticlesPerCell) {
         Config c = randomConfig(rng, g);
         const double h = requiredCellSize(c.x.data(), c.x.size(), c.segs, c.margin) * (trial % 2 ? 1.0 : 3.0);
         const auto brute = bruteForcePairs(c.x.data(), c.x.size(), c.segs, c.margin, c.skip_neighbours);
-        grid.findPairs(c.x.data(), c.x.size(), c.segs, h, c.margin, NeighbourSearch::TwentySeven, out, c.skip_neighbours);
+        grid.findPairs(c.x.data(), c.x.size(), c.segs, h, c.margin, NeighbourSearch::TwentySeven, out,
+                       c.skip_neighbours);
         ASSERT_TRUE(samePairs(out, brute)) << trial;
         EXPECT_GT(brute.size(), 20u);
     }
@@ -373,7 +381,8 @@ TEST(SegmentGrid, LargeRopePilesMatchBruteForce) {
         EXPECT_GT(brute.size(), 50u);
         for (double factor : {1.0, 1.7}) {
             const double h = factor * requiredCellSize(c.x.data(), c.x.size(), c.segs, c.margin);
-            grid.findPairs(c.x.data(), c.x.size(), c.segs, h, c.margin, NeighbourSearch::TwentySeven, out, c.skip_neighbours);
+            grid.findPairs(c.x.data(), c.x.size(), c.segs, h, c.margin, NeighbourSearch::TwentySeven, out,
+                           c.skip_neighbours);
             ASSERT_TRUE(samePairs(out, brute)) << trial << " " << factor;
         }
     }
@@ -422,9 +431,11 @@ TEST(SegmentGrid, DeterministicAndAllocationFreeAfterWarmUp) {
     const std::size_t cap = out_a.capacity();
     const SegmentPair* data = out_a.data();
     for (int k = 0; k < 5; ++k) {
-        a.findPairs(c.x.data(), c.x.size(), c.segs, h, c.margin, NeighbourSearch::TwentySeven, out_b, c.skip_neighbours);
+        a.findPairs(c.x.data(), c.x.size(), c.segs, h, c.margin, NeighbourSearch::TwentySeven, out_b,
+                    c.skip_neighbours);
         EXPECT_TRUE(samePairs(out_a, out_b));
-        a.findPairs(c.x.data(), c.x.size(), c.segs, h, c.margin, NeighbourSearch::TwentySeven, out_a, c.skip_neighbours);
+        a.findPairs(c.x.data(), c.x.size(), c.segs, h, c.margin, NeighbourSearch::TwentySeven, out_a,
+                    c.skip_neighbours);
         EXPECT_EQ(a.reservedBytes(), bytes);
         EXPECT_EQ(out_a.capacity(), cap);
         EXPECT_EQ(out_a.data(), data);
@@ -440,7 +451,8 @@ TEST(SegmentGrid, PaperSevenCellClaimFailsForCapsulesAtCellSizeEqualSegmentLengt
     // share only the edge x = y = 1; the axes are 0.085 apart (< 2 r). Every endpoint pair
     // is in cells that differ in x and y, so the 7-cell search cannot see them.
     const double d = 1.0 / std::sqrt(2.0);
-    const std::vector<Vec3> x = {{0.97, 0.97, 0.5}, {0.97 - d, 0.97 - d, 0.5}, {1.03, 1.03, 0.5}, {1.03 + d, 1.03 + d, 0.5}};
+    const std::vector<Vec3> x = {
+        {0.97, 0.97, 0.5}, {0.97 - d, 0.97 - d, 0.5}, {1.03, 1.03, 0.5}, {1.03 + d, 1.03 + d, 0.5}};
     const std::vector<CollisionSegment> segs = {{0, 1, 0, 0, 0.05, false}, {2, 3, 1, 0, 0.05, false}};
     const auto brute = bruteForcePairs(x.data(), x.size(), segs, 0.0);
     ASSERT_EQ(brute.size(), 1u);

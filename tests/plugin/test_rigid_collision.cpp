@@ -179,3 +179,30 @@ TEST(RigidCollision, FreeRopeHitByABoxConservesMomentum) {
     // The box was slowed by the rope (two-way).
     EXPECT_GT(box.getLinearVelocity().y(), -1.99f);
 }
+
+// Fast motion: a crate at 10 m/s does not pass through a rope of 5 mm radius at
+// dt = 0.01 s (it moves 20 rope diameters per step). Contacts are speculative: found
+// between the start-of-step poses within the distance both can travel, so the solve
+// keeps the rope on its side (plugin/bullet_world.cpp).
+// DISABLED (issue 4, open): the impact is caught (1 kN peak), but in the next step the
+// rope, deflected by centimetres, needs more Newton iterations than a pass allows and the
+// crate slips through. Substepping the string solve from the relative speed is the plan.
+TEST(RigidCollision, DISABLED_FastCrateDoesNotTunnelThroughARope) {
+    Physics phys(0.0);
+    btRigidBody& crate = phys.add(std::make_unique<btBoxShape>(btVector3(0.05f, 0.05f, 0.05f)), 2.0, btVector3(0, 0.5f, 0));
+    crate.setLinearVelocity(btVector3(0, -10.0f, 0));
+    crate.setActivationState(DISABLE_DEACTIVATION);
+    BulletWorld ropes(phys.world, withContacts());
+    StringDesc d = rope({-0.5, 0, 0}, {0.5, 0, 0}, 40, 0.005);
+    d.tearable = false;
+    const StringId id = ropes.addString(d);
+    ropes.attach(id, 0, btVector3(-0.5f, 0, 0));
+    ropes.attach(id, -1, btVector3(0.5f, 0, 0));
+    for (int i = 0; i < 100; ++i) {
+        phys.step(1);
+        // The crate's centre never gets below the rope's particle under it.
+        const double under = (*ropes.core().view(id).positions)[20].y();
+        ASSERT_GT(crate.getCenterOfMassPosition().y(), under) << "step " << i;
+    }
+    EXPECT_GT(crate.getLinearVelocity().y(), -1.0f);  // stopped (bounced back by the rope)
+}
