@@ -2,6 +2,7 @@
 // (DESIGN.md, "How a step flows"), times them and collects events.
 #include "tearables/world.hpp"
 
+#include "collision/grid.hpp"
 #include "string/string_state.hpp"
 
 #include <algorithm>
@@ -30,6 +31,8 @@ StageTimes& StageTimes::operator+=(const StageTimes& o) {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+/// Coulomb friction between strings (fibre on fibre, dry nylon and cotton: about 0.2-0.4).
+constexpr double kStringFriction = 0.3;
 
 using Clock = std::chrono::steady_clock;
 
@@ -67,6 +70,11 @@ struct World::Impl {
     std::vector<Event> pending;  // emitted between steps, reported with the next step
     StageTimes last;
     ContactProvider* contact_provider = nullptr;
+    detail::SegmentGrid grid;
+    std::vector<Vec3> grid_positions;
+    std::vector<detail::CollisionSegment> grid_segments;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> grid_owner;  // per grid particle: string, particle
+    std::vector<detail::SegmentPair> grid_pairs;
     std::vector<RigidContact> contacts;
     CollisionQuery query;
     double time = 0.0;
@@ -146,6 +154,7 @@ struct World::Impl {
             sc.local = body.orientation.conjugate() * (c.point - body.position);
             sc.body = c.body;
             sc.friction = std::max(0.0, c.friction);
+            sc.gap = s.radius[c.segment];
             const Vec3 xs = (1.0 - sc.s) * s.x[c.segment] + sc.s * s.x[c.segment + 1];
             sc.depth = std::max(0.0, -(sc.normal.dot(xs - c.point) - s.radius[c.segment]));
             if (rigids.movable(c.body)) {
@@ -160,6 +169,95 @@ struct World::Impl {
                 sc.node = node;
             }
             s.contacts.push_back(sc);
+        }
+    }
+
+    /// String-string and self collision (Strings Sec. 6): capsules per segment, pairs from
+    /// the 27-cell grid (exact; the paper's 7-cell search misses pairs, see grid.hpp) on
+    /// the predicted positions. Each side of a pair gets a contact against the other's
+    /// closest point held fixed for the step, clearing its mass-weighted share of the
+    /// overlap (the paper moves both segments' ends "by the fractions s and t").
+    void collectStringContacts() {
+        grid_positions.clear();
+        grid_segments.clear();
+        grid_owner.clear();
+        double travel = 0.0;
+        std::vector<std::uint32_t> base(strings.size(), 0);
+        for (std::size_t i = 0; i < strings.size(); ++i) {
+            const StringState& s = strings[i];
+            if (!s.alive || s.frozen) continue;
+            base[i] = static_cast<std::uint32_t>(grid_positions.size());
+            for (std::size_t p = 0; p < s.particles(); ++p) {
+                grid_positions.push_back(s.x_prev[p]);  // pairs from the start of the step (speculative)
+                grid_owner.emplace_back(static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(p));
+                travel = std::max(travel, (s.x[p] - s.x_prev[p]).norm());
+            }
+            for (std::size_t j = 0; j < s.segments(); ++j) {
+                detail::CollisionSegment seg;
+                seg.a = base[i] + static_cast<std::uint32_t>(j);
+                seg.b = seg.a + 1;
+                seg.chain = static_cast<std::uint32_t>(i);
+                seg.index_in_chain = static_cast<std::uint32_t>(j);
+                seg.radius = s.radius[j];
+                seg.skip = s.broken[j] != 0;
+                grid_segments.push_back(seg);
+            }
+        }
+        if (grid_segments.size() < 2) return;
+        double shortest_radius = 1e300, thickest = 0.0, shortest_segment = 1e300;
+        for (const auto& seg : grid_segments) {
+            shortest_radius = std::min(shortest_radius, seg.radius);
+            thickest = std::max(thickest, seg.radius);
+        }
+        for (const StringState& s : strings)
+            if (s.alive && !s.frozen) shortest_segment = std::min(shortest_segment, s.shortest_rest);
+        // Pairs that can meet during the step: found at the start positions within what
+        // both can travel (speculative, like the rigid contacts), judged at the predicted.
+        const double margin = 0.5 * shortest_radius + 2.0 * travel;
+        // Segments of one string closer along it than the capsules are thick always touch
+        // their neighbours: those pairs are not collisions (a straight rope of short, thick
+        // segments would push itself apart along its axis).
+        const auto skip = static_cast<std::uint32_t>(1.0 + std::ceil((2.0 * thickest + margin) / shortest_segment));
+        const double cell = detail::requiredCellSize(grid_positions.data(), grid_positions.size(), grid_segments, margin);
+        grid.findPairs(grid_positions.data(), grid_positions.size(), grid_segments, cell, margin,
+                       detail::NeighbourSearch::TwentySeven, grid_pairs, skip);
+        for (const detail::SegmentPair& pair : grid_pairs) {
+            const detail::CollisionSegment& a = grid_segments[pair.first];
+            const detail::CollisionSegment& b = grid_segments[pair.second];
+            StringState& sa = strings[a.chain];
+            StringState& sb = strings[b.chain];
+            const std::size_t ja = a.index_in_chain, jb = b.index_in_chain;
+            auto point_inverse_mass = [](const StringState& s, std::size_t j, double t) {
+                const double w0 = s.hold[j].kind == ParticleHold::Kind::Free ? s.inv_mass[j] : 0.0;
+                const double w1 = s.hold[j + 1].kind == ParticleHold::Kind::Free ? s.inv_mass[j + 1] : 0.0;
+                return (1.0 - t) * (1.0 - t) * w0 + t * t * w1;
+            };
+            const double wa = point_inverse_mass(sa, ja, pair.s);
+            const double wb = point_inverse_mass(sb, jb, pair.t);
+            if (!(wa + wb > 0.0)) continue;
+            // The normal from the start of the step; the overlap along it at the prediction.
+            const Vec3 pa = (1.0 - pair.s) * sa.x[ja] + pair.s * sa.x[ja + 1];
+            const Vec3 pb = (1.0 - pair.t) * sb.x[jb] + pair.t * sb.x[jb + 1];
+            // Deep overlaps already there at the start (strings created through each
+            // other, a pin that jumped) are undone over several steps, at most half the
+            // capsules' thickness per step; an approach is stopped at once.
+            const double thickness = a.radius + b.radius;
+            const double residual = std::max(0.0, (thickness - pair.distance) - 0.5 * thickness);
+            const double overlap = thickness - pair.normal.dot(pa - pb) - residual;
+            auto add = [&](StringState& s, std::size_t j, double t, const Vec3& point, const Vec3& normal, double share) {
+                detail::SegmentContact c;
+                c.segment = static_cast<std::uint32_t>(j);
+                c.s = t;
+                c.normal = normal;
+                c.local = point;  // a fixed point: the body stays invalid
+                c.gap = share * overlap;
+                c.friction = kStringFriction;
+                c.depth = std::max(0.0, overlap * share);
+                s.contacts.push_back(c);
+                s.colliding[j] = s.colliding[j + 1] = 1;
+            };
+            add(sa, ja, pair.s, pa, pair.normal, wa / (wa + wb));
+            add(sb, jb, pair.t, pb, -pair.normal, wb / (wa + wb));
         }
     }
 
@@ -256,6 +354,7 @@ StringId World::addString(const StringDesc& desc) {
     s.blk_factor_gain.assign(n, Mat3::Zero());
     s.blk_factor.resize(n);
     s.row_projector.assign(n, Mat3::Identity());
+    s.colliding.assign(n, 0);
     s.spring_force.assign(m, 0.0);
     s.prev_stretch.assign(m, 0.0);
     s.rest_direction.resize(m);
@@ -471,9 +570,11 @@ void World::step(double h) {
         s.contacts.clear();
         s.body_nodes.clear();
         std::fill(s.row_projector.begin(), s.row_projector.end(), Mat3::Identity());
+        std::fill(s.colliding.begin(), s.colliding.end(), 0);
     }
     w.contacts.clear();
     if (w.contact_provider && w.settings.rigid_contacts) w.collectContacts(ctx);
+    if (w.settings.string_collisions) w.collectStringContacts();
     auto t1c = Clock::now();
     t.collision = seconds(t1, t1c);
     t1 = t1c;

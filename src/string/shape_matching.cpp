@@ -215,10 +215,12 @@ void shapeMatch(StringState& s) {
     const double alpha = s.desc.bending;
     // Held particles do not move, so in the fits they weigh as if immovable: a clamp then
     // holds the direction of the string (a cantilever), instead of being rotated along.
+    // Particles that collided with another string last step weigh three times their mass
+    // (Strings Sec. 6), so that bending barely moves them back into the contact.
     double heaviest = 0.0;
     for (double m : s.mass) heaviest = std::max(heaviest, m);
     for (std::size_t p = 0; p < n; ++p)
-        s.csm_mass[p] = s.hold[p].kind == ParticleHold::Kind::Free ? s.mass[p] : 1e6 * heaviest;
+        s.csm_mass[p] = s.hold[p].kind == ParticleHold::Kind::Free ? s.mass[p] * (s.colliding[p] ? 3.0 : 1.0) : 1e6 * heaviest;
     std::size_t first = 0;
     for (std::size_t p = 0; p < n; ++p) {
         const bool piece_ends = p + 1 == n || s.broken[p];

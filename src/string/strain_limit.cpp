@@ -85,6 +85,18 @@ Mobility mobility(const StringState& s, const RigidTable& rigids, std::size_t p)
     return m;
 }
 
+/// Where a contact's surface point is now: on its body (following it), or a fixed point
+/// (another string's segment, for string-string contacts).
+Vec3 contactPoint(const SegmentContact& c, const RigidTable& rigids) {
+    return c.body.valid() ? gluePoint(rigids.bodies[c.body.index], c.local) : c.local;
+}
+
+/// The contact's gap function: >= 0 when the string is clear of the surface.
+double contactGap(const StringState& s, const SegmentContact& c, const Vec3& xs, const Vec3& p) {
+    (void)s;
+    return c.normal.dot(xs - p) - c.gap;
+}
+
 /// True when particle p does not move in the solve (pinned, or glued to an immovable body).
 bool fixedRow(const StringState& s, std::size_t p) {
     const ParticleHold& hold = s.hold[p];
@@ -175,15 +187,15 @@ double stepEnergy(const StringState& s, const RigidTable& rigids, const StepCont
     for (const SegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         if (s.broken[j] || c.stiffness <= 0.0) continue;
-        const RigidState& body = rigids.bodies[c.body.index];
-        Vec3 p = gluePoint(body, c.local);
+        Vec3 p = contactPoint(c, rigids);
         if (c.node >= 0) {
+            const RigidState& body = rigids.bodies[c.body.index];
             const Vec6& u = s.node_step[static_cast<std::size_t>(c.node)];
             p += alpha * (u.head<3>() + u.tail<3>().cross(p - body.position));
         }
         if (!c.active) continue;
         const Vec3 xs = (1.0 - c.s) * trial(j) + c.s * trial(j + 1);
-        const double g = c.normal.dot(xs - p) - s.radius[j];
+        const double g = contactGap(s, c, xs, p);
         e += 0.5 * c.stiffness * g * g;
     }
     return e;
@@ -227,7 +239,7 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     for (SegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
-        c.active = !s.broken[j] && c.normal.dot(xs - gluePoint(rigids.bodies[c.body.index], c.local)) - s.radius[j] < 0.0;
+        c.active = !s.broken[j] && contactGap(s, c, xs, contactPoint(c, rigids)) < 0.0;
     }
     const int passes = s.contacts.empty() ? 1 : kContactPasses;
     // Impacts are strongly nonlinear (a rope deflected by centimetres in one step): with
@@ -321,20 +333,19 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         for (SegmentContact& c : s.contacts) {
             const std::size_t j = c.segment;
             if (s.broken[j]) continue;
-            const RigidState& body = rigids.bodies[c.body.index];
-            const Vec3 p = gluePoint(body, c.local);
+            const Vec3 p = contactPoint(c, rigids);
             const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
             // Active contacts are held as equalities during a pass (smooth, so Newton
             // converges fast); the passes below release those that pull and add those
             // that penetrate (a primal active-set method).
             if (!c.active) continue;
-            const double g = c.normal.dot(xs - p) - s.radius[j];
+            const double g = contactGap(s, c, xs, p);
             // Stiff enough to dominate the rope's springs, the particles' and the body's
             // inertia: under a load F it gives way by F / k_c only. Fixed for the step, so
             // that the line search below sees one energy.
             if (c.stiffness <= 0.0) {
                 double kc = std::max({1.0 / *std::min_element(s.compliance.begin(), s.compliance.end()), heaviest * inv_h2, 1e-12});
-                if (c.node >= 0) kc = std::max(kc, inv_h2 / body.inverse_mass);
+                if (c.node >= 0) kc = std::max(kc, inv_h2 / rigids.bodies[c.body.index].inverse_mass);
                 c.stiffness = kc * kContactStiffnessFactor;
             }
             const double kc = c.stiffness;
@@ -353,6 +364,7 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
             if (fa && fb) s.blk_off[j] += kc * wa * wb * nnt;
             if (c.node < 0) continue;
             const std::size_t b = static_cast<std::size_t>(c.node);
+            const RigidState& body = rigids.bodies[c.body.index];
             Vec6 au;
             au.head<3>() = -nrm;
             au.tail<3>() = -(p - body.position).cross(nrm);
@@ -444,9 +456,8 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     for (SegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         if (s.broken[j]) continue;
-        const RigidState& body = rigids.bodies[c.body.index];
         const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
-        const double g = c.normal.dot(xs - gluePoint(body, c.local)) - s.radius[j];
+        const double g = contactGap(s, c, xs, contactPoint(c, rigids));
         if (c.active && converged && g > kContactSlop * s.radius[j] * 1e-3) {
             c.active = false;
             changed = true;
@@ -475,9 +486,8 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     for (const SegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         if (s.broken[j]) continue;
-        const Vec3 p = gluePoint(rigids.bodies[c.body.index], c.local);
         const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
-        if (c.normal.dot(xs - p) - s.radius[j] > kContactSlop * s.radius[j]) continue;  // not touching
+        if (contactGap(s, c, xs, contactPoint(c, rigids)) > kContactSlop * s.radius[j]) continue;  // not touching
         for (std::size_t q : {j, j + 1}) {
             const Vec3 dir = s.row_projector[q] * c.normal;  // what is left of this normal
             const double len = dir.norm();
@@ -496,17 +506,16 @@ void applyFriction(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     for (const SegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         if (s.broken[j] || c.friction <= 0.0 || c.stiffness <= 0.0) continue;
-        RigidState& body = rigids.bodies[c.body.index];
-        const Vec3 p = gluePoint(body, c.local);
+        const Vec3 p = contactPoint(c, rigids);
         const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
-        const double g = c.normal.dot(xs - p) - s.radius[j];
+        const double g = contactGap(s, c, xs, p);
         const double normal_impulse = c.stiffness * std::max(0.0, -g) * h2;
         const double wa = 1.0 - c.s, wb = c.s;
         const double inv_a = s.hold[j].kind == ParticleHold::Kind::Free ? s.inv_mass[j] : 0.0;
         const double inv_b = s.hold[j + 1].kind == ParticleHold::Kind::Free ? s.inv_mass[j + 1] : 0.0;
         const double w_point = wa * wa * inv_a + wb * wb * inv_b;  // inverse mass at the contact point
         if (!(w_point > 0.0) || normal_impulse <= 0.0) continue;
-        const Vec3 p0 = rigids.start_position[c.body.index] + rigids.start_orientation[c.body.index] * c.local;
+        const Vec3 p0 = c.body.valid() ? Vec3(rigids.start_position[c.body.index] + rigids.start_orientation[c.body.index] * c.local) : p;
         const Vec3 xs0 = (1.0 - c.s) * s.x_prev[j] + c.s * s.x_prev[j + 1];
         Vec3 rel = (xs - xs0) - (p - p0);
         rel -= c.normal * c.normal.dot(rel);
@@ -517,7 +526,10 @@ void applyFriction(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         const Vec3 impulse = corr / w_point;
         s.x[j] += wa * inv_a * impulse;
         s.x[j + 1] += wb * inv_b * impulse;
-        if (c.node >= 0 && rigids.movable(c.body)) applyBodyImpulse(body, p - body.position, -impulse);
+        if (c.node >= 0 && rigids.movable(c.body)) {
+            RigidState& body = rigids.bodies[c.body.index];
+            applyBodyImpulse(body, p - body.position, -impulse);
+        }
     }
 }
 

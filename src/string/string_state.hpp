@@ -24,8 +24,9 @@ struct SegmentContact {
     std::uint32_t segment = 0;
     double s = 0.0;              ///< fraction along the segment
     Vec3 normal = Vec3::UnitY(); ///< from the body toward the string
-    Vec3 local = Vec3::Zero();   ///< contact point in the body's frame (follows the body)
-    RigidId body;
+    Vec3 local = Vec3::Zero();   ///< contact point in the body's frame (follows the body); world point without a body
+    RigidId body;                ///< invalid: a fixed point (another string's segment)
+    double gap = 0.0;            ///< required clearance along the normal, m (the radius for bodies)
     double friction = 0.5;
     int node = -1;               ///< index into body_nodes when the body is movable
     double depth = 0.0;          ///< penetration of the predicted position, m (>= 0)
@@ -101,7 +102,8 @@ struct StringState {
     // --- rigid contacts (collision stage) -------------------------------------------------
     std::vector<SegmentContact> contacts;
     std::vector<double> spring_force;     ///< per segment: k c of the last Newton iteration, N
-    std::vector<Mat3> row_projector;      ///< per particle: I, or I minus the normals of the bodies pressing it
+    std::vector<Mat3> row_projector;
+    std::vector<std::uint8_t> colliding;  ///< per particle: in a string-string contact last step (3x heavier in CSM)      ///< per particle: I, or I minus the normals of the bodies pressing it
     std::vector<BodyNode> body_nodes;
     std::vector<Eigen::Matrix<double, 6, 1>> node_step;  ///< per body node: this iteration's Newton step
     std::vector<std::vector<Vec3>> node_columns;  ///< A^-1 C, 6 columns per body node (n each)
