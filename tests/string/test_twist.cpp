@@ -154,3 +154,33 @@ TEST(Twist, TearsByTorsionAtRupture) {
     ASSERT_GT(angle_at_tear, 0.0);
     EXPECT_NEAR(angle_at_tear, 50.0, 0.1 * 50.0);
 }
+
+// Twisting a slack string clamped at both ends makes it buckle out of its line (Fig. 6b-c:
+// the loop and the telephone-cord spiral), through the twist force of Eq. 6; without the
+// twist it stays in its plane.
+TEST(Twist, TwistedSlackStringBucklesOutOfItsLine) {
+    auto deviation = [](double turns) {
+        tearables::WorldSettings ws;
+        ws.gravity = Vec3::Zero();
+        World world(ws);
+        StringDesc d = StringDesc::straight({0, 0, 0}, {1, 0, 0}, 60);
+        d.material.variation = 0.0;
+        d.material.torsion.yield = 5.0;
+        d.material.torsion.rupture = 10.0;
+        d.damping = 1.0;
+        // A tiny in-plane wiggle, so that the straight line is not an exact equilibrium.
+        for (std::size_t i = 1; i + 1 < d.points.size(); ++i) d.points[i].y() = 1e-4 * std::sin(3.1 * i);
+        const StringId id = world.addString(d);
+        world.attachToPoint(id, 0, {0, 0, 0});
+        world.attachToPoint(id, -1, {0.9, 0, 0});  // 10% slack
+        for (int i = 0; i < 600; ++i) {
+            if (i < 400) world.turnEnd(id, -1, turns * 2 * kPi / 400);
+            world.step(0.01);
+        }
+        double out_of_plane = 0.0;
+        for (const Vec3& p : *world.view(id).positions) out_of_plane = std::max(out_of_plane, std::abs(p.z()));
+        return out_of_plane;
+    };
+    EXPECT_LT(deviation(0.0), 1e-6);
+    EXPECT_GT(deviation(12.0), 0.03);
+}

@@ -1,0 +1,132 @@
+// Tearables against Bullet's own ropes, in the same run (issue 9): the same rope, 746
+// segments of 1 cm and 1 g, hanging from a fixed point with a tip mass 10x the rope's,
+// dt = 0.01 s. Reported per step: time, and the elongation the rope has reached after
+// 2 s of settling (counter "stretch", relative). Bullet's ropes:
+//  - btSoftBody rope (btSoftBodyHelpers::CreateRope) at 1, 8 and 64 position iterations;
+//  - a chain of rigid capsules joined by btPoint2PointConstraint at 10 and 50 solver
+//    iterations.
+// Run: build/tests/benchmarks/tearables_bench --benchmark_filter=Rope746
+#include "tearables/bullet.hpp"
+
+#include <BulletSoftBody/btSoftBodyHelpers.h>
+#include <BulletSoftBody/btSoftRigidDynamicsWorld.h>
+#include <BulletSoftBody/btSoftBodyRigidBodyCollisionConfiguration.h>
+#include <btBulletDynamicsCommon.h>
+#include <benchmark/benchmark.h>
+
+#include <memory>
+#include <vector>
+
+namespace {
+
+constexpr int kSegments = 746;
+constexpr double kSegmentLength = 0.01;  // m
+constexpr double kSegmentMass = 0.001;   // kg
+constexpr double kTip = 10.0 * kSegments * kSegmentMass;
+constexpr double kLength = kSegments * kSegmentLength;
+constexpr double kDt = 0.01;
+constexpr int kSettle = 200;
+
+double ropeLength(const std::vector<btVector3>& x) {
+    double sum = 0.0;
+    for (std::size_t i = 1; i < x.size(); ++i) sum += (x[i] - x[i - 1]).length();
+    return sum;
+}
+
+void BM_Rope746_Tearables(benchmark::State& state) {
+    btDefaultCollisionConfiguration config;
+    btCollisionDispatcher dispatcher(&config);
+    btDbvtBroadphase broadphase;
+    btSequentialImpulseConstraintSolver solver;
+    btDiscreteDynamicsWorld world(&dispatcher, &broadphase, &solver, &config);
+    world.setGravity(btVector3(0, -9.81f, 0));
+    tearables::BulletWorld ropes(world);
+    // Laid out horizontally: it swings down and must hold the tip through the swing.
+    auto desc = tearables::StringDesc::straight({0, 0, 0}, {kLength, 0, 0}, kSegments);
+    desc.radius = 0.004;
+    desc.density = kSegmentMass / (3.14159265358979 * desc.radius * desc.radius * kSegmentLength);
+    desc.particle_masses = {{-1, kTip}};
+    desc.tearable = false;
+    desc.bending = 0.0;
+    const auto id = ropes.addString(desc);
+    ropes.attach(id, 0, btVector3(0, 0, 0));
+    for (int i = 0; i < kSettle; ++i) world.stepSimulation(kDt, 1, kDt);
+    for (auto _ : state) world.stepSimulation(kDt, 1, kDt);
+    std::vector<btVector3> x;
+    for (const auto& p : *ropes.core().view(id).positions) x.push_back(tearables::toBullet(p));
+    state.counters["stretch"] = ropeLength(x) / kLength - 1.0;
+}
+BENCHMARK(BM_Rope746_Tearables)->Unit(benchmark::kMicrosecond)->Iterations(200);
+
+void BM_Rope746_BulletSoftBody(benchmark::State& state) {
+    btSoftBodyRigidBodyCollisionConfiguration config;
+    btCollisionDispatcher dispatcher(&config);
+    btDbvtBroadphase broadphase;
+    btSequentialImpulseConstraintSolver solver;
+    btSoftRigidDynamicsWorld world(&dispatcher, &broadphase, &solver, &config);
+    world.setGravity(btVector3(0, -9.81f, 0));
+    btSoftBodyWorldInfo& info = world.getWorldInfo();
+    info.m_gravity = world.getGravity();
+    info.m_broadphase = &broadphase;
+    info.m_dispatcher = &dispatcher;
+    info.m_sparsesdf.Initialize();
+    btSoftBody* rope = btSoftBodyHelpers::CreateRope(info, btVector3(0, 0, 0), btVector3(static_cast<btScalar>(kLength), 0, 0),
+                                                    kSegments - 1, 1);  // res = interior nodes; fix the first
+    rope->m_cfg.piterations = static_cast<int>(state.range(0));
+    rope->m_materials[0]->m_kLST = 1.0f;
+    for (int i = 0; i < rope->m_nodes.size(); ++i) rope->setMass(i, i == 0 ? 0.0f : static_cast<btScalar>(kSegmentMass));
+    rope->setMass(rope->m_nodes.size() - 1, static_cast<btScalar>(kTip));
+    world.addSoftBody(rope);
+    for (int i = 0; i < kSettle; ++i) world.stepSimulation(kDt, 1, kDt);
+    for (auto _ : state) world.stepSimulation(kDt, 1, kDt);
+    std::vector<btVector3> x;
+    for (int i = 0; i < rope->m_nodes.size(); ++i) x.push_back(rope->m_nodes[i].m_x);
+    state.counters["stretch"] = ropeLength(x) / kLength - 1.0;
+    world.removeSoftBody(rope);
+    delete rope;
+}
+BENCHMARK(BM_Rope746_BulletSoftBody)->Arg(1)->Arg(8)->Arg(64)->Unit(benchmark::kMicrosecond)->Iterations(100);
+
+void BM_Rope746_BulletCapsuleChain(benchmark::State& state) {
+    btDefaultCollisionConfiguration config;
+    btCollisionDispatcher dispatcher(&config);
+    btDbvtBroadphase broadphase;
+    btSequentialImpulseConstraintSolver solver;
+    btDiscreteDynamicsWorld world(&dispatcher, &broadphase, &solver, &config);
+    world.setGravity(btVector3(0, -9.81f, 0));
+    world.getSolverInfo().m_numIterations = static_cast<int>(state.range(0));
+    btCapsuleShapeX capsule(0.004f, static_cast<btScalar>(kSegmentLength - 0.008));
+    btSphereShape tip_shape(0.05f);
+    std::vector<std::unique_ptr<btRigidBody>> links;
+    std::vector<std::unique_ptr<btPoint2PointConstraint>> joints;
+    for (int i = 0; i < kSegments; ++i) {
+        const bool last = i == kSegments - 1;
+        const btScalar mass = static_cast<btScalar>(last ? kTip + kSegmentMass : kSegmentMass);
+        btCollisionShape* shape = last ? static_cast<btCollisionShape*>(&tip_shape) : &capsule;
+        btVector3 inertia;
+        shape->calculateLocalInertia(mass, inertia);
+        auto body = std::make_unique<btRigidBody>(btRigidBody::btRigidBodyConstructionInfo(mass, nullptr, shape, inertia));
+        body->setWorldTransform(btTransform(btQuaternion::getIdentity(), btVector3(static_cast<btScalar>((i + 0.5) * kSegmentLength), 0, 0)));
+        body->setActivationState(DISABLE_DEACTIVATION);
+        world.addRigidBody(body.get(), 1, 0);  // no collisions between links
+        const btVector3 half(static_cast<btScalar>(0.5 * kSegmentLength), 0, 0);
+        if (i == 0) {
+            joints.push_back(std::make_unique<btPoint2PointConstraint>(*body, -half));
+        } else {
+            joints.push_back(std::make_unique<btPoint2PointConstraint>(*links.back(), *body, half, -half));
+        }
+        world.addConstraint(joints.back().get(), true);
+        links.push_back(std::move(body));
+    }
+    for (int i = 0; i < kSettle; ++i) world.stepSimulation(kDt, 1, kDt);
+    for (auto _ : state) world.stepSimulation(kDt, 1, kDt);
+    // Length along the joints: from the anchor through every link's two ends.
+    std::vector<btVector3> x{btVector3(0, 0, 0)};
+    for (const auto& link : links) x.push_back(link->getWorldTransform() * btVector3(static_cast<btScalar>(0.5 * kSegmentLength), 0, 0));
+    state.counters["stretch"] = ropeLength(x) / kLength - 1.0;
+    for (auto& j : joints) world.removeConstraint(j.get());
+    for (auto& l : links) world.removeRigidBody(l.get());
+}
+BENCHMARK(BM_Rope746_BulletCapsuleChain)->Arg(10)->Arg(50)->Unit(benchmark::kMicrosecond)->Iterations(20);
+
+}  // namespace
