@@ -2,6 +2,8 @@
 // lifetimes.
 #include "tearables/bullet.hpp"
 
+#include "bullet_fixture.hpp"
+
 #include <btBulletDynamicsCommon.h>
 #include <gtest/gtest.h>
 
@@ -18,43 +20,7 @@ using tearables::Vec3;
 constexpr double kG = 9.81;
 constexpr double kPi = 3.14159265358979323846;
 
-/// A Bullet world as a user would make it.
-struct Physics {
-    btDefaultCollisionConfiguration config;
-    btCollisionDispatcher dispatcher{&config};
-    btDbvtBroadphase broadphase;
-    btSequentialImpulseConstraintSolver solver;
-    std::unique_ptr<btDiscreteDynamicsWorld> world =
-        std::make_unique<btDiscreteDynamicsWorld>(&dispatcher, &broadphase, &solver, &config);
-    std::vector<std::unique_ptr<btCollisionShape>> shapes;
-    std::vector<std::unique_ptr<btRigidBody>> bodies;
-
-    Physics() { world->setGravity(btVector3(0, static_cast<btScalar>(-kG), 0)); }
-    ~Physics() {
-        if (world)
-            for (auto& b : bodies) world->removeRigidBody(b.get());
-    }
-    /// A dynamic body of `shape` and `mass` at `at`, added to the world.
-    btRigidBody& add(std::unique_ptr<btCollisionShape> shape, double mass, const btVector3& at) {
-        shapes.push_back(std::move(shape));
-        btVector3 inertia(0, 0, 0);
-        shapes.back()->calculateLocalInertia(static_cast<btScalar>(mass), inertia);
-        bodies.push_back(std::make_unique<btRigidBody>(
-            btRigidBody::btRigidBodyConstructionInfo(static_cast<btScalar>(mass), nullptr, shapes.back().get(), inertia)));
-        bodies.back()->setWorldTransform(btTransform(btQuaternion::getIdentity(), at));
-        world->addRigidBody(bodies.back().get());
-        return *bodies.back();
-    }
-    btRigidBody& box(const btVector3& half, double mass, const btVector3& at) {
-        return add(std::make_unique<btBoxShape>(half), mass, at);
-    }
-    btRigidBody& sphere(double r, double mass, const btVector3& at) {
-        return add(std::make_unique<btSphereShape>(static_cast<btScalar>(r)), mass, at);
-    }
-    void step(int n, double dt = 0.01) {
-        for (int i = 0; i < n; ++i) world->stepSimulation(static_cast<btScalar>(dt), 1, static_cast<btScalar>(dt));
-    }
-};
+using tearables::testing::Physics;
 
 StringDesc rope(const Vec3& from, const Vec3& to, int segments) {
     StringDesc d = StringDesc::straight(from, to, segments);

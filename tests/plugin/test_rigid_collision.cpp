@@ -3,6 +3,8 @@
 // and the bodies feel the reaction.
 #include "tearables/bullet.hpp"
 
+#include "bullet_fixture.hpp"
+
 #include <btBulletDynamicsCommon.h>
 #include <gtest/gtest.h>
 
@@ -16,33 +18,7 @@ using tearables::StringDesc;
 using tearables::StringId;
 using tearables::Vec3;
 
-struct Physics {
-    btDefaultCollisionConfiguration config;
-    btCollisionDispatcher dispatcher{&config};
-    btDbvtBroadphase broadphase;
-    btSequentialImpulseConstraintSolver solver;
-    btDiscreteDynamicsWorld world{&dispatcher, &broadphase, &solver, &config};
-    std::vector<std::unique_ptr<btCollisionShape>> shapes;
-    std::vector<std::unique_ptr<btRigidBody>> bodies;
-
-    explicit Physics(double g = -9.81) { world.setGravity(btVector3(0, static_cast<btScalar>(g), 0)); }
-    ~Physics() {
-        for (auto& b : bodies) world.removeRigidBody(b.get());
-    }
-    btRigidBody& add(std::unique_ptr<btCollisionShape> shape, double mass, const btVector3& at) {
-        shapes.push_back(std::move(shape));
-        btVector3 inertia(0, 0, 0);
-        if (mass > 0) shapes.back()->calculateLocalInertia(static_cast<btScalar>(mass), inertia);
-        bodies.push_back(std::make_unique<btRigidBody>(
-            btRigidBody::btRigidBodyConstructionInfo(static_cast<btScalar>(mass), nullptr, shapes.back().get(), inertia)));
-        bodies.back()->setWorldTransform(btTransform(btQuaternion::getIdentity(), at));
-        world.addRigidBody(bodies.back().get());
-        return *bodies.back();
-    }
-    void step(int n, double dt = 0.01) {
-        for (int i = 0; i < n; ++i) world.stepSimulation(static_cast<btScalar>(dt), 1, static_cast<btScalar>(dt));
-    }
-};
+using tearables::testing::Physics;
 
 /// Rigid contacts are on by default; the tests say so explicitly.
 tearables::WorldSettings withContacts() {
@@ -75,7 +51,7 @@ double lowest(const BulletWorld& ropes, StringId id) {
 TEST(RigidCollision, CrateDroppedOnARopeIsCaught) {
     Physics phys;
     btRigidBody& crate = phys.add(std::make_unique<btBoxShape>(btVector3(0.15f, 0.15f, 0.15f)), 5.0, btVector3(0, 3.0f, 0));
-    BulletWorld ropes(phys.world, withContacts());
+    BulletWorld ropes(*phys.world, withContacts());
     StringDesc d = rope({-1, 1, 0}, {1, 1, 0}, 40, 0.005);
     d.tearable = false;
     const StringId id = ropes.addString(d);
@@ -112,7 +88,7 @@ TEST(RigidCollision, CrateDroppedOnARopeIsCaught) {
 TEST(RigidCollision, WeakRopeTearsAtTheImpact) {
     Physics phys;
     btRigidBody& crate = phys.add(std::make_unique<btBoxShape>(btVector3(0.15f, 0.15f, 0.15f)), 5.0, btVector3(0, 3.0f, 0));
-    BulletWorld ropes(phys.world, withContacts());
+    BulletWorld ropes(*phys.world, withContacts());
     StringDesc d = rope({-1, 1, 0}, {1, 1, 0}, 40, 0.005);
     d.material.tensile.yield = 1e6;
     d.material.tensile.rupture = 3e6;  // 235 N on 5 mm radius: more than the crate's weight at rest
@@ -133,7 +109,7 @@ TEST(RigidCollision, WeakRopeTearsAtTheImpact) {
 TEST(RigidCollision, RopeDrapedOverABoxRestsOnIt) {
     Physics phys;
     phys.add(std::make_unique<btBoxShape>(btVector3(0.2f, 0.2f, 0.2f)), 0.0, btVector3(0, 1.0f, 0));
-    BulletWorld ropes(phys.world, withContacts());
+    BulletWorld ropes(*phys.world, withContacts());
     StringDesc d = rope({-0.6, 1.25, 0}, {0.6, 1.25, 0}, 48, 0.005);
     d.damping = 0.5;
     const StringId id = ropes.addString(d);
@@ -156,7 +132,7 @@ TEST(RigidCollision, FreeRopeHitByABoxConservesMomentum) {
     btRigidBody& box = phys.add(std::make_unique<btBoxShape>(btVector3(0.1f, 0.1f, 0.1f)), 1.0, btVector3(0, 0.5f, 0));
     box.setLinearVelocity(btVector3(0, -2.0f, 0));
     box.setActivationState(DISABLE_DEACTIVATION);
-    BulletWorld ropes(phys.world, withContacts());
+    BulletWorld ropes(*phys.world, withContacts());
     StringDesc d = rope({-0.5, 0, 0}, {0.5, 0, 0}, 40, 0.005);
     d.tearable = false;
     const StringId id = ropes.addString(d);
@@ -192,7 +168,7 @@ TEST(RigidCollision, DISABLED_FastCrateDoesNotTunnelThroughARope) {
     btRigidBody& crate = phys.add(std::make_unique<btBoxShape>(btVector3(0.05f, 0.05f, 0.05f)), 2.0, btVector3(0, 0.5f, 0));
     crate.setLinearVelocity(btVector3(0, -10.0f, 0));
     crate.setActivationState(DISABLE_DEACTIVATION);
-    BulletWorld ropes(phys.world, withContacts());
+    BulletWorld ropes(*phys.world, withContacts());
     StringDesc d = rope({-0.5, 0, 0}, {0.5, 0, 0}, 40, 0.005);
     d.tearable = false;
     const StringId id = ropes.addString(d);

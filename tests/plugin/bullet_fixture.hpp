@@ -1,0 +1,51 @@
+// A Bullet world as a user would make it, for the plugin tests.
+#pragma once
+
+#include <btBulletDynamicsCommon.h>
+
+#include <memory>
+#include <vector>
+
+namespace tearables::testing {
+
+/// Owns a btDiscreteDynamicsWorld and the bodies the test adds; removes them before it
+/// dies (the world itself may be destroyed early: `world.reset()`).
+struct Physics {
+    btDefaultCollisionConfiguration config;
+    btCollisionDispatcher dispatcher{&config};
+    btDbvtBroadphase broadphase;
+    btSequentialImpulseConstraintSolver solver;
+    std::unique_ptr<btDiscreteDynamicsWorld> world =
+        std::make_unique<btDiscreteDynamicsWorld>(&dispatcher, &broadphase, &solver, &config);
+    std::vector<std::unique_ptr<btCollisionShape>> shapes;
+    std::vector<std::unique_ptr<btRigidBody>> bodies;
+
+    explicit Physics(double gravity = -9.81) { world->setGravity(btVector3(0, static_cast<btScalar>(gravity), 0)); }
+    ~Physics() {
+        if (world)
+            for (auto& b : bodies) world->removeRigidBody(b.get());
+    }
+    /// A body of `shape` and `mass` (0 = static) at `at`, added to the world.
+    btRigidBody& add(std::unique_ptr<btCollisionShape> shape, double mass, const btVector3& at) {
+        shapes.push_back(std::move(shape));
+        btVector3 inertia(0, 0, 0);
+        if (mass > 0.0) shapes.back()->calculateLocalInertia(static_cast<btScalar>(mass), inertia);
+        bodies.push_back(std::make_unique<btRigidBody>(
+            btRigidBody::btRigidBodyConstructionInfo(static_cast<btScalar>(mass), nullptr, shapes.back().get(), inertia)));
+        bodies.back()->setWorldTransform(btTransform(btQuaternion::getIdentity(), at));
+        world->addRigidBody(bodies.back().get());
+        return *bodies.back();
+    }
+    btRigidBody& box(const btVector3& half, double mass, const btVector3& at) {
+        return add(std::make_unique<btBoxShape>(half), mass, at);
+    }
+    btRigidBody& sphere(double r, double mass, const btVector3& at) {
+        return add(std::make_unique<btSphereShape>(static_cast<btScalar>(r)), mass, at);
+    }
+    /// n internal steps of dt.
+    void step(int n, double dt = 0.01) {
+        for (int i = 0; i < n; ++i) world->stepSimulation(static_cast<btScalar>(dt), 1, static_cast<btScalar>(dt));
+    }
+};
+
+}  // namespace tearables::testing
