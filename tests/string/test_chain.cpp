@@ -240,3 +240,28 @@ TEST(Chain, CantileverSagsLessWithWiderShapeMatchingRegions) {
     }
     EXPECT_GT(tip_sag(2, 0.0), 0.28);  // no bending: hangs (nearly) straight down
 }
+
+// A string driven to a non-finite state by a user's force is frozen with an event that says
+// why; another string in the same world goes on unharmed.
+TEST(Chain, NonFiniteStateFreezesThatStringOnly) {
+    World world;
+    const StringId wild = world.addString(rope({0, 1, 0}, {0, 0, 0}, 10));
+    const StringId calm = world.addString(rope({1, 1, 0}, {1, 0, 0}, 10));
+    world.attachToPoint(wild, 0, {0, 1, 0});
+    world.attachToPoint(calm, 0, {1, 1, 0});
+    world.applyForce(wild, -1, {1e308, 1e308, 0});  // finite, but it overflows in the step
+    world.step(0.01);
+    bool frozen_event = false;
+    for (const auto& e : world.events())
+        frozen_event = frozen_event || (e.type == tearables::EventType::Freeze && e.string == wild &&
+                                        e.cause == tearables::EventCause::NonFinite);
+    EXPECT_TRUE(frozen_event);
+    EXPECT_TRUE(world.view(wild).frozen);
+    for (int i = 0; i < 100; ++i) world.step(0.01);
+    for (const Vec3& p : *world.view(wild).positions) EXPECT_TRUE(p.allFinite());
+    for (const Vec3& p : *world.view(calm).positions) EXPECT_TRUE(p.allFinite());
+    const auto v = world.view(calm);
+    double below = 0.0;  // everything but the pinned particle hangs on the first segment
+    for (std::size_t p = 1; p < v.particleCount(); ++p) below += (*v.masses)[p] * kG;
+    EXPECT_NEAR(v.tension->front(), below, 0.02 * below);
+}
