@@ -10,6 +10,7 @@
 #include <sstream>
 #include <string>
 #include <sys/wait.h>
+#include <unistd.h>
 
 namespace {
 
@@ -32,7 +33,9 @@ std::string slurp(const fs::path& p) {
 Result cli(const std::string& args) {
     const fs::path dir = fs::path(TEARABLES_TEST_OUT) / "cli";
     fs::create_directories(dir);
-    const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
+    // Per process: CTest runs the tests of this file in parallel.
+    const std::string tag = std::to_string(::getpid());
+    const fs::path out = dir / ("stdout-" + tag + ".txt"), err = dir / ("stderr-" + tag + ".txt");
     const std::string cmd = std::string(TEARABLES_CLI) + " " + args + " >" + out.string() + " 2>" + err.string();
     const int raw = std::system(cmd.c_str());
     Result r;
