@@ -27,6 +27,16 @@ constexpr double kLength = kSegments * kSegmentLength;
 constexpr double kDt = 0.01;
 constexpr int kSettle = 200;
 
+/// A Bullet rigid-body world with gravity, as a user would make it.
+struct RigidWorld {
+    btDefaultCollisionConfiguration config;
+    btCollisionDispatcher dispatcher{&config};
+    btDbvtBroadphase broadphase;
+    btSequentialImpulseConstraintSolver solver;
+    btDiscreteDynamicsWorld world{&dispatcher, &broadphase, &solver, &config};
+    RigidWorld() { world.setGravity(btVector3(0, -9.81f, 0)); }
+};
+
 double ropeLength(const std::vector<btVector3>& x) {
     double sum = 0.0;
     for (std::size_t i = 1; i < x.size(); ++i) sum += (x[i] - x[i - 1]).length();
@@ -34,12 +44,8 @@ double ropeLength(const std::vector<btVector3>& x) {
 }
 
 void BM_Rope746_Tearables(benchmark::State& state) {
-    btDefaultCollisionConfiguration config;
-    btCollisionDispatcher dispatcher(&config);
-    btDbvtBroadphase broadphase;
-    btSequentialImpulseConstraintSolver solver;
-    btDiscreteDynamicsWorld world(&dispatcher, &broadphase, &solver, &config);
-    world.setGravity(btVector3(0, -9.81f, 0));
+    RigidWorld bullet;
+    btDiscreteDynamicsWorld& world = bullet.world;
     tearables::BulletWorld ropes(world);
     // Laid out horizontally: it swings down and must hold the tip through the swing.
     auto desc = tearables::StringDesc::straight({0, 0, 0}, {kLength, 0, 0}, kSegments);
@@ -88,12 +94,8 @@ void BM_Rope746_BulletSoftBody(benchmark::State& state) {
 BENCHMARK(BM_Rope746_BulletSoftBody)->Arg(1)->Arg(8)->Arg(64)->Unit(benchmark::kMicrosecond)->Iterations(100);
 
 void BM_Rope746_BulletCapsuleChain(benchmark::State& state) {
-    btDefaultCollisionConfiguration config;
-    btCollisionDispatcher dispatcher(&config);
-    btDbvtBroadphase broadphase;
-    btSequentialImpulseConstraintSolver solver;
-    btDiscreteDynamicsWorld world(&dispatcher, &broadphase, &solver, &config);
-    world.setGravity(btVector3(0, -9.81f, 0));
+    RigidWorld bullet;
+    btDiscreteDynamicsWorld& world = bullet.world;
     world.getSolverInfo().m_numIterations = static_cast<int>(state.range(0));
     btCapsuleShapeX capsule(0.004f, static_cast<btScalar>(kSegmentLength - 0.008));
     btSphereShape tip_shape(0.05f);
