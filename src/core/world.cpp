@@ -2,12 +2,14 @@
 // (DESIGN.md, "How a step flows"), times them and collects events.
 #include "tearables/world.hpp"
 
+#include "collision/capsule.hpp"
 #include "collision/grid.hpp"
 #include "string/string_state.hpp"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <tuple>
 
 namespace tearables {
 
@@ -33,6 +35,43 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 /// Coulomb friction between strings (fibre on fibre, dry nylon and cotton: about 0.2-0.4).
 constexpr double kStringFriction = 0.3;
+/// The clean-up projection after the tension stage (finishStringContacts): at most this
+/// many Gauss-Seidel sweeps, stopped once no pair overlaps by more than the tolerance
+/// (fraction of its thickness).
+constexpr int kStringCleanupSweeps = 8;
+constexpr double kStringCleanupTolerance = 1e-3;
+/// A pair whose axes are closer than this fraction of the thickness at the start of a
+/// step is no contact this step: no step of the solver ends that deep, so something else
+/// put it there (strings created through each other, a pin moved through a string, a
+/// string pinned back onto itself), and it has no side to be pushed to (the axes may
+/// even be collinear). It is left to come apart by itself and is a contact again once its
+/// axes are apart by the thickness at the start of a step.
+constexpr double kStringDeepStart = 0.5;
+/// Axes closer than this fraction of the thickness have no reliable direction of their
+/// own: the direction at the start of the step is used.
+constexpr double kStringAxisContact = 1e-3;
+/// Pairs are searched for with each capsule grown by its ends' travel in the step and by
+/// this fraction of its radius (slack for what the joint solve changes): every pair that
+/// can meet during the step is found, and no pair that cannot (one fast segment does not
+/// widen the search for all, as one margin of twice the largest travel did).
+constexpr double kStringReach = 1.0;
+/// A pair of the swept search whose axes are farther apart after the strings' own solves
+/// than (1 + this) times the thickness plus twice the relative travel of its ends in the
+/// step, on their starting side, is not solved: the joint solve moves a string by about
+/// that (a fast arm meeting another is deflected by a step's motion); the pairs of a
+/// swinging or resting straight rope (every third segment) are dropped. Found by the tests: with no
+/// travel term, 0.75 let a whipping arm through its own rope.
+constexpr double kStringNear = 0.25;
+/// Pairs within this fraction of the thickness of touching count as colliding.
+constexpr double kStringTouchSlop = 0.1;
+
+/// Segments of one string closer along it than the capsules are thick touch their
+/// neighbours when the string is straight: segments k apart have (k - 1) L of axis
+/// between them, so pairs with k <= 1 + ceil(2 r / L) are not collisions. (A property
+/// of the string, not of the search margin: only true overlaps act.)
+std::uint32_t stringContactSkip(double thickest_radius, double shortest_segment) {
+    return static_cast<std::uint32_t>(1.0 + std::ceil(2.0 * thickest_radius / shortest_segment));
+}
 
 using Clock = std::chrono::steady_clock;
 
@@ -73,8 +112,18 @@ struct World::Impl {
     detail::SegmentGrid grid;
     std::vector<Vec3> grid_positions;
     std::vector<detail::CollisionSegment> grid_segments;
-    std::vector<std::pair<std::uint32_t, std::uint32_t>> grid_owner;  // per grid particle: string, particle
     std::vector<detail::SegmentPair> grid_pairs;
+    // String-string collision (coupleStrings): this step's pairs (global string indices,
+    // sorted by string and segment), the last step's touching ones (warm start), and the
+    // scratch of the clusters.
+    std::vector<detail::SegmentContact> string_pairs, previous_pairs, cluster_contacts;
+    std::vector<StringState*> cluster_strings;
+    std::vector<std::size_t> cluster_index;
+    std::vector<std::uint32_t> cluster_root, cluster_local;
+    // Pairs that started a step deeper than kStringDeepStart (sorted) and have not come
+    // apart since: no contacts until they have.
+    using PairKey = std::tuple<std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t>;
+    std::vector<PairKey> deep_pairs, deep_next;
     std::vector<RigidContact> contacts;
     CollisionQuery query;
     double time = 0.0;
@@ -172,92 +221,241 @@ struct World::Impl {
         }
     }
 
-    /// String-string and self collision (Strings Sec. 6): capsules per segment, pairs from
-    /// the 27-cell grid (exact; the paper's 7-cell search misses pairs, see grid.hpp) on
-    /// the predicted positions. Each side of a pair gets a contact against the other's
-    /// closest point held fixed for the step, clearing its mass-weighted share of the
-    /// overlap (the paper moves both segments' ends "by the fractions s and t").
-    void collectStringContacts() {
+    /// String-string and self collision (Strings Sec. 6: every segment is a capsule, two
+    /// capsules overlap when their axes come closer than the sum of the radii).
+    ///
+    /// Root cause of the interpenetration of the first design: each string's own solve
+    /// held its contacts against the OTHER string's point FIXED at its PREDICTED position.
+    /// A rope resting on a clamped rope predicts a fall of g h^2 per step; the clamped
+    /// rope's solve could not rise above that point, its penalty (100x the segment
+    /// stiffness) beat the rope's springs, and both fell together: the clamped rope was
+    /// dragged down and stretched (tens of percent, yielding) while the free rope, which
+    /// never felt the clamped rope's tension, kept its speed and finally slipped through.
+    /// Sharing the predicted overlap by masses cannot fix that (in resting contact there
+    /// is no predicted overlap to share), and friction against the fixed point held each
+    /// rope still relative to the WORLD rather than to the other rope, shifting the
+    /// contact points by millimetres per step (the largest single loss of separation).
+    /// Separating the pairs after the solves instead, by a mass-weighted projection of
+    /// the four ends, treats a taut rope as two free particles (a rope on a clamped rope
+    /// pushed it down by half the overlap every step, 17% stretch), and a linearised
+    /// coupling (the strings' Delassus operators) fails where the strings are floppy (a
+    /// particle between two pins swings about their chord, to first order freely).
+    ///
+    /// So the strings that touch are solved together (detail::solveStringCluster): one
+    /// Newton method on the sum of their energies, the contact penalties and Coulomb
+    /// friction on the contact points' motion RELATIVE to each other, both sides of every
+    /// contact moving with their masses, springs and tensions; momentum is exchanged, the
+    /// strain limit stays exact and the step ends without overlaps. The strings' own
+    /// solves run first (unchanged) and give the starting point; a cluster whose pairs
+    /// they already keep apart is left as it is.
+    ///
+    /// Pairs come from the START positions of the step within 2x the largest travel of
+    /// the step plus half a radius, so every pair that came within reach during the step
+    /// (also one that passed through) is found (27-cell grid, exact); the start direction
+    /// of each pair says which side is which when the axes touch or have crossed. A pair
+    /// that starts the step deeper than half the thickness is not one the solver let
+    /// happen (kStringDeepStart) and is left to come apart by itself.
+    ///
+    /// Momentum-balance tension: the particles a string contact presses lose the contact
+    /// force's directions (normal, friction) from their tension equations (row_projector,
+    /// as for rigid contacts); everything else the joint solve moved (a clamped rope
+    /// sagging under the rope on it) is the springs' doing and counts as tension. The
+    /// clean-up projection (finishStringContacts) runs after the tension stage.
+    void findStringPairs() {
+        string_pairs.clear();
+        deep_next.clear();
         grid_positions.clear();
         grid_segments.clear();
-        grid_owner.clear();
-        double travel = 0.0;
-        std::vector<std::uint32_t> base(strings.size(), 0);
+        double thickest = 0.0, shortest_segment = 1e300;
+        bool finite_state = true;
         for (std::size_t i = 0; i < strings.size(); ++i) {
             const StringState& s = strings[i];
             if (!s.alive || s.frozen) continue;
-            base[i] = static_cast<std::uint32_t>(grid_positions.size());
-            for (std::size_t p = 0; p < s.particles(); ++p) {
-                grid_positions.push_back(s.x_prev[p]);  // pairs from the start of the step (speculative)
-                grid_owner.emplace_back(static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(p));
-                travel = std::max(travel, (s.x[p] - s.x_prev[p]).norm());
-            }
+            const auto base = static_cast<std::uint32_t>(grid_positions.size());
+            for (std::size_t p = 0; p < s.particles(); ++p)
+                grid_positions.push_back(s.x_prev[p]);  // pairs from the start of the step (swept)
+            // How far a particle travelled this step, to its prediction or in its string's
+            // own solve.
+            auto travel = [&](std::size_t p) {
+                return std::max((s.x[p] - s.x_prev[p]).norm(), (s.x_pred[p] - s.x_prev[p]).norm());
+            };
+            shortest_segment = std::min(shortest_segment, s.shortest_rest);
             for (std::size_t j = 0; j < s.segments(); ++j) {
                 detail::CollisionSegment seg;
-                seg.a = base[i] + static_cast<std::uint32_t>(j);
+                seg.a = base + static_cast<std::uint32_t>(j);
                 seg.b = seg.a + 1;
                 seg.chain = static_cast<std::uint32_t>(i);
                 seg.index_in_chain = static_cast<std::uint32_t>(j);
-                seg.radius = s.radius[j];
+                // The capsule at the start of the step, swept: grown by the travel of its
+                // ends, and by kStringReach of its radius for what the joint solve changes.
+                seg.radius = s.radius[j] * (1.0 + kStringReach) + std::max(travel(j), travel(j + 1));
                 seg.skip = s.broken[j] != 0;
+                finite_state = finite_state && std::isfinite(seg.radius);
+                thickest = std::max(thickest, s.radius[j]);
                 grid_segments.push_back(seg);
             }
         }
-        if (grid_segments.size() < 2) return;
-        double shortest_radius = 1e300, thickest = 0.0, shortest_segment = 1e300;
-        for (const auto& seg : grid_segments) {
-            shortest_radius = std::min(shortest_radius, seg.radius);
-            thickest = std::max(thickest, seg.radius);
+        if (grid_segments.size() < 2 || !finite_state) {
+            deep_pairs.clear();
+            return;
         }
-        for (const StringState& s : strings)
-            if (s.alive && !s.frozen) shortest_segment = std::min(shortest_segment, s.shortest_rest);
-        // Pairs that can meet during the step: found at the start positions within what
-        // both can travel (speculative, like the rigid contacts), judged at the predicted.
-        const double margin = 0.5 * shortest_radius + 2.0 * travel;
-        // Segments of one string closer along it than the capsules are thick always touch
-        // their neighbours: those pairs are not collisions (a straight rope of short, thick
-        // segments would push itself apart along its axis).
-        const auto skip = static_cast<std::uint32_t>(1.0 + std::ceil((2.0 * thickest + margin) / shortest_segment));
-        const double cell = detail::requiredCellSize(grid_positions.data(), grid_positions.size(), grid_segments, margin);
-        grid.findPairs(grid_positions.data(), grid_positions.size(), grid_segments, cell, margin,
-                       detail::NeighbourSearch::TwentySeven, grid_pairs, skip);
+        try {
+            const double cell = detail::requiredCellSize(grid_positions.data(), grid_positions.size(), grid_segments, 0.0);
+            grid.findPairs(grid_positions.data(), grid_positions.size(), grid_segments, cell, 0.0,
+                           detail::NeighbourSearch::TwentySeven, grid_pairs, stringContactSkip(thickest, shortest_segment));
+        } catch (const InvalidInput&) {
+            deep_pairs.clear();
+            return;  // positions out of the grid's range (a string flying off): no contacts this step
+        }
         for (const detail::SegmentPair& pair : grid_pairs) {
             const detail::CollisionSegment& a = grid_segments[pair.first];
             const detail::CollisionSegment& b = grid_segments[pair.second];
-            StringState& sa = strings[a.chain];
-            StringState& sb = strings[b.chain];
-            const std::size_t ja = a.index_in_chain, jb = b.index_in_chain;
-            auto point_inverse_mass = [](const StringState& s, std::size_t j, double t) {
-                const double w0 = s.hold[j].kind == ParticleHold::Kind::Free ? s.inv_mass[j] : 0.0;
-                const double w1 = s.hold[j + 1].kind == ParticleHold::Kind::Free ? s.inv_mass[j + 1] : 0.0;
-                return (1.0 - t) * (1.0 - t) * w0 + t * t * w1;
-            };
-            const double wa = point_inverse_mass(sa, ja, pair.s);
-            const double wb = point_inverse_mass(sb, jb, pair.t);
-            if (!(wa + wb > 0.0)) continue;
-            // The normal from the start of the step; the overlap along it at the prediction.
-            const Vec3 pa = (1.0 - pair.s) * sa.x[ja] + pair.s * sa.x[ja + 1];
-            const Vec3 pb = (1.0 - pair.t) * sb.x[jb] + pair.t * sb.x[jb + 1];
-            // Deep overlaps already there at the start (strings created through each
-            // other, a pin that jumped) are undone over several steps, at most half the
-            // capsules' thickness per step; an approach is stopped at once.
-            const double thickness = a.radius + b.radius;
-            const double residual = std::max(0.0, (thickness - pair.distance) - 0.5 * thickness);
-            const double overlap = thickness - pair.normal.dot(pa - pb) - residual;
-            auto add = [&](StringState& s, std::size_t j, double t, const Vec3& point, const Vec3& normal, double share) {
-                detail::SegmentContact c;
-                c.segment = static_cast<std::uint32_t>(j);
-                c.s = t;
-                c.normal = normal;
-                c.local = point;  // a fixed point: the body stays invalid
-                c.gap = share * overlap;
-                c.friction = kStringFriction;
-                c.depth = std::max(0.0, overlap * share);
-                s.contacts.push_back(c);
-                s.colliding[j] = s.colliding[j + 1] = 1;
-            };
-            add(sa, ja, pair.s, pa, pair.normal, wa / (wa + wb));
-            add(sb, jb, pair.t, pb, -pair.normal, wb / (wa + wb));
+            detail::SegmentContact c;
+            c.string = a.chain;
+            c.segment = a.index_in_chain;
+            c.partner = b.chain;
+            c.partner_segment = b.index_in_chain;
+            c.s = pair.s;
+            c.partner_s = pair.t;
+            c.start_normal = pair.normal;
+            c.start_distance = pair.distance;
+            c.normal = pair.normal;
+            c.gap = strings[c.string].radius[c.segment] + strings[c.partner].radius[c.partner_segment];
+            // Deep at the start, or still coming apart from being deep: no contact (see
+            // kStringDeepStart), and remembered for the next step.
+            const auto key = std::make_tuple(c.string, c.segment, c.partner, c.partner_segment);
+            const bool was_deep = std::binary_search(deep_pairs.begin(), deep_pairs.end(), key);
+            if (pair.distance < (was_deep ? 1.0 : kStringDeepStart) * c.gap) {
+                deep_next.push_back(key);
+                continue;
+            }
+            // Apart after the strings' own solves, by more than kStringNear of the
+            // thickness and on the side they started on: no contact this step (most pairs
+            // of the swept search, e.g. every third segment of a straight rope).
+            const StringState& sa = strings[c.string];
+            const StringState& sb = strings[c.partner];
+            const detail::SegmentClosest now = detail::closestPointsOfSegments(
+                sa.x[c.segment], sa.x[c.segment + 1], sb.x[c.partner_segment], sb.x[c.partner_segment + 1]);
+            // Relative travel of the pair's ends over the step: the axes' distance at any
+            // time of the step differs from the end's by at most this.
+            double relative = 0.0;
+            for (std::size_t i = c.segment; i <= c.segment + 1u; ++i)
+                for (std::size_t k = c.partner_segment; k <= c.partner_segment + 1u; ++k)
+                    relative = std::max(relative, ((sa.x[i] - sa.x_prev[i]) - (sb.x[k] - sb.x_prev[k])).squaredNorm());
+            relative = std::sqrt(relative);
+            if (now.distance > (1.0 + kStringNear) * c.gap + 2.0 * relative && (now.p - now.q).dot(pair.normal) > 0.0)
+                continue;
+            c.friction = kStringFriction;
+            string_pairs.push_back(c);
+        }
+        deep_pairs.swap(deep_next);
+    }
+
+    /// After every string's own strain limit, before the tension stage: finds the pairs
+    /// and solves each cluster of touching strings jointly (see above).
+    void coupleStrings(const StepContext& ctx) {
+        findStringPairs();
+        if (string_pairs.empty()) return;
+        // Warm start: the force a pair pressed with at the end of the last step bounds
+        // its friction in the first pass.
+        auto key = [](const detail::SegmentContact& c) { return std::make_tuple(c.string, c.segment, c.partner, c.partner_segment); };
+        std::size_t k = 0;
+        for (detail::SegmentContact& c : string_pairs) {
+            while (k < previous_pairs.size() && key(previous_pairs[k]) < key(c)) ++k;
+            if (k < previous_pairs.size() && key(previous_pairs[k]) == key(c)) c.force = previous_pairs[k].force;
+        }
+        // Clusters: strings connected through pairs (union-find over string slots).
+        cluster_root.resize(strings.size());
+        for (std::size_t i = 0; i < strings.size(); ++i) cluster_root[i] = static_cast<std::uint32_t>(i);
+        auto root = [&](std::uint32_t i) {
+            while (cluster_root[i] != i) i = cluster_root[i] = cluster_root[cluster_root[i]];
+            return i;
+        };
+        for (const detail::SegmentContact& c : string_pairs) cluster_root[root(c.string)] = root(c.partner);
+        cluster_local.assign(strings.size(), ~std::uint32_t{0});
+        for (std::size_t r = 0; r < strings.size(); ++r) {
+            if (root(static_cast<std::uint32_t>(r)) != r) continue;
+            cluster_strings.clear();
+            cluster_contacts.clear();
+            cluster_index.clear();
+            for (std::size_t i = 0; i < string_pairs.size(); ++i) {
+                const detail::SegmentContact& c = string_pairs[i];
+                if (root(c.string) != r) continue;
+                for (std::uint32_t sidx : {c.string, c.partner})
+                    if (cluster_local[sidx] == ~std::uint32_t{0}) {
+                        cluster_local[sidx] = static_cast<std::uint32_t>(cluster_strings.size());
+                        cluster_strings.push_back(&strings[sidx]);
+                    }
+                detail::SegmentContact local = c;
+                local.string = cluster_local[c.string];
+                local.partner = cluster_local[c.partner];
+                cluster_contacts.push_back(local);
+                cluster_index.push_back(i);
+            }
+            if (cluster_contacts.empty()) continue;
+            detail::solveStringCluster(cluster_strings, cluster_contacts, rigids, ctx);
+            for (std::size_t i = 0; i < cluster_contacts.size(); ++i) {
+                detail::SegmentContact& c = string_pairs[cluster_index[i]];
+                c.force = cluster_contacts[i].force;
+                c.normal = cluster_contacts[i].normal;
+            }
+        }
+    }
+
+    /// After the tension stage: a mass-weighted projection of whatever overlap the joint
+    /// solve left (its penalty gives way by F / k_c, and the closest points move while s
+    /// and t are held within a pass; usually nothing), moving the four ends by the
+    /// fractions s and t as the Strings paper does (the least mass-weighted motion that
+    /// moves the closest points apart by the overlap d: impulse d / (w_a + w_b),
+    /// w_a = (1-s)^2 w_j + s^2 w_{j+1}); then the colliding flags of the next shape
+    /// matching and the warm start of the next step.
+    void finishStringContacts() {
+        previous_pairs.clear();
+        if (string_pairs.empty()) return;
+        auto weight = [](const StringState& s, std::size_t p) {
+            return s.hold[p].kind == ParticleHold::Kind::Free ? s.inv_mass[p] : 0.0;
+        };
+        // The gap at the closest points now. The joint solve kept every pair on its side,
+        // so the closest-point direction is the normal (the solve's where the axes touch).
+        auto measure = [&](detail::SegmentContact& c) {
+            const StringState& sa = strings[c.string];
+            const StringState& sb = strings[c.partner];
+            const detail::SegmentClosest cp = detail::closestPointsOfSegments(
+                sa.x[c.segment], sa.x[c.segment + 1], sb.x[c.partner_segment], sb.x[c.partner_segment + 1]);
+            c.s = cp.s;
+            c.partner_s = cp.t;
+            const Vec3 d = cp.p - cp.q;
+            if (cp.distance > kStringAxisContact * c.gap) c.normal = d / cp.distance;
+            return d.dot(c.normal) - c.gap;
+        };
+        for (int sweep = 0; sweep < kStringCleanupSweeps; ++sweep) {
+            double worst = 0.0;
+            for (detail::SegmentContact& c : string_pairs) {
+                if (strings[c.string].broken[c.segment] || strings[c.partner].broken[c.partner_segment]) continue;
+                const double gap = measure(c);
+                if (gap >= 0.0) continue;
+                worst = std::max(worst, -gap / c.gap);
+                StringState& sa = strings[c.string];
+                StringState& sb = strings[c.partner];
+                const double s = c.s, t = c.partner_s;
+                const double a0 = (1.0 - s) * weight(sa, c.segment), a1 = s * weight(sa, c.segment + 1);
+                const double b0 = (1.0 - t) * weight(sb, c.partner_segment), b1 = t * weight(sb, c.partner_segment + 1);
+                const double w = (1.0 - s) * a0 + s * a1 + (1.0 - t) * b0 + t * b1;
+                if (!(w > 0.0)) continue;
+                const Vec3 step = (-gap / w) * c.normal;
+                sa.x[c.segment] += a0 * step;
+                sa.x[c.segment + 1] += a1 * step;
+                sb.x[c.partner_segment] -= b0 * step;
+                sb.x[c.partner_segment + 1] -= b1 * step;
+            }
+            if (worst <= kStringCleanupTolerance) break;
+        }
+        // Colliding particles weigh 3x in the next step's shape matching (Sec. 6).
+        for (detail::SegmentContact& c : string_pairs) {
+            if (c.force > 0.0) previous_pairs.push_back(c);
+            if (measure(c) > kStringTouchSlop * c.gap) continue;
+            strings[c.string].colliding[c.segment] = strings[c.string].colliding[c.segment + 1] = 1;
+            strings[c.partner].colliding[c.partner_segment] = strings[c.partner].colliding[c.partner_segment + 1] = 1;
         }
     }
 
@@ -574,7 +772,6 @@ void World::step(double h) {
     }
     w.contacts.clear();
     if (w.contact_provider && w.settings.rigid_contacts) w.collectContacts(ctx);
-    if (w.settings.string_collisions) w.collectStringContacts();
     auto t1c = Clock::now();
     t.collision = seconds(t1, t1c);
     t1 = t1c;
@@ -595,6 +792,14 @@ void World::step(double h) {
         }
     auto t2 = Clock::now();
     t.strain_limit = seconds(t1, t2);
+    // String-string and self collision: the strings that touch are solved again, together
+    // (coupleStrings), before the tension stage reads their motion.
+    if (w.settings.string_collisions) {
+        w.coupleStrings(ctx);
+        const auto t2c = Clock::now();
+        t.collision += seconds(t2, t2c);
+        t2 = t2c;
+    }
 
     for (StringState& s : w.strings)
         if (live(s)) detail::solveTwist(s, rigids, ctx);
@@ -609,6 +814,14 @@ void World::step(double h) {
         if (live(s) && !s.contacts.empty()) detail::applyFriction(s, rigids, ctx);
     auto t3 = Clock::now();
     t.tension = seconds(t2, t3);
+    // What overlap the joint solve left is projected away after the tension stage (so it
+    // never counts as tension), and the next step's warm start is kept.
+    if (w.settings.string_collisions) {
+        w.finishStringContacts();
+        const auto t3c = Clock::now();
+        t.collision += seconds(t3, t3c);
+        t3 = t3c;
+    }
 
     for (std::size_t i = 0; i < w.strings.size(); ++i)
         if (live(w.strings[i])) detail::respondMaterial(w.strings[i], StringId{static_cast<std::uint32_t>(i)}, ctx, w.events);

@@ -25,12 +25,14 @@
 // the body with its real mass and inertia, and the body, moved by the same impulses,
 // pulls the rope (two-way). Strings that share a body are coupled by Gauss-Seidel sweeps
 // over the strings in World::step.
+#include "collision/capsule.hpp"
 #include "core/tridiagonal.hpp"
 #include "string/string_state.hpp"
 
 #include <Eigen/Cholesky>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace tearables::detail {
@@ -201,6 +203,117 @@ double stepEnergy(const StringState& s, const RigidTable& rigids, const StepCont
     return e;
 }
 
+/// The Newton system of the chain without contacts: the inertia rows (free particles
+/// toward their prediction x', a glued particle with its body's effective mass, fixed rows
+/// for pins) and the springs of the stretched segments, into blk_diag, blk_off, blk_rhs.
+void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
+    const std::size_t m = s.segments();
+    const std::size_t n = s.particles();
+    const double inv_h2 = ctx.inv_h * ctx.inv_h;
+    // Inertia: free particles are pulled back toward their prediction x'; a glued
+    // particle carries its body's effective mass K^-1 at the glue point and starts
+    // each iteration on the body (which absorbed the earlier corrections).
+    for (std::size_t p = 0; p < n; ++p) {
+        const ParticleHold& hold = s.hold[p];
+        s.blk_rhs[p].setZero();
+        if (p < m) s.blk_off[p].setZero();
+        switch (hold.kind) {
+            case ParticleHold::Kind::Free:
+                s.blk_diag[p] = (s.mass[p] * inv_h2) * Mat3::Identity();
+                s.blk_rhs[p] = -(s.mass[p] * inv_h2) * (s.x[p] - s.x_pred[p]);
+                break;
+            case ParticleHold::Kind::Glue:
+                s.x[p] = gluePoint(rigids.bodies[hold.body.index], hold.point);
+                if (s.glue_movable[p]) {
+                    // The body's inertia resists this string's own accumulated pull
+                    // (what other strings did to the body is, for this string, part
+                    // of the body's prediction): M_eff (x - x') / h^2 = P / h^2.
+                    s.blk_diag[p] = mobility(s, rigids, p).K.inverse() * inv_h2;
+                    s.blk_rhs[p] = -s.glue_impulse[p] * inv_h2;
+                    break;
+                }
+                [[fallthrough]];
+            case ParticleHold::Kind::Pin:
+                s.blk_diag[p] = Mat3::Identity();  // fixed: its row is dx = 0
+                break;
+        }
+    }
+    // Springs of the material's stiffness k = E A / L_rest on the stretched segments:
+    // gradient k C e and Hessian k (e e^T + C/l (I - e e^T)) (the geometric term keeps
+    // Newton convergent when a heavy load pulls light particles).
+    for (std::size_t j = 0; j < m; ++j) {
+        s.active[j] = 0;
+        s.spring_force[j] = 0.0;
+        if (s.broken[j]) continue;
+        const Vec3 d = s.x[j + 1] - s.x[j];
+        const double len = d.norm();
+        if (len > 1e-15) s.dir[j] = d / len;
+        const double stretch = len - s.rest_length[j];
+        // Kelvin-Voigt: the segment's force is k (C + tau dC/dt), tau the material's
+        // retardation time; it damps the rope's axial (bungee) vibration, which a
+        // real fibre's internal friction kills within a few periods.
+        const double rate_gain = s.desc.axial_damping * ctx.inv_h;
+        const double effective = stretch + rate_gain * (stretch - s.prev_stretch[j]);
+        // Slack segments carry nothing (a rope does not push). Taut ones (within
+        // kTautSlack of rest) join with their stiffness but no force, so that one
+        // Newton step sees the whole taut chain a correction would stretch; a
+        // segment the step compresses leaves again at the next iteration.
+        if (stretch <= -kTautSlack * s.rest_length[j] && effective <= 0.0) continue;
+        const double c = std::max(effective, 0.0);
+        s.active[j] = 1;
+        const double k = 1.0 / s.compliance[j];
+        s.spring_force[j] = k * c;
+        const Vec3& e = s.dir[j];
+        const Mat3 eet = e * e.transpose();
+        const Mat3 hess = k * ((1.0 + rate_gain) * eet + (c / len) * (Mat3::Identity() - eet));
+        const Vec3 force = k * c * e;  // pulls j toward j+1
+        const bool fa = !fixedRow(s, j), fb = !fixedRow(s, j + 1);
+        if (fa) {
+            s.blk_diag[j] += hess;
+            s.blk_rhs[j] += force;
+        }
+        if (fb) {
+            s.blk_diag[j + 1] += hess;
+            s.blk_rhs[j + 1] -= force;
+        }
+        if (fa && fb) s.blk_off[j] = -hess;
+    }
+}
+
+/// After a solve: glued particles back on their bodies, the springs' forces in the final
+/// state (the tension where bodies press the string) and the row projectors of the
+/// particles that rigid bodies press.
+void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
+    const std::size_t m = s.segments();
+    const std::size_t n = s.particles();
+    // Leave glued particles on their bodies.
+    for (std::size_t p = 0; p < n; ++p) {
+        const ParticleHold& hold = s.hold[p];
+        if (hold.kind == ParticleHold::Kind::Glue) s.x[p] = gluePoint(rigids.bodies[hold.body.index], hold.point);
+    }
+    // The springs' forces in the final state (the tension where bodies press the string).
+    const double rate_gain = s.desc.axial_damping * ctx.inv_h;
+    for (std::size_t j = 0; j < m; ++j) {
+        if (s.broken[j]) continue;
+        const double stretch = (s.x[j + 1] - s.x[j]).norm() - s.rest_length[j];
+        s.spring_force[j] = std::max(0.0, stretch + rate_gain * (stretch - s.prev_stretch[j])) / s.compliance[j];
+    }
+    // Particles pressed by a body carry an unknown contact force along its normal: the
+    // tension solve uses only their equations across the normal (tension.cpp).
+    for (std::size_t p = 0; p < n; ++p) s.row_projector[p].setIdentity();
+    for (const SegmentContact& c : s.contacts) {
+        const std::size_t j = c.segment;
+        if (s.broken[j]) continue;
+        const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
+        if (contactGap(s, c, xs, contactPoint(c, rigids)) > kContactSlop * s.radius[j]) continue;  // not touching
+        for (std::size_t q : {j, j + 1}) {
+            const Vec3 dir = s.row_projector[q] * c.normal;  // what is left of this normal
+            const double len = dir.norm();
+            if (len > 1e-6) s.row_projector[q] -= (dir / len) * (dir / len).transpose();
+        }
+    }
+}
+
 }  // namespace
 
 void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& ctx) {
@@ -224,7 +337,6 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
 }
 
 void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
-    const std::size_t m = s.segments();
     const std::size_t n = s.particles();
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
     const double tol = ctx.settings->strain_tolerance;
@@ -248,75 +360,8 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     for (int pass = 0; pass < passes; ++pass) {
     bool converged = false;
     for (int iter = 0; iter < iterations; ++iter) {
-        // Inertia: free particles are pulled back toward their prediction x'; a glued
-        // particle carries its body's effective mass K^-1 at the glue point and starts
-        // each iteration on the body (which absorbed the earlier corrections).
-        for (std::size_t p = 0; p < n; ++p) {
-            const ParticleHold& hold = s.hold[p];
-            s.blk_rhs[p].setZero();
-            if (p < m) s.blk_off[p].setZero();
-            switch (hold.kind) {
-                case ParticleHold::Kind::Free:
-                    s.blk_diag[p] = (s.mass[p] * inv_h2) * Mat3::Identity();
-                    s.blk_rhs[p] = -(s.mass[p] * inv_h2) * (s.x[p] - s.x_pred[p]);
-                    break;
-                case ParticleHold::Kind::Glue:
-                    s.x[p] = gluePoint(rigids.bodies[hold.body.index], hold.point);
-                    if (s.glue_movable[p]) {
-                        // The body's inertia resists this string's own accumulated pull
-                        // (what other strings did to the body is, for this string, part
-                        // of the body's prediction): M_eff (x - x') / h^2 = P / h^2.
-                        s.blk_diag[p] = mobility(s, rigids, p).K.inverse() * inv_h2;
-                        s.blk_rhs[p] = -s.glue_impulse[p] * inv_h2;
-                        break;
-                    }
-                    [[fallthrough]];
-                case ParticleHold::Kind::Pin:
-                    s.blk_diag[p] = Mat3::Identity();  // fixed: its row is dx = 0
-                    break;
-            }
-        }
-        // Springs of the material's stiffness k = E A / L_rest on the stretched segments:
-        // gradient k C e and Hessian k (e e^T + C/l (I - e e^T)) (the geometric term keeps
-        // Newton convergent when a heavy load pulls light particles).
+        assembleChain(s, rigids, ctx);
         double worst = 0.0;
-        for (std::size_t j = 0; j < m; ++j) {
-            s.active[j] = 0;
-            s.spring_force[j] = 0.0;
-            if (s.broken[j]) continue;
-            const Vec3 d = s.x[j + 1] - s.x[j];
-            const double len = d.norm();
-            if (len > 1e-15) s.dir[j] = d / len;
-            const double stretch = len - s.rest_length[j];
-            // Kelvin-Voigt: the segment's force is k (C + tau dC/dt), tau the material's
-            // retardation time; it damps the rope's axial (bungee) vibration, which a
-            // real fibre's internal friction kills within a few periods.
-            const double rate_gain = s.desc.axial_damping * ctx.inv_h;
-            const double effective = stretch + rate_gain * (stretch - s.prev_stretch[j]);
-            // Slack segments carry nothing (a rope does not push). Taut ones (within
-            // kTautSlack of rest) join with their stiffness but no force, so that one
-            // Newton step sees the whole taut chain a correction would stretch; a
-            // segment the step compresses leaves again at the next iteration.
-            if (stretch <= -kTautSlack * s.rest_length[j] && effective <= 0.0) continue;
-            const double c = std::max(effective, 0.0);
-            s.active[j] = 1;
-            const double k = 1.0 / s.compliance[j];
-            s.spring_force[j] = k * c;
-            const Vec3& e = s.dir[j];
-            const Mat3 eet = e * e.transpose();
-            const Mat3 hess = k * ((1.0 + rate_gain) * eet + (c / len) * (Mat3::Identity() - eet));
-            const Vec3 force = k * c * e;  // pulls j toward j+1
-            const bool fa = !fixedRow(s, j), fb = !fixedRow(s, j + 1);
-            if (fa) {
-                s.blk_diag[j] += hess;
-                s.blk_rhs[j] += force;
-            }
-            if (fb) {
-                s.blk_diag[j + 1] += hess;
-                s.blk_rhs[j + 1] -= force;
-            }
-            if (fa && fb) s.blk_off[j] = -hess;
-        }
 
         // Contacts with rigid bodies: g = n . (x(s) - p) - r >= 0, a stiff penalty
         // k_c g^2 / 2 while penetrating, with x(s) = (1-s) x_j + s x_{j+1} and p the
@@ -468,32 +513,7 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     }
     if (!changed) break;
     }
-    // Leave glued particles on their bodies.
-    for (std::size_t p = 0; p < n; ++p) {
-        const ParticleHold& hold = s.hold[p];
-        if (hold.kind == ParticleHold::Kind::Glue) s.x[p] = gluePoint(rigids.bodies[hold.body.index], hold.point);
-    }
-    // The springs' forces in the final state (the tension where bodies press the string).
-    const double rate_gain = s.desc.axial_damping * ctx.inv_h;
-    for (std::size_t j = 0; j < m; ++j) {
-        if (s.broken[j]) continue;
-        const double stretch = (s.x[j + 1] - s.x[j]).norm() - s.rest_length[j];
-        s.spring_force[j] = std::max(0.0, stretch + rate_gain * (stretch - s.prev_stretch[j])) / s.compliance[j];
-    }
-    // Particles pressed by a body carry an unknown contact force along its normal: the
-    // tension solve uses only their equations across the normal (tension.cpp).
-    for (std::size_t p = 0; p < n; ++p) s.row_projector[p].setIdentity();
-    for (const SegmentContact& c : s.contacts) {
-        const std::size_t j = c.segment;
-        if (s.broken[j]) continue;
-        const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
-        if (contactGap(s, c, xs, contactPoint(c, rigids)) > kContactSlop * s.radius[j]) continue;  // not touching
-        for (std::size_t q : {j, j + 1}) {
-            const Vec3 dir = s.row_projector[q] * c.normal;  // what is left of this normal
-            const double len = dir.norm();
-            if (len > 1e-6) s.row_projector[q] -= (dir / len) * (dir / len).transpose();
-        }
-    }
+    finishChain(s, rigids, ctx);
 }
 
 void applyFriction(StringState& s, RigidTable& rigids, const StepContext& ctx) {
@@ -529,6 +549,558 @@ void applyFriction(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         if (c.node >= 0 && rigids.movable(c.body)) {
             RigidState& body = rigids.bodies[c.body.index];
             applyBodyImpulse(body, p - body.position, -impulse);
+        }
+    }
+}
+
+
+// String-string and self contacts (World::Impl::coupleStrings): the strings that touch
+// are solved together. The energy of the cluster is the sum of the strings' own step
+// energies (inertia, springs, rigid contacts) plus, per contact between segment j of
+// string a at s and segment k of string b at t (b may be a),
+//     k_c/2 min(0, g)^2,   g = n . (x_a(s) - x_b(t)) - (r_a + r_b),
+//     friction (below),
+// with x_a(s) = (1-s) x_j + s x_{j+1}. Its Hessian is block-tridiagonal per string plus
+// one rank-1 term k_c u u^T per penetrating contact, u = dg/dx (the four ends, by the
+// fractions); the friction adds two more (the tangents). So one Newton step solves
+// (A + U K U^T) dx = r by the Woodbury identity with the strings' own factorisations:
+//     y = A^-1 r,  Z = A^-1 U,  (K^-1 + U^T Z) z = U^T y,  dx = y - Z z,
+// i.e. one O(n) solve per contact direction and a dense system of their number. Both
+// sides of a contact move in one solve, with their masses, springs and tensions: the
+// impulses are equal and opposite (momentum is exchanged), and a rope resting on a
+// clamped rope loads it with its weight instead of dragging it down (a fixed obstacle at
+// the other string's predicted position did that). The penalty is one-sided (a contact
+// pushes while it penetrates); a contact that the full Newton step would run into joins
+// the Hessian before the line search, so that the step stops at it. s, t and n are fixed
+// within a pass (a convex problem) and measured again for the next one (the closest
+// points; the start-of-step normal where the prediction carried a pair through itself).
+// Where the crossing lies at particles of both strings, the four segment pairs there
+// are one contact: the pairs whose closest point is the far end of a segment are
+// shadowed by the next segment's pair.
+//
+// Friction is Coulomb's law, lagged as in IPC (Li et al. 2020) and solved as a sequence
+// of quadratic problems: with u_t the tangential motion of the two contact points
+// relative to each other over the step and F the normal force of the previous pass (or
+// the last step), a pass adds w/2 |u_t|^2 with w = mu F / max(|u_t|, eps) taken at its
+// start. At the fixed point of the passes that is mu F against sliding, or a stiff
+// spring below eps of slip per step (sticking).
+//
+// Movable bodies are held where the strings' own solves left them (the cluster solve has
+// no body unknowns): a rope glued to a crate and lying on another rope keeps the crate's
+// motion of its own solve.
+namespace {
+
+/// Slip of the contact points (relative, per step) below which a string contact sticks,
+/// as a fraction of the contact's thickness (the smoothing length eps of friction).
+constexpr double kStringSlip = 1e-3;
+/// Penalty of a string contact over the stiffest spring (or particle inertia, m / h^2) of
+/// its two strings. At rope tensions it gives way by micrometres (F / k), and where a
+/// contact cannot be met without stretching a string (a rope pinned back through itself)
+/// it gives way as much as the rope stretches, instead of stretching the rope without
+/// bound as a contact 100x stiffer than the springs does; such a pair then starts the
+/// next step deep and is left to come apart (world.cpp, kStringDeepStart).
+constexpr double kStringContactStiffness = 1.0;
+/// Axes closer than this fraction of the thickness have no direction of their own.
+constexpr double kStringAxisContact = 1e-3;
+/// Another pass when a contact's closest points (fractions) or normal moved by more.
+constexpr double kStringRelinearise = 1e-3;
+/// Times per Newton iteration that contacts the step would hit are added and the step
+/// solved again.
+constexpr int kStringPredictRounds = 3;
+/// Position accuracy of the joint solve, as a fraction of the thinnest contact.
+constexpr double kStringContactTolerance = 1e-5;
+
+bool freeParticle(const StringState& s, std::size_t p) { return s.hold[p].kind == ParticleHold::Kind::Free; }
+
+/// The penalty terms of the string's active rigid contacts, without body unknowns (the
+/// bodies stay where they are).
+void assembleRigidContacts(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
+    const double inv_h2 = ctx.inv_h * ctx.inv_h;
+    double heaviest = 0.0;
+    for (double mass : s.mass) heaviest = std::max(heaviest, mass);
+    for (SegmentContact& c : s.contacts) {
+        const std::size_t j = c.segment;
+        if (s.broken[j] || !c.active) continue;
+        const Vec3 p = contactPoint(c, rigids);
+        const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
+        const double g = contactGap(s, c, xs, p);
+        if (c.stiffness <= 0.0) {
+            double kc = std::max({1.0 / *std::min_element(s.compliance.begin(), s.compliance.end()), heaviest * inv_h2, 1e-12});
+            if (c.node >= 0) kc = std::max(kc, inv_h2 / rigids.bodies[c.body.index].inverse_mass);
+            c.stiffness = kc * kContactStiffnessFactor;
+        }
+        const double kc = c.stiffness;
+        const Mat3 nnt = c.normal * c.normal.transpose();
+        const double wa = 1.0 - c.s, wb = c.s;
+        const bool fa = freeParticle(s, j), fb = freeParticle(s, j + 1);
+        if (fa) {
+            s.blk_diag[j] += kc * wa * wa * nnt;
+            s.blk_rhs[j] -= kc * g * wa * c.normal;
+        }
+        if (fb) {
+            s.blk_diag[j + 1] += kc * wb * wb * nnt;
+            s.blk_rhs[j + 1] -= kc * g * wb * c.normal;
+        }
+        if (fa && fb) s.blk_off[j] += kc * wa * wb * nnt;
+    }
+}
+
+/// A factorised chain system for many solves: the block Thomas factorisation of
+/// factorBlockTridiagonal with the pivots inverted once (a solve is then mat-vecs only),
+/// and a forward sweep that starts at the first nonzero of the right-hand side.
+struct ChainSolver {
+    std::vector<Mat3> inverse;  // D'_i^-1
+    std::vector<char> coupled;  // gain_i != 0
+    void factor(StringState& s) {
+        factorBlockTridiagonal(s);
+        const std::size_t n = s.particles();
+        inverse.resize(n);
+        coupled.resize(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            inverse[i] = s.blk_factor[i].solve(Mat3::Identity());
+            coupled[i] = i > 0 && !s.blk_factor_gain[i].isZero(0.0);
+        }
+    }
+    void solve(const StringState& s, std::vector<Vec3>& rhs, std::size_t first = 0) const {
+        const std::size_t n = s.particles();
+        for (std::size_t i = std::max<std::size_t>(first, 1); i < n; ++i)
+            if (coupled[i]) rhs[i] -= s.blk_factor_gain[i] * rhs[i - 1];
+        rhs[n - 1] = inverse[n - 1] * rhs[n - 1];
+        for (std::size_t i = n - 1; i-- > 0;) rhs[i] = inverse[i] * (rhs[i] - s.blk_off[i] * rhs[i + 1]);
+    }
+};
+
+/// One entry of a contact direction's gradient u: coefficient of a particle's motion.
+struct UEntry {
+    std::uint32_t string;
+    std::size_t particle;
+    Vec3 coef;
+};
+
+}  // namespace
+
+void solveStringCluster(const std::vector<StringState*>& strings, std::vector<SegmentContact>& contacts,
+                        RigidTable& rigids, const StepContext& ctx) {
+    const double inv_h2 = ctx.inv_h * ctx.inv_h;
+    const std::size_t count = strings.size();
+    double shortest = 1e300;
+    for (const StringState* s : strings) shortest = std::min(shortest, s->shortest_rest);
+    // Converged when no particle moves by more than the strain tolerance of the shortest
+    // segment or kStringContactTolerance of the thinnest contact, whichever is larger
+    // (the taut-but-slack segments of assembleChain make Newton linear near the end).
+    double thinnest = 1e300;
+    for (const SegmentContact& c : contacts) thinnest = std::min(thinnest, c.gap);
+    const double tol = std::max(ctx.settings->strain_tolerance * shortest, kStringContactTolerance * thinnest);
+
+    // Penalty of a contact: the stiffest spring or particle inertia of either side
+    // (kStringContactStiffness).
+    std::vector<double> stiffest(count);
+    for (std::size_t i = 0; i < count; ++i) {
+        const StringState& s = *strings[i];
+        double heaviest = 0.0;
+        for (double mass : s.mass) heaviest = std::max(heaviest, mass);
+        stiffest[i] = std::max({1.0 / *std::min_element(s.compliance.begin(), s.compliance.end()), heaviest * inv_h2, 1e-12});
+    }
+    for (SegmentContact& c : contacts)
+        c.stiffness = kStringContactStiffness * std::max(stiffest[c.string], stiffest[c.partner]);
+
+    // Positions along the current Newton step (held in blk_rhs), alpha of the way.
+    auto at = [&](const StringState& s, std::size_t p, double alpha) -> Vec3 {
+        return freeParticle(s, p) ? Vec3(s.x[p] + alpha * s.blk_rhs[p]) : s.x[p];
+    };
+    auto sidePoint = [&](const StringState& s, std::size_t j, double f, double alpha) {
+        return Vec3((1.0 - f) * at(s, j, alpha) + f * at(s, j + 1, alpha));
+    };
+    auto startPoint = [](const StringState& s, std::size_t j, double f) {
+        return Vec3((1.0 - f) * s.x_prev[j] + f * s.x_prev[j + 1]);
+    };
+    // A contact whose closest point is the far end of a segment, shared with the next
+    // segment that has a contact with the same other segment, is implied by that one (the
+    // shared particle lies on both): it is shadowed, so that the four pairs of two
+    // strings crossing at particles do not push four times and toggle against each other.
+    std::vector<char> shadowed(contacts.size(), 0);
+    std::vector<std::array<std::uint32_t, 4>> keys(contacts.size());
+    auto keyOf = [](std::uint32_t sa, std::uint32_t ja, std::uint32_t sb, std::uint32_t jb) {
+        std::array<std::uint32_t, 4> k{sa, ja, sb, jb};
+        if (std::make_pair(sb, jb) < std::make_pair(sa, ja)) k = {sb, jb, sa, ja};
+        return k;
+    };
+    for (std::size_t i = 0; i < contacts.size(); ++i) {
+        const SegmentContact& c = contacts[i];
+        keys[i] = keyOf(c.string, c.segment, c.partner, c.partner_segment);
+    }
+    std::vector<std::size_t> order(contacts.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return keys[a] < keys[b]; });
+    auto exists = [&](std::uint32_t sa, std::int64_t ja, std::uint32_t sb, std::int64_t jb) {
+        if (ja < 0 || jb < 0 || ja >= static_cast<std::int64_t>(strings[sa]->segments()) ||
+            jb >= static_cast<std::int64_t>(strings[sb]->segments()))
+            return false;
+        const auto k = keyOf(sa, static_cast<std::uint32_t>(ja), sb, static_cast<std::uint32_t>(jb));
+        auto it = std::lower_bound(order.begin(), order.end(), k, [&](std::size_t i, const std::array<std::uint32_t, 4>& v) { return keys[i] < v; });
+        return it != order.end() && keys[*it] == k && !strings[sa]->broken[static_cast<std::size_t>(ja)] &&
+               !strings[sb]->broken[static_cast<std::size_t>(jb)];
+    };
+    auto shadow = [&]() {
+        for (std::size_t i = 0; i < contacts.size(); ++i) {
+            const SegmentContact& c = contacts[i];
+            const std::int64_t j = c.segment, k = c.partner_segment;
+            // Toward the next segment only, so that two pairs never shadow each other.
+            shadowed[i] = (c.s == 1.0 && exists(c.string, j + 1, c.partner, k)) ||
+                          (c.partner_s == 1.0 && exists(c.string, j, c.partner, k + 1));
+        }
+    };
+    auto skipped = [&](const SegmentContact& c) {
+        return shadowed[static_cast<std::size_t>(&c - contacts.data())] || strings[c.string]->broken[c.segment] ||
+               strings[c.partner]->broken[c.partner_segment];
+    };
+    auto gapAt = [&](const SegmentContact& c, double alpha) {
+        const Vec3 pa = sidePoint(*strings[c.string], c.segment, c.s, alpha);
+        const Vec3 pb = sidePoint(*strings[c.partner], c.partner_segment, c.partner_s, alpha);
+        return c.normal.dot(pa - pb) - c.gap;
+    };
+    // Relative tangential motion of the contact points over the step.
+    auto slipAt = [&](const SegmentContact& c, double alpha) {
+        const StringState& a = *strings[c.string];
+        const StringState& b = *strings[c.partner];
+        Vec3 rel = (sidePoint(a, c.segment, c.s, alpha) - startPoint(a, c.segment, c.s)) -
+                   (sidePoint(b, c.partner_segment, c.partner_s, alpha) - startPoint(b, c.partner_segment, c.partner_s));
+        return Vec3(rel - c.normal * c.normal.dot(rel));
+    };
+    // Friction acts where the last pass (or step) found a pressing force.
+    auto frictional = [&](const SegmentContact& c) { return c.friction > 0.0 && c.force > 0.0 && !skipped(c); };
+    // Friction of a pass: w/2 |u_t|^2 with w = mu F / max(|u_t|, eps) taken at the start
+    // of the pass (below), a smooth quadratic, so Newton converges as without it.
+    std::vector<double> friction_weight(contacts.size(), 0.0);
+    auto frictionEnergy = [&](std::size_t i, double alpha) {
+        return 0.5 * friction_weight[i] * slipAt(contacts[i], alpha).squaredNorm();
+    };
+    auto weighFriction = [&]() {
+        for (std::size_t i = 0; i < contacts.size(); ++i) {
+            const SegmentContact& c = contacts[i];
+            friction_weight[i] = frictional(c) ? c.friction * c.force / std::max(slipAt(c, 0.0).norm(), kStringSlip * c.gap) : 0.0;
+        }
+    };
+    // Closest points and normal at the given positions: the predicted ones in the first
+    // pass (the strings' own solves, which ignored each other, may have pulled one
+    // through the other), the current ones later (the passes keep them apart). The
+    // prediction may have carried a pair that touched at the start of the step through
+    // itself, or axes across each other: then the start normal says which side is which.
+    // (A pair that was apart at the start has no side yet: its closest-point direction
+    // may turn freely while it comes into reach, e.g. end against side.)
+    auto linearise = [&](SegmentContact& c, bool predicted) {
+        const StringState& a = *strings[c.string];
+        const StringState& b = *strings[c.partner];
+        const std::vector<Vec3>& xa = predicted ? a.x_pred : a.x;
+        const std::vector<Vec3>& xb = predicted ? b.x_pred : b.x;
+        const Vec3 a0 = xa[c.segment], a1 = xa[c.segment + 1], b0 = xb[c.partner_segment], b1 = xb[c.partner_segment + 1];
+        const SegmentClosest cp = closestPointsOfSegments(a0, a1, b0, b1);
+        c.s = cp.s;
+        c.partner_s = cp.t;
+        const Vec3 d = cp.p - cp.q;
+        bool crossed = false;
+        if (predicted && cp.distance < c.gap) {
+            if (c.start_distance < c.gap * (1.0 + kContactSlop)) {
+                crossed = d.dot(c.start_normal) <= 0.0;
+            } else if (cp.s > 0.0 && cp.s < 1.0 && cp.t > 0.0 && cp.t < 1.0) {
+                // Axes across each other: the side of the common perpendicular flipped.
+                const Vec3 m = (a1 - a0).cross(b1 - b0);
+                const Vec3 m0 = (a.x_prev[c.segment + 1] - a.x_prev[c.segment]).cross(b.x_prev[c.partner_segment + 1] - b.x_prev[c.partner_segment]);
+                const double now = m.dot(a0 - b0);
+                const double then = m0.dot(a.x_prev[c.segment] - b.x_prev[c.partner_segment]);
+                crossed = m.dot(m0) > 0.0 && now * then < 0.0;
+            }
+        }
+        if (cp.distance > kStringAxisContact * c.gap && !crossed)
+            c.normal = d / cp.distance;
+        else if (predicted)
+            c.normal = c.start_normal;  // else: keep the last pass's normal
+    };
+    // The (up to four) particle entries of a contact direction e: +e at this side's
+    // ends by the fractions, -e at the other side's.
+    auto entries = [&](const SegmentContact& c, const Vec3& e, UEntry* out) {
+        int k = 0;
+        const StringState& a = *strings[c.string];
+        const StringState& b = *strings[c.partner];
+        if (freeParticle(a, c.segment)) out[k++] = {c.string, c.segment, (1.0 - c.s) * e};
+        if (freeParticle(a, c.segment + 1)) out[k++] = {c.string, c.segment + 1, c.s * e};
+        if (freeParticle(b, c.partner_segment)) out[k++] = {c.partner, c.partner_segment, -(1.0 - c.partner_s) * e};
+        if (freeParticle(b, c.partner_segment + 1)) out[k++] = {c.partner, c.partner_segment + 1, -c.partner_s * e};
+        return k;
+    };
+
+    for (SegmentContact& c : contacts) {
+        linearise(c, true);
+    }
+    shadow();
+    for (SegmentContact& c : contacts) {
+        c.active = !skipped(c) && gapAt(c, 0.0) < 0.0;
+    }
+    weighFriction();
+    // Nothing to do where the strings' own solves already keep every pair apart (and no
+    // pair pressed at the end of the last step): that state is the joint optimum.
+    bool touching = false;
+    for (std::size_t i = 0; i < contacts.size(); ++i) touching = touching || contacts[i].active || friction_weight[i] > 0.0;
+    if (!touching) return;
+    // Scratch: per string the Newton step y and the responses Z of the directions.
+    struct Direction {
+        UEntry u[4];
+        int entries = 0;
+        double weight = 0.0;                    // its Hessian weight (k_c or the friction's)
+        std::size_t column[2] = {0, 0};         // offsets of Z in `pool` for its strings
+        std::uint32_t string[2] = {0, 0};
+        int strings = 0;
+    };
+    std::vector<Direction> dirs;
+    std::vector<Vec3> pool, scratch;
+    std::vector<ChainSolver> solvers(count);
+    std::vector<std::vector<Vec3>> y(count);
+    auto zAt = [&](const Direction& d, std::uint32_t string, std::size_t p) -> Vec3 {
+        for (int i = 0; i < d.strings; ++i)
+            if (d.string[i] == string) return pool[d.column[i] + p];
+        return Vec3::Zero();
+    };
+
+    const int iterations = ctx.settings->strain_iterations * kContactIterationFactor;
+    for (int pass = 0; pass < kContactPasses; ++pass) {
+        bool converged = false;
+        for (int iter = 0; iter < iterations; ++iter) {
+            // Each string's own system (glued particles held: no body unknowns here).
+            for (StringState* sp : strings) {
+                StringState& s = *sp;
+                assembleChain(s, rigids, ctx);
+                assembleRigidContacts(s, rigids, ctx);
+                for (std::size_t p = 0; p < s.particles(); ++p) {
+                    if (freeParticle(s, p)) continue;
+                    s.blk_diag[p] = Mat3::Identity();
+                    s.blk_rhs[p].setZero();
+                    if (p > 0) s.blk_off[p - 1].setZero();
+                    if (p < s.segments()) s.blk_off[p].setZero();
+                }
+                for (auto& step : s.node_step) step.setZero();
+            }
+            // The contacts' gradients and their directions for the Woodbury step.
+            dirs.clear();
+            for (std::size_t ci = 0; ci < contacts.size(); ++ci) {
+                SegmentContact& c = contacts[ci];
+                // The penalty k_c/2 min(0, g)^2 is one-sided: it never pulls, so a normal
+                // that turned at a corner cannot drag the strings together (contacts held
+                // as equalities, as the rigid ones are, did that here).
+                const double g = gapAt(c, 0.0);
+                c.active = !skipped(c) && g < 0.0;
+                if (c.active) {
+                    // Normal: gradient k g u, Hessian k u u^T.
+                    UEntry u[4];
+                    const int k = entries(c, c.normal, u);
+                    for (int i = 0; i < k; ++i) strings[u[i].string]->blk_rhs[u[i].particle] -= c.stiffness * g * u[i].coef;
+                    Direction dn;
+                    dn.entries = entries(c, c.normal, dn.u);
+                    dn.weight = c.stiffness;
+                    if (dn.entries > 0) dirs.push_back(dn);
+                }
+                const double wf = friction_weight[ci];
+                if (!(wf > 0.0)) continue;
+                // Friction: gradient w u_t on the relative motion, Hessian w (I - n n^T).
+                const Vec3 grad = wf * slipAt(c, 0.0);
+                // d(rel)/dx has the same entries as the gradient of g with e = I.
+                UEntry ug[4];
+                const int kg = entries(c, Vec3::Ones(), ug);
+                for (int i = 0; i < kg; ++i) {
+                    const double f = ug[i].coef.x();  // the fraction (with its sign)
+                    strings[ug[i].string]->blk_rhs[ug[i].particle] -= f * grad;
+                }
+                const Vec3 t1 = c.normal.unitOrthogonal();
+                for (const Vec3& t : {t1, Vec3(c.normal.cross(t1))}) {
+                    Direction dt;
+                    dt.entries = entries(c, t, dt.u);
+                    dt.weight = wf;
+                    if (dt.entries > 0) dirs.push_back(dt);
+                }
+            }
+            // Factorise every string and solve y = A^-1 r.
+            for (std::size_t i = 0; i < count; ++i) {
+                StringState& s = *strings[i];
+                solvers[i].factor(s);
+                y[i] = s.blk_rhs;
+                solvers[i].solve(s, y[i]);
+                for (std::size_t p = 0; p < s.particles(); ++p)
+                    if (!freeParticle(s, p) || !y[i][p].allFinite()) y[i][p].setZero();
+            }
+            // Z = A^-1 U, one solve per direction and string it touches (incrementally:
+            // directions may be added below).
+            pool.clear();
+            std::size_t solved = 0;
+            auto columns = [&]() {
+                for (; solved < dirs.size(); ++solved) {
+                    Direction& d = dirs[solved];
+                    d.strings = 0;
+                    for (int e = 0; e < d.entries; ++e) {
+                        bool known = false;
+                        for (int i = 0; i < d.strings; ++i) known = known || d.string[i] == d.u[e].string;
+                        if (!known) d.string[d.strings++] = d.u[e].string;
+                    }
+                    for (int i = 0; i < d.strings; ++i) {
+                        const StringState& s = *strings[d.string[i]];
+                        scratch.assign(s.particles(), Vec3::Zero());
+                        std::size_t first = s.particles();
+                        for (int e = 0; e < d.entries; ++e)
+                            if (d.u[e].string == d.string[i]) {
+                                scratch[d.u[e].particle] += d.u[e].coef;
+                                first = std::min(first, d.u[e].particle);
+                            }
+                        solvers[d.string[i]].solve(s, scratch, first);
+                        for (std::size_t p = 0; p < s.particles(); ++p)
+                            if (!freeParticle(s, p) || !scratch[p].allFinite()) scratch[p].setZero();
+                        d.column[i] = pool.size();
+                        pool.insert(pool.end(), scratch.begin(), scratch.end());
+                    }
+                }
+            };
+            // (K^-1 + U^T Z) z = U^T y, dx = y - Z z (into blk_rhs).
+            auto woodbury = [&]() {
+                columns();
+                for (std::size_t i = 0; i < count; ++i) strings[i]->blk_rhs = y[i];
+                const auto dim = static_cast<Eigen::Index>(dirs.size());
+                if (dim == 0) return;
+                Eigen::MatrixXd sys(dim, dim);
+                Eigen::VectorXd rhs(dim);
+                for (Eigen::Index r = 0; r < dim; ++r) {
+                    const Direction& dr = dirs[static_cast<std::size_t>(r)];
+                    double uy = 0.0;
+                    for (int e = 0; e < dr.entries; ++e) uy += dr.u[e].coef.dot(y[dr.u[e].string][dr.u[e].particle]);
+                    rhs[r] = uy;
+                    for (Eigen::Index col = 0; col < dim; ++col) {
+                        const Direction& dc = dirs[static_cast<std::size_t>(col)];
+                        double v = 0.0;
+                        for (int e = 0; e < dr.entries; ++e) v += dr.u[e].coef.dot(zAt(dc, dr.u[e].string, dr.u[e].particle));
+                        sys(r, col) = v;
+                    }
+                    sys(r, r) += 1.0 / dr.weight;
+                }
+                sys = 0.5 * (sys + sys.transpose()).eval();
+                const Eigen::VectorXd z = sys.ldlt().solve(rhs);
+                if (!z.allFinite()) return;
+                for (Eigen::Index r = 0; r < dim; ++r) {
+                    const Direction& d = dirs[static_cast<std::size_t>(r)];
+                    for (int i = 0; i < d.strings; ++i) {
+                        std::vector<Vec3>& dx = strings[d.string[i]]->blk_rhs;
+                        const Vec3* zc = &pool[d.column[i]];
+                        for (std::size_t p = 0; p < dx.size(); ++p) dx[p] -= z[r] * zc[p];
+                    }
+                }
+            };
+            woodbury();
+            // A separated contact that the full step would drive into penetration joins
+            // the Hessian (not the gradient: it does not push yet) and the step is solved
+            // again, so that the step stops at it instead of the line search shrinking to
+            // nothing against a penalty that switches on (a contact touching exactly).
+            for (int round = 0; round < kStringPredictRounds; ++round) {
+                bool added = false;
+                for (SegmentContact& c : contacts) {
+                    if (c.active || skipped(c) || !(gapAt(c, 1.0) < 0.0)) continue;
+                    c.active = true;
+                    Direction dn;
+                    dn.entries = entries(c, c.normal, dn.u);
+                    dn.weight = c.stiffness;
+                    if (dn.entries > 0) {
+                        dirs.push_back(dn);
+                        added = true;
+                    }
+                }
+                if (!added) break;
+                woodbury();
+            }
+            // Backtracking line search on the cluster's energy.
+            auto energy = [&](double alpha) {
+                double e = 0.0;
+                for (const StringState* s : strings) e += stepEnergy(*s, rigids, ctx, alpha);
+                for (std::size_t ci = 0; ci < contacts.size(); ++ci) {
+                    const SegmentContact& c = contacts[ci];
+                    if (skipped(c)) continue;
+                    const double g = std::min(0.0, gapAt(c, alpha));
+                    e += 0.5 * c.stiffness * g * g;
+                    if (friction_weight[ci] > 0.0) e += frictionEnergy(ci, alpha);
+                }
+                return e;
+            };
+            double alpha = 1.0;
+            const double e0 = energy(0.0);
+            for (int halving = 0; halving < 10 && energy(alpha) > e0; ++halving) alpha *= 0.5;
+            double worst = 0.0;
+            for (StringState* sp : strings)
+                for (std::size_t p = 0; p < sp->particles(); ++p) {
+                    if (!freeParticle(*sp, p)) continue;
+                    const Vec3 dx = alpha * sp->blk_rhs[p];
+                    if (!dx.allFinite()) continue;
+                    sp->x[p] += dx;
+                    worst = std::max(worst, dx.norm());
+                }
+            if (worst < tol) {
+                converged = true;
+                break;
+            }
+        }
+        // The pressing forces (the friction bound of the next pass), then the closest
+        // points again: another pass while they moved.
+        bool changed = false;
+        double moved = 0.0;
+        for (SegmentContact& c : contacts) c.force = skipped(c) ? 0.0 : c.stiffness * std::max(0.0, -gapAt(c, 0.0));
+        for (SegmentContact& c : contacts) {
+            const std::size_t i = static_cast<std::size_t>(&c - contacts.data());
+            if (strings[c.string]->broken[c.segment] || strings[c.partner]->broken[c.partner_segment]) continue;
+            const double s0 = c.s, t0 = c.partner_s;
+            const Vec3 n0 = c.normal;
+            linearise(c, false);
+            if (!shadowed[i]) moved = std::max({moved, std::abs(c.s - s0), std::abs(c.partner_s - t0), (c.normal - n0).norm()});
+        }
+        const std::vector<char> was_shadowed = shadowed;
+        shadow();
+        changed = was_shadowed != shadowed;
+        for (SegmentContact& c : contacts) c.active = !skipped(c) && gapAt(c, 0.0) < 0.0;
+        // The friction weights follow the new forces and slips: the fixed point of the
+        // passes is Coulomb's law (mu F while sliding, a stiff spring below eps).
+        std::vector<double> previous = friction_weight;
+        weighFriction();
+        for (std::size_t i = 0; i < contacts.size(); ++i) {
+            const double a = previous[i], b = friction_weight[i];
+            if (std::abs(a - b) > kStringRelinearise * std::max(a, b)) changed = true;
+        }
+        changed = changed || moved > kStringRelinearise;
+        for (StringState* sp : strings)
+            for (SegmentContact& c : sp->contacts) {
+                const std::size_t j = c.segment;
+                if (sp->broken[j]) continue;
+                const Vec3 xs = (1.0 - c.s) * sp->x[j] + c.s * sp->x[j + 1];
+                const double g = contactGap(*sp, c, xs, contactPoint(c, rigids));
+                if (c.active && converged && g > kContactSlop * sp->radius[j] * 1e-3) {
+                    c.active = false;
+                    changed = true;
+                } else if (!c.active && g < 0.0) {
+                    c.active = true;
+                    changed = true;
+                }
+            }
+        if (!changed && converged) break;
+    }
+    // Springs' forces and rigid row projectors of the final state; the particles a string
+    // contact presses lose the contact force's direction from their tension equations.
+    for (StringState* sp : strings) finishChain(*sp, rigids, ctx);
+    for (const SegmentContact& c : contacts) {
+        if (skipped(c) || gapAt(c, 0.0) > kContactSlop * c.gap) continue;
+        Vec3 dirs_c[2] = {c.normal, Vec3::Zero()};
+        if (frictional(c)) {
+            const Vec3 slip = slipAt(c, 0.0);
+            if (slip.norm() > 0.0) dirs_c[1] = slip / slip.norm();
+        }
+        UEntry u[4];
+        const int k = entries(c, Vec3::Ones(), u);
+        for (int i = 0; i < k; ++i) {
+            StringState& s = *strings[u[i].string];
+            for (const Vec3& dir : dirs_c) {
+                const Vec3 left = s.row_projector[u[i].particle] * dir;  // what is left of it
+                const double len = left.norm();
+                if (len > 1e-6) s.row_projector[u[i].particle] -= (left / len) * (left / len).transpose();
+            }
         }
     }
 }

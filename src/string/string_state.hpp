@@ -25,14 +25,36 @@ struct SegmentContact {
     double s = 0.0;              ///< fraction along the segment
     Vec3 normal = Vec3::UnitY(); ///< from the body toward the string
     Vec3 local = Vec3::Zero();   ///< contact point in the body's frame (follows the body); world point without a body
-    RigidId body;                ///< invalid: a fixed point (another string's segment)
+    RigidId body;                ///< invalid: a fixed world point
     double gap = 0.0;            ///< required clearance along the normal, m (the radius for bodies)
     double friction = 0.5;
     int node = -1;               ///< index into body_nodes when the body is movable
     double depth = 0.0;          ///< penetration of the predicted position, m (>= 0)
     double stiffness = 0.0;      ///< penalty k_c used by the last solve, N/m
     bool active = false;         ///< held as an equality in the current pass
+    // String-string contacts (string collision, solveStringCluster): this side is segment
+    // `segment` at `s` of the cluster's string `string`, the other side segment
+    // `partner_segment` at `partner_s` of string `partner` (may be the same string);
+    // `normal` points from the other side toward this one, `gap` is the axis distance
+    // to keep (the sum of the radii).
+    std::uint32_t string = 0;
+    std::uint32_t partner = 0;
+    std::uint32_t partner_segment = 0;
+    double partner_s = 0.0;
+    Vec3 start_normal = Vec3::UnitX();  ///< the normal at the start of the step
+    double start_distance = 0.0; ///< the axes' distance at the start of the step, m
+    double force = 0.0;          ///< normal force of the last solve, N (friction bound, warm start)
 };
+
+struct StringState;
+struct RigidTable;
+struct StepContext;
+
+/// Solves the strain limit of several strings at once, coupled by their string-string
+/// contacts (strain_limit.cpp): one Newton method on the sum of the strings' energies
+/// and the contact penalties. `contacts` index into `strings`.
+void solveStringCluster(const std::vector<StringState*>& strings, std::vector<SegmentContact>& contacts,
+                        RigidTable& rigids, const StepContext& ctx);
 
 /// A movable body touched by a string's contacts: 6 unknowns (translation, rotation) in
 /// the string's Newton solve.
