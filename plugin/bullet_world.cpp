@@ -90,6 +90,63 @@ public:
         }
     }
 
+    void findPointContacts(const PointQuery& query, std::vector<PointContact>& out) override {
+        const double h = owner_.step_;
+        std::vector<RigidContact> found;
+        for (std::size_t i = 0; i < query.start.size(); ++i) {
+            const auto& start = *query.start[i];
+            const auto& pred = *query.predicted[i];
+            const double radius = query.radius[i];
+            if (start.empty() || start.size() != pred.size() || !(radius > 0.0)) continue;
+            // The object's swept bounds: candidate bodies from Bullet's broadphase.
+            Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+            for (std::size_t v = 0; v < start.size(); ++v) {
+                lo = lo.cwiseMin(start[v]).cwiseMin(pred[v]);
+                hi = hi.cwiseMax(start[v]).cwiseMax(pred[v]);
+            }
+            if (!lo.allFinite() || !hi.allFinite()) continue;
+            const double grow = radius + kContactMargin;
+            for (btRigidBody* body : owner_.bodiesIn(lo.array() - grow, hi.array() + grow)) {
+                // Only bodies that were given a proxy before the step (findCandidates).
+                if (!std::binary_search(owner_.mesh_candidates_.begin(), owner_.mesh_candidates_.end(), body)) continue;
+                btTransform before;
+                btTransformUtil::integrateTransform(body->getWorldTransform(), -body->getLinearVelocity(),
+                                                    -body->getAngularVelocity(), static_cast<btScalar>(h), before);
+                btVector3 bmin, bmax, pmin, pmax;
+                body->getCollisionShape()->getAabb(body->getWorldTransform(), bmin, bmax);
+                body->getCollisionShape()->getAabb(before, pmin, pmax);
+                bmin.setMin(pmin);
+                bmax.setMax(pmax);
+                const double body_travel = static_cast<double>((body->getWorldTransform().getOrigin() - before.getOrigin()).length() +
+                                                               body->getAngularVelocity().length() * h * body->getCollisionShape()->getAngularMotionDisc());
+                const RigidId proxy = owner_.proxies_.at(body);
+                for (std::size_t v = 0; v < start.size(); ++v) {
+                    const double margin = radius + kContactMargin;
+                    const Vec3 vlo = start[v].cwiseMin(pred[v]).array() - margin;
+                    const Vec3 vhi = start[v].cwiseMax(pred[v]).array() + margin;
+                    if (vlo.x() > bmax.x() || vlo.y() > bmax.y() || vlo.z() > bmax.z() || vhi.x() < bmin.x() ||
+                        vhi.y() < bmin.y() || vhi.z() < bmin.z())
+                        continue;
+                    // A sphere at the start of the step, reaching as far as both can travel
+                    // (as the segments' capsules do).
+                    found.clear();
+                    testSphere(start[v], radius, *body, before, body_travel + (pred[v] - start[v]).norm() + kContactMargin,
+                               proxy, found);
+                    for (const RigidContact& rc : found) {
+                        PointContact c;
+                        c.object = static_cast<std::uint32_t>(i);
+                        c.vertex = static_cast<std::uint32_t>(v);
+                        c.normal = rc.normal;
+                        c.point = rc.point;
+                        c.body = rc.body;
+                        c.friction = rc.friction;
+                        out.push_back(c);
+                    }
+                }
+            }
+        }
+    }
+
 private:
     static constexpr double kContactMargin = 0.005;  ///< m: near contacts are kept, in case the solve closes them
 
@@ -128,6 +185,26 @@ private:
         capsule.setCollisionShape(&shape);
         const btQuaternion turn = shortestArcQuat(btVector3(0, 1, 0), toBullet(axis / length));
         capsule.setWorldTransform(btTransform(turn, toBullet(0.5 * (a + b))));
+        testShape(capsule, string, segment, a, axis, radius, body, before, reach, proxy, out);
+    }
+
+    /// A mesh vertex: a sphere of the radius at `centre`.
+    void testSphere(const Vec3& centre, double radius, btRigidBody& body, const btTransform& before, double reach,
+                    RigidId proxy, std::vector<RigidContact>& out) {
+        btSphereShape shape(static_cast<btScalar>(radius));
+        btCollisionObject sphere;
+        sphere.setCollisionShape(&shape);
+        sphere.setWorldTransform(btTransform(btQuaternion::getIdentity(), toBullet(centre)));
+        testShape(sphere, StringId{}, 0, centre, Vec3::Zero(), radius, body, before, reach, proxy, out);
+    }
+
+    /// Bullet's narrow phase between `object` (a capsule of axis `a` + s `axis`, or a
+    /// sphere: axis zero) and the body where it was at the start of the step.
+    void testShape(btCollisionObject& object, StringId string, std::uint32_t segment, const Vec3& a, const Vec3& axis,
+                   double radius, btRigidBody& body, const btTransform& before, double reach, RigidId proxy,
+                   std::vector<RigidContact>& out) {
+        btCollisionObject& capsule = object;
+        const double length = axis.norm();
         // Test against the body where it was: a stand-in object at the earlier pose.
         btCollisionObject earlier;
         earlier.setCollisionShape(body.getCollisionShape());
@@ -143,7 +220,7 @@ private:
         c.normal = toCore(result.normal).normalized();
         // The axis point behind the capsule's surface point, as a fraction along the segment.
         const Vec3 on_axis = toCore(result.on_capsule) + radius * c.normal;
-        c.s = std::clamp((on_axis - a).dot(axis) / (length * length), 0.0, 1.0);
+        c.s = length > 0.0 ? std::clamp((on_axis - a).dot(axis) / (length * length), 0.0, 1.0) : 0.0;
         // The contact point moves with the body: from the earlier pose to the current one.
         c.point = toCore(body.getWorldTransform() * (before.inverse() * result.on_body));
         c.normal = toCore(body.getWorldTransform().getBasis() * (before.getBasis().transpose() * result.normal)).normalized();
@@ -167,16 +244,6 @@ BulletWorld::BulletWorld(btDiscreteDynamicsWorld& world, const WorldSettings& se
 // The broadphase finds the rigid bodies near each string (its bounds grown by how far
 // its particles may travel this step); they become proxies for the step.
 void BulletWorld::findCandidates(double h) {
-    struct Collect : btBroadphaseAabbCallback {
-        const btCollisionObject* sentinel = nullptr;
-        std::vector<btRigidBody*> found;
-        bool process(const btBroadphaseProxy* proxy) override {
-            auto* object = static_cast<btCollisionObject*>(proxy->m_clientObject);
-            if (object == sentinel || !object->hasContactResponse()) return true;
-            if (btRigidBody* body = btRigidBody::upcast(object)) found.push_back(body);
-            return true;
-        }
-    };
     candidates_.clear();
     for (StringId id : core_->strings()) {
         const StringView v = core_->view(id);
@@ -189,16 +256,43 @@ void BulletWorld::findCandidates(double h) {
             reach = std::max(reach, (*v.velocities)[p].norm());
         }
         const double grow = v.radius * 2.0 + reach * h + 0.5 * 9.81 * h * h + 0.01;
-        Collect collect;
-        collect.sentinel = &action_->sentinel();
-        world_->getBroadphase()->aabbTest(toBullet(lo.array() - grow), toBullet(hi.array() + grow), collect);
-        if (collect.found.empty()) continue;
-        std::sort(collect.found.begin(), collect.found.end(), [](const btRigidBody* a, const btRigidBody* b) {
-            return a->getBroadphaseHandle()->getUid() < b->getBroadphaseHandle()->getUid();  // deterministic order
-        });
-        for (btRigidBody* body : collect.found) proxyFor(*body);
-        candidates_[id.index] = std::move(collect.found);
+        std::vector<btRigidBody*> found = bodiesIn(lo.array() - grow, hi.array() + grow);
+        if (found.empty()) continue;
+        for (btRigidBody* body : found) proxyFor(*body);
+        candidates_[id.index] = std::move(found);
     }
+    // Meshes (sheets, cloths): their bodies get proxies now, before the step, so that the
+    // point query during the step only reads (a proxy added mid-step would move the core's
+    // body table under the solver).
+    mesh_candidates_.clear();
+    for (const auto& [lo, hi] : core_->meshBounds(h)) {
+        for (btRigidBody* body : bodiesIn(lo, hi)) {
+            proxyFor(*body);
+            mesh_candidates_.push_back(body);
+        }
+    }
+    std::sort(mesh_candidates_.begin(), mesh_candidates_.end());
+    mesh_candidates_.erase(std::unique(mesh_candidates_.begin(), mesh_candidates_.end()), mesh_candidates_.end());
+}
+
+std::vector<btRigidBody*> BulletWorld::bodiesIn(const Vec3& lo, const Vec3& hi) const {
+    struct Collect : btBroadphaseAabbCallback {
+        const btCollisionObject* sentinel = nullptr;
+        std::vector<btRigidBody*> found;
+        bool process(const btBroadphaseProxy* proxy) override {
+            auto* object = static_cast<btCollisionObject*>(proxy->m_clientObject);
+            if (object == sentinel || !object->hasContactResponse()) return true;
+            if (btRigidBody* body = btRigidBody::upcast(object)) found.push_back(body);
+            return true;
+        }
+    };
+    Collect collect;
+    collect.sentinel = &action_->sentinel();
+    world_->getBroadphase()->aabbTest(toBullet(lo), toBullet(hi), collect);
+    std::sort(collect.found.begin(), collect.found.end(), [](const btRigidBody* a, const btRigidBody* b) {
+        return a->getBroadphaseHandle()->getUid() < b->getBroadphaseHandle()->getUid();  // deterministic order
+    });
+    return collect.found;
 }
 
 BulletWorld::~BulletWorld() {
@@ -250,6 +344,7 @@ void BulletWorld::forgetBody(const btRigidBody& body) {
 }
 
 bool BulletWorld::isCandidate(const btRigidBody* body) const {
+    if (std::binary_search(mesh_candidates_.begin(), mesh_candidates_.end(), body)) return true;
     for (const auto& [string, bodies] : candidates_)
         if (std::find(bodies.begin(), bodies.end(), body) != bodies.end()) return true;
     return false;

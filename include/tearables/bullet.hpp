@@ -86,6 +86,9 @@ private:
     RigidId proxyFor(btRigidBody& body);
     void findCandidates(double h);
     bool isCandidate(const btRigidBody* body) const;
+    /// Rigid bodies (with contact response) whose broadphase bounds overlap [lo, hi],
+    /// in a deterministic order.
+    std::vector<btRigidBody*> bodiesIn(const Vec3& lo, const Vec3& hi) const;
 
     btDiscreteDynamicsWorld* world_;
     std::unique_ptr<World> core_;
@@ -93,6 +96,7 @@ private:
     std::unique_ptr<Contacts> contacts_;
     std::map<const btRigidBody*, RigidId> proxies_;  // ordered: deterministic iteration
     std::map<std::uint32_t, std::vector<btRigidBody*>> candidates_;  // per string: bodies near it this step
+    std::vector<btRigidBody*> mesh_candidates_;  // bodies near some mesh object this step (sorted)
     std::vector<std::pair<const btRigidBody*, RigidId>> proxy_order_;  // scratch
     std::vector<Event> events_;
     StageTimes total_;

@@ -72,6 +72,25 @@ struct CollisionQuery {
     std::vector<const std::vector<std::uint8_t>*> broken;  ///< per string, per segment
 };
 
+/// Vertices of meshes (paper sheets, cloths) for a host's collision query: each object's
+/// vertices are spheres of the object's radius (its half thickness), swept from where they
+/// were at the start of the step to where they are predicted to go.
+struct PointQuery {
+    std::vector<const std::vector<Vec3>*> start;      ///< per object, vertex positions at the step start
+    std::vector<const std::vector<Vec3>*> predicted;  ///< per object, predicted vertex positions
+    std::vector<double> radius;                       ///< per object, m, > 0
+};
+
+/// A mesh vertex touching a rigid body (the answer to a PointQuery).
+struct PointContact {
+    std::uint32_t object = 0;      ///< index into the PointQuery's arrays
+    std::uint32_t vertex = 0;      ///< the vertex
+    Vec3 normal = Vec3::UnitY();   ///< unit, from the body toward the vertex
+    Vec3 point = Vec3::Zero();     ///< on the body's surface, world, m (where the body is now)
+    RigidId body;                  ///< the body's proxy (inverse mass 0 = static)
+    double friction = 0.5;         ///< Coulomb coefficient, >= 0
+};
+
 /// Finds contacts between strings and rigid bodies; implemented by the host (the Bullet
 /// plugin uses Bullet's broadphase and narrow phase). Called once per step.
 class ContactProvider {
@@ -79,6 +98,13 @@ public:
     virtual ~ContactProvider() = default;
     /// Appends the contacts of the swept segments with rigid bodies to `out`.
     virtual void findContacts(const CollisionQuery& query, std::vector<RigidContact>& out) = 0;
+    /// Appends the contacts of the swept mesh vertices with rigid bodies to `out`
+    /// (speculative: a vertex within its radius plus its travel of a body is reported).
+    /// A host without mesh collision reports none.
+    virtual void findPointContacts(const PointQuery& query, std::vector<PointContact>& out) {
+        (void)query;
+        (void)out;
+    }
 };
 
 /// Read-only view of a string's state, valid until the next step or change.
@@ -122,6 +148,10 @@ public:
     void removeString(StringId id);
     /// Strings that exist, in creation order.
     std::vector<StringId> strings() const;
+    /// Bounds (lower, upper corner) of every live mesh object (paper sheet, cloth), grown
+    /// by its radius and by what it can travel in a step of `h`: the host prepares the
+    /// candidate bodies of the step's PointQuery from them.
+    std::vector<std::pair<Vec3, Vec3>> meshBounds(double h) const;
     /// True when `id` names a string of this world.
     bool contains(StringId id) const;
 

@@ -158,6 +158,28 @@ struct World::Impl {
 
     /// Asks the host for contacts on the predicted positions and hands each string its own,
     /// checked (a bad contact from the host is dropped, never trusted).
+    /// The host's contacts of mesh vertices (sheets, cloths) with rigid bodies: only those
+    /// that name a vertex of the query and a body of the table, with finite data and a
+    /// unit normal, are kept. A host that throws gives none this step.
+    void findPointContacts(const PointQuery& q, std::vector<PointContact>& out) {
+        out.clear();
+        if (!contact_provider || !settings.rigid_contacts) return;
+        try {
+            contact_provider->findPointContacts(q, out);
+        } catch (...) {
+            out.clear();
+            return;
+        }
+        out.erase(std::remove_if(out.begin(), out.end(),
+                                 [&](const PointContact& c) {
+                                     return c.object >= q.start.size() || c.vertex >= q.start[c.object]->size() ||
+                                            c.body.index >= rigids.bodies.size() || !rigids.used[c.body.index] ||
+                                            !finite(c.normal) || !finite(c.point) || !std::isfinite(c.friction) ||
+                                            std::abs(c.normal.norm() - 1.0) > 1e-3;
+                                 }),
+                  out.end());
+    }
+
     void collectContacts(const StepContext& ctx) {
         query.strings.clear();
         query.start.clear();
@@ -601,6 +623,11 @@ std::vector<StringId> World::strings() const {
     for (std::size_t i = 0; i < impl_->strings.size(); ++i)
         if (impl_->strings[i].alive) ids.push_back(StringId{static_cast<std::uint32_t>(i)});
     return ids;
+}
+
+std::vector<std::pair<Vec3, Vec3>> World::meshBounds(double h) const {
+    (void)h;  // sheets and cloths add their swept bounds here as they land
+    return {};
 }
 
 bool World::contains(StringId id) const { return id.index < impl_->strings.size() && impl_->strings[id.index].alive; }
