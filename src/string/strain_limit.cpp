@@ -93,10 +93,24 @@ Vec3 contactPoint(const SegmentContact& c, const RigidTable& rigids) {
     return c.body.valid() ? gluePoint(rigids.bodies[c.body.index], c.local) : c.local;
 }
 
-/// The contact's gap function: >= 0 when the string is clear of the surface.
-double contactGap(const StringState& s, const SegmentContact& c, const Vec3& xs, const Vec3& p) {
-    (void)s;
-    return c.normal.dot(xs - p) - c.gap;
+/// A rigid contact's normal now: it turns with its body. The contact is the body's
+/// surface plane at the contact point (point and normal fixed in the body), so a body
+/// that rolls on a rope does not lift off it: with the normal held fixed in the world, a
+/// box slammed onto a taut rope found a lower penalty energy by spinning 60 degrees about
+/// the rope in one step (its face point rose, the fixed normal saw the overlap vanish),
+/// and the crate slipped through (the fast-crate test).
+Vec3 contactNormal(const SegmentContact& c, const RigidTable& rigids) {
+    return c.body.valid() ? Vec3(rigids.bodies[c.body.index].orientation * c.local_normal) : c.normal;
+}
+
+/// The contact's gap function: >= 0 when the string is clear of the surface plane
+/// through p with normal n.
+double contactGap(const SegmentContact& c, const Vec3& xs, const Vec3& p, const Vec3& n) {
+    return n.dot(xs - p) - c.gap;
+}
+
+double contactGap(const SegmentContact& c, const Vec3& xs, const RigidTable& rigids) {
+    return contactGap(c, xs, contactPoint(c, rigids), contactNormal(c, rigids));
 }
 
 /// True when particle p does not move in the solve (pinned, or glued to an immovable body).
@@ -190,14 +204,16 @@ double stepEnergy(const StringState& s, const RigidTable& rigids, const StepCont
         const std::size_t j = c.segment;
         if (s.broken[j] || c.stiffness <= 0.0) continue;
         Vec3 p = contactPoint(c, rigids);
+        Vec3 nrm = contactNormal(c, rigids);
         if (c.node >= 0) {
             const RigidState& body = rigids.bodies[c.body.index];
             const Vec6& u = s.node_step[static_cast<std::size_t>(c.node)];
             p += alpha * (u.head<3>() + u.tail<3>().cross(p - body.position));
+            nrm = (nrm + alpha * u.tail<3>().cross(nrm)).normalized();
         }
         if (!c.active) continue;
         const Vec3 xs = (1.0 - c.s) * trial(j) + c.s * trial(j + 1);
-        const double g = contactGap(s, c, xs, p);
+        const double g = contactGap(c, xs, p, nrm);
         e += 0.5 * c.stiffness * g * g;
     }
     return e;
@@ -305,9 +321,10 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
         const std::size_t j = c.segment;
         if (s.broken[j]) continue;
         const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
-        if (contactGap(s, c, xs, contactPoint(c, rigids)) > kContactSlop * s.radius[j]) continue;  // not touching
+        if (contactGap(c, xs, rigids) > kContactSlop * s.radius[j]) continue;  // not touching
+        const Vec3 nrm = contactNormal(c, rigids);
         for (std::size_t q : {j, j + 1}) {
-            const Vec3 dir = s.row_projector[q] * c.normal;  // what is left of this normal
+            const Vec3 dir = s.row_projector[q] * nrm;  // what is left of this normal
             const double len = dir.norm();
             if (len > 1e-6) s.row_projector[q] -= (dir / len) * (dir / len).transpose();
         }
@@ -351,7 +368,7 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     for (SegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
-        c.active = !s.broken[j] && contactGap(s, c, xs, contactPoint(c, rigids)) < 0.0;
+        c.active = !s.broken[j] && contactGap(c, xs, rigids) < 0.0;
     }
     const int passes = s.contacts.empty() ? 1 : kContactPasses;
     // Impacts are strongly nonlinear (a rope deflected by centimetres in one step): with
@@ -384,7 +401,8 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
             // converges fast); the passes below release those that pull and add those
             // that penetrate (a primal active-set method).
             if (!c.active) continue;
-            const double g = contactGap(s, c, xs, p);
+            const Vec3 nrm = contactNormal(c, rigids);
+            const double g = contactGap(c, xs, p, nrm);
             // Stiff enough to dominate the rope's springs, the particles' and the body's
             // inertia: under a load F it gives way by F / k_c only. Fixed for the step, so
             // that the line search below sees one energy.
@@ -394,7 +412,6 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
                 c.stiffness = kc * kContactStiffnessFactor;
             }
             const double kc = c.stiffness;
-            const Vec3& nrm = c.normal;
             const Mat3 nnt = nrm * nrm.transpose();
             const double wa = 1.0 - c.s, wb = c.s;
             const bool fa = !fixedRow(s, j), fb = !fixedRow(s, j + 1);
@@ -412,7 +429,8 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
             const RigidState& body = rigids.bodies[c.body.index];
             Vec6 au;
             au.head<3>() = -nrm;
-            au.tail<3>() = -(p - body.position).cross(nrm);
+            // dg/dtheta with the normal turning with the body: n x (x(s) - c).
+            au.tail<3>() = nrm.cross(xs - body.position);
             node_diag[b] += kc * au * au.transpose();
             node_rhs[b] -= kc * g * au;
             if (fa) coupling[b].emplace_back(j, kc * wa * nrm * au.transpose());
@@ -502,7 +520,7 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         const std::size_t j = c.segment;
         if (s.broken[j]) continue;
         const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
-        const double g = contactGap(s, c, xs, contactPoint(c, rigids));
+        const double g = contactGap(c, xs, rigids);
         if (c.active && converged && g > kContactSlop * s.radius[j] * 1e-3) {
             c.active = false;
             changed = true;
@@ -528,7 +546,8 @@ void applyFriction(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         if (s.broken[j] || c.friction <= 0.0 || c.stiffness <= 0.0) continue;
         const Vec3 p = contactPoint(c, rigids);
         const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
-        const double g = contactGap(s, c, xs, p);
+        const Vec3 nrm = contactNormal(c, rigids);
+        const double g = contactGap(c, xs, p, nrm);
         const double normal_impulse = c.stiffness * std::max(0.0, -g) * h2;
         const double wa = 1.0 - c.s, wb = c.s;
         const double inv_a = s.hold[j].kind == ParticleHold::Kind::Free ? s.inv_mass[j] : 0.0;
@@ -538,7 +557,7 @@ void applyFriction(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         const Vec3 p0 = c.body.valid() ? Vec3(rigids.start_position[c.body.index] + rigids.start_orientation[c.body.index] * c.local) : p;
         const Vec3 xs0 = (1.0 - c.s) * s.x_prev[j] + c.s * s.x_prev[j + 1];
         Vec3 rel = (xs - xs0) - (p - p0);
-        rel -= c.normal * c.normal.dot(rel);
+        rel -= nrm * nrm.dot(rel);
         const double slip = rel.norm();
         if (slip <= 0.0) continue;
         const Vec3 corr = -rel * std::min(1.0, c.friction * normal_impulse * w_point / slip);
@@ -621,25 +640,25 @@ void assembleRigidContacts(StringState& s, const RigidTable& rigids, const StepC
     for (SegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         if (s.broken[j] || !c.active) continue;
-        const Vec3 p = contactPoint(c, rigids);
+        const Vec3 nrm = contactNormal(c, rigids);
         const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
-        const double g = contactGap(s, c, xs, p);
+        const double g = contactGap(c, xs, contactPoint(c, rigids), nrm);
         if (c.stiffness <= 0.0) {
             double kc = std::max({1.0 / *std::min_element(s.compliance.begin(), s.compliance.end()), heaviest * inv_h2, 1e-12});
             if (c.node >= 0) kc = std::max(kc, inv_h2 / rigids.bodies[c.body.index].inverse_mass);
             c.stiffness = kc * kContactStiffnessFactor;
         }
         const double kc = c.stiffness;
-        const Mat3 nnt = c.normal * c.normal.transpose();
+        const Mat3 nnt = nrm * nrm.transpose();
         const double wa = 1.0 - c.s, wb = c.s;
         const bool fa = freeParticle(s, j), fb = freeParticle(s, j + 1);
         if (fa) {
             s.blk_diag[j] += kc * wa * wa * nnt;
-            s.blk_rhs[j] -= kc * g * wa * c.normal;
+            s.blk_rhs[j] -= kc * g * wa * nrm;
         }
         if (fb) {
             s.blk_diag[j + 1] += kc * wb * wb * nnt;
-            s.blk_rhs[j + 1] -= kc * g * wb * c.normal;
+            s.blk_rhs[j + 1] -= kc * g * wb * nrm;
         }
         if (fa && fb) s.blk_off[j] += kc * wa * wb * nnt;
     }
@@ -1071,7 +1090,7 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
                 const std::size_t j = c.segment;
                 if (sp->broken[j]) continue;
                 const Vec3 xs = (1.0 - c.s) * sp->x[j] + c.s * sp->x[j + 1];
-                const double g = contactGap(*sp, c, xs, contactPoint(c, rigids));
+                const double g = contactGap(c, xs, rigids);
                 if (c.active && converged && g > kContactSlop * sp->radius[j] * 1e-3) {
                     c.active = false;
                     changed = true;

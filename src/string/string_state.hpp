@@ -23,7 +23,8 @@ struct ParticleHold {
 struct SegmentContact {
     std::uint32_t segment = 0;
     double s = 0.0;              ///< fraction along the segment
-    Vec3 normal = Vec3::UnitY(); ///< from the body toward the string
+    Vec3 normal = Vec3::UnitY(); ///< from the body toward the string (at collection; see local_normal)
+    Vec3 local_normal = Vec3::UnitY();  ///< the normal in the body's frame: it turns with the body
     Vec3 local = Vec3::Zero();   ///< contact point in the body's frame (follows the body); world point without a body
     RigidId body;                ///< invalid: a fixed world point
     double gap = 0.0;            ///< required clearance along the normal, m (the radius for bodies)
