@@ -209,13 +209,18 @@ struct World::Impl {
             if (!finite(c.normal) || !finite(c.point) || !std::isfinite(c.s) || !std::isfinite(c.friction)) continue;
             const double len = c.normal.norm();
             if (!(len > 0.5)) continue;
-            // A string does not collide with a body it is glued to: the glue already moves
-            // that body in the string's solve, and a second coupling through contacts would
-            // count the same body twice (a limitation: a rope cannot yet wrap around the
-            // crate it holds).
+            // A string glued to a MOVABLE body does not collide with it: the glue already
+            // moves that body in the string's solve, and a second coupling through
+            // contacts would count the same body twice (a limitation: a rope cannot yet
+            // wrap around the crate it holds). A static or kinematic body is no unknown,
+            // so a string glued to it (a winch drum) collides with it, except for the
+            // segments next to the glued particles (they start on its surface).
             bool glued = false;
-            for (const ParticleHold& hold : s.hold)
-                glued = glued || (hold.kind == ParticleHold::Kind::Glue && hold.body == c.body);
+            for (std::size_t p = 0; p < s.hold.size() && !glued; ++p) {
+                const ParticleHold& hold = s.hold[p];
+                if (hold.kind != ParticleHold::Kind::Glue || hold.body != c.body) continue;
+                glued = rigids.bodies[c.body.index].inverse_mass > 0.0 || (c.segment + 1 >= p && c.segment <= p);
+            }
             if (glued) continue;
             detail::SegmentContact sc;
             sc.segment = c.segment;
