@@ -73,3 +73,24 @@ TEST(DemoScenes, PlasticityKeepsTheElongationAboveYieldOnly) {  // Fig. 8, top r
     // 180 N on 1 mm radius: 57 MPa; permanent strain 4e7/3e9 + 1.7e7/3e8 - 5.7e7/3e9 = 5.1%.
     EXPECT_NEAR(length(last, "above") / 0.5 - 1.0, 0.051, 0.1 * 0.051);
 }
+
+// Strings Fig. 10: the hanging bridge holds its own boards (no tear before the first crate
+// lands at 1 s), crates pile onto it until its ropes tear from the impacts, and then the
+// torn side's boards fall (some board ends below half the bridge's height).
+TEST(DemoScenes, BridgeHoldsItsBoardsThenTearsUnderTheCrates) {
+    const fs::path out = run("bridge");
+    double first_tear = 1e9;
+    std::ifstream events(out / "events.jsonl");
+    std::string line;
+    while (std::getline(events, line)) {
+        const json e = json::parse(line);
+        if (e["type"] == "tear") first_tear = std::min(first_tear, e["t"].get<double>());
+    }
+    EXPECT_GT(first_tear, 1.2);
+    EXPECT_LT(first_tear, 6.0);
+    const json last = lastFrame(out);
+    double lowest_board = 1e9;
+    for (const auto& [name, body] : last["bodies"].items())
+        if (name.rfind("board", 0) == 0) lowest_board = std::min(lowest_board, body["p"][1].get<double>());
+    EXPECT_LT(lowest_board, 1.0);  // the bridge was at 2 m
+}
