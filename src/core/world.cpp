@@ -213,14 +213,12 @@ struct World::Impl {
             // moves that body in the string's solve, and a second coupling through
             // contacts would count the same body twice (a limitation: a rope cannot yet
             // wrap around the crate it holds). A static or kinematic body is no unknown,
-            // so a string glued to it (a winch drum) collides with it, except for the
-            // segments next to the glued particles (they start on its surface).
+            // so a string glued to it (a winch drum) collides with it (glue it on the
+            // surface: the contacts push the rest of the string out of the body).
             bool glued = false;
-            for (std::size_t p = 0; p < s.hold.size() && !glued; ++p) {
-                const ParticleHold& hold = s.hold[p];
-                if (hold.kind != ParticleHold::Kind::Glue || hold.body != c.body) continue;
-                glued = rigids.bodies[c.body.index].inverse_mass > 0.0 || (c.segment + 1 >= p && c.segment <= p);
-            }
+            if (rigids.bodies[c.body.index].inverse_mass > 0.0)
+                for (const ParticleHold& hold : s.hold)
+                    glued = glued || (hold.kind == ParticleHold::Kind::Glue && hold.body == c.body);
             if (glued) continue;
             detail::SegmentContact sc;
             sc.segment = c.segment;

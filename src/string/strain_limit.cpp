@@ -534,13 +534,14 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     finishChain(s, rigids, ctx);
 }
 
-void applyFriction(StringState& s, RigidTable& rigids, const StepContext& ctx) {
+bool applyFriction(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     // Coulomb friction as a position correction (PBD style): the contact point's
     // tangential motion relative to the body this step is undone up to mu times the
     // normal impulse the solve applied there (k_c |g| h^2: it includes the pressure of
     // the string's tension around an edge, not only its weight); the body gets the
     // opposite impulse.
     const double h2 = ctx.h * ctx.h;
+    bool moved = false;
     for (const SegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         if (s.broken[j] || c.friction <= 0.0 || c.stiffness <= 0.0) continue;
@@ -563,6 +564,7 @@ void applyFriction(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         const Vec3 corr = -rel * std::min(1.0, c.friction * normal_impulse * w_point / slip);
         // Move the two ends so that the contact point moves by corr, by inverse mass.
         const Vec3 impulse = corr / w_point;
+        moved = true;
         s.x[j] += wa * inv_a * impulse;
         s.x[j + 1] += wb * inv_b * impulse;
         if (c.node >= 0 && rigids.movable(c.body)) {
@@ -570,6 +572,7 @@ void applyFriction(StringState& s, RigidTable& rigids, const StepContext& ctx) {
             applyBodyImpulse(body, p - body.position, -impulse);
         }
     }
+    return moved;
 }
 
 

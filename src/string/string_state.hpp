@@ -179,7 +179,8 @@ struct RigidTable {
 void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx);
 void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& ctx);
 void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx);
-void applyFriction(StringState& s, RigidTable& rigids, const StepContext& ctx);
+/// Returns true when it moved a particle.
+bool applyFriction(StringState& s, RigidTable& rigids, const StepContext& ctx);
 void estimateTension(StringState& s, const StepContext& ctx);
 void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::vector<Event>& events);
 void updateVelocities(StringState& s, const StepContext& ctx);
