@@ -6,8 +6,12 @@
 
 #include <BulletCollision/CollisionShapes/btEmptyShape.h>
 #include <btBulletDynamicsCommon.h>
+#include <BulletCollision/BroadphaseCollision/btDbvt.h>
 
 #include <algorithm>
+#include <cstdint>
+#include <map>
+#include <memory>
 #include <exception>
 
 namespace tearables {
@@ -52,6 +56,11 @@ public:
 
     void findContacts(const CollisionQuery& query, std::vector<RigidContact>& out) override {
         const double h = owner_.step_;
+        // Trees of strings that are gone (removed, frozen) are dropped.
+        for (auto it = trees_.begin(); it != trees_.end();) {
+            const bool live = std::find(query.strings.begin(), query.strings.end(), StringId{it->first}) != query.strings.end();
+            it = live ? std::next(it) : trees_.erase(it);
+        }
         for (std::size_t i = 0; i < query.strings.size(); ++i) {
             const auto it = owner_.candidates_.find(query.strings[i].index);
             if (it == owner_.candidates_.end()) continue;
@@ -59,6 +68,7 @@ public:
             const auto& pred = *query.predicted[i];
             const auto& radius = *query.radius[i];
             const auto& broken = *query.broken[i];
+            SegmentTree& tree = treeFor(query.strings[i].index, start, pred, radius, broken);
             for (btRigidBody* body : it->second) {
                 // Where the body was at the start of the step: Bullet has already moved it
                 // by x += h v, so step back along its velocities.
@@ -73,17 +83,18 @@ public:
                 const double body_travel = static_cast<double>((body->getWorldTransform().getOrigin() - before.getOrigin()).length() +
                                                                body->getAngularVelocity().length() * h * body->getCollisionShape()->getAngularMotionDisc());
                 const RigidId proxy = owner_.proxies_.at(body);
-                for (std::size_t j = 0; j < broken.size(); ++j) {
-                    if (broken[j]) continue;
-                    const double margin = radius[j] + kContactMargin;
-                    // The segment's swept bounds: where it was and where it is going.
-                    Vec3 lo = start[j].cwiseMin(start[j + 1]).cwiseMin(pred[j]).cwiseMin(pred[j + 1]).array() - margin;
-                    Vec3 hi = start[j].cwiseMax(start[j + 1]).cwiseMax(pred[j]).cwiseMax(pred[j + 1]).array() + margin;
-                    if (lo.x() > bmax.x() || lo.y() > bmax.y() || lo.z() > bmax.z() || hi.x() < bmin.x() ||
-                        hi.y() < bmin.y() || hi.z() < bmin.z())
-                        continue;
+                // The segments whose swept bounds overlap the body's: from the string's own
+                // btDbvt, in segment order (deterministic).
+                hits_.clear();
+                if (tree.tree.m_root) {
+                    const btDbvtVolume volume = btDbvtVolume::FromMM(bmin, bmax);
+                    Overlaps collect(hits_);
+                    tree.tree.collideTV(tree.tree.m_root, volume, collect);
+                }
+                std::sort(hits_.begin(), hits_.end());
+                for (const std::uint32_t j : hits_) {
                     const double seg_travel = std::max((pred[j] - start[j]).norm(), (pred[j + 1] - start[j + 1]).norm());
-                    test(query.strings[i], static_cast<std::uint32_t>(j), start[j], start[j + 1], radius[j], *body, before,
+                    test(query.strings[i], j, start[j], start[j + 1], radius[j], *body, before,
                          body_travel + seg_travel + kContactMargin, proxy, out);
                 }
             }
@@ -148,7 +159,50 @@ public:
     }
 
 private:
-    static constexpr double kContactMargin = 0.005;  ///< m: near contacts are kept, in case the solve closes them
+    static constexpr double kContactMargin = 0.005;
+
+    /// A string's segments in a btDbvt of their swept bounds (where each segment was at the
+    /// start of the step and where it is predicted to go, grown by its radius and the
+    /// contact margin). Kept from step to step: each leaf is updated in place.
+    struct SegmentTree {
+        btDbvt tree;
+        std::vector<btDbvtNode*> leaves;  // per segment; null while broken
+    };
+
+    struct Overlaps : btDbvt::ICollide {
+        explicit Overlaps(std::vector<std::uint32_t>& out) : hits(out) {}
+        void Process(const btDbvtNode* leaf) override {
+            hits.push_back(static_cast<std::uint32_t>(reinterpret_cast<std::uintptr_t>(leaf->data)));
+        }
+        std::vector<std::uint32_t>& hits;
+    };
+
+    SegmentTree& treeFor(std::uint32_t string, const std::vector<Vec3>& start, const std::vector<Vec3>& pred,
+                         const std::vector<double>& radius, const std::vector<std::uint8_t>& broken) {
+        std::unique_ptr<SegmentTree>& slot = trees_[string];
+        if (!slot || slot->leaves.size() != broken.size()) slot = std::make_unique<SegmentTree>();
+        SegmentTree& t = *slot;
+        t.leaves.resize(broken.size(), nullptr);
+        for (std::size_t j = 0; j < broken.size(); ++j) {
+            if (broken[j]) {
+                if (t.leaves[j]) t.tree.remove(t.leaves[j]);
+                t.leaves[j] = nullptr;
+                continue;
+            }
+            const double margin = radius[j] + kContactMargin;
+            const Vec3 lo = start[j].cwiseMin(start[j + 1]).cwiseMin(pred[j]).cwiseMin(pred[j + 1]).array() - margin;
+            const Vec3 hi = start[j].cwiseMax(start[j + 1]).cwiseMax(pred[j]).cwiseMax(pred[j + 1]).array() + margin;
+            btDbvtVolume volume = btDbvtVolume::FromMM(toBullet(lo), toBullet(hi));
+            if (t.leaves[j])
+                t.tree.update(t.leaves[j], volume);
+            else
+                t.leaves[j] = t.tree.insert(volume, reinterpret_cast<void*>(static_cast<std::uintptr_t>(j)));
+        }
+        return t;
+    }
+
+    std::map<std::uint32_t, std::unique_ptr<SegmentTree>> trees_;  // per string index
+    std::vector<std::uint32_t> hits_;  ///< m: near contacts are kept, in case the solve closes them
 
     /// Collects the deepest point Bullet reports between the capsule and the body.
     struct Deepest : btCollisionWorld::ContactResultCallback {
