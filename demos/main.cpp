@@ -35,15 +35,15 @@ tearables::scene::Scene loadNamed(const std::string& what) {
                                                "\" (see `tearables list`)");
 }
 
-/// "640x360" -> (640, 360); throws InvalidInput("--size") for anything else.
-std::pair<int, int> parseSize(const std::string& text) {
+/// "640x360" -> (640, 360); throws InvalidInput(option) for anything else.
+std::pair<int, int> parseSize(const std::string& text, const std::string& option) {
     static const std::regex pattern("([0-9]{1,5})x([0-9]{1,5})");
     std::smatch m;
     if (!std::regex_match(text, m, pattern))
-        throw tearables::InvalidInput("--size", "expected WIDTHxHEIGHT in pixels, e.g. 640x360 (got \"" + text + "\")");
+        throw tearables::InvalidInput(option, "expected WIDTHxHEIGHT in pixels, e.g. 640x360 (got \"" + text + "\")");
     const int w = std::stoi(m[1]), h = std::stoi(m[2]);
     if (w < 16 || h < 16 || w > 8192 || h > 8192)
-        throw tearables::InvalidInput("--size", "each side must be in [16, 8192] pixels (got " + text + ")");
+        throw tearables::InvalidInput(option, "each side must be in [16, 8192] pixels (got " + text + ")");
     return {w, h};
 }
 
@@ -82,7 +82,7 @@ int main(int argc, char** argv) {
     long long steps = -1;
     int every = 0;
     bool png = false, quiet = false, mp4 = false, plot = false;
-    std::string size_text;
+    std::string size_text, plot_size_text;
     CLI::App* run = app.add_subcommand("run", "run a scene file or a built-in scene");
     run->add_option("SCENE", scene_arg, "a scene JSON file, or a built-in scene's name")->required();
     run->add_option("--out", out_dir, "output directory (default: tearables-out/<scene>)");
@@ -92,6 +92,7 @@ int main(int argc, char** argv) {
     run->add_option("--size", size_text, "image size WIDTHxHEIGHT for --png and --mp4 (default 640x360)");
     run->add_flag("--mp4", mp4, "also assemble the frames into video.mp4 with ffmpeg (implies --png)");
     run->add_flag("--plot", plot, "plot tension, length, torsional strain and stress-strain into plot.png with gnuplot");
+    run->add_option("--plot-size", plot_size_text, "plot.png's size WIDTHxHEIGHT (default 1200x900)");
     run->add_flag("--quiet", quiet, "no progress bar, no report");
     CLI::App* list = app.add_subcommand("list", "list the built-in scenes");
 
@@ -110,12 +111,16 @@ int main(int argc, char** argv) {
 
     namespace tr = tearables::render;
     ts::Scene scene;
-    std::pair<int, int> size{640, 360};
+    std::pair<int, int> size{640, 360}, plot_size{1200, 900};
     if (mp4) png = true;
     if (const int status = guarded(scene_arg, [&] {
             if (!size_text.empty()) {
                 if (!png) throw tearables::InvalidInput("--size", "sets the size of pictures: give it with --png or --mp4");
-                size = parseSize(size_text);
+                size = parseSize(size_text, "--size");
+            }
+            if (!plot_size_text.empty()) {
+                if (!plot) throw tearables::InvalidInput("--plot-size", "sets the size of plot.png: give it with --plot");
+                plot_size = parseSize(plot_size_text, "--plot-size");
             }
             scene = loadNamed(scene_arg);
         }))
@@ -157,7 +162,7 @@ int main(int argc, char** argv) {
             const int every_used = options.every.value_or(scene.output_every);
             tr::makeVideo(out_dir, std::clamp(1.0 / (scene.dt * every_used), 1.0, 60.0), video);
         }
-        if (plot) tr::writePlots(scene, out_dir);
+        if (plot) tr::writePlots(scene, out_dir, plot_size.first, plot_size.second);
         if (quiet) return;
         std::printf("simulated %lld steps (%.3g s) in %.3g s of stepping; digest %s\n", r.steps, r.simulated_seconds,
                     r.wall_seconds, r.digest.c_str());

@@ -201,17 +201,22 @@ void Renderer::drawGround(const Vec3& n_in, double offset, const Vec3& centre, d
     vertex(c - extent * a + extent * b);
     glEnd();
     glDisable(GL_POLYGON_OFFSET_FILL);
-    drawReferenceGrid(n, offset, centre, extent);
+    drawGrid(n, offset, centre, extent, {0.66f, 0.66f, 0.65f});
 }
 
-void Renderer::drawReferenceGrid(const Vec3& n_in, double offset, const Vec3& centre, double extent) {
+void Renderer::drawReferenceGrid(const Vec3& normal_in, double offset, const Vec3& centre, double extent) {
+    drawGrid(normal_in, offset, centre, extent, {0.74f, 0.76f, 0.80f});
+}
+
+void Renderer::drawGrid(const Vec3& n_in, double offset, const Vec3& centre, double extent, const Rgb& line_color) {
     const Vec3 n = n_in.normalized();
     Vec3 a, b;
     basis(n, a, b);
     // Lines on multiples of the spacing along a and b, so the grid stays put as the centre moves.
-    double spacing = std::pow(10.0, std::floor(std::log10(std::max(extent, 1e-6) / 5.0)));
-    if (extent / spacing > 40.0) spacing *= 5.0;
-    else if (extent / spacing > 20.0) spacing *= 2.0;
+    // A round spacing (1, 2 or 5 times a power of ten) giving 4 to 10 lines each side.
+    double spacing = std::pow(10.0, std::floor(std::log10(std::max(extent, 1e-6) / 4.0)));
+    if (extent / spacing > 20.0) spacing *= 5.0;
+    else if (extent / spacing > 10.0) spacing *= 2.0;
     const Vec3 origin = n * offset;
     const double ca = (centre - origin).dot(a), cb = (centre - origin).dot(b);
     const int count = static_cast<int>(std::ceil(extent / spacing));
@@ -222,7 +227,7 @@ void Renderer::drawReferenceGrid(const Vec3& n_in, double offset, const Vec3& ce
         lines.emplace_back(origin + sa * a + (b0 - extent) * b, origin + sa * a + (b0 + extent) * b);
         lines.emplace_back(origin + (a0 - extent) * a + sb * b, origin + (a0 + extent) * a + sb * b);
     }
-    drawLines(lines, {0.62f, 0.62f, 0.62f}, 1.0f);
+    drawLines(lines, line_color, 1.0f);
 }
 
 double Renderer::pixelSizeAt(const Vec3& point) const {

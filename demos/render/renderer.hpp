@@ -113,6 +113,7 @@ public:
     double pixelSizeAt(const Vec3& point) const;
 
 private:
+    void drawGrid(const Vec3& normal, double offset, const Vec3& centre, double extent, const Rgb& line_color);
     struct Impl;
     std::unique_ptr<Impl> impl_;
     int width_ = 0;

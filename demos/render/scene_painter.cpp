@@ -8,15 +8,16 @@ namespace tearables::render {
 
 namespace {
 
-/// Radius of a sphere around the body's centre that holds its shape, m.
-double boundingRadius(const scene::Shape& s) {
+/// Half extents of the world-axis box around a body's shape at its orientation, m.
+Vec3 boundingHalfExtents(const scene::Shape& s, const Quat& orientation) {
+    const Mat3 r = orientation.normalized().toRotationMatrix().cwiseAbs();
     switch (s.kind) {
-        case scene::Shape::Kind::Box: return s.half_extents.norm();
-        case scene::Shape::Kind::Sphere: return s.radius;
-        case scene::Shape::Kind::Capsule: return s.radius + s.half_height;
-        case scene::Shape::Kind::Plane: return 0.0;
+        case scene::Shape::Kind::Box: return r * s.half_extents;
+        case scene::Shape::Kind::Sphere: return Vec3::Constant(s.radius);
+        case scene::Shape::Kind::Capsule: return r * Vec3(s.radius, s.radius + s.half_height, s.radius);
+        case scene::Shape::Kind::Plane: return Vec3::Zero();
     }
-    return 0.0;
+    return Vec3::Zero();
 }
 
 /// Muted colours for dynamic bodies, by creation order; static bodies are grey.
@@ -40,7 +41,10 @@ Bounds sceneBounds(const scene::Scene& scene) {
     for (const scene::String& s : scene.strings)
         for (const Vec3& p : s.desc.points) b.add(p, s.desc.radius);
     const auto addBody = [&](const scene::Body& body) {
-        if (body.shape.kind != scene::Shape::Kind::Plane) b.add(body.position, boundingRadius(body.shape));
+        if (body.shape.kind == scene::Shape::Kind::Plane) return;
+        const Vec3 h = boundingHalfExtents(body.shape, body.orientation);
+        b.add(body.position - h);
+        b.add(body.position + h);
     };
     for (const scene::Body& body : scene.bodies) addBody(body);
     for (const scene::Driver& d : scene.drivers)
@@ -50,7 +54,11 @@ Bounds sceneBounds(const scene::Scene& scene) {
 }
 
 View fitCamera(const scene::Scene& scene, double aspect) {
-    const Bounds b = sceneBounds(scene);
+    Bounds b = sceneBounds(scene);
+    // Room for what moves: ropes swing and stretch, bodies fall a little.
+    const double grow = 0.08 * (b.hi - b.lo).norm();
+    b.lo.array() -= grow;
+    b.hi.array() += grow;
     View v;
     v.fov = scene.camera.fov;
     const Vec3 centre = 0.5 * (b.lo + b.hi);
@@ -108,7 +116,7 @@ Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::Fra
         }
     }
     // Without a ground, a faint grid below the scene still gives depth and scale.
-    if (!ground) renderer.drawReferenceGrid(Vec3::UnitY(), b.lo.y() - 0.1 * size, centre, std::max(1.5 * size, 1.0));
+    if (!ground) renderer.drawReferenceGrid(Vec3::UnitY(), b.lo.y() - 0.3 * size, centre, std::max(1.5 * size, 1.0));
 
     std::vector<double> radius;
     std::vector<Rgb> colors;

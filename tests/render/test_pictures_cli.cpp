@@ -92,6 +92,9 @@ TEST(Pictures, BadOptionsExitTwoNamingTheOption) {
         EXPECT_EQ(r.status, 2) << size;
         EXPECT_NE(r.err.find("--size"), std::string::npos) << size << ": " << r.err;
     }
+    const Result plot_size = cli(std::string("run flick --steps 1 --plot --plot-size 0x0 --out ") + TEARABLES_TEST_OUT + "/pictures-bad");
+    EXPECT_EQ(plot_size.status, 2);
+    EXPECT_NE(plot_size.err.find("--plot-size"), std::string::npos) << plot_size.err;
     const Result no_png = cli(std::string("run swing --steps 1 --size 160x90 --out ") + TEARABLES_TEST_OUT + "/pictures-bad");
     EXPECT_EQ(no_png.status, 2);
     EXPECT_NE(no_png.err.find("--size"), std::string::npos) << no_png.err;
@@ -117,11 +120,23 @@ TEST(Pictures, PlotOfRuptureVariation) {
     if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) GTEST_SKIP() << "gnuplot is not installed";
     const fs::path out = fs::path(TEARABLES_TEST_OUT) / "pictures-plot";
     fs::remove_all(out);
-    const Result r = cli("run rupture-variation --plot --steps 300 --quiet --out " + out.string());
+    const Result r = cli("run rupture-variation --plot --plot-size 800x600 --steps 300 --quiet --out " + out.string());
     ASSERT_EQ(r.status, 0) << r.err;
     const Image plot = readPng((out / "plot.png").string());
-    EXPECT_EQ(plot.width, 1200);
-    EXPECT_EQ(plot.height, 900);
+    EXPECT_EQ(plot.width, 800);
+    EXPECT_EQ(plot.height, 600);
     EXPECT_GT(greyDeviation(plot), 10.0);
     for (int i = 0; i < 4; ++i) EXPECT_TRUE(fs::exists(out / ("plot_" + std::to_string(i) + ".dat"))) << i;
+}
+
+// --mp4 with ffmpeg installed (not in CI: skipped there): a non-empty video.mp4 beside the frames.
+TEST(Pictures, VideoWhereFfmpegIsInstalled) {
+    if (std::system("command -v ffmpeg >/dev/null 2>&1") != 0) GTEST_SKIP() << "ffmpeg is not installed";
+    const fs::path out = fs::path(TEARABLES_TEST_OUT) / "pictures-video";
+    fs::remove_all(out);
+    const Result r = cli("run swing --mp4 --steps 40 --size 160x90 --quiet --out " + out.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    ASSERT_TRUE(fs::exists(out / "video.mp4"));
+    EXPECT_GT(fs::file_size(out / "video.mp4"), 1000u);
+    EXPECT_TRUE(fs::exists(out / "frame_00008.png"));
 }
