@@ -166,11 +166,11 @@ void writePlots(const scene::Scene& scene, const std::string& dir, int width, in
             }
             return cmd + "\n";
         };
-        gp << "set title 'Tension over time (most loaded segment)'\nset xlabel 't [s]'\nset ylabel 'T [N]'\n";
+        gp << "set title 'Tension (most loaded segment)'\nset xlabel 't [s]'\nset ylabel 'T [N]'\n";
         gp << plotAll("1:2", "lines lw 2");
-        gp << "set title 'Length over time (intact segments)'\nset ylabel 'L [m]'\n";
+        gp << "set title 'Length (intact segments)'\nset ylabel 'L [m]'\n";
         gp << plotAll("1:3", "lines lw 2");
-        gp << "set title 'Stress-strain: material curve (lines) and simulated points'\n"
+        gp << "set title 'Stress-strain (dashed: material curve)'\n"
               "set xlabel 'strain of the most loaded segment'\nset ylabel 'stress [MPa]'\n";
         {
             std::string cmd = "plot ";
@@ -183,7 +183,7 @@ void writePlots(const scene::Scene& scene, const std::string& dir, int width, in
             }
             gp << cmd << "\n";
         }
-        gp << "set title 'Torsional strain over time (dashed: rupture)'\nset xlabel 't [s]'\nset ylabel '{/Symbol g} = r d{/Symbol q}/ds'\n";
+        gp << "set title 'Torsional strain (dashed: rupture)'\nset xlabel 't [s]'\nset ylabel '{/Symbol g} = r d{/Symbol q}/ds'\n";
         {
             std::string cmd = "plot ";
             for (std::size_t i = 0; i < n; ++i) {
