@@ -122,3 +122,39 @@ TEST(Renderer, SceneCameraOverridesTheFit) {
     EXPECT_GT(fitted.eye.z(), 1.0);
     EXPECT_EQ(fitted.fov, 40.0);
 }
+
+// The entry point for paper and cloth: a sheet facing the camera takes its vertex colours
+// (lit, from either side), and a crease line is drawn over it.
+TEST(Renderer, TriangleMeshWithVertexColoursAndCreases) {
+    Renderer r(100, 100);
+    const View view{{0.0, 0.0, 2.0}, {0.0, 0.0, 0.0}, 40.0};
+    const std::vector<Vec3> x = {{-0.5, -0.5, 0}, {0.5, -0.5, 0}, {0.5, 0.5, 0}, {-0.5, 0.5, 0}};
+    const std::vector<std::array<std::uint32_t, 3>> tris = {{0, 1, 2}, {0, 2, 3}};
+    const std::vector<Rgb> red(4, Rgb{0.9f, 0.1f, 0.1f});
+    const std::vector<std::array<std::uint32_t, 2>> crease = {{0, 2}};
+    r.begin(view);
+    const Image empty = r.finish();
+    for (const bool flipped : {false, true}) {
+        std::vector<std::array<std::uint32_t, 3>> t = tris;
+        if (flipped)
+            for (auto& f : t) std::swap(f[1], f[2]);  // the back faces the camera
+        TriangleMesh mesh;
+        mesh.positions = &x;
+        mesh.triangles = &t;
+        mesh.vertex_colors = &red;
+        r.begin(view);
+        r.drawTriangleMesh(mesh);
+        const Image sheet = r.finish();
+        const auto px = sheet.at(70, 30);  // inside the sheet, off the diagonal
+        EXPECT_GT(px[0], px[1] + 60) << (flipped ? "back" : "front");
+        EXPECT_GT(difference(px, empty.at(70, 30)), 60);
+        mesh.lines = &crease;
+        r.begin(view);
+        r.drawTriangleMesh(mesh);
+        const Image creased = r.finish();
+        const auto centre = r.project(Vec3::Zero());
+        ASSERT_TRUE(centre.has_value());
+        const int cx = static_cast<int>((*centre)[0]), cy = static_cast<int>((*centre)[1]);
+        EXPECT_GT(difference(creased.at(cx, cy), sheet.at(cx, cy)), 20) << "no crease line";  // the line covers part of the pixel
+    }
+}
