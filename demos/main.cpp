@@ -1,12 +1,18 @@
 // The `tearables` command line: runs headless scenes (../shared/SCENE_FORMAT.md).
 // Exit status: 0 simulated; 2 the scene or the arguments are invalid (nothing simulated);
 // 1 anything else went wrong.
+#include "render/plot.hpp"
+#include "render/scene_painter.hpp"
+#include "render/tools.hpp"
 #include "tearables/scene.hpp"
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
+#include <regex>
 #include <iostream>
 #include <unistd.h>
 
@@ -27,6 +33,28 @@ tearables::scene::Scene loadNamed(const std::string& what) {
     }
     throw tearables::InvalidInput("SCENE", "no scene file or built-in scene named \"" + what +
                                                "\" (see `tearables list`)");
+}
+
+/// "640x360" -> (640, 360); throws InvalidInput(option) for anything else.
+std::pair<int, int> parseSize(const std::string& text, const std::string& option) {
+    static const std::regex pattern("([0-9]{1,5})x([0-9]{1,5})");
+    std::smatch m;
+    if (!std::regex_match(text, m, pattern))
+        throw tearables::InvalidInput(option, "expected WIDTHxHEIGHT in pixels, e.g. 640x360 (got \"" + text + "\")");
+    const int w = std::stoi(m[1]), h = std::stoi(m[2]);
+    if (w < 16 || h < 16 || w > 8192 || h > 8192)
+        throw tearables::InvalidInput(option, "each side must be in [16, 8192] pixels (got " + text + ")");
+    return {w, h};
+}
+
+/// Deletes frame_*.png left in `dir` by an earlier run (a video would pick them up).
+void removeOldFrames(const std::filesystem::path& dir) {
+    std::error_code ec;
+    if (!std::filesystem::is_directory(dir, ec)) return;
+    for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
+        const std::string name = entry.path().filename().string();
+        if (name.rfind("frame_", 0) == 0 && entry.path().extension() == ".png") std::filesystem::remove(entry.path(), ec);
+    }
 }
 
 /// Runs `body`, mapping refusals to exit status 2 and other failures to 1.
@@ -53,13 +81,18 @@ int main(int argc, char** argv) {
     std::string scene_arg, out_dir;
     long long steps = -1;
     int every = 0;
-    bool png = false, quiet = false;
+    bool png = false, quiet = false, mp4 = false, plot = false;
+    std::string size_text, plot_size_text;
     CLI::App* run = app.add_subcommand("run", "run a scene file or a built-in scene");
     run->add_option("SCENE", scene_arg, "a scene JSON file, or a built-in scene's name")->required();
     run->add_option("--out", out_dir, "output directory (default: tearables-out/<scene>)");
     run->add_option("--steps", steps, "override the scene's step count")->check(CLI::NonNegativeNumber);
     run->add_option("--every", every, "write a trace frame every K steps")->check(CLI::PositiveNumber);
-    run->add_flag("--png", png, "write frame images (not available in this build yet)");
+    run->add_flag("--png", png, "write frame_NNNNN.png images of every trace frame (offscreen OpenGL, OSMesa)");
+    run->add_option("--size", size_text, "image size WIDTHxHEIGHT for --png and --mp4 (default 640x360)");
+    run->add_flag("--mp4", mp4, "also assemble the frames into video.mp4 with ffmpeg (implies --png)");
+    run->add_flag("--plot", plot, "plot tension, length, torsional strain and stress-strain into plot.png with gnuplot");
+    run->add_option("--plot-size", plot_size_text, "plot.png's size WIDTHxHEIGHT (default 1200x900)");
     run->add_flag("--quiet", quiet, "no progress bar, no report");
     CLI::App* list = app.add_subcommand("list", "list the built-in scenes");
 
@@ -76,12 +109,31 @@ int main(int argc, char** argv) {
         return 0;
     }
 
+    namespace tr = tearables::render;
     ts::Scene scene;
+    std::pair<int, int> size{640, 360}, plot_size{1200, 900};
+    if (mp4) png = true;
     if (const int status = guarded(scene_arg, [&] {
-            if (png) throw tearables::InvalidInput("--png", "frame images are not available in this build yet");
+            if (!size_text.empty()) {
+                if (!png) throw tearables::InvalidInput("--size", "sets the size of pictures: give it with --png or --mp4");
+                size = parseSize(size_text, "--size");
+            }
+            if (!plot_size_text.empty()) {
+                if (!plot) throw tearables::InvalidInput("--plot-size", "sets the size of plot.png: give it with --plot");
+                plot_size = parseSize(plot_size_text, "--plot-size");
+            }
             scene = loadNamed(scene_arg);
         }))
         return status;
+    // Missing tools are found before anything is simulated.
+    if (mp4 && tr::findOnPath("ffmpeg").empty()) {
+        std::fprintf(stderr, "tearables: %s\n", tr::notInstalledMessage("ffmpeg", "ffmpeg", "for --mp4").c_str());
+        return kFailed;
+    }
+    if (plot && tr::findOnPath("gnuplot").empty()) {
+        std::fprintf(stderr, "tearables: %s\n", tr::notInstalledMessage("gnuplot", "gnuplot-nox", "for --plot").c_str());
+        return kFailed;
+    }
 
     ts::RunOptions options;
     if (out_dir.empty()) out_dir = "tearables-out/" + std::filesystem::path(scene_arg).stem().string();
@@ -90,11 +142,34 @@ int main(int argc, char** argv) {
     if (every > 0) options.every = every;
     options.progress = !quiet && isatty(fileno(stderr));
     return guarded(scene_arg, [&] {
+        std::unique_ptr<tr::Renderer> renderer;
+        tr::View view;
+        long long frames = 0;
+        if (png) {
+            removeOldFrames(out_dir);
+            renderer = std::make_unique<tr::Renderer>(size.first, size.second);
+            view = tr::fitCamera(scene, static_cast<double>(size.first) / size.second);
+            options.on_frame = [&](const ts::FrameState& f) {
+                char name[32];
+                std::snprintf(name, sizeof name, "frame_%05lld.png", frames++);
+                tr::writePng((std::filesystem::path(out_dir) / name).string(), tr::paintFrame(*renderer, scene, f, view));
+            };
+        }
         const ts::RunResult r = ts::runScene(scene, options);
+        const std::string video = (std::filesystem::path(out_dir) / "video.mp4").string();
+        if (mp4) {
+            // Real time where it can be: one frame per trace frame, clamped to 1-60 frames/s.
+            const int every_used = options.every.value_or(scene.output_every);
+            tr::makeVideo(out_dir, std::clamp(1.0 / (scene.dt * every_used), 1.0, 60.0), video);
+        }
+        if (plot) tr::writePlots(scene, out_dir, plot_size.first, plot_size.second);
         if (quiet) return;
         std::printf("simulated %lld steps (%.3g s) in %.3g s of stepping; digest %s\n", r.steps, r.simulated_seconds,
                     r.wall_seconds, r.digest.c_str());
         for (const auto& [type, n] : r.event_counts) std::printf("  %s: %lld\n", type.c_str(), n);
         std::printf("output: %s/{trace.jsonl,events.jsonl,summary.json}\n", out_dir.c_str());
+        if (png) std::printf("pictures: %lld x %s/frame_NNNNN.png (%dx%d)\n", frames, out_dir.c_str(), size.first, size.second);
+        if (mp4) std::printf("video: %s\n", video.c_str());
+        if (plot) std::printf("plot: %s/plot.png\n", out_dir.c_str());
     });
 }

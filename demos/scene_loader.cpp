@@ -775,6 +775,18 @@ Driver parseDriver(const Node& n, const std::vector<String>& strings, NameMap& b
 // The scene
 // =============================================================================================
 
+/// The optional picture camera: {"eye": [..], "target": [..], "fov": degrees}.
+Camera parseCamera(const Node& n) {
+    n.checkNoUnknownFields({"eye", "target", "fov"});
+    Camera c;
+    if (const auto eye = n.field("eye")) c.eye = eye->asVec3();
+    if (const auto target = n.field("target")) c.target = target->asVec3();
+    c.fov = n.number("fov", c.fov, Range{1.0, 170.0, true, true});
+    if (c.eye && c.target && (*c.eye - *c.target).norm() < 1e-9)
+        n.required("target").fail("must differ from eye (the camera needs a direction to look in)");
+    return c;
+}
+
 /// "papers" and "cloths" are part of the format but not of this build: only absent or [] pass.
 void rejectUnavailable(const Node& top, const char* key, const char* problem) {
     if (const auto list = top.field(key); list && !list->asArray().empty()) list->fail(problem);
@@ -796,9 +808,8 @@ Scene parseScene(const std::string& json_text) {
     top.checkNoUnknownFields({"format", "description", "camera", "dt", "steps", "gravity", "seed", "bodies",
                               "strings", "papers", "cloths", "drivers", "output"});
     if (const auto description = top.field("description")) description->asString();
-    if (const auto camera = top.field("camera")) camera->expectObject();  // reserved for the viewer
-
     Scene scene;
+    if (const auto camera = top.field("camera")) scene.camera = parseCamera(*camera);
     scene.dt = top.number("dt", scene.dt, Range::leftOpen(0.0, 0.1));
     scene.steps = top.integer("steps", scene.steps, 0, 1'000'000'000);
     scene.gravity = top.vec3("gravity", scene.gravity);

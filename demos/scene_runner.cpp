@@ -167,6 +167,21 @@ json frame(long long step, double t, const Scene& scene, const std::vector<Strin
     return f;
 }
 
+FrameState frameState(long long step, double t, const Scene& scene, const std::vector<StringId>& ids, const World& core,
+                      const BulletScene& bs) {
+    FrameState f;
+    f.step = step;
+    f.time = t;
+    for (std::size_t i = 0; i < ids.size(); ++i)
+        f.strings.push_back({scene.strings[i].desc.name, core.view(ids[i]), scene.strings[i].desc.material.tensile.rupture});
+    for (std::size_t i = 0; i < bs.bodies.size(); ++i) {
+        const btTransform& xf = bs.bodies[i]->getWorldTransform();
+        const btQuaternion q = xf.getRotation();
+        f.bodies.push_back({bs.specs[i].name, bs.specs[i].shape, toCore(xf.getOrigin()), Quat(q.w(), q.x(), q.y(), q.z())});
+    }
+    return f;
+}
+
 json eventJson(const Event& e) {
     json j = {{"step", e.step}, {"t", e.time}, {"type", toString(e.type)}, {"object", e.object}};
     if (e.segment >= 0) j["segment"] = e.segment;
@@ -263,6 +278,7 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         events = openOut(dir / "events.jsonl");
         trace << frame(0, 0.0, scene, ids, ropes.core(), bs).dump() << '\n';
     }
+    if (options.on_frame) options.on_frame(frameState(0, 0.0, scene, ids, ropes.core(), bs));
 
     // --- run --------------------------------------------------------------------------
     std::vector<std::uint8_t> done(scene.drivers.size(), 0);
@@ -351,8 +367,9 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
             if (write) events << eventJson(e).dump() << '\n';
         }
         ropes.clearEvents();
-        if (write && (step % every == 0 || step == steps))
-            trace << frame(step, static_cast<double>(step) * dt, scene, ids, ropes.core(), bs).dump() << '\n';
+        const bool frame_step = step % every == 0 || step == steps;
+        if (write && frame_step) trace << frame(step, static_cast<double>(step) * dt, scene, ids, ropes.core(), bs).dump() << '\n';
+        if (options.on_frame && frame_step) options.on_frame(frameState(step, static_cast<double>(step) * dt, scene, ids, ropes.core(), bs));
         if (options.progress && (step % progress_every == 0 || step == steps)) drawProgress(step, steps);
     }
 

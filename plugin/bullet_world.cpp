@@ -4,6 +4,8 @@
 // velocities back.
 #include "tearables/bullet.hpp"
 
+#include "tearables/colormap.hpp"
+
 #include <BulletCollision/CollisionShapes/btEmptyShape.h>
 #include <btBulletDynamicsCommon.h>
 #include <BulletCollision/BroadphaseCollision/btDbvt.h>
@@ -36,7 +38,9 @@ public:
         sentinel_.setCollisionFlags(btCollisionObject::CF_STATIC_OBJECT | btCollisionObject::CF_NO_CONTACT_RESPONSE);
     }
     void updateAction(btCollisionWorld*, btScalar time_step) override { owner_.substep(static_cast<double>(time_step)); }
-    void debugDraw(btIDebugDraw*) override {}
+    void debugDraw(btIDebugDraw* drawer) override {
+        if (drawer) owner_.debugDraw(*drawer);
+    }
 
     btCollisionObject& sentinel() { return sentinel_; }
     bool inWorld() const { return sentinel_.getBroadphaseHandle() != nullptr; }
@@ -365,6 +369,27 @@ const std::vector<Event>& BulletWorld::events() const { return events_; }
 void BulletWorld::clearEvents() { events_.clear(); }
 const StageTimes& BulletWorld::totalStageTimes() const { return total_; }
 const std::string& BulletWorld::lastError() const { return last_error_; }
+
+void BulletWorld::debugDraw(btIDebugDraw& drawer) const {
+    // Colours by load fraction T / (rupture stress * pi r^2), clamped to [0, 1], as MuJoCo's
+    // cable colours by stress up to a vmax; the rupture stress is the material's nominal one
+    // (the per-segment variation is a fraction of a percent).
+    for (const StringId id : core_->strings()) {
+        const StringView v = core_->view(id);
+        const double rupture = core_->desc(id).material.tensile.rupture;
+        const auto& x = *v.positions;
+        for (std::size_t j = 0; j < v.segmentCount(); ++j) {
+            const btVector3 a = toBullet(x[j]), b = toBullet(x[j + 1]);
+            if ((*v.broken)[j]) {
+                drawer.drawSphere((a + b) * btScalar(0.5), static_cast<btScalar>(std::max(2.0 * v.radius, 0.005)),
+                                  brokenMarkerColor());
+                continue;
+            }
+            const Rgb c = tensionColor(loadFraction((*v.tension)[j], rupture, v.radius));
+            drawer.drawLine(a, b, btVector3(c.r, c.g, c.b));
+        }
+    }
+}
 
 void BulletWorld::attach(StringId id, int particle, const btVector3& world_point) {
     core_->attachToPoint(id, particle, toCore(world_point));

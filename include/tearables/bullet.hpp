@@ -30,6 +30,7 @@
 #include <vector>
 
 class btDiscreteDynamicsWorld;
+class btIDebugDraw;
 class btRigidBody;
 
 namespace tearables {
@@ -76,6 +77,15 @@ public:
     const StageTimes& totalStageTimes() const;
     /// False once the Bullet world was destroyed (or this plugin was removed from it).
     bool attachedToBullet() const;
+    /// Draws every string through Bullet's debug drawer, for users who render with their own
+    /// engine: one line per intact segment, coloured by its load (tension over the rupture
+    /// tension of the string's material, tensionColor() in colormap.hpp: blue slack, yellow
+    /// about to tear), and a magenta sphere (drawSphere) at the middle of each broken segment.
+    /// Bullet's btDiscreteDynamicsWorld::debugDrawWorld() calls it too (through the action).
+    void debugDraw(btIDebugDraw& drawer) const;
+    /// The colour of torn-segment markers in debugDraw().
+    static btVector3 brokenMarkerColor() { return btVector3(1, 0, 1); }
+
     /// The last error caught inside a step (the step never throws into Bullet), or "".
     const std::string& lastError() const;
 

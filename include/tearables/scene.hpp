@@ -5,7 +5,9 @@
 
 #include "tearables/string.hpp"
 #include "tearables/types.hpp"
+#include "tearables/world.hpp"
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -68,6 +70,14 @@ struct Driver {
     std::optional<Body> body; ///< spawn: the body (its name unique among all bodies)
 };
 
+/// Where the pictures (`--png`) look from. Every field is optional: what is absent is
+/// fitted to the scene's bounds (demos/render/camera.cpp).
+struct Camera {
+    std::optional<Vec3> eye;     ///< camera position, m (must differ from target)
+    std::optional<Vec3> target;  ///< the point looked at, m
+    double fov = 40.0;           ///< vertical field of view, degrees, (1, 170)
+};
+
 /// A whole scene.
 struct Scene {
     double dt = 0.01;                 ///< fixed internal step, s, (0, 0.1]
@@ -78,6 +88,7 @@ struct Scene {
     std::vector<String> strings;
     std::vector<Driver> drivers;
     int output_every = 1;             ///< write a trace frame every this many steps, >= 1
+    Camera camera;                    ///< for pictures; absent fields are fitted to the scene
     std::string source;               ///< file name or built-in scene name, for messages
 };
 
@@ -93,12 +104,38 @@ std::vector<std::pair<std::string, std::string>> builtinScenes();
 /// The JSON text of a built-in scene, or nullopt.
 std::optional<std::string> builtinSceneText(const std::string& name);
 
+/// A rigid body as a frame callback sees it.
+struct FrameBody {
+    std::string name;
+    Shape shape;
+    Vec3 position = Vec3::Zero();        ///< m
+    Quat orientation = Quat::Identity(); ///< body to world
+};
+
+/// A string as a frame callback sees it.
+struct FrameString {
+    std::string name;
+    StringView view;             ///< positions, tension, broken, radius: valid during the callback only
+    double rupture_stress = 0.0; ///< the material's tensile rupture stress, Pa (for colouring by load)
+};
+
+/// The state of a run at a written frame (for pictures; see RunOptions::on_frame).
+struct FrameState {
+    long long step = 0;
+    double time = 0.0;  ///< s
+    std::vector<FrameString> strings;
+    std::vector<FrameBody> bodies;  ///< including spawned ones, in creation order
+};
+
 /// How to run a scene.
 struct RunOptions {
     std::string out_dir;               ///< where trace.jsonl, events.jsonl, summary.json go; "" = write nothing
     std::optional<long long> steps;    ///< overrides Scene::steps
     std::optional<int> every;          ///< overrides Scene::output_every
     bool progress = false;             ///< draw a progress bar on stderr
+    /// Called at step 0 and at every written frame (every `every` steps and the last), even
+    /// when out_dir is "": the CLI renders pictures from it. An exception it throws ends the run.
+    std::function<void(const FrameState&)> on_frame;
 };
 
 /// What a run did.

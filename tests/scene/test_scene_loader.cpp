@@ -80,6 +80,10 @@ TEST(SceneLoader, FullSceneParsesEveryField) {
     EXPECT_EQ(s.steps, 1200);
     EXPECT_EQ(s.gravity, Vec3(0, -3.5, 0.5));
     EXPECT_EQ(s.seed, 42u);
+    ASSERT_TRUE(s.camera.eye.has_value());
+    EXPECT_EQ(*s.camera.eye, Vec3(0, 1, 3));
+    EXPECT_FALSE(s.camera.target.has_value());
+    EXPECT_EQ(s.camera.fov, 40.0);
     EXPECT_EQ(s.output_every, 10);
     EXPECT_TRUE(s.source.empty());
 
@@ -311,6 +315,11 @@ const ErrorCase kErrorCases[] = {
     {"FormatNotString", R"({"format": 1})", "format", "expected a string, got a number"},
     {"DescriptionNotString", R"({"description": 1})", "description", "expected a string"},
     {"CameraNotObject", R"({"camera": [1]})", "camera", "expected an object, got an array of 1 element"},
+    {"CameraUnknownField", R"({"camera": {"eyes": [0, 1, 3]}})", "camera.eyes", "unknown field (allowed: eye, target, fov)"},
+    {"CameraEyeShort", R"({"camera": {"eye": [0, 1]}})", "camera.eye", "expected an array of 3 numbers"},
+    {"CameraTargetNotNumber", R"({"camera": {"target": [0, "1", 0]}})", "camera.target[1]", "expected a number"},
+    {"CameraFovTooWide", R"({"camera": {"fov": 180}})", "camera.fov", "must be in (1, 170) (got 180)"},
+    {"CameraEyeOnTarget", R"({"camera": {"eye": [0, 1, 0], "target": [0, 1, 0]}})", "camera.target", "must differ from eye"},
     {"DtTooLarge", R"({"dt": 0.5})", "dt", "must be in (0, 0.1] (got 0.5)"},
     {"DtZero", R"({"dt": 0})", "dt", "must be in (0, 0.1] (got 0)"},
     {"DtString", R"({"dt": "0.01"})", "dt", "expected a number, got a string"},

@@ -1,0 +1,134 @@
+// The default camera and the drawing of a scene's frame.
+#include "render/scene_painter.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace tearables::render {
+
+namespace {
+
+/// Half extents of the world-axis box around a body's shape at its orientation, m.
+Vec3 boundingHalfExtents(const scene::Shape& s, const Quat& orientation) {
+    const Mat3 r = orientation.normalized().toRotationMatrix().cwiseAbs();
+    switch (s.kind) {
+        case scene::Shape::Kind::Box: return r * s.half_extents;
+        case scene::Shape::Kind::Sphere: return Vec3::Constant(s.radius);
+        case scene::Shape::Kind::Capsule: return r * Vec3(s.radius, s.radius + s.half_height, s.radius);
+        case scene::Shape::Kind::Plane: return Vec3::Zero();
+    }
+    return Vec3::Zero();
+}
+
+/// Muted colours for dynamic bodies, by creation order; static bodies are grey.
+Rgb bodyColor(const scene::FrameBody& body, std::size_t index, bool is_static) {
+    if (is_static) return {0.55f, 0.56f, 0.60f};
+    static const Rgb kPalette[] = {{0.72f, 0.52f, 0.32f}, {0.36f, 0.55f, 0.70f}, {0.45f, 0.65f, 0.42f},
+                                   {0.75f, 0.42f, 0.38f}, {0.60f, 0.50f, 0.70f}};
+    return kPalette[index % (sizeof kPalette / sizeof kPalette[0])];
+}
+
+}  // namespace
+
+void Bounds::add(const Vec3& p, double grow) {
+    if (!p.allFinite()) return;
+    lo = lo.cwiseMin(p - Vec3::Constant(grow));
+    hi = hi.cwiseMax(p + Vec3::Constant(grow));
+}
+
+Bounds sceneBounds(const scene::Scene& scene) {
+    Bounds b;
+    for (const scene::String& s : scene.strings)
+        for (const Vec3& p : s.desc.points) b.add(p, s.desc.radius);
+    const auto addBody = [&](const scene::Body& body) {
+        if (body.shape.kind == scene::Shape::Kind::Plane) return;
+        const Vec3 h = boundingHalfExtents(body.shape, body.orientation);
+        b.add(body.position - h);
+        b.add(body.position + h);
+    };
+    for (const scene::Body& body : scene.bodies) addBody(body);
+    for (const scene::Driver& d : scene.drivers)
+        if (d.body) addBody(*d.body);
+    if (b.empty()) b.add(Vec3::Zero(), 0.5);
+    return b;
+}
+
+View fitCamera(const scene::Scene& scene, double aspect) {
+    Bounds b = sceneBounds(scene);
+    // Room for what moves: ropes swing and stretch, bodies fall a little.
+    const double grow = 0.08 * (b.hi - b.lo).norm();
+    b.lo.array() -= grow;
+    b.hi.array() += grow;
+    View v;
+    v.fov = scene.camera.fov;
+    const Vec3 centre = 0.5 * (b.lo + b.hi);
+    v.target = scene.camera.target.value_or(centre);
+    if (scene.camera.eye) {
+        v.eye = *scene.camera.eye;
+        return v;
+    }
+    // From the front (+z), 20 degrees above; back off until every corner of the bounds is
+    // inside the frustum (with a 10 % margin): for a corner at (x, y) across and z toward the
+    // camera, the distance D must satisfy |x| <= (D - z) tan(hfov/2), |y| <= (D - z) tan(vfov/2).
+    const Vec3 back = Vec3(0.0, std::sin(20.0 * M_PI / 180.0), std::cos(20.0 * M_PI / 180.0)).normalized();
+    const Vec3 right = Vec3::UnitY().cross(back).normalized();
+    const Vec3 up = back.cross(right);
+    const double tan_v = std::tan(v.fov * M_PI / 360.0), tan_h = tan_v * aspect;
+    double distance = 0.0;
+    for (int i = 0; i < 8; ++i) {
+        const Vec3 corner((i & 1) ? b.hi.x() : b.lo.x(), (i & 2) ? b.hi.y() : b.lo.y(), (i & 4) ? b.hi.z() : b.lo.z());
+        const Vec3 d = corner - v.target;
+        const double x = std::abs(d.dot(right)) * 1.1, y = std::abs(d.dot(up)) * 1.1, z = d.dot(back);
+        distance = std::max({distance, x / tan_h + z, y / tan_v + z});
+    }
+    distance = std::max(distance, 0.05);
+    v.eye = v.target + distance * back;
+    return v;
+}
+
+Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view) {
+    const Bounds b = sceneBounds(scene);
+    const Vec3 centre = 0.5 * (b.lo + b.hi);
+    const double size = std::max((b.hi - b.lo).norm(), 0.1);
+    const double distance = (view.eye - view.target).norm();
+    renderer.begin(view, distance * 0.01, distance * 10.0 + size * 20.0);
+
+    bool ground = false;
+    for (std::size_t i = 0; i < frame.bodies.size(); ++i) {
+        const scene::FrameBody& body = frame.bodies[i];
+        const scene::Shape& s = body.shape;
+        bool is_static = true;
+        for (const scene::Body& spec : scene.bodies)
+            if (spec.name == body.name) is_static = spec.mass <= 0.0 || spec.kinematic;
+        for (const scene::Driver& d : scene.drivers)
+            if (d.body && d.body->name == body.name) is_static = d.body->mass <= 0.0 || d.body->kinematic;
+        const Rgb c = bodyColor(body, i, is_static);
+        switch (s.kind) {
+            case scene::Shape::Kind::Plane:
+                renderer.drawGround(s.plane_normal, s.plane_offset, centre, std::max(3.0 * size, 2.0));
+                ground = true;
+                break;
+            case scene::Shape::Kind::Box: renderer.drawBox(s.half_extents, body.position, body.orientation, c); break;
+            case scene::Shape::Kind::Sphere: renderer.drawSphere(s.radius, body.position, body.orientation, c); break;
+            case scene::Shape::Kind::Capsule:
+                renderer.drawCapsule(s.radius, s.half_height, body.position, body.orientation, c);
+                break;
+        }
+    }
+    // Without a ground, a faint grid below the scene still gives depth and scale.
+    if (!ground) renderer.drawReferenceGrid(Vec3::UnitY(), b.lo.y() - 0.3 * size, centre, std::max(1.5 * size, 1.0));
+
+    std::vector<double> radius;
+    std::vector<Rgb> colors;
+    for (const scene::FrameString& s : frame.strings) {
+        const StringView& v = s.view;
+        const std::size_t n = v.segmentCount();
+        radius.assign(n, v.radius);
+        colors.resize(n);
+        for (std::size_t j = 0; j < n; ++j) colors[j] = tensionColor(loadFraction((*v.tension)[j], s.rupture_stress, v.radius));
+        renderer.drawTube(*v.positions, radius, colors, *v.broken);
+    }
+    return renderer.finish();
+}
+
+}  // namespace tearables::render

@@ -1,0 +1,31 @@
+// Pictures of headless scenes: the default camera fitted to a scene, and one frame of a run
+// (FrameState) drawn with the Renderer. Paper sheets and cloths will add one draw call here
+// (Renderer::drawTriangleMesh) when their frames carry meshes.
+#pragma once
+
+#include "render/renderer.hpp"
+#include "tearables/scene.hpp"
+
+namespace tearables::render {
+
+/// Axis-aligned bounds of what a scene holds at the start (string points, bodies, spawned
+/// bodies; planes excluded), m.
+struct Bounds {
+    Vec3 lo = Vec3::Constant(1e300);
+    Vec3 hi = Vec3::Constant(-1e300);
+    bool empty() const { return !(lo.x() <= hi.x()); }
+    void add(const Vec3& p, double grow = 0.0);
+};
+Bounds sceneBounds(const scene::Scene& scene);
+
+/// The scene's camera: its "camera" field where given; what is absent is fitted so that the
+/// scene's bounds fill the picture of the given aspect (width / height), seen from the front
+/// (+z) and a little above.
+View fitCamera(const scene::Scene& scene, double aspect);
+
+/// Draws one frame: the ground (a plane body) or a reference grid, the rigid bodies, and the
+/// strings as tubes coloured by load (tension / rupture tension, colormap.hpp), broken
+/// segments left out. Returns the picture.
+Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view);
+
+}  // namespace tearables::render

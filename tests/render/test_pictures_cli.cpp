@@ -1,0 +1,142 @@
+// Pictures, videos and plots from the command line, run headless as a user runs it: the
+// PNGs exist, decode, have the size asked for and show something; bad options exit 2 naming
+// the option; missing tools exit 1 saying how to install them.
+#include "render/renderer.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <sys/wait.h>
+#include <unistd.h>
+
+namespace {
+
+namespace fs = std::filesystem;
+using tearables::render::Image;
+using tearables::render::readPng;
+
+struct Result {
+    int status = -1;
+    std::string err;
+};
+
+/// Runs the CLI with `args` and no display (DISPLAY unset), with `env` before it (e.g.
+/// "PATH=/nonexistent"), capturing stderr.
+Result cli(const std::string& args, const std::string& env = "") {
+    const fs::path dir = fs::path(TEARABLES_TEST_OUT) / "cli";
+    fs::create_directories(dir);
+    const fs::path err = dir / ("stderr-pictures-" + std::to_string(::getpid()) + ".txt");
+    const std::string cmd = "env -u DISPLAY " + env + " " + std::string(TEARABLES_CLI) + " " + args + " >/dev/null 2>" + err.string();
+    const int raw = std::system(cmd.c_str());
+    Result r;
+    r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+    std::ifstream in(err);
+    std::stringstream s;
+    s << in.rdbuf();
+    r.err = s.str();
+    return r;
+}
+
+/// Standard deviation of the pixels' grey level.
+double greyDeviation(const Image& im) {
+    double sum = 0.0, sum2 = 0.0;
+    const std::size_t n = static_cast<std::size_t>(im.width) * im.height;
+    for (std::size_t i = 0; i < n; ++i) {
+        const double g = (im.rgb[3 * i] + im.rgb[3 * i + 1] + im.rgb[3 * i + 2]) / 3.0;
+        sum += g;
+        sum2 += g * g;
+    }
+    return std::sqrt(std::max(0.0, sum2 / n - (sum / n) * (sum / n)));
+}
+
+}  // namespace
+
+// `run swing --png --steps 80 --size 160x90`: one picture per trace frame (every 5 steps:
+// 17), each 160x90, not blank, and the crate's fall changes the picture.
+TEST(Pictures, SwingWritesDecodablePngs) {
+    const fs::path out = fs::path(TEARABLES_TEST_OUT) / "pictures-swing";
+    fs::remove_all(out);
+    const Result r = cli("run swing --png --steps 80 --size 160x90 --quiet --out " + out.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    int count = 0;
+    for (const auto& e : fs::directory_iterator(out))
+        if (e.path().filename().string().rfind("frame_", 0) == 0) ++count;
+    EXPECT_EQ(count, 17);
+    Image first, last;
+    for (int i = 0; i < 17; ++i) {
+        char name[32];
+        std::snprintf(name, sizeof name, "frame_%05d.png", i);
+        const Image im = readPng((out / name).string());
+        ASSERT_EQ(im.width, 160) << name;
+        ASSERT_EQ(im.height, 90) << name;
+        EXPECT_GT(greyDeviation(im), 10.0) << name << " looks blank";
+        if (i == 0) first = im;
+        last = im;
+    }
+    int changed = 0;
+    for (std::size_t i = 0; i < first.rgb.size(); i += 3)
+        if (std::abs(first.rgb[i] - last.rgb[i]) + std::abs(first.rgb[i + 1] - last.rgb[i + 1]) +
+                std::abs(first.rgb[i + 2] - last.rgb[i + 2]) > 30)
+            ++changed;
+    EXPECT_GT(changed, 50) << "the first and the last frame look alike";
+}
+
+TEST(Pictures, BadOptionsExitTwoNamingTheOption) {
+    for (const char* size : {"160", "160x", "x90", "abcxdef", "8x8", "100000x90", "-160x90"}) {
+        const Result r = cli(std::string("run swing --steps 1 --png --out ") + TEARABLES_TEST_OUT + "/pictures-bad --size " + size);
+        EXPECT_EQ(r.status, 2) << size;
+        EXPECT_NE(r.err.find("--size"), std::string::npos) << size << ": " << r.err;
+    }
+    const Result plot_size = cli(std::string("run flick --steps 1 --plot --plot-size 0x0 --out ") + TEARABLES_TEST_OUT + "/pictures-bad");
+    EXPECT_EQ(plot_size.status, 2);
+    EXPECT_NE(plot_size.err.find("--plot-size"), std::string::npos) << plot_size.err;
+    const Result no_png = cli(std::string("run swing --steps 1 --size 160x90 --out ") + TEARABLES_TEST_OUT + "/pictures-bad");
+    EXPECT_EQ(no_png.status, 2);
+    EXPECT_NE(no_png.err.find("--size"), std::string::npos) << no_png.err;
+}
+
+// Without ffmpeg or gnuplot on PATH, --mp4 and --plot stop before simulating, exit 1, and say
+// how to install them.
+TEST(Pictures, MissingToolsSayHowToInstallThem) {
+    const fs::path out = fs::path(TEARABLES_TEST_OUT) / "pictures-notools";
+    fs::remove_all(out);
+    const Result mp4 = cli("run swing --steps 5 --mp4 --out " + out.string(), "PATH=/nonexistent");
+    EXPECT_EQ(mp4.status, 1);
+    EXPECT_NE(mp4.err.find("apt-get install ffmpeg"), std::string::npos) << mp4.err;
+    const Result plot = cli("run flick --steps 5 --plot --out " + out.string(), "PATH=/nonexistent");
+    EXPECT_EQ(plot.status, 1);
+    EXPECT_NE(plot.err.find("apt-get install gnuplot-nox"), std::string::npos) << plot.err;
+    EXPECT_FALSE(fs::exists(out / "trace.jsonl")) << "simulated although the tool is missing";
+}
+
+// --plot on an experiment with curves writes plot.png through gnuplot (skipped only where
+// gnuplot is not installed; CI installs it).
+TEST(Pictures, PlotOfRuptureVariation) {
+    if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) GTEST_SKIP() << "gnuplot is not installed";
+    const fs::path out = fs::path(TEARABLES_TEST_OUT) / "pictures-plot";
+    fs::remove_all(out);
+    const Result r = cli("run rupture-variation --plot --plot-size 800x600 --steps 300 --quiet --out " + out.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const Image plot = readPng((out / "plot.png").string());
+    EXPECT_EQ(plot.width, 800);
+    EXPECT_EQ(plot.height, 600);
+    EXPECT_GT(greyDeviation(plot), 10.0);
+    for (int i = 0; i < 4; ++i) EXPECT_TRUE(fs::exists(out / ("plot_" + std::to_string(i) + ".dat"))) << i;
+}
+
+// --mp4 with ffmpeg installed (not in CI: skipped there): a non-empty video.mp4 beside the frames.
+TEST(Pictures, VideoWhereFfmpegIsInstalled) {
+    if (std::system("command -v ffmpeg >/dev/null 2>&1") != 0) GTEST_SKIP() << "ffmpeg is not installed";
+    const fs::path out = fs::path(TEARABLES_TEST_OUT) / "pictures-video";
+    fs::remove_all(out);
+    const Result r = cli("run swing --mp4 --steps 40 --size 160x90 --quiet --out " + out.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    ASSERT_TRUE(fs::exists(out / "video.mp4"));
+    EXPECT_GT(fs::file_size(out / "video.mp4"), 1000u);
+    EXPECT_TRUE(fs::exists(out / "frame_00008.png"));
+}

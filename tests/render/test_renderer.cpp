@@ -1,0 +1,160 @@
+// The offscreen renderer (OSMesa): pictures have the size asked for, what is drawn lands
+// where the camera says, PNG files round-trip, and a scene's rope shows against its background.
+#include "render/renderer.hpp"
+#include "render/scene_painter.hpp"
+#include "tearables/scene.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace tearables;
+using namespace tearables::render;
+
+int difference(const std::array<std::uint8_t, 3>& a, const std::array<std::uint8_t, 3>& b) {
+    return std::abs(a[0] - b[0]) + std::abs(a[1] - b[1]) + std::abs(a[2] - b[2]);
+}
+
+}  // namespace
+
+// A bright tube across the middle: the pixel where its midpoint projects takes its colour;
+// without it, that pixel is the sky.
+TEST(Renderer, TubeLandsWhereTheCameraProjectsIt) {
+    Renderer r(120, 80);
+    const View view{{0.0, 0.0, 2.0}, {0.0, 0.0, 0.0}, 40.0};
+    r.begin(view);
+    const Image empty = r.finish();
+    ASSERT_EQ(empty.width, 120);
+    ASSERT_EQ(empty.height, 80);
+    r.begin(view);
+    const Rgb yellow = tensionColor(1.0);
+    r.drawTube({{-0.5, 0.1, 0.0}, {0.5, 0.1, 0.0}}, {0.03}, {yellow}, {0});
+    const Image tube = r.finish();
+    const auto p = r.project({0.0, 0.1, 0.0});
+    ASSERT_TRUE(p.has_value());
+    const int x = static_cast<int>((*p)[0]), y = static_cast<int>((*p)[1]);
+    EXPECT_NEAR((*p)[0], 60.0, 0.5);
+    EXPECT_LT((*p)[1], 40.0);  // above the centre: y = 0.1 is up
+    EXPECT_GT(difference(tube.at(x, y), empty.at(x, y)), 60);
+    EXPECT_GT(tube.at(x, y)[0], tube.at(x, y)[2] + 40);  // yellowish: red well above blue
+    // Far from the tube nothing changed.
+    EXPECT_LT(difference(tube.at(x, 75), empty.at(x, 75)), 3);
+    // Broken segments are not drawn.
+    r.begin(view);
+    r.drawTube({{-0.5, 0.1, 0.0}, {0.5, 0.1, 0.0}}, {0.03}, {yellow}, {1});
+    EXPECT_LT(difference(r.finish().at(x, y), empty.at(x, y)), 3);
+}
+
+TEST(Renderer, PngRoundTrip) {
+    Image image;
+    image.width = 17;
+    image.height = 5;
+    for (int i = 0; i < 17 * 5 * 3; ++i) image.rgb.push_back(static_cast<std::uint8_t>(i * 7));
+    const fs::path dir = fs::path(TEARABLES_TEST_OUT) / "render";
+    fs::create_directories(dir);
+    const std::string path = (dir / "roundtrip.png").string();
+    writePng(path, image);
+    const Image back = readPng(path);
+    EXPECT_EQ(back.width, 17);
+    EXPECT_EQ(back.height, 5);
+    EXPECT_EQ(back.rgb, image.rgb);
+    EXPECT_THROW(readPng((dir / "missing.png").string()), std::runtime_error);
+    EXPECT_THROW(Renderer(8, 8), InvalidInput);
+}
+
+// The swing scene through the scene painter with its fitted default camera: every rope
+// particle is in the picture, and at the middle of each rope the pixel differs from the same
+// frame painted without the strings.
+TEST(Renderer, SwingRopesShowAgainstTheBackground) {
+    const auto text = scene::builtinSceneText("swing");
+    ASSERT_TRUE(text.has_value());
+    scene::Scene s = scene::parseScene(*text);
+    Renderer r(160, 90);
+    const View view = fitCamera(s, 160.0 / 90.0);
+    scene::RunOptions options;
+    options.steps = 10;
+    options.every = 5;  // frames at steps 0, 5, 10
+    int frames = 0;
+    options.on_frame = [&](const scene::FrameState& f) {
+        ++frames;
+        if (f.step != 10) return;
+        ASSERT_EQ(f.strings.size(), 2u);
+        const Image with = paintFrame(r, s, f, view);
+        scene::FrameState bare = f;
+        bare.strings.clear();
+        const Image without = paintFrame(r, s, bare, view);
+        for (const scene::FrameString& str : f.strings) {
+            const auto& x = *str.view.positions;
+            for (const Vec3& p : x) {
+                const auto q = r.project(p);
+                ASSERT_TRUE(q.has_value());
+                EXPECT_GE((*q)[0], 0.0);
+                EXPECT_LT((*q)[0], 160.0);
+                EXPECT_GE((*q)[1], 0.0);
+                EXPECT_LT((*q)[1], 90.0);
+            }
+            const auto mid = r.project(x[x.size() / 2]);
+            const int px = static_cast<int>((*mid)[0]), py = static_cast<int>((*mid)[1]);
+            EXPECT_GT(difference(with.at(px, py), without.at(px, py)), 60) << str.name << " at " << px << "," << py;
+        }
+    };
+    scene::runScene(s, options);
+    EXPECT_EQ(frames, 3);
+}
+
+// A camera given in the scene is used as written; fov defaults to 40 degrees.
+TEST(Renderer, SceneCameraOverridesTheFit) {
+    scene::Scene s = scene::parseScene(R"({"camera": {"eye": [1, 2, 3], "target": [0, 1, 0], "fov": 55}})");
+    const View v = fitCamera(s, 16.0 / 9.0);
+    EXPECT_EQ(v.eye, Vec3(1, 2, 3));
+    EXPECT_EQ(v.target, Vec3(0, 1, 0));
+    EXPECT_EQ(v.fov, 55.0);
+    // Only a target: the eye is fitted around it, looking at it.
+    s = scene::parseScene(R"({"camera": {"target": [0, 1, 0]},
+                              "strings": [{"name": "a", "from": [-1, 2, 0], "to": [1, 2, 0], "segments": 4}]})");
+    const View fitted = fitCamera(s, 16.0 / 9.0);
+    EXPECT_EQ(fitted.target, Vec3(0, 1, 0));
+    EXPECT_GT(fitted.eye.z(), 1.0);
+    EXPECT_EQ(fitted.fov, 40.0);
+}
+
+// The entry point for paper and cloth: a sheet facing the camera takes its vertex colours
+// (lit, from either side), and a crease line is drawn over it.
+TEST(Renderer, TriangleMeshWithVertexColoursAndCreases) {
+    Renderer r(100, 100);
+    const View view{{0.0, 0.0, 2.0}, {0.0, 0.0, 0.0}, 40.0};
+    const std::vector<Vec3> x = {{-0.5, -0.5, 0}, {0.5, -0.5, 0}, {0.5, 0.5, 0}, {-0.5, 0.5, 0}};
+    const std::vector<std::array<std::uint32_t, 3>> tris = {{0, 1, 2}, {0, 2, 3}};
+    const std::vector<Rgb> red(4, Rgb{0.9f, 0.1f, 0.1f});
+    const std::vector<std::array<std::uint32_t, 2>> crease = {{0, 2}};
+    r.begin(view);
+    const Image empty = r.finish();
+    for (const bool flipped : {false, true}) {
+        std::vector<std::array<std::uint32_t, 3>> t = tris;
+        if (flipped)
+            for (auto& f : t) std::swap(f[1], f[2]);  // the back faces the camera
+        TriangleMesh mesh;
+        mesh.positions = &x;
+        mesh.triangles = &t;
+        mesh.vertex_colors = &red;
+        r.begin(view);
+        r.drawTriangleMesh(mesh);
+        const Image sheet = r.finish();
+        const auto px = sheet.at(70, 30);  // inside the sheet, off the diagonal
+        EXPECT_GT(px[0], px[1] + 60) << (flipped ? "back" : "front");
+        EXPECT_GT(difference(px, empty.at(70, 30)), 60);
+        mesh.lines = &crease;
+        r.begin(view);
+        r.drawTriangleMesh(mesh);
+        const Image creased = r.finish();
+        const auto centre = r.project(Vec3::Zero());
+        ASSERT_TRUE(centre.has_value());
+        const int cx = static_cast<int>((*centre)[0]), cy = static_cast<int>((*centre)[1]);
+        EXPECT_GT(difference(creased.at(cx, cy), sheet.at(cx, cy)), 20) << "no crease line";  // the line covers part of the pixel
+    }
+}
