@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <functional>
 #include <numeric>
 #include <set>
 
@@ -102,4 +103,136 @@ TEST(ClothTension, HangingYarnCarriesTheWeightBelow) {
         below += (*v.masses)[(*v.edges)[e][1]] * g;
         EXPECT_NEAR((*v.tension)[e], below, 1e-3 * below) << e;
     }
+}
+
+// A cloth hanging from two corners, come to rest: the vertical components of the pinned
+// corners' yarn tensions add up to the weight of the free vertices within 2%, and no
+// yarn is stretched past what its stress allows (inextensible below yield).
+TEST(ClothTension, HangingFromTwoCornersCarriesItsWeight) {
+    World world;
+    ClothDesc d = square(8, 0.4);
+    d.damping = 8.0;
+    d.pins = {{0, 0}, {-1, 0}};
+    const ClothId id = world.addCloth(d);
+    double speed = 1.0;
+    int steps = 0;
+    for (; steps < 1500 && (steps < 100 || speed > 1e-4); ++steps) {
+        world.step(0.01);
+        const ClothView v = world.viewCloth(id);
+        speed = 0.0;
+        for (const Vec3& vel : *v.velocities) speed = std::max(speed, vel.norm());
+        ASSERT_FALSE(v.frozen);
+    }
+    ASSERT_LE(speed, 1e-4) << "not at rest after " << steps << " steps";
+    const ClothView v = world.viewCloth(id);
+    const std::set<std::uint32_t> pinned = {static_cast<std::uint32_t>(d.vertex(0, 0)), static_cast<std::uint32_t>(d.vertex(-1, 0))};
+    double weight = 0.0;
+    for (std::size_t p = 0; p < v.vertexCount(); ++p)
+        if (!pinned.count(static_cast<std::uint32_t>(p))) weight += (*v.masses)[p] * 9.81;
+    double support = 0.0;
+    for (std::size_t e = 0; e < v.edgeCount(); ++e) {
+        const auto [a, b] = (*v.edges)[e];
+        const Vec3 dir = ((*v.positions)[b] - (*v.positions)[a]).normalized();
+        if (pinned.count(a)) support -= (*v.tension)[e] * dir.y();  // the yarn pulls its pin along dir
+        if (pinned.count(b)) support += (*v.tension)[e] * dir.y();
+    }
+    EXPECT_NEAR(support, weight, 0.02 * weight);
+    for (std::size_t e = 0; e < v.edgeCount(); ++e) {
+        const auto [a, b] = (*v.edges)[e];
+        const double strain = ((*v.positions)[b] - (*v.positions)[a]).norm() / (*v.rest_length)[e] - 1.0;
+        const double allowed = stressOf(v, e) / d.material.tensile.young;
+        EXPECT_LE(strain, allowed * 1.01 + 1e-9) << e;
+    }
+}
+
+// Bad input is refused with the field named, and nothing is created.
+TEST(ClothDesc, BadInputNamesTheField) {
+    World world;
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    struct Case {
+        const char* field;
+        std::function<void(ClothDesc&)> spoil;
+    };
+    const std::vector<Case> cases = {
+        {"origin", [&](ClothDesc& d) { d.origin.x() = nan; }},
+        {"size[0]", [](ClothDesc& d) { d.size[0] = 0.0; }},
+        {"size[1]", [](ClothDesc& d) { d.size[1] = -1.0; }},
+        {"resolution[0]", [](ClothDesc& d) { d.resolution[0] = 0; }},
+        {"resolution[1]", [](ClothDesc& d) { d.resolution[1] = 5000; }},
+        {"orientation", [](ClothDesc& d) { d.orientation.coeffs().setZero(); }},
+        {"areal_density", [&](ClothDesc& d) { d.areal_density = nan; }},
+        {"areal_density", [](ClothDesc& d) { d.areal_density = 0.0; }},
+        {"density", [](ClothDesc& d) { d.density = 100.0; }},
+        {"density", [](ClothDesc& d) { d.density = -1.0; }},
+        {"yarn_radius", [](ClothDesc& d) { d.yarn_radius = 0.0; }},
+        {"material.tensile.young", [](ClothDesc& d) { d.material.tensile.young = -3e9; }},
+        {"material.tensile.yield", [&](ClothDesc& d) { d.material.tensile.yield = nan; }},
+        {"material.tensile.plastic_modulus", [](ClothDesc& d) { d.material.tensile.plastic_modulus = 0.0; }},
+        {"material.tensile.rupture", [](ClothDesc& d) { d.material.tensile.rupture = d.material.tensile.yield; }},
+        {"material.variation", [](ClothDesc& d) { d.material.variation = 0.7; }},
+        {"lambda", [](ClothDesc& d) { d.lambda = -1e-6; }},
+        {"shear_stiffness", [](ClothDesc& d) { d.shear_stiffness = std::numeric_limits<double>::infinity(); }},
+        {"bending_stiffness", [](ClothDesc& d) { d.bending_stiffness = -1.0; }},
+        {"damping", [](ClothDesc& d) { d.damping = -0.5; }},
+        {"plastic_time", [](ClothDesc& d) { d.plastic_time = 11.0; }},
+        {"pins[0].i", [](ClothDesc& d) { d.pins = {{12, 0}}; }},
+        {"pins[1]", [](ClothDesc& d) { d.pins = {{0, 0}, {0, 0}}; }},
+        {"pins[0].point", [&](ClothDesc& d) { d.pins = {{0, 0, false, Vec3(nan, 0, 0)}}; }},
+    };
+    for (const Case& c : cases) {
+        ClothDesc d = square(6, 0.2);
+        c.spoil(d);
+        try {
+            world.addCloth(d);
+            ADD_FAILURE() << c.field << ": accepted";
+        } catch (const InvalidInput& e) {
+            EXPECT_EQ(e.field(), c.field) << e.what();
+        }
+    }
+    ClothDesc single = yarn(5, 0.1);
+    single.density = 0.0;
+    single.areal_density = 0.1;
+    EXPECT_THROW(world.addCloth(single), InvalidInput);
+    EXPECT_TRUE(world.cloths().empty());
+    // Bad calls on a good cloth change nothing.
+    const ClothId id = world.addCloth(square(6, 0.2));
+    EXPECT_THROW(world.applyClothForce(id, 0, Vec3(nan, 0, 0)), InvalidInput);
+    EXPECT_THROW(world.attachClothToPoint(id, 36, Vec3::Zero()), InvalidInput);
+    EXPECT_THROW(world.moveClothPin(id, 0, Vec3::Zero()), InvalidInput);
+    EXPECT_THROW(world.viewCloth(ClothId{7}), InvalidInput);
+    for (int i = 0; i < 5; ++i) world.step(0.01);
+    for (const Vec3& p : *world.viewCloth(id).positions) EXPECT_TRUE(p.allFinite());
+}
+
+// Yarn Fig. 4: two yarns under the same load; the right one has the higher Young's
+// modulus and rupture stress. The left tears first, when its stress reaches its rupture
+// stress (the load is known: it tears when load / (pi r^2) passes rupture).
+TEST(ClothTear, WeakerYarnTearsFirst) {
+    World world;
+    ClothDesc left = yarn(11, 0.2), right = yarn(11, 0.2);
+    left.name = "left";
+    right.name = "right";
+    right.origin.x() = 0.1;
+    left.material.tensile = {1e9, 2e7, 1e8, 4e7};
+    right.material.tensile = {3e9, 4e7, 3e8, 8e7};
+    const ClothId a = world.addCloth(left), b = world.addCloth(right);
+    const double area = kPi * left.yarn_radius * left.yarn_radius;
+    double left_load = -1.0, right_load = -1.0, load = 0.0;
+    for (int i = 0; i < 2000 && right_load < 0.0; ++i) {
+        load = 10.0 * i * 0.01;  // N, ramped at 10 N/s on the bottom vertex of both
+        world.applyClothForce(a, -1, Vec3(0, -load, 0));
+        world.applyClothForce(b, -1, Vec3(0, -load, 0));
+        world.step(0.01);
+        for (const auto& e : world.events()) {
+            if (e.type != EventType::Tear) continue;
+            if (e.object == "left" && left_load < 0.0) left_load = load;
+            if (e.object == "right" && right_load < 0.0) right_load = load;
+        }
+    }
+    ASSERT_GT(left_load, 0.0);
+    ASSERT_GT(right_load, 0.0);
+    EXPECT_LT(left_load, right_load);
+    // The weight of the yarn adds a little to the applied load at the top yarn.
+    EXPECT_NEAR(left_load, left.material.tensile.rupture * area, 0.05 * left.material.tensile.rupture * area);
+    EXPECT_NEAR(right_load, right.material.tensile.rupture * area, 0.05 * right.material.tensile.rupture * area);
 }
