@@ -141,8 +141,9 @@ void respondClothMaterial(ClothState& c, const StepContext& ctx, std::vector<Eve
 void softSpringForces(const ClothState& c, std::vector<Vec3>& out);
 
 /// The least-squares tension kernel on its own: rows of the free vertices (has_row,
-/// projector, row_rhs), edge directions `dir`; solves (A^T A + lambda' I) T = A^T b by
-/// iterated Tikhonov from the warm start in c.tension. Exposed for tests and benchmarks.
+/// projector, row_rhs), edge directions `dir`; solves min |A T - b|^2 + lambda |T - T_0|^2
+/// by iterated Tikhonov from the prior and warm start T_0 in c.tension (tension.cpp).
+/// Exposed for tests and benchmarks.
 void solveTensionLeastSquares(ClothState& c);
 
 /// The cloths of a world: created, stepped and viewed through World.

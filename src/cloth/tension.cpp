@@ -21,18 +21,26 @@
 // the sparse LDL^T (Eigen's SimplicialLDLT, AMD ordering) analyses once and only
 // factorises each step.
 //
-// Choice where Yarn is vague: plain Tikhonov biases every tension towards zero by about
-// lambda / sigma_min^2 (sigma_min the smallest singular value of A, about 1/n for a
-// chain of n yarns: 3e-4 relative for 20 yarns), which would make a regularised answer
-// disagree with the exact one of a consistent system. We therefore iterate the Tikhonov
-// step (iterated Tikhonov / proximal point):  T_{k+1} = (A^T A + lambda' I)^-1 (A^T b + lambda' T_k),
-// warm-started from the last step's tensions. Each refinement is one back-substitution
-// with the same factor and shrinks the bias by lambda' / (lambda' + sigma^2); at rest the
-// warm start is already the answer. From T_0 = 0 the iteration converges to the
-// minimum-norm least-squares solution (the regularisation's intent: tensions as small as
-// the motion allows). With a warm start, a self-stress mode (null space of A) that the
-// last step's answer had is kept rather than shrunk; it carries no load and the next
-// refinement from a moved geometry rotates it out only slowly (a known weakness).
+// Choices where Yarn is vague:
+//  - Self-stress. Momentum balance cannot see a stress state that is in equilibrium by
+//    itself: a cloth stretched between two clamps, a yarn pulled at both ends by pins.
+//    Those tensions lie in the null space of A, and "as small as possible" (Yarn's
+//    regularisation towards zero) reports zero: a cloth pulled apart by its clamps would
+//    never tear. We regularise towards a prior instead, the tensions the strain limiter's
+//    stiff springs carry at x'' (k_e max(0, |d| - L)):
+//        min |A T - b|^2 + lambda |T - T_spring|^2.
+//    Where the motion determines T (the row space of A) the momentum answer wins, with
+//    the bias below; in the null space the constitutive answer fills in.
+//  - Bias. Plain Tikhonov pulls every tension towards the prior by about
+//    lambda / sigma_min^2 (sigma_min the smallest singular value of A, about 1/n for a
+//    chain of n yarns: 3e-4 relative for 20 yarns), so a regularised answer would
+//    disagree with the exact one of a consistent system. We iterate the Tikhonov step
+//    (iterated Tikhonov / proximal point),  T_{k+1} = (A^T A + lambda' I)^-1 (A^T b + lambda' T_k),
+//    warm-started from the prior T_0 (the strain limiter's forces: at rest they already
+//    are the answer; they are a better start than the last step's tensions after a tear or
+//    a jerk). Each refinement is one back-substitution with the same factor and shrinks
+//    the row-space bias by lambda' / (lambda' + sigma^2); the null-space part stays at the
+//    prior's. The iteration converges to  T_LS(min norm) + P_null T_spring.
 //
 // Scaling: the factorisation of a q-yarn mesh costs about O(q^1.5) with nested-dissection
 // like fill (AMD on a grid); 100 x 100 vertices (19800 yarns) takes a few milliseconds
@@ -206,6 +214,12 @@ void solveClothTension(ClothState& c, const StepContext& ctx) {
     for (std::size_t p = 0; p < c.vertices(); ++p) {
         c.has_row[p] = c.hold[p].kind == ParticleHold::Kind::Free ? 1 : 0;
         c.row_rhs[p] = c.mass[p] * inv_h2 * (c.x[p] - c.x_pred[p]) - c.row_rhs[p];
+    }
+    // The prior and warm start: the stiff springs' forces at x''.
+    for (std::size_t e = 0; e < c.edgeCount(); ++e) {
+        if (c.broken[e]) continue;
+        const double stretch = (c.x[c.edges[e][1]] - c.x[c.edges[e][0]]).norm() - c.rest_length[e];
+        c.tension[e] = c.stiffness[e] * std::max(0.0, stretch);
     }
     solveTensionLeastSquares(c);
 }

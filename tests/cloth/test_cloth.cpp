@@ -236,3 +236,95 @@ TEST(ClothTear, WeakerYarnTearsFirst) {
     EXPECT_NEAR(left_load, left.material.tensile.rupture * area, 0.05 * left.material.tensile.rupture * area);
     EXPECT_NEAR(right_load, right.material.tensile.rupture * area, 0.05 * right.material.tensile.rupture * area);
 }
+
+namespace {
+
+/// True when some path of unbroken yarns joins vertex a to vertex b.
+bool connected(const ClothView& v, std::uint32_t a, std::uint32_t b) {
+    std::vector<std::vector<std::uint32_t>> next(v.vertexCount());
+    for (std::size_t e = 0; e < v.edgeCount(); ++e)
+        if (!(*v.broken)[e]) {
+            next[(*v.edges)[e][0]].push_back((*v.edges)[e][1]);
+            next[(*v.edges)[e][1]].push_back((*v.edges)[e][0]);
+        }
+    std::vector<std::uint8_t> seen(v.vertexCount(), 0);
+    std::vector<std::uint32_t> stack = {a};
+    seen[a] = 1;
+    while (!stack.empty()) {
+        const std::uint32_t p = stack.back();
+        stack.pop_back();
+        if (p == b) return true;
+        for (std::uint32_t q : next[p])
+            if (!seen[q]) seen[q] = 1, stack.push_back(q);
+    }
+    return false;
+}
+
+}  // namespace
+
+// A cloth pulled at two opposite edges (left column pinned, right column pinned and moved
+// along +x): the first yarn to tear is one of the highest stress; every tear is a warp
+// yarn (along the pull); the tear runs across the pull (it separates the two pinned
+// edges, one torn warp yarn per row, all in neighbouring columns); the topology is
+// exact: each Tear event removes exactly one edge, vertices and mass stay.
+TEST(ClothTear, PulledClothTearsAcrossThePull) {
+    World world;
+    ClothDesc d = square(9, 0.08);
+    d.resolution = {9, 7};
+    d.size = {0.08, 0.06};
+    d.damping = 1.0;
+    for (int j = 0; j < d.resolution[1]; ++j) {
+        d.pins.push_back({0, j});
+        d.pins.push_back({-1, j});
+    }
+    const ClothId id = world.addCloth(d);
+    const ClothView v0 = world.viewCloth(id);
+    const std::size_t vertices = v0.vertexCount(), edges = v0.edgeCount();
+    const double mass = std::accumulate(v0.masses->begin(), v0.masses->end(), 0.0);
+    EXPECT_EQ(edges, static_cast<std::size_t>(8 * 7 + 9 * 6));
+    std::vector<double> previous_stress(edges, 0.0);
+    std::vector<int> torn;
+    const std::uint32_t left = static_cast<std::uint32_t>(d.vertex(0, 3)), right = static_cast<std::uint32_t>(d.vertex(-1, 3));
+    int step = 0;
+    for (; step < 600 && connected(world.viewCloth(id), left, right); ++step) {
+        for (int j = 0; j < d.resolution[1]; ++j) {
+            const Vec3 p = (*world.viewCloth(id).positions)[d.vertex(-1, j)];
+            world.moveClothPin(id, d.vertex(-1, j), p + Vec3(0.05 * 0.01, 0, 0));
+        }
+        world.step(0.01);
+        const ClothView v = world.viewCloth(id);
+        for (const auto& e : world.events()) {
+            if (e.type != EventType::Tear) continue;
+            ASSERT_GE(e.segment, 0);
+            if (torn.empty()) {
+                // The first tear: no other yarn carried more stress in that solve.
+                for (std::size_t k = 0; k < v.edgeCount(); ++k)
+                    if (!(*v.broken)[k]) EXPECT_GE(e.stress * (1.0 + 1e-9), stressOf(v, k)) << "edge " << k;
+            }
+            torn.push_back(e.segment);
+        }
+        ASSERT_FALSE(v.frozen);
+    }
+    const ClothView v = world.viewCloth(id);
+    ASSERT_FALSE(connected(v, left, right)) << "not torn apart after " << step << " steps";
+    // Exact topology: one edge per Tear event, nothing else removed.
+    EXPECT_EQ(v.vertexCount(), vertices);
+    EXPECT_EQ(v.edgeCount(), edges);
+    const auto broken = static_cast<std::size_t>(std::count(v.broken->begin(), v.broken->end(), 1));
+    EXPECT_EQ(broken, torn.size());
+    EXPECT_EQ(std::set<int>(torn.begin(), torn.end()).size(), torn.size());
+    EXPECT_NEAR(std::accumulate(v.masses->begin(), v.masses->end(), 0.0), mass, 1e-15);
+    // Across the pull: warp yarns only, one per row, in neighbouring columns.
+    std::set<int> rows, columns;
+    for (int e : torn) {
+        EXPECT_EQ((*v.kinds)[e], YarnKind::Warp) << e;
+        const int i = static_cast<int>((*v.edges)[e][0]) % d.resolution[0];
+        const int j = static_cast<int>((*v.edges)[e][0]) / d.resolution[0];
+        rows.insert(j);
+        columns.insert(i);
+    }
+    EXPECT_EQ(rows.size(), static_cast<std::size_t>(d.resolution[1]));
+    EXPECT_EQ(torn.size(), static_cast<std::size_t>(d.resolution[1]));
+    EXPECT_LE(*columns.rbegin() - *columns.begin(), 2);
+    for (const Vec3& p : *v.positions) EXPECT_TRUE(p.allFinite());
+}
