@@ -33,6 +33,7 @@ struct VertexContact {
     std::uint32_t vertex = 0;
     Vec3 normal = Vec3::UnitY();  ///< from the body toward the vertex
     Vec3 point = Vec3::Zero();    ///< on the body's surface at its current pose, m
+    Vec3 local = Vec3::Zero();    ///< the same point in the body's frame (follows the body), m
     RigidId body;
     int node = -1;                ///< index into body_nodes when the body is movable
     double friction = 0.5;
@@ -133,7 +134,7 @@ void predictCloth(ClothState& c, const RigidTable& rigids, const StepContext& ct
 void limitClothStrain(ClothState& c, RigidTable& rigids, const StepContext& ctx);
 /// Stage: Yarn Sec. 3.2 tensions by Tikhonov-regularised least squares.
 void solveClothTension(ClothState& c, const StepContext& ctx);
-/// Stage: Coulomb friction of the contacts (after the tension solve: not tension).
+/// Stage: Coulomb friction of the contacts, on the velocities (after the tension solve: not tension).
 void applyClothFriction(ClothState& c, RigidTable& rigids, const StepContext& ctx);
 /// Stage: material response (Yarn Sec. 3.3-3.4): L_max, plasticity, rupture.
 void respondClothMaterial(ClothState& c, const StepContext& ctx, std::vector<Event>& events);

@@ -88,32 +88,31 @@ void respondClothMaterial(ClothState& c, const StepContext& ctx, std::vector<Eve
 }
 
 void applyClothFriction(ClothState& c, RigidTable& rigids, const StepContext& ctx) {
-    // Coulomb friction per contact, after the tension solve (its tangential correction is
-    // not yarn tension): the vertex's tangential motion relative to the body's surface
-    // point is removed up to mu F_n h^2 / m; the body gets the opposite impulse.
+    // Coulomb friction per contact at the velocity level, after the velocities are known
+    // (it is not yarn tension, and a position correction after the strain limit would
+    // stretch the inextensible yarns, which the next step's solve would yank back: energy
+    // pumped into a box resting on the cloth). The vertex's tangential velocity relative
+    // to the body's surface point is reduced by at most mu F_n h / m; the body gets the
+    // opposite impulse (linear and angular).
     for (const VertexContact& vc : c.contacts) {
-        if (!(vc.force > 0.0) || c.dof[vc.vertex] < 0 || c.hold[vc.vertex].kind != ParticleHold::Kind::Free) continue;
+        if (!(vc.force > 0.0) || c.hold[vc.vertex].kind != ParticleHold::Kind::Free) continue;
         RigidState& b = rigids.bodies[vc.body.index];
         const std::size_t i = vc.body.index;
-        // Where the surface point was at the start of the step, and where it is now.
-        const Vec3 local = b.orientation.conjugate() * (vc.point - b.position);
-        const Vec3 now = b.position + b.orientation * local;
-        const Vec3 before = rigids.start_position[i] + rigids.start_orientation[i] * local;
+        const Vec3 now = b.position + b.orientation * vc.local;
+        const Vec3 before = rigids.start_position[i] + rigids.start_orientation[i] * vc.local;
         const std::size_t p = vc.vertex;
-        Vec3 slip = (c.x[p] - c.x_prev[p]) - (now - before);
+        Vec3 slip = c.v[p] - (now - before) * ctx.inv_h;
         slip -= vc.normal * vc.normal.dot(slip);
         const double len = slip.norm();
         if (!(len > 0.0)) continue;
-        const double reach = vc.friction * vc.force * ctx.h * ctx.h / c.mass[p];
-        const Vec3 correction = -slip * std::min(1.0, reach / len);
-        c.x[p] += correction;
+        const double reach = vc.friction * vc.force * ctx.h / c.mass[p];
+        const Vec3 dv = -slip * std::min(1.0, reach / len);
+        c.v[p] += dv;
         if (rigids.movable(vc.body)) {
-            const Vec3 impulse = -c.mass[p] * correction;  // x h, kg m
-            b.position += b.inverse_mass * impulse;
-            const Vec3 rotation = b.inverseInertiaWorld() * (vc.point - b.position).cross(impulse);
-            const double angle = rotation.norm();
-            if (angle > 0.0) b.orientation = (Quat(Eigen::AngleAxisd(angle, rotation / angle)) * b.orientation).normalized();
-            b.impulse += impulse * ctx.inv_h;
+            const Vec3 impulse = -c.mass[p] * dv;  // N s
+            b.linear_velocity += b.inverse_mass * impulse;
+            b.angular_velocity += b.inverseInertiaWorld() * (now - b.position).cross(impulse);
+            b.impulse += impulse;
         }
     }
 }

@@ -153,6 +153,8 @@ void ClothSystem::step(RigidTable& rigids, const StepContext& ctx, const PointCo
         vc.normal = pc.normal;
         vc.point = pc.point;
         vc.body = pc.body;
+        const RigidState& body = rigids.bodies[pc.body.index];
+        vc.local = body.orientation.conjugate() * (pc.point - body.position);
         vc.friction = std::max(0.0, pc.friction);
         c.contacts.push_back(vc);
     }
@@ -165,10 +167,7 @@ void ClothSystem::step(RigidTable& rigids, const StepContext& ctx, const PointCo
     times.strain_limit += seconds(t2, t3);
 
     for (ClothState& c : cloths_)
-        if (live(c)) {
-            solveClothTension(c, ctx);
-            if (!c.contacts.empty()) applyClothFriction(c, rigids, ctx);
-        }
+        if (live(c)) solveClothTension(c, ctx);
     const auto t4 = Clock::now();
     times.tension += seconds(t3, t4);
 
@@ -190,6 +189,7 @@ void ClothSystem::step(RigidTable& rigids, const StepContext& ctx, const PointCo
             ok = ok && finite(c.x[p]) && finite(v);
         }
         for (double t : c.tension) ok = ok && std::isfinite(t);
+        if (ok && !c.contacts.empty()) applyClothFriction(c, rigids, ctx);
         std::fill(c.force.begin(), c.force.end(), Vec3::Zero());
         if (!ok) {
             for (std::size_t p = 0; p < c.vertices(); ++p) {
