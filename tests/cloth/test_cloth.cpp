@@ -1,6 +1,7 @@
 // Cloth of tearable yarns (issue 6): descriptor checks, strain limiting, least-squares
 // tensions against analytic results, material response and tearing.
 #include "cloth/cloth_state.hpp"
+#include "tearables/scene.hpp"
 #include "tearables/world.hpp"
 
 #include <gtest/gtest.h>
@@ -327,4 +328,26 @@ TEST(ClothTear, PulledClothTearsAcrossThePull) {
     EXPECT_EQ(torn.size(), static_cast<std::size_t>(d.resolution[1]));
     EXPECT_LE(*columns.rbegin() - *columns.begin(), 2);
     for (const Vec3& p : *v.positions) EXPECT_TRUE(p.allFinite());
+}
+
+// A scene's cloths load with their fields, pins and defaults (a yarn given density alone
+// switches areal density off).
+TEST(ClothScene, LoadsClothFields) {
+    const tearables::scene::Scene s = tearables::scene::parseScene(R"({"cloths": [
+        {"name": "a", "resolution": [4, 3], "size": [0.3, 0.2], "yarn_radius": 0.001, "lambda": 1e-5,
+         "attachments": [{"vertex": [0, -1], "world": true}, {"vertex": [-1, 0], "world": [1, 2, 3]}]},
+        {"name": "y", "resolution": [1, 5], "size": [0, 0.1], "density": 1000}]})");
+    ASSERT_EQ(s.cloths.size(), 2u);
+    const ClothDesc& a = s.cloths[0].desc;
+    EXPECT_EQ(a.resolution[0], 4);
+    EXPECT_EQ(a.resolution[1], 3);
+    EXPECT_DOUBLE_EQ(a.yarn_radius, 0.001);
+    EXPECT_DOUBLE_EQ(a.lambda, 1e-5);
+    ASSERT_EQ(a.pins.size(), 2u);
+    EXPECT_EQ(a.vertex(a.pins[0].i, a.pins[0].j), 8);
+    EXPECT_TRUE(a.pins[0].at_rest);
+    EXPECT_FALSE(a.pins[1].at_rest);
+    EXPECT_EQ(a.pins[1].point, Vec3(1, 2, 3));
+    EXPECT_DOUBLE_EQ(s.cloths[1].desc.areal_density, 0.0);
+    EXPECT_DOUBLE_EQ(s.cloths[1].desc.density, 1000.0);
 }
