@@ -73,3 +73,30 @@ TEST(DemoScenes, PlasticityKeepsTheElongationAboveYieldOnly) {  // Fig. 8, top r
     // 180 N on 1 mm radius: 57 MPa; permanent strain 4e7/3e9 + 1.7e7/3e8 - 5.7e7/3e9 = 5.1%.
     EXPECT_NEAR(length(last, "above") / 0.5 - 1.0, 0.051, 0.1 * 0.051);
 }
+
+TEST(DemoScenes, YarnTearWeakerYarnFirst) {  // Yarn Fig. 4
+    const std::vector<std::string> order = tearOrder(run("yarn-tear"), "tension");
+    EXPECT_EQ(order, (std::vector<std::string>{"left", "right"}));
+}
+
+TEST(DemoScenes, ClothTearRunsAcrossThePull) {
+    const fs::path out = run("cloth-tear");
+    // 16 x 11 vertices: warp yarn e (e < 15 * 11) joins (e % 15, e / 15) and its right neighbour.
+    std::vector<int> columns, rows;
+    std::ifstream events(out / "events.jsonl");
+    std::string line;
+    while (std::getline(events, line)) {
+        const json e = json::parse(line);
+        if (e["type"] != "tear") continue;
+        const int segment = e["segment"];
+        ASSERT_LT(segment, 15 * 11) << "a weft yarn tore: the pull is along the warp";
+        columns.push_back(segment % 15);
+        rows.push_back(segment / 15);
+    }
+    std::sort(rows.begin(), rows.end());
+    EXPECT_EQ(rows.size(), 11u);  // one yarn per row: the cloth is cut in two
+    EXPECT_TRUE(std::unique(rows.begin(), rows.end()) == rows.end());
+    ASSERT_FALSE(columns.empty());
+    EXPECT_LE(*std::max_element(columns.begin(), columns.end()) - *std::min_element(columns.begin(), columns.end()), 2);
+    EXPECT_EQ(lastFrame(out)["cloths"]["cloth"]["broken"].size(), rows.size());
+}
