@@ -14,7 +14,11 @@
 //    pull gives the yarn time to lengthen plastically before it reaches rupture, which
 //    lowers its spring force at a given elongation and spreads the load to its
 //    neighbours; a fast pull reaches rupture with the rest length lagging (brittle).
-//    tau = 0 (the default) is rate independent, as the strings are.
+//    tau = 0 (the default) follows the curve at once, as the strings do; the update is
+//    explicit (this step's stress sets this step's rest length), so it is rate
+//    independent only while a step adds little stress against rupture - yield
+//    (tests/cloth: 0.04% strain a step follows the curve, 1% a step breaks at half the
+//    plastic elongation).
 //  - Rupture: a yarn whose stress reaches its rupture stress breaks (if tearable): the
 //    edge is removed (its vertices stay), the soft springs that depended on it go with
 //    it, a Tear event is emitted. Per cloth and step only the most overloaded yarn

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <cstdio>
 #include <functional>
 #include <numeric>
 #include <set>
@@ -350,4 +351,78 @@ TEST(ClothScene, LoadsClothFields) {
     EXPECT_EQ(a.pins[1].point, Vec3(1, 2, 3));
     EXPECT_DOUBLE_EQ(s.cloths[1].desc.areal_density, 0.0);
     EXPECT_DOUBLE_EQ(s.cloths[1].desc.density, 1000.0);
+}
+
+namespace {
+
+/// A single yarn pinned at its top and pulled down at its bottom pin at `speed` (m/s)
+/// until it tears; the yarn's total rest length then, over its original length.
+double elongationAtBreak(double speed, double plastic_time) {
+    World world;
+    ClothDesc d = yarn(6, 0.05);
+    d.plastic_time = plastic_time;
+    d.pins = {{0, 0}, {0, -1}};
+    const ClothId id = world.addCloth(d);
+    const double original = 0.05;
+    for (int i = 0; i < 20000; ++i) {
+        const Vec3 p = (*world.viewCloth(id).positions)[d.vertex(0, -1)];
+        world.moveClothPin(id, d.vertex(0, -1), p - Vec3(0, speed * 0.01, 0));
+        world.step(0.01);
+        for (const auto& e : world.events())
+            if (e.type == EventType::Tear) {
+                double rest = 0.0;
+                for (double l : *world.viewCloth(id).rest_length) rest += l;
+                return rest / original;
+            }
+    }
+    return -1.0;
+}
+
+}  // namespace
+
+// Yarn Sec. 3.4, strain rate: with a viscoplastic time the rest length follows the curve
+// only as fast as it can flow, so a slow pull lengthens the yarn plastically more before
+// it breaks than a fast one; without it (tau = 0) a slow pull follows the curve. The
+// permanent strain a slow pull approaches is the curve's at rupture:
+// (rupture - yield) / E_p - (rupture - yield) / E.
+TEST(ClothMaterial, SlowPullsLengthenMoreBeforeBreaking) {
+    const tearables::TensileCurve curve;
+    const double permanent = (curve.rupture - curve.yield) / curve.plastic_modulus - (curve.rupture - curve.yield) / curve.young;
+    // 5 cm yarn: 0.002 m/s is 0.04% strain per step, 0.05 m/s 1% per step.
+    const double slow = elongationAtBreak(0.002, 0.2), fast = elongationAtBreak(0.05, 0.2);
+    ASSERT_GT(slow, 0.0);
+    ASSERT_GT(fast, 0.0);
+    EXPECT_GT(slow - 1.0, 1.5 * (fast - 1.0));
+    EXPECT_NEAR(slow - 1.0, permanent, 0.15 * permanent);
+    const double slow0 = elongationAtBreak(0.002, 0.0), fast0 = elongationAtBreak(0.05, 0.0);
+    EXPECT_NEAR(slow0 - 1.0, permanent, 0.05 * permanent);
+    // Even with tau = 0 the plastic update is explicit (a step's rest length comes from
+    // the stress of that step), so a pull of 1% strain a step (3e7 Pa of elastic stress
+    // a step, against rupture - yield = 4e7 Pa) outruns it: rate independence holds only
+    // for small strain increments per step. The fast pull never lengthens more.
+    EXPECT_LE(fast0, slow0);
+}
+
+// Glue to a rigid proxy: the world reports the body in use; removing the body releases
+// the vertex with a Release event (cause body_removed), and the cloth goes on.
+TEST(ClothAttach, RemovedBodyReleasesItsVertices) {
+    World world;
+    const ClothId id = world.addCloth(square(4, 0.1));
+    tearables::RigidState body;
+    body.position = Vec3(0, 1.2, 0);
+    const tearables::RigidId rid = world.addRigid(body);
+    world.attachClothToRigid(id, 0, rid, Vec3(0, -0.2, 0));
+    EXPECT_TRUE(world.rigidInUse(rid));
+    world.step(0.01);
+    EXPECT_NEAR(((*world.viewCloth(id).positions)[0] - Vec3(0, 1.0, 0)).norm(), 0.0, 1e-12);  // held by the static body
+    world.removeRigid(rid);
+    world.step(0.01);
+    bool released = false;
+    for (const auto& e : world.events())
+        released = released || (e.type == EventType::Release && e.cause == tearables::EventCause::BodyRemoved && e.particle == 0);
+    EXPECT_TRUE(released);
+    for (int i = 0; i < 10; ++i) world.step(0.01);
+    EXPECT_LT((*world.viewCloth(id).positions)[0].y(), 1.0);  // falls once free
+    world.removeCloth(id);
+    EXPECT_FALSE(world.contains(id));
 }
