@@ -665,6 +665,107 @@ String parseString(const Node& n, std::uint64_t seed, const NameMap& bodies) {
 }
 
 // =============================================================================================
+// Cloths
+// =============================================================================================
+
+/// [i, j] of a cloth vertex (negative counts from the end), resolved.
+std::pair<int, int> clothVertex(const Node& n, const ClothDesc& d) {
+    if (!n.value().is_array() || n.value().size() != 2)
+        n.fail("expected an array of 2 integers [i, j], got " + describe(n.value()));
+    const std::vector<Node> ij = n.asArray();
+    int out[2];
+    for (int k = 0; k < 2; ++k) {
+        const long long v = ij[k].asInteger();
+        const long long count = d.resolution[k];
+        if (v < -count || v >= count)
+            ij[k].fail("vertex index out of range (got " + std::to_string(v) + "; the cloth has " + std::to_string(count) +
+                       " vertices along this axis)");
+        out[k] = static_cast<int>(v < 0 ? v + count : v);
+    }
+    return {out[0], out[1]};
+}
+
+/// A cloth; `seed` is its material variation seed, `bodies` the bodies it may attach to.
+Cloth parseCloth(const Node& n, std::uint64_t seed, const NameMap& bodies) {
+    n.checkNoUnknownFields({"name", "origin", "size", "resolution", "orientation", "areal_density", "density",
+                            "yarn_radius", "material", "lambda", "shear_stiffness", "bending_stiffness", "damping",
+                            "plastic_time", "tearable", "attachments"});
+    Cloth c;
+    ClothDesc& d = c.desc;
+    d.name = requiredName(n);
+    d.origin = n.vec3("origin", d.origin);
+    if (const auto size = n.field("size")) {
+        const std::vector<double> v = size->asNumbers(2, Range::atLeast(0.0));
+        d.size = {v[0], v[1]};
+    }
+    if (const auto res = n.field("resolution")) {
+        if (!res->value().is_array() || res->value().size() != 2)
+            res->fail("expected an array of 2 integers, got " + describe(res->value()));
+        const std::vector<Node> r = res->asArray();
+        d.resolution = {static_cast<int>(r[0].asInteger(1, 2000)), static_cast<int>(r[1].asInteger(1, 2000))};
+    }
+    if (const auto q = n.field("orientation")) {
+        const std::vector<double> v = q->asNumbers(4);
+        const Quat quat(v[3], v[0], v[1], v[2]);
+        if (!(quat.norm() > 1e-9)) q->fail("must be a non-zero quaternion [x, y, z, w]");
+        d.orientation = quat.normalized();
+    }
+    // One of the two densities: giving density alone switches areal_density off.
+    const bool has_density = n.has("density");
+    d.areal_density = n.number("areal_density", has_density ? 0.0 : d.areal_density, Range::atLeast(0.0));
+    d.density = n.number("density", d.density, Range::atLeast(0.0));
+    d.yarn_radius = n.number("yarn_radius", d.yarn_radius, Range::positive());
+    if (const auto m = n.field("material")) parseMaterial(*m, d.material);
+    d.lambda = n.number("lambda", d.lambda, Range::closed(0.0, 1.0));
+    d.shear_stiffness = n.number("shear_stiffness", d.shear_stiffness, Range::atLeast(0.0));
+    d.bending_stiffness = n.number("bending_stiffness", d.bending_stiffness, Range::atLeast(0.0));
+    d.damping = n.number("damping", d.damping, Range::closed(0.0, 1000.0));
+    d.plastic_time = n.number("plastic_time", d.plastic_time, Range::closed(0.0, 10.0));
+    d.tearable = n.boolean("tearable", d.tearable);
+    d.seed = seed;
+    try {
+        validate(d);  // what the fields above cannot check alone: rupture > yield, one density, ...
+    } catch (const InvalidInput& e) {
+        throw InvalidInput(e.field().empty() ? n.path() : n.path() + "." + e.field(), e.problem());
+    }
+    std::map<int, std::string> taken;
+    for (const Node& a : n.array("attachments")) {
+        a.checkNoUnknownFields({"vertex", "world", "body", "local"});
+        const Node vertex = a.required("vertex");
+        const auto [i, j] = clothVertex(vertex, d);
+        if (const auto [it, fresh] = taken.emplace(j * d.resolution[0] + i, a.path()); !fresh)
+            vertex.fail("vertex [" + std::to_string(i) + ", " + std::to_string(j) + "] already has an attachment (" + it->second + ")");
+        const auto body = a.field("body");
+        const auto world = a.field("world");
+        const auto local = a.field("local");
+        if (body && world) world->fail("give either body or world, not both");
+        if (!body && !world) a.fail("needs body (a body's name) or world (true: where the vertex starts, or a point)");
+        if (body) {
+            ClothAttachment att;
+            att.i = i;
+            att.j = j;
+            att.body = body->asString();
+            if (bodies.count(att.body) == 0) body->fail("no body named " + jsonQuoted(att.body) + knownNames(namesOf(bodies), "bodies"));
+            if (local) att.local = local->asVec3();
+            c.attachments.push_back(att);
+        } else {
+            if (local) local->fail("only allowed with body");
+            ClothPin pin;
+            pin.i = i;
+            pin.j = j;
+            if (world->value().is_boolean()) {
+                if (!world->asBool()) world->fail("must be true (pinned where the vertex starts) or a point [x, y, z]");
+            } else {
+                pin.at_rest = false;
+                pin.point = world->asVec3();
+            }
+            d.pins.push_back(pin);
+        }
+    }
+    return c;
+}
+
+// =============================================================================================
 // Drivers
 // =============================================================================================
 
@@ -681,11 +782,11 @@ struct DriverKind {
 
 const std::vector<DriverKind>& driverKinds() {
     static const std::vector<DriverKind> kinds = {
-        {"force", Driver::Type::Force, {"type", "target", "particle", "value", "from", "until"}},
-        {"ramp", Driver::Type::Ramp, {"type", "target", "particle", "value", "rate", "from"}},
+        {"force", Driver::Type::Force, {"type", "target", "particle", "vertex", "value", "from", "until"}},
+        {"ramp", Driver::Type::Ramp, {"type", "target", "particle", "vertex", "value", "rate", "from"}},
         {"twist", Driver::Type::Twist, {"type", "target", "end", "rate", "from", "until"}},
-        {"move", Driver::Type::Move, {"type", "target", "particle", "velocity", "from", "until"}},
-        {"release", Driver::Type::Release, {"type", "target", "particle", "at"}},
+        {"move", Driver::Type::Move, {"type", "target", "particle", "vertex", "velocity", "from", "until"}},
+        {"release", Driver::Type::Release, {"type", "target", "particle", "vertex", "at"}},
         {"wind", Driver::Type::Wind, {"type", "value", "gust", "from", "until"}},
         {"spawn", Driver::Type::Spawn, {"type", "body", "at"}},
     };
@@ -694,7 +795,7 @@ const std::vector<DriverKind>& driverKinds() {
 
 /// A driver; `strings` are the scene's strings (targets), `body_names` all bodies so far
 /// (a spawned body's name must be new; it is added).
-Driver parseDriver(const Node& n, const std::vector<String>& strings, NameMap& body_names) {
+Driver parseDriver(const Node& n, const std::vector<String>& strings, const std::vector<Cloth>& cloths, NameMap& body_names) {
     n.expectObject();
     const Node type = n.required("type");
     const std::string type_name = type.asString();
@@ -714,14 +815,27 @@ Driver parseDriver(const Node& n, const std::vector<String>& strings, NameMap& b
         const Node target = n.required("target");
         d.target = target.asString();
         const auto s = std::find_if(strings.begin(), strings.end(), [&](const String& x) { return x.desc.name == d.target; });
-        if (s == strings.end()) {
+        const auto c = std::find_if(cloths.begin(), cloths.end(), [&](const Cloth& x) { return x.desc.name == d.target; });
+        if (s == strings.end() && (c == cloths.end() || d.type == Driver::Type::Twist)) {
             std::vector<std::string> names;
             for (const String& x : strings) names.push_back(x.desc.name);
-            target.fail("no string named " + jsonQuoted(d.target) + knownNames(names, "strings"));
+            if (d.type != Driver::Type::Twist)
+                for (const Cloth& x : cloths) names.push_back(x.desc.name);
+            target.fail("no string" + std::string(d.type == Driver::Type::Twist ? "" : " or cloth") + " named " +
+                        jsonQuoted(d.target) + knownNames(names, d.type == Driver::Type::Twist ? "strings" : "strings and cloths"));
         }
-        particles = static_cast<long long>(s->desc.points.size());
+        if (s != strings.end()) {
+            particles = static_cast<long long>(s->desc.points.size());
+            if (const auto v = n.field("vertex")) v->fail("only for a cloth target (a string's is particle)");
+        } else {
+            d.cloth = true;
+            if (const auto p = n.field("particle")) p->fail("a cloth's vertex is given as vertex: [i, j]");
+            const Node vertex = n.required("vertex");
+            const auto [i, j] = clothVertex(vertex, c->desc);
+            d.particle = j * c->desc.resolution[0] + i;
+        }
     }
-    if (kind->allows("particle")) {
+    if (kind->allows("particle") && !d.cloth) {
         const auto p = n.field("particle");
         d.particle = p ? particleIndex(*p, particles) : static_cast<int>(particles - 1);
     }
@@ -829,9 +943,14 @@ Scene parseScene(const std::string& json_text) {
     }
 
     rejectUnavailable(top, "papers", "paper sheets are not available in this build yet");
-    rejectUnavailable(top, "cloths", "cloths are not available in this build yet");
 
-    for (const Node& n : top.array("drivers")) scene.drivers.push_back(parseDriver(n, scene.strings, body_names));
+    const std::vector<Node> cloths = top.array("cloths");
+    for (std::size_t i = 0; i < cloths.size(); ++i) {
+        scene.cloths.push_back(parseCloth(cloths[i], scene.seed + strings.size() + i, body_names));
+        claimName(string_names, scene.cloths.back().desc.name, cloths[i].path(), "string or cloth");
+    }
+
+    for (const Node& n : top.array("drivers")) scene.drivers.push_back(parseDriver(n, scene.strings, scene.cloths, body_names));
 
     if (const auto output = top.field("output")) {
         output->checkNoUnknownFields({"every"});

@@ -125,8 +125,8 @@ private:
 json vec(const Vec3& v) { return json::array({v.x(), v.y(), v.z()}); }
 json vec(const btVector3& v) { return json::array({v.x(), v.y(), v.z()}); }
 
-json frame(long long step, double t, const Scene& scene, const std::vector<StringId>& ids, const World& core,
-           const BulletScene& bs) {
+json frame(long long step, double t, const Scene& scene, const std::vector<StringId>& ids,
+           const std::vector<ClothId>& cloth_ids, const World& core, const BulletScene& bs) {
     json f;
     f["step"] = step;
     f["t"] = t;
@@ -154,6 +154,30 @@ json frame(long long step, double t, const Scene& scene, const std::vector<Strin
         strings[scene.strings[i].desc.name] = std::move(s);
     }
     f["strings"] = std::move(strings);
+    if (!cloth_ids.empty()) {
+        json cloths = json::object();
+        for (std::size_t i = 0; i < cloth_ids.size(); ++i) {
+            const ClothView v = core.viewCloth(cloth_ids[i]);
+            json x = json::array(), tension = json::array(), rest = json::array(), broken = json::array();
+            for (const Vec3& p : *v.positions) x.push_back(vec(p));
+            for (std::size_t e = 0; e < v.edgeCount(); ++e) {
+                if ((*v.broken)[e]) {
+                    tension.push_back(nullptr);
+                    broken.push_back(e);
+                } else {
+                    tension.push_back((*v.tension)[e]);
+                }
+                rest.push_back((*v.rest_length)[e]);
+            }
+            // Edges: warp (i, j)-(i+1, j) for j-major, i-minor, then weft (i, j)-(i, j+1).
+            cloths[scene.cloths[i].desc.name] = {{"resolution", json::array({v.resolution[0], v.resolution[1]})},
+                                                 {"x", std::move(x)},
+                                                 {"tension", std::move(tension)},
+                                                 {"rest_length", std::move(rest)},
+                                                 {"broken", std::move(broken)}};
+        }
+        f["cloths"] = std::move(cloths);
+    }
     json bodies = json::object();
     for (std::size_t i = 0; i < bs.bodies.size(); ++i) {
         const btRigidBody* b = bs.bodies[i].get();
@@ -218,6 +242,7 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
     for (std::size_t d = 0; d < scene.drivers.size(); ++d) {
         const Driver& drv = scene.drivers[d];
         const std::string path = "drivers[" + std::to_string(d) + "]";
+        if (drv.cloth) continue;  // cloth targets are checked when they act
         if (drv.type == Driver::Type::Twist)
             for (const String& s : scene.strings)
                 if (s.desc.name == drv.target) {
@@ -263,6 +288,20 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
             throw InvalidInput(path + "." + e.field(), e.problem());
         }
     }
+    std::vector<ClothId> cloth_ids;
+    for (std::size_t i = 0; i < scene.cloths.size(); ++i) {
+        const Cloth& c = scene.cloths[i];
+        const std::string path = "cloths[" + std::to_string(i) + "]";
+        try {
+            cloth_ids.push_back(ropes.addCloth(c.desc));
+            for (const ClothAttachment& a : c.attachments)
+                ropes.attachCloth(cloth_ids.back(), c.desc.vertex(a.i, a.j), *bs.by_name.at(a.body), toBullet(a.local));
+        } catch (const InvalidInput& e) {
+            throw InvalidInput(path + "." + e.field(), e.problem());
+        }
+    }
+    std::map<std::string, ClothId> cloth_by_name;
+    for (std::size_t i = 0; i < cloth_ids.size(); ++i) cloth_by_name[scene.cloths[i].desc.name] = cloth_ids[i];
     std::map<std::string, StringId> string_ids;
     for (std::size_t i = 0; i < ids.size(); ++i) string_ids[scene.strings[i].desc.name] = ids[i];
 
@@ -276,7 +315,7 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         if (ec) throw std::runtime_error("cannot create " + dir.string() + ": " + ec.message());
         trace = openOut(dir / "trace.jsonl");
         events = openOut(dir / "events.jsonl");
-        trace << frame(0, 0.0, scene, ids, ropes.core(), bs).dump() << '\n';
+        trace << frame(0, 0.0, scene, ids, cloth_ids, ropes.core(), bs).dump() << '\n';
     }
     if (options.on_frame) options.on_frame(frameState(0, 0.0, scene, ids, ropes.core(), bs));
 
@@ -292,6 +331,44 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         for (std::size_t d = 0; d < scene.drivers.size(); ++d) {
             const Driver& drv = scene.drivers[d];
             const bool active = t0 >= drv.from && t0 < drv.until;
+            if (drv.cloth) {
+                const ClothId id = cloth_by_name.at(drv.target);
+                switch (drv.type) {
+                    case Driver::Type::Force:
+                        if (active) core.applyClothForce(id, drv.particle, drv.value);
+                        break;
+                    case Driver::Type::Ramp:
+                        if (active) core.applyClothForce(id, drv.particle, drv.value * (drv.rate * (t0 - drv.from)));
+                        break;
+                    case Driver::Type::Move:
+                        if (active) {
+                            const Vec3 at = (*core.viewCloth(id).positions)[static_cast<std::size_t>(drv.particle)];
+                            try {
+                                core.moveClothPin(id, drv.particle, at + dt * drv.velocity);
+                            } catch (const InvalidInput&) {  // not pinned yet: pinned where it is, then moved
+                                const bool glued = std::any_of(scene.cloths.begin(), scene.cloths.end(), [&](const Cloth& c) {
+                                    return c.desc.name == drv.target &&
+                                           std::any_of(c.attachments.begin(), c.attachments.end(), [&](const ClothAttachment& a) {
+                                               return c.desc.vertex(a.i, a.j) == drv.particle;
+                                           });
+                                });
+                                if (glued)
+                                    throw InvalidInput("drivers[" + std::to_string(d) + "].vertex", "is glued to a body and cannot be moved");
+                                core.attachClothToPoint(id, drv.particle, at);
+                                core.moveClothPin(id, drv.particle, at + dt * drv.velocity);
+                            }
+                        }
+                        break;
+                    case Driver::Type::Release:
+                        if (!done[d] && t0 >= drv.at) {
+                            core.detachCloth(id, drv.particle);
+                            done[d] = 1;
+                        }
+                        break;
+                    default: break;
+                }
+                continue;
+            }
             switch (drv.type) {
                 case Driver::Type::Force:
                     if (active) core.applyForce(string_ids.at(drv.target), drv.particle, drv.value);
@@ -368,7 +445,8 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         }
         ropes.clearEvents();
         const bool frame_step = step % every == 0 || step == steps;
-        if (write && frame_step) trace << frame(step, static_cast<double>(step) * dt, scene, ids, ropes.core(), bs).dump() << '\n';
+        if (write && frame_step)
+            trace << frame(step, static_cast<double>(step) * dt, scene, ids, cloth_ids, ropes.core(), bs).dump() << '\n';
         if (options.on_frame && frame_step) options.on_frame(frameState(step, static_cast<double>(step) * dt, scene, ids, ropes.core(), bs));
         if (options.progress && (step % progress_every == 0 || step == steps)) drawProgress(step, steps);
     }
@@ -382,6 +460,13 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
     Digest digest;
     for (StringId id : ids) {
         const StringView v = ropes.core().view(id);
+        for (const Vec3& p : *v.positions) digest.add(p);
+        for (const Vec3& p : *v.velocities) digest.add(p);
+        for (double l : *v.rest_length) digest.add(l);
+        digest.add(v.broken->data(), v.broken->size());
+    }
+    for (ClothId id : cloth_ids) {
+        const ClothView v = ropes.core().viewCloth(id);
         for (const Vec3& p : *v.positions) digest.add(p);
         for (const Vec3& p : *v.velocities) digest.add(p);
         for (double l : *v.rest_length) digest.add(l);

@@ -415,6 +415,21 @@ void BulletWorld::attach(StringId id, int particle, btRigidBody& body, const btV
 
 void BulletWorld::detach(StringId id, int particle) { core_->detach(id, particle); }
 
+ClothId BulletWorld::addCloth(const ClothDesc& desc) { return core_->addCloth(desc); }
+void BulletWorld::removeCloth(ClothId id) { core_->removeCloth(id); }
+
+void BulletWorld::attachCloth(ClothId id, int vertex, const btVector3& world_point) {
+    core_->attachClothToPoint(id, vertex, toCore(world_point));
+}
+
+void BulletWorld::attachCloth(ClothId id, int vertex, btRigidBody& body, const btVector3& local_point) {
+    if (!body.getBroadphaseHandle()) throw InvalidInput("body", "is not in the Bullet world");
+    if (!core_->contains(id)) throw InvalidInput("cloth", "no such cloth");
+    const int n = core_->clothDesc(id).vertexCount();
+    if (vertex < -n || vertex >= n) throw InvalidInput("vertex", "vertex index " + std::to_string(vertex) + " out of range");
+    core_->attachClothToRigid(id, vertex, proxyFor(body), toCore(local_point));
+}
+
 void BulletWorld::forgetBody(const btRigidBody& body) {
     auto it = proxies_.find(&body);
     if (it == proxies_.end()) return;

@@ -67,6 +67,15 @@ public:
     void attach(StringId id, int particle, btRigidBody& body, const btVector3& local_point);
     /// Frees a particle (a Release event is reported).
     void detach(StringId id, int particle);
+    /// Validates and creates a cloth (throws InvalidInput naming the field). Cloths collide
+    /// with the Bullet bodies near them (spheres of the yarn radius at the vertices).
+    ClothId addCloth(const ClothDesc& desc);
+    /// Removes a cloth.
+    void removeCloth(ClothId id);
+    /// Pins a cloth vertex (flat index j * resolution[0] + i; negative counts from the end) to a world point.
+    void attachCloth(ClothId id, int vertex, const btVector3& world_point);
+    /// Glues a cloth vertex to a rigid body at a point in the body's frame; two-way.
+    void attachCloth(ClothId id, int vertex, btRigidBody& body, const btVector3& local_point);
     /// Drops every attachment to `body` now (call before deleting a body strings hold).
     void forgetBody(const btRigidBody& body);
 

@@ -3,6 +3,7 @@
 // ("strings[0].material.tensile.rupture") and whose problem() says what is wrong.
 #pragma once
 
+#include "tearables/cloth.hpp"
 #include "tearables/string.hpp"
 #include "tearables/types.hpp"
 #include "tearables/world.hpp"
@@ -53,12 +54,26 @@ struct String {
     std::vector<Attachment> attachments;  ///< at most one per particle
 };
 
+/// What holds a cloth's vertex (pins to world points are in ClothDesc::pins).
+struct ClothAttachment {
+    int i = 0, j = 0;                  ///< the vertex, resolved to [0, resolution)
+    std::string body;                  ///< the body's name (must exist)
+    Vec3 local = Vec3::Zero();         ///< point in the body's frame, m
+};
+
+/// A cloth of the scene.
+struct Cloth {
+    ClothDesc desc;                          ///< name, weave, material, pins, ... (name unique among strings and cloths)
+    std::vector<ClothAttachment> attachments;///< vertices glued to bodies
+};
+
 /// A scripted action.
 struct Driver {
     enum class Type { Force, Ramp, Twist, Move, Release, Wind, Spawn };
     Type type = Type::Force;
-    std::string target;       ///< string name (force, ramp, twist, move, release)
-    int particle = -1;        ///< particle index (force, ramp, move, release)
+    std::string target;       ///< string or cloth name (force, ramp, twist, move, release)
+    int particle = -1;        ///< particle index (force, ramp, move, release), or the cloth's flat vertex index
+    bool cloth = false;       ///< the target is a cloth: "vertex": [i, j] instead of "particle"
     int end = -1;             ///< twist: 0 or -1 (which clamped end)
     Vec3 value = Vec3::Zero();///< force: N; ramp: direction (non-zero, normalised on load); wind: m/s
     double rate = 0.0;        ///< ramp: N/s (> 0); twist: rad/s
@@ -86,6 +101,7 @@ struct Scene {
     std::uint64_t seed = 1;           ///< seeds every random choice (string i gets seed + i)
     std::vector<Body> bodies;
     std::vector<String> strings;
+    std::vector<Cloth> cloths;
     std::vector<Driver> drivers;
     int output_every = 1;             ///< write a trace frame every this many steps, >= 1
     Camera camera;                    ///< for pictures; absent fields are fitted to the scene

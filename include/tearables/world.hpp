@@ -2,6 +2,7 @@
 // proxies that a host (the Bullet plugin) fills before a step and reads back after it.
 #pragma once
 
+#include "tearables/cloth.hpp"
 #include "tearables/events.hpp"
 #include "tearables/string.hpp"
 #include "tearables/types.hpp"
@@ -10,6 +11,10 @@
 #include <vector>
 
 namespace tearables {
+
+namespace detail {
+class ClothSystem;
+}
 
 /// World-wide solver settings.
 struct WorldSettings {
@@ -192,7 +197,7 @@ public:
     /// Contacts of the last step (after the collision stage), for inspection and tests.
     const std::vector<RigidContact>& lastContacts() const;
 
-    /// Advances all strings by `h` seconds (> 0, finite). Never throws; an object that
+    /// Advances all strings and cloths by `h` seconds (> 0, finite). Never throws; an object that
     /// goes non-finite is frozen with a Freeze event.
     void step(double h);
 
@@ -214,7 +219,35 @@ public:
     /// Resolves a particle index (negative counts from the end); throws InvalidInput("particle").
     int resolveParticle(StringId id, int particle) const;
 
+    // --- cloths (cloth.hpp; src/cloth/) ----------------------------------------------------
+    /// Validates and creates a cloth. Throws InvalidInput naming the field; nothing is created then.
+    ClothId addCloth(const ClothDesc& desc);
+    /// Removes a cloth; its id becomes invalid.
+    void removeCloth(ClothId id);
+    /// Cloths that exist, in slot order.
+    std::vector<ClothId> cloths() const;
+    /// True when `id` names a cloth of this world.
+    bool contains(ClothId id) const;
+    /// Read-only state of a cloth.
+    ClothView viewCloth(ClothId id) const;
+    /// The descriptor a cloth was created from.
+    const ClothDesc& clothDesc(ClothId id) const;
+    /// Pins a vertex (flat index, negative counts from the end) to a world point (m).
+    void attachClothToPoint(ClothId id, int vertex, const Vec3& point);
+    /// Glues a vertex to a rigid body at a point in the body's frame (m); two-way.
+    void attachClothToRigid(ClothId id, int vertex, RigidId body, const Vec3& local_point);
+    /// Moves a vertex's world pin (kinematic driving); throws if it is not pinned to a point.
+    void moveClothPin(ClothId id, int vertex, const Vec3& point);
+    /// Frees a vertex (a Release event is emitted); no-op when free.
+    void detachCloth(ClothId id, int vertex);
+    /// Adds a force (N) on a vertex for the next step only.
+    void applyClothForce(ClothId id, int vertex, const Vec3& force);
+
 private:
+    detail::ClothSystem& clothSystem();
+    const detail::ClothSystem& clothSystem() const;
+    std::vector<Event>& pendingEvents();
+
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };

@@ -2,6 +2,7 @@
 // (DESIGN.md, "How a step flows"), times them and collects events.
 #include "tearables/world.hpp"
 
+#include "cloth/cloth_state.hpp"
 #include "collision/capsule.hpp"
 #include "collision/grid.hpp"
 #include "string/string_state.hpp"
@@ -126,6 +127,7 @@ struct World::Impl {
     std::vector<PairKey> deep_pairs, deep_next;
     std::vector<RigidContact> contacts;
     CollisionQuery query;
+    detail::ClothSystem cloths;  // cloth state and solvers (src/cloth/), stepped after the strings
     double time = 0.0;
     std::int64_t steps = 0;
 
@@ -643,8 +645,9 @@ std::vector<StringId> World::strings() const {
 }
 
 std::vector<std::pair<Vec3, Vec3>> World::meshBounds(double h) const {
-    (void)h;  // sheets and cloths add their swept bounds here as they land
-    return {};
+    std::vector<std::pair<Vec3, Vec3>> out;  // sheets and cloths add their swept bounds here
+    impl_->cloths.bounds(h, impl_->settings.gravity, out);
+    return out;
 }
 
 bool World::contains(StringId id) const { return id.index < impl_->strings.size() && impl_->strings[id.index].alive; }
@@ -758,6 +761,7 @@ void World::removeRigid(RigidId id) {
             if (s.hold[p].kind == ParticleHold::Kind::Glue && s.hold[p].body == id)
                 impl_->release(s, StringId{static_cast<std::uint32_t>(i)}, p, EventCause::BodyRemoved);
     }
+    impl_->cloths.releaseBody(id, impl_->time, impl_->steps, impl_->pending);
     impl_->rigids.used[id.index] = 0;
     impl_->rigids.bodies[id.index].present = false;
 }
@@ -768,7 +772,7 @@ bool World::rigidInUse(RigidId id) const {
         for (const ParticleHold& hold : s.hold)
             if (hold.kind == ParticleHold::Kind::Glue && hold.body == id) return true;
     }
-    return false;
+    return impl_->cloths.usesBody(id);
 }
 
 void World::step(double h) {
@@ -882,6 +886,12 @@ void World::step(double h) {
         if (!ok) w.freeze(s, StringId{static_cast<std::uint32_t>(i)}, ctx);
         std::fill(s.force.begin(), s.force.end(), Vec3::Zero());
     }
+    // Cloths (src/cloth/): their own stages, after the strings, before the bodies' velocities.
+    StageTimes cloth_times;
+    if (!w.cloths.empty())
+        w.cloths.step(rigids, ctx, [&w](const PointQuery& q, std::vector<PointContact>& out) { w.findPointContacts(q, out); },
+                      w.events, cloth_times);
+
     // Bodies moved by the strings get the matching velocity change (position-based
     // coupling: dv = dx / h, dw = dtheta / h), so Bullet carries the reaction on.
     for (std::size_t i = 0; i < rigids.bodies.size(); ++i) {
@@ -895,7 +905,8 @@ void World::step(double h) {
         b.angular_velocity += rot.axis() * (angle * ctx.inv_h);
     }
     auto t5 = Clock::now();
-    t.velocities = seconds(t4, t5);
+    t.velocities = seconds(t4, t5) - cloth_times.total();  // the cloths' stages are counted as theirs
+    t += cloth_times;
 
     w.time = ctx.time;
     w.steps = ctx.step;
@@ -922,6 +933,9 @@ const std::vector<Event>& World::events() const { return impl_->events; }
 void World::setContactProvider(ContactProvider* provider) { impl_->contact_provider = provider; }
 const std::vector<RigidContact>& World::lastContacts() const { return impl_->contacts; }
 const StageTimes& World::lastStageTimes() const { return impl_->last; }
+detail::ClothSystem& World::clothSystem() { return impl_->cloths; }
+const detail::ClothSystem& World::clothSystem() const { return impl_->cloths; }
+std::vector<Event>& World::pendingEvents() { return impl_->pending; }
 double World::time() const { return impl_->time; }
 std::int64_t World::stepCount() const { return impl_->steps; }
 WorldSettings& World::settings() { return impl_->settings; }

@@ -18,6 +18,7 @@
 //    string and step only the most overloaded segment breaks (a uniform rope would
 //    otherwise shatter into all its segments at once; after the first tear the rest
 //    is unloaded).
+#include "string/material_curve.hpp"
 #include "string/string_state.hpp"
 
 #include <algorithm>
@@ -28,11 +29,6 @@ namespace tearables::detail {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-double strainOnCurve(const SegmentMaterial& mat, double stress) {
-    if (stress <= mat.yield) return stress / mat.young;
-    return mat.yield / mat.young + (stress - mat.yield) / mat.plastic_modulus;
-}
 
 Event makeEvent(const StringState& s, StringId id, EventType type, EventCause cause, int segment, double stress,
                 const StepContext& ctx) {

@@ -94,3 +94,30 @@ TEST(DemoScenes, BridgeHoldsItsBoardsThenTearsUnderTheCrates) {
         if (name.rfind("board", 0) == 0) lowest_board = std::min(lowest_board, body["p"][1].get<double>());
     EXPECT_LT(lowest_board, 1.0);  // the bridge was at 2 m
 }
+
+TEST(DemoScenes, YarnTearWeakerYarnFirst) {  // Yarn Fig. 4
+    const std::vector<std::string> order = tearOrder(run("yarn-tear"), "tension");
+    EXPECT_EQ(order, (std::vector<std::string>{"left", "right"}));
+}
+
+TEST(DemoScenes, ClothTearRunsAcrossThePull) {
+    const fs::path out = run("cloth-tear");
+    // 16 x 11 vertices: warp yarn e (e < 15 * 11) joins (e % 15, e / 15) and its right neighbour.
+    std::vector<int> columns, rows;
+    std::ifstream events(out / "events.jsonl");
+    std::string line;
+    while (std::getline(events, line)) {
+        const json e = json::parse(line);
+        if (e["type"] != "tear") continue;
+        const int segment = e["segment"];
+        ASSERT_LT(segment, 15 * 11) << "a weft yarn tore: the pull is along the warp";
+        columns.push_back(segment % 15);
+        rows.push_back(segment / 15);
+    }
+    std::sort(rows.begin(), rows.end());
+    EXPECT_EQ(rows.size(), 11u);  // one yarn per row: the cloth is cut in two
+    EXPECT_TRUE(std::unique(rows.begin(), rows.end()) == rows.end());
+    ASSERT_FALSE(columns.empty());
+    EXPECT_LE(*std::max_element(columns.begin(), columns.end()) - *std::min_element(columns.begin(), columns.end()), 2);
+    EXPECT_EQ(lastFrame(out)["cloths"]["cloth"]["broken"].size(), rows.size());
+}

@@ -1,0 +1,109 @@
+// tearables: woven cloth made of tearable yarns (issue 6; the Yarn paper extended to cloth).
+//
+// A cloth is a rectangular weave of vertices joined by yarn edges: warp yarns along the
+// cloth's local x axis and weft yarns along its local z axis. Yarn edges are strain
+// limited (inextensible below yield, as the material's modulus allows), carry a tension
+// solved by momentum balance (Yarn Sec. 3.2, regularised least squares) and break at the
+// material's rupture stress. Soft shear springs (cell diagonals) and bending springs
+// (across two edges) keep the weave from collapsing in-plane and from crumpling; they
+// are internal forces in the tension solve and never tear by themselves (they go with
+// the yarns of their cell).
+#pragma once
+
+#include "tearables/material.hpp"
+#include "tearables/types.hpp"
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace tearables {
+
+/// Identifies a cloth in a World; stays valid until the cloth is removed.
+struct ClothId {
+    std::uint32_t index = UINT32_MAX;  ///< slot in the world; UINT32_MAX = none
+    bool valid() const { return index != UINT32_MAX; }
+    friend bool operator==(ClothId a, ClothId b) { return a.index == b.index; }
+    friend bool operator!=(ClothId a, ClothId b) { return a.index != b.index; }
+};
+
+/// A vertex of the weave pinned to a world point at creation.
+struct ClothPin {
+    int i = 0;                  ///< column (along local x), negative counts from the end (-1 = last)
+    int j = 0;                  ///< row (along local z), negative counts from the end
+    bool at_rest = true;        ///< true: pinned where the vertex starts; false: pinned at `point`
+    Vec3 point = Vec3::Zero();  ///< world point, m (used when at_rest is false), finite
+};
+
+/// Everything needed to create a cloth. Vertex (i, j) starts at
+/// origin + orientation * (i * size[0] / (resolution[0] - 1), 0, j * size[1] / (resolution[1] - 1)):
+/// the cloth lies in its local x-z plane, vertex (0, 0) at `origin`. Its flat index is
+/// j * resolution[0] + i. A resolution of 1 along one axis makes a single yarn (a chain).
+struct ClothDesc {
+    std::string name;                     ///< for events and traces; may be empty
+    Vec3 origin{0.0, 1.0, 0.0};           ///< position of vertex (0, 0), m, finite
+    std::array<double, 2> size{1.0, 1.0}; ///< extent along local x and z, m, > 0 (ignored along an axis of resolution 1)
+    std::array<int, 2> resolution{21, 21};///< vertices along local x and z, each 1..2000, at least 2 vertices in all
+    Quat orientation = Quat::Identity();  ///< local to world, non-zero (normalised on creation)
+    /// Areal density of the cloth, kg/m^2, >= 0: each vertex weighs its share of the area
+    /// (a quarter cell per corner of a cell). Exactly one of areal_density and density must
+    /// be > 0; a single yarn (resolution 1 along an axis) needs density.
+    double areal_density = 0.1;
+    /// Density of the yarn's fibre, kg/m^3, >= 0: each yarn edge weighs density * pi r^2 * length,
+    /// half to each end. Used when areal_density is 0.
+    double density = 0.0;
+    double yarn_radius = 2.5e-4;          ///< m, > 0: stress = T / (pi r^2); also the contact radius of the vertices
+    Material material;                    ///< the yarn's tensile curve (torsion is not used by cloth)
+    double lambda = 1e-6;                 ///< Tikhonov parameter of the tension least squares, [0, 1] (relative to the mean diagonal of A^T A)
+    /// Shear spring of each cell diagonal: force per unit strain, N, >= 0 (a loose weave
+    /// shears easily; the yarns carry the load).
+    double shear_stiffness = 0.01;
+    /// Bending spring across two consecutive edges of a yarn: force per unit strain, N, >= 0.
+    double bending_stiffness = 0.001;
+    double damping = 0.0;                 ///< linear velocity damping, 1/s, [0, 1000]
+    /// Viscoplastic time of the yarns, s, [0, 10]: past yield the rest length approaches
+    /// the curve's permanent strain with this time constant (0 = at once). Yarn Sec. 3.4:
+    /// a slow pull lets the yarn flow and lengthen before it breaks; a fast pull breaks it
+    /// after less plastic lengthening.
+    double plastic_time = 0.0;
+    bool tearable = true;                 ///< yarns break where their stress reaches rupture
+    std::vector<ClothPin> pins;           ///< vertices pinned to world points at creation (at most one per vertex)
+    std::uint64_t seed = 1;               ///< seeds the per-edge material variation
+
+    /// Flat index of vertex (i, j); negative i, j count from the end. Throws InvalidInput("vertex").
+    int vertex(int i, int j) const;
+    /// Number of vertices.
+    int vertexCount() const { return resolution[0] * resolution[1]; }
+};
+
+/// Throws InvalidInput naming the field when `desc` is not valid.
+void validate(const ClothDesc& desc);
+
+/// Which yarn an edge belongs to.
+enum class YarnKind : std::uint8_t {
+    Warp,  ///< along local x: vertices (i, j) and (i + 1, j)
+    Weft,  ///< along local z: vertices (i, j) and (i, j + 1)
+};
+
+/// Read-only view of a cloth's state, valid until the next step or change.
+struct ClothView {
+    const std::vector<Vec3>* positions = nullptr;     ///< per vertex, m
+    const std::vector<Vec3>* velocities = nullptr;    ///< per vertex, m/s
+    const std::vector<double>* masses = nullptr;      ///< per vertex, kg
+    const std::vector<std::array<std::uint32_t, 2>>* edges = nullptr;  ///< per yarn edge, its two vertices (fixed; torn edges stay listed)
+    const std::vector<YarnKind>* kinds = nullptr;     ///< per yarn edge
+    const std::vector<double>* tension = nullptr;     ///< per yarn edge, N (least squares; 0 where broken; may be slightly negative)
+    const std::vector<double>* rest_length = nullptr; ///< per yarn edge, m (grows with plasticity)
+    const std::vector<double>* max_length = nullptr;  ///< per yarn edge, strain limit L_max = L_rest (1 + sigma / E), m
+    const std::vector<std::uint8_t>* broken = nullptr;///< per yarn edge, 1 = torn
+    std::array<int, 2> resolution{0, 0};              ///< vertices along local x and z
+    double yarn_radius = 0.0;                         ///< m
+    double tension_residual = 0.0;                    ///< |A T - b| / |b| of the last tension solve (0 when b = 0)
+    int tension_iterations = 0;                       ///< iterated-Tikhonov refinements of the last solve
+    bool frozen = false;                              ///< stopped after a non-finite state
+    std::size_t vertexCount() const { return positions->size(); }
+    std::size_t edgeCount() const { return edges->size(); }
+};
+
+}  // namespace tearables

@@ -1,0 +1,181 @@
+// The per-instance state of a cloth (structure of arrays, indices not pointers) and the
+// small system that World::Impl owns and calls from World::step.
+#pragma once
+
+#include "string/string_state.hpp"
+#include "tearables/cloth.hpp"
+#include "tearables/world.hpp"
+
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+
+#include <array>
+#include <functional>
+#include <memory>
+#include <random>
+#include <vector>
+
+namespace tearables::detail {
+
+using SparseMatrix = Eigen::SparseMatrix<double>;
+
+/// A soft internal spring (shear diagonal or bending across two edges): an internal force
+/// F_in of the tension solve, never strain limited.
+struct SoftSpring {
+    std::uint32_t a = 0, b = 0;
+    double rest = 0.0;       ///< m
+    double stiffness = 0.0;  ///< N/m
+    bool alive = true;       ///< false once a yarn it depends on tore
+};
+
+/// A contact of one vertex with a rigid body this step.
+struct VertexContact {
+    std::uint32_t vertex = 0;
+    Vec3 normal = Vec3::UnitY();  ///< from the body toward the vertex
+    Vec3 point = Vec3::Zero();    ///< on the body's surface at its current pose, m
+    Vec3 local = Vec3::Zero();    ///< the same point in the body's frame (follows the body), m
+    RigidId body;
+    int node = -1;                ///< index into body_nodes when the body is movable
+    double friction = 0.5;
+    double force = 0.0;           ///< normal force of the converged solve, N
+};
+
+/// A linear penalty row of the strain-limit solve: g = n . x_vertex - n . (u + w x arm) - offset,
+/// one-sided (a contact: g >= 0) or two-sided (one axis of a glue to a movable body).
+struct PenaltyRow {
+    std::uint32_t vertex = 0;
+    Vec3 normal = Vec3::UnitY();
+    double offset = 0.0;       ///< m
+    int node = -1;             ///< body node, or -1 (immovable body)
+    Vec3 arm = Vec3::Zero();   ///< from the body's centre to the point, m
+    bool one_sided = true;
+    int contact = -1;          ///< index into contacts (one-sided rows)
+};
+
+/// A movable rigid body touched or held by a cloth: 6 unknowns (translation, rotation
+/// vector) in the cloth's Newton solve.
+struct ClothBodyNode {
+    RigidId body;
+    Eigen::Matrix<double, 6, 1> u = Eigen::Matrix<double, 6, 1>::Zero();  ///< displacement this step
+    Eigen::Matrix<double, 6, 6> mass = Eigen::Matrix<double, 6, 6>::Identity();  ///< generalised mass, world frame
+    int dof = 0;                  ///< first unknown of this node
+};
+
+struct ClothState {
+    ClothDesc desc;
+    bool alive = true;
+    bool frozen = false;
+    int nu = 0, nv = 0;  ///< vertices along local x and z
+
+    // --- vertices ------------------------------------------------------------------------
+    std::vector<Vec3> x, v, x_prev, x_pred, force;
+    std::vector<double> mass;
+    std::vector<ParticleHold> hold;   ///< Free, Pin (world point) or Glue (body, local point)
+
+    // --- yarn edges -----------------------------------------------------------------------
+    std::vector<std::array<std::uint32_t, 2>> edges;
+    std::vector<YarnKind> kinds;
+    std::vector<double> rest_length, original_length, max_length, tension, stiffness, peak_stress;
+    std::vector<std::uint8_t> broken, yielded;
+    std::vector<SegmentMaterial> material;
+    std::vector<std::vector<std::uint32_t>> edge_springs;  ///< per edge: soft springs that go when it tears
+    std::vector<std::vector<std::uint32_t>> vertex_edges;  ///< per vertex: incident yarn edges
+    std::vector<SoftSpring> springs;
+    double shortest_rest = 0.0;
+
+    // --- this step's contacts and bodies ---------------------------------------------------
+    std::vector<VertexContact> contacts;
+    std::vector<ClothBodyNode> nodes;
+    std::vector<PenaltyRow> penalty;
+    double penalty_stiffness = 0.0;   ///< N/m
+
+    // --- strain limit solver scratch ------------------------------------------------------
+    std::vector<int> dof;             ///< per vertex: first unknown, or -1 when fixed
+    int unknowns = 0;
+    std::vector<Eigen::Triplet<double>> triplets;
+    SparseMatrix hessian;
+    Eigen::VectorXd gradient, step, trial_u;
+    std::unique_ptr<Eigen::SimplicialLDLT<SparseMatrix>> newton_solver;  ///< (not movable itself)
+    std::vector<int> newton_pattern_outer, newton_pattern_inner;
+    bool newton_analysed = false;
+    std::vector<Vec3> x_trial;
+
+    // --- tension solve (Yarn Sec. 3.2) ----------------------------------------------------
+    std::vector<Mat3> projector;      ///< per vertex: I, minus the normals of the bodies pressing it
+    std::vector<std::uint8_t> has_row;///< per vertex: gives momentum equations
+    std::vector<Vec3> row_rhs;        ///< per vertex: b_i, N
+    std::vector<Vec3> dir;            ///< per edge: unit direction
+    std::vector<int> unknown;         ///< per edge: column of T, or -1 (broken)
+    std::vector<std::uint32_t> columns; ///< column -> edge
+    SparseMatrix normal_matrix;       ///< A^T A + lambda' I (pattern fixed per topology)
+    std::vector<std::vector<int>> vertex_value_index;  ///< per vertex, per pair of incident edges: index into normal_matrix's values
+    std::unique_ptr<Eigen::SimplicialLDLT<SparseMatrix>> tension_solver;
+    Eigen::VectorXd rhs, solution, refine;
+    std::uint64_t topology = 1;       ///< bumped when a yarn tears (the solvers' patterns change)
+    std::uint64_t tension_topology = 0;
+    double tension_residual = 0.0;
+    int tension_iterations = 0;
+
+    std::mt19937_64 rng;
+
+    std::size_t vertices() const { return x.size(); }
+    std::size_t edgeCount() const { return edges.size(); }
+};
+
+/// Asks the host for the contacts of mesh vertices (World::Impl::findPointContacts).
+using PointContactFinder = std::function<void(const PointQuery&, std::vector<PointContact>&)>;
+
+// Stage kernels (one file each), testable without a world.
+/// Builds a cloth's state from a valid descriptor.
+ClothState makeCloth(const ClothDesc& desc);
+/// Stage: unconstrained prediction x' = x + h v + h^2 / m (f_ext) (gravity, user forces).
+void predictCloth(ClothState& c, const RigidTable& rigids, const StepContext& ctx);
+/// Stage: strain limit (Newton on inertia + stiff yarn springs + soft springs + contacts).
+void limitClothStrain(ClothState& c, RigidTable& rigids, const StepContext& ctx);
+/// Stage: Yarn Sec. 3.2 tensions by Tikhonov-regularised least squares.
+void solveClothTension(ClothState& c, const StepContext& ctx);
+/// Stage: Coulomb friction of the contacts, on the velocities (after the tension solve: not tension).
+void applyClothFriction(ClothState& c, RigidTable& rigids, const StepContext& ctx);
+/// Stage: material response (Yarn Sec. 3.3-3.4): L_max, plasticity, rupture.
+void respondClothMaterial(ClothState& c, const StepContext& ctx, std::vector<Event>& events);
+/// Soft spring forces at the current positions, accumulated into `out` (per vertex, N).
+void softSpringForces(const ClothState& c, std::vector<Vec3>& out);
+
+/// The least-squares tension kernel on its own: rows of the free vertices (has_row,
+/// projector, row_rhs), edge directions `dir`; solves min |A T - b|^2 + lambda |T - T_0|^2
+/// by iterated Tikhonov from the prior and warm start T_0 in c.tension (tension.cpp).
+/// Exposed for tests and benchmarks.
+void solveTensionLeastSquares(ClothState& c);
+
+/// The cloths of a world: created, stepped and viewed through World.
+class ClothSystem {
+public:
+    ClothId add(const ClothDesc& desc);
+    void remove(ClothId id);
+    ClothState& get(ClothId id);
+    const ClothState& get(ClothId id) const;
+    bool contains(ClothId id) const;
+    std::vector<ClothId> ids() const;
+    bool empty() const;
+
+    /// One step of every live cloth, after the strings (DESIGN.md, "How a step flows").
+    void step(RigidTable& rigids, const StepContext& ctx, const PointContactFinder& find, std::vector<Event>& events,
+              StageTimes& times);
+    /// Swept bounds of every live cloth for a step of `h` (World::meshBounds).
+    void bounds(double h, const Vec3& gravity, std::vector<std::pair<Vec3, Vec3>>& out) const;
+    /// True when a cloth vertex is glued to `body`.
+    bool usesBody(RigidId body) const;
+    /// Drops every glue to `body` (Release events with cause BodyRemoved into `pending`).
+    void releaseBody(RigidId body, double time, std::int64_t step, std::vector<Event>& pending);
+    /// Releases a vertex (Release event into `pending`); no-op when free.
+    void release(ClothId id, std::size_t vertex, EventCause cause, double time, std::int64_t step,
+                 std::vector<Event>& pending);
+
+private:
+    std::vector<ClothState> cloths_;
+    PointQuery query_;
+    std::vector<PointContact> found_;
+    std::vector<std::uint32_t> query_cloth_;
+};
+
+}  // namespace tearables::detail

@@ -1,0 +1,98 @@
+// ClothDesc validation: check at creation, so the hot loop can assume.
+#include "tearables/cloth.hpp"
+
+#include <cmath>
+#include <set>
+#include <sstream>
+#include <utility>
+
+namespace tearables {
+
+namespace {
+
+std::string num(double v) {
+    std::ostringstream s;
+    s.precision(9);
+    s << v;
+    return s.str();
+}
+
+void requireFinite(const std::string& field, double v) {
+    if (!std::isfinite(v)) throw InvalidInput(field, "must be a finite number (got " + num(v) + ")");
+}
+
+void requirePositive(const std::string& field, double v) {
+    requireFinite(field, v);
+    if (!(v > 0.0)) throw InvalidInput(field, "must be greater than 0 (got " + num(v) + ")");
+}
+
+void requireRange(const std::string& field, double v, double lo, double hi) {
+    requireFinite(field, v);
+    if (v < lo || v > hi) throw InvalidInput(field, "must be in [" + num(lo) + ", " + num(hi) + "] (got " + num(v) + ")");
+}
+
+int resolveAxis(int k, int count, const std::string& field) {
+    if (k < -count || k >= count)
+        throw InvalidInput(field, "index " + std::to_string(k) + " out of range (the cloth has " + std::to_string(count) +
+                                      " vertices along this axis)");
+    return k < 0 ? k + count : k;
+}
+
+}  // namespace
+
+int ClothDesc::vertex(int i, int j) const {
+    const int a = resolveAxis(i, resolution[0], "vertex");
+    const int b = resolveAxis(j, resolution[1], "vertex");
+    return b * resolution[0] + a;
+}
+
+void validate(const ClothDesc& d) {
+    for (int k = 0; k < 3; ++k) requireFinite("origin", d.origin[k]);
+    for (int k = 0; k < 2; ++k) {
+        const std::string f = "resolution[" + std::to_string(k) + "]";
+        if (d.resolution[k] < 1 || d.resolution[k] > 2000)
+            throw InvalidInput(f, "must be in [1, 2000] (got " + std::to_string(d.resolution[k]) + ")");
+    }
+    if (d.resolution[0] * d.resolution[1] < 2) throw InvalidInput("resolution", "a cloth needs at least 2 vertices");
+    for (int k = 0; k < 2; ++k)
+        if (d.resolution[k] > 1) requirePositive("size[" + std::to_string(k) + "]", d.size[k]);
+        else requireFinite("size[" + std::to_string(k) + "]", d.size[k]);
+    const Eigen::Vector4d q = d.orientation.coeffs();
+    for (int k = 0; k < 4; ++k) requireFinite("orientation", q[k]);
+    if (!(q.norm() > 1e-9)) throw InvalidInput("orientation", "must be a non-zero quaternion");
+    requireRange("areal_density", d.areal_density, 0.0, 1e6);
+    requireRange("density", d.density, 0.0, 1e6);
+    if (d.areal_density > 0.0 && d.density > 0.0)
+        throw InvalidInput("density", "give areal_density or density, not both (set the other to 0)");
+    if (!(d.areal_density > 0.0) && !(d.density > 0.0))
+        throw InvalidInput("areal_density", "one of areal_density and density must be greater than 0");
+    if (d.areal_density > 0.0 && (d.resolution[0] == 1 || d.resolution[1] == 1))
+        throw InvalidInput("areal_density", "a single yarn (resolution 1 along an axis) has no area: give density instead");
+    requirePositive("yarn_radius", d.yarn_radius);
+    const TensileCurve& t = d.material.tensile;
+    requirePositive("material.tensile.young", t.young);
+    requirePositive("material.tensile.yield", t.yield);
+    requirePositive("material.tensile.plastic_modulus", t.plastic_modulus);
+    requirePositive("material.tensile.rupture", t.rupture);
+    if (!(t.rupture > t.yield))
+        throw InvalidInput("material.tensile.rupture", "must be greater than yield (" + num(t.rupture) + " <= " + num(t.yield) + ")");
+    requireRange("material.variation", d.material.variation, 0.0, 0.5);
+    requireRange("lambda", d.lambda, 0.0, 1.0);
+    requireRange("shear_stiffness", d.shear_stiffness, 0.0, 1e9);
+    requireRange("bending_stiffness", d.bending_stiffness, 0.0, 1e9);
+    requireRange("damping", d.damping, 0.0, 1e3);
+    requireRange("plastic_time", d.plastic_time, 0.0, 10.0);
+    std::set<int> taken;
+    for (std::size_t k = 0; k < d.pins.size(); ++k) {
+        const std::string f = "pins[" + std::to_string(k) + "]";
+        const ClothPin& p = d.pins[k];
+        const int a = resolveAxis(p.i, d.resolution[0], f + ".i");
+        const int b = resolveAxis(p.j, d.resolution[1], f + ".j");
+        if (!taken.insert(b * d.resolution[0] + a).second)
+            throw InvalidInput(f, "vertex (" + std::to_string(a) + ", " + std::to_string(b) + ") is already pinned");
+        if (!p.at_rest)
+            for (int c = 0; c < 3; ++c) requireFinite(f + ".point", p.point[c]);
+    }
+}
+
+}  // namespace tearables

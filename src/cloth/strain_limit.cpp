@@ -1,0 +1,301 @@
+// Stage: strain limiting of the weave, generalising the strings' solve (string/strain_limit.cpp)
+// from a chain to a mesh.
+//
+//   x, u = argmin  sum_i m_i/(2h^2) |x_i - x'_i|^2 + sum_b u_b^T M_b u_b / (2h^2)
+//                + sum_yarn k_e/2 max(0, |x_b - x_a| - L_e)^2          (stiff: k_e = E A / L_e)
+//                + sum_soft k_s/2 (|x_b - x_a| - L_s)^2                 (shear, bending)
+//                + sum_penalty k_c/2 g^2  (contacts: only where g < 0; glue: always)
+//
+// i.e. backward Euler with the yarns at the material's own stiffness (the compliance form
+// of strain limiting: a yarn stretches by sigma / E, L_max = L (1 + sigma / E) of Yarn
+// Sec. 3.3 is met implicitly, never a step late). At fibre moduli this is inextensible
+// to within sigma / E. A slack yarn pushes nothing (max(0, .)): yarns buckle freely.
+// Newton's method with the geometric stiffness of stretched springs (projected to be
+// positive semi-definite for compressed soft springs), a sparse LDL^T factorisation
+// (Eigen's SimplicialLDLT with AMD ordering; the symbolic analysis is reused while the
+// pattern stays the same: same topology, same contacts) and a backtracking line search
+// on the energy. The strings' block-tridiagonal solve does not apply to a mesh; a
+// direct sparse solve keeps the same exactness at any stiffness ratio, where an
+// iterative (Jacobi / Gauss-Seidel / PBD) projection would need many sweeps.
+//
+// Rigid bodies: a movable body a cloth touches or holds is 6 unknowns (translation u,
+// rotation w) with its mass and inertia M_b, relative to the pose the host already
+// integrated; contacts and glues are linear penalty rows g = n.x_v - n.(u + w x r) - c,
+// so the cloth holds the body with its real mass and the body pushes the cloth (two-way,
+// as the strings do). The penalty is 100x the stiffest yarn or inertia it competes with.
+#include "cloth/cloth_state.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace tearables::detail {
+
+namespace {
+
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+
+constexpr double kPenaltyFactor = 100.0;
+constexpr int kLineSearchSteps = 12;
+
+bool movableGlue(const ClothState& c, const RigidTable& rigids, std::size_t p) {
+    return c.hold[p].kind == ParticleHold::Kind::Glue && rigids.movable(c.hold[p].body);
+}
+
+Mat6 bodyMass(const RigidState& b) {
+    Mat6 m = Mat6::Zero();
+    m.topLeftCorner<3, 3>() = Mat3::Identity() / b.inverse_mass;
+    const Mat3 inv_inertia = b.inverseInertiaWorld();
+    // A body with a zero inverse inertia (a point mass) does not turn: a huge inertia.
+    m.bottomRightCorner<3, 3>() = inv_inertia.determinant() > 0.0 ? Mat3(inv_inertia.inverse()) : Mat3(Mat3::Identity() * 1e12);
+    return m;
+}
+
+int nodeFor(ClothState& c, const RigidTable& rigids, RigidId body) {
+    for (std::size_t k = 0; k < c.nodes.size(); ++k)
+        if (c.nodes[k].body == body) return static_cast<int>(k);
+    ClothBodyNode node;
+    node.body = body;
+    node.mass = bodyMass(rigids.bodies[body.index]);
+    c.nodes.push_back(node);
+    return static_cast<int>(c.nodes.size() - 1);
+}
+
+/// Gap of a penalty row at trial positions and body displacements.
+double rowGap(const PenaltyRow& r, const std::vector<Vec3>& x, const std::vector<Vec6>& u) {
+    double g = r.normal.dot(x[r.vertex]) - r.offset;
+    if (r.node >= 0) {
+        const Vec6& d = u[static_cast<std::size_t>(r.node)];
+        g -= r.normal.dot(d.head<3>()) + r.arm.cross(r.normal).dot(d.tail<3>());
+    }
+    return g;
+}
+
+struct Solver {
+    ClothState& c;
+    const StepContext& ctx;
+    double inv_h2;
+    std::vector<Vec6> u, u_trial;
+
+    double energy(const std::vector<Vec3>& x, const std::vector<Vec6>& us) const {
+        double e = 0.0;
+        for (std::size_t p = 0; p < c.vertices(); ++p)
+            if (c.dof[p] >= 0) e += 0.5 * c.mass[p] * inv_h2 * (x[p] - c.x_pred[p]).squaredNorm();
+        for (std::size_t k = 0; k < c.nodes.size(); ++k) e += 0.5 * inv_h2 * us[k].dot(c.nodes[k].mass * us[k]);
+        for (std::size_t e_i = 0; e_i < c.edgeCount(); ++e_i) {
+            if (c.broken[e_i]) continue;
+            const double stretch = (x[c.edges[e_i][1]] - x[c.edges[e_i][0]]).norm() - c.rest_length[e_i];
+            if (stretch > 0.0) e += 0.5 * c.stiffness[e_i] * stretch * stretch;
+        }
+        for (const SoftSpring& s : c.springs) {
+            if (!s.alive) continue;
+            const double stretch = (x[s.b] - x[s.a]).norm() - s.rest;
+            e += 0.5 * s.stiffness * stretch * stretch;
+        }
+        for (const PenaltyRow& r : c.penalty) {
+            const double g = rowGap(r, x, us);
+            if (!r.one_sided || g < 0.0) e += 0.5 * c.penalty_stiffness * g * g;
+        }
+        return e;
+    }
+
+    void block(int a, int b, const Mat3& m) {
+        if (a < 0 || b < 0) return;
+        for (int r = 0; r < 3; ++r)
+            for (int k = 0; k < 3; ++k) c.triplets.emplace_back(a + r, b + k, m(r, k));
+    }
+
+    /// Gradient and Hessian of a spring between a and b (one_sided: a yarn, no push).
+    void spring(std::uint32_t a, std::uint32_t b, double k, double rest, bool one_sided) {
+        const Vec3 d = c.x[b] - c.x[a];
+        const double len = d.norm();
+        Mat3 hess = Mat3::Zero();
+        if (len > 1e-15 && (!one_sided || len > rest)) {
+            const Vec3 n = d / len;
+            const Vec3 f = k * (len - rest) * n;  // dE/dx_b
+            if (c.dof[b] >= 0) c.gradient.segment<3>(c.dof[b]) += f;
+            if (c.dof[a] >= 0) c.gradient.segment<3>(c.dof[a]) -= f;
+            const Mat3 nn = n * n.transpose();
+            hess = k * (nn + std::max(0.0, 1.0 - rest / len) * (Mat3::Identity() - nn));
+        }
+        // Every block is inserted, zero or not, so the pattern stays the same in a step.
+        block(c.dof[a], c.dof[a], hess);
+        block(c.dof[b], c.dof[b], hess);
+        block(c.dof[a], c.dof[b], -hess);
+        block(c.dof[b], c.dof[a], -hess);
+    }
+
+    void assemble() {
+        c.gradient.setZero(c.unknowns);
+        c.triplets.clear();
+        for (std::size_t p = 0; p < c.vertices(); ++p) {
+            if (c.dof[p] < 0) continue;
+            c.gradient.segment<3>(c.dof[p]) += c.mass[p] * inv_h2 * (c.x[p] - c.x_pred[p]);
+            block(c.dof[p], c.dof[p], c.mass[p] * inv_h2 * Mat3::Identity());
+        }
+        for (std::size_t k = 0; k < c.nodes.size(); ++k) {
+            const int d = c.nodes[k].dof;
+            c.gradient.segment<6>(d) += inv_h2 * (c.nodes[k].mass * u[k]);
+            for (int r = 0; r < 6; ++r)
+                for (int q = 0; q < 6; ++q) c.triplets.emplace_back(d + r, d + q, inv_h2 * c.nodes[k].mass(r, q));
+        }
+        for (std::size_t e = 0; e < c.edgeCount(); ++e)
+            if (!c.broken[e]) spring(c.edges[e][0], c.edges[e][1], c.stiffness[e], c.rest_length[e], true);
+        for (const SoftSpring& s : c.springs)
+            if (s.alive) spring(s.a, s.b, s.stiffness, s.rest, false);
+        for (const PenaltyRow& r : c.penalty) {
+            const double g = rowGap(r, c.x, u);
+            const double k = (!r.one_sided || g < 0.0) ? c.penalty_stiffness : 0.0;
+            // J: n at the vertex, -n at the translation, -(arm x n) at the rotation.
+            Eigen::Matrix<double, 9, 1> j;
+            j.head<3>() = r.normal;
+            j.segment<3>(3) = -r.normal;
+            j.tail<3>() = -r.arm.cross(r.normal);
+            const int dv = c.dof[r.vertex];
+            const int dn = r.node >= 0 ? c.nodes[static_cast<std::size_t>(r.node)].dof : -1;
+            const int idx[3] = {dv, dn, dn < 0 ? -1 : dn + 3};
+            for (int a = 0; a < 3; ++a) {
+                if (idx[a] < 0) continue;
+                c.gradient.segment<3>(idx[a]) += k * g * j.segment<3>(3 * a);
+                for (int b = 0; b < 3; ++b)
+                    if (idx[b] >= 0) block(idx[a], idx[b], k * j.segment<3>(3 * a) * j.segment<3>(3 * b).transpose());
+            }
+        }
+        c.hessian.resize(c.unknowns, c.unknowns);
+        c.hessian.setFromTriplets(c.triplets.begin(), c.triplets.end());
+    }
+
+    /// Factorises the Hessian, reusing the symbolic analysis while the pattern is the same.
+    bool factor() {
+        const int outer = static_cast<int>(c.hessian.outerSize());
+        const int nnz = static_cast<int>(c.hessian.nonZeros());
+        const bool same = c.newton_analysed && static_cast<int>(c.newton_pattern_outer.size()) == outer + 1 &&
+                          static_cast<int>(c.newton_pattern_inner.size()) == nnz &&
+                          std::equal(c.newton_pattern_outer.begin(), c.newton_pattern_outer.end(), c.hessian.outerIndexPtr()) &&
+                          std::equal(c.newton_pattern_inner.begin(), c.newton_pattern_inner.end(), c.hessian.innerIndexPtr());
+        if (!c.newton_solver) c.newton_solver = std::make_unique<Eigen::SimplicialLDLT<SparseMatrix>>();
+        if (!same) {
+            c.newton_solver->analyzePattern(c.hessian);
+            c.newton_pattern_outer.assign(c.hessian.outerIndexPtr(), c.hessian.outerIndexPtr() + outer + 1);
+            c.newton_pattern_inner.assign(c.hessian.innerIndexPtr(), c.hessian.innerIndexPtr() + nnz);
+            c.newton_analysed = true;
+        }
+        c.newton_solver->factorize(c.hessian);
+        return c.newton_solver->info() == Eigen::Success;
+    }
+
+    void run() {
+        const int max_iterations = ctx.settings ? ctx.settings->strain_iterations : 8;
+        const double tolerance = (ctx.settings ? ctx.settings->strain_tolerance : 1e-6) * c.shortest_rest;
+        u.assign(c.nodes.size(), Vec6::Zero());
+        u_trial = u;
+        double current = energy(c.x, u);
+        for (int it = 0; it < max_iterations; ++it) {
+            assemble();
+            if (!factor()) break;
+            c.step = c.newton_solver->solve(-c.gradient);
+            if (!c.step.allFinite()) break;
+            const double slope = c.gradient.dot(c.step);
+            if (!(slope < 0.0)) break;  // no descent left: converged to round-off
+            double alpha = 1.0, trial = current;
+            bool accepted = false;
+            for (int ls = 0; ls < kLineSearchSteps; ++ls, alpha *= 0.5) {
+                for (std::size_t p = 0; p < c.vertices(); ++p)
+                    c.x_trial[p] = c.dof[p] >= 0 ? Vec3(c.x[p] + alpha * c.step.segment<3>(c.dof[p])) : c.x[p];
+                for (std::size_t k = 0; k < c.nodes.size(); ++k) u_trial[k] = u[k] + alpha * c.step.segment<6>(c.nodes[k].dof);
+                trial = energy(c.x_trial, u_trial);
+                if (trial <= current + 1e-4 * alpha * slope) {
+                    accepted = true;
+                    break;
+                }
+            }
+            if (!accepted) break;
+            c.x.swap(c.x_trial);
+            u.swap(u_trial);
+            current = trial;
+            if (alpha * c.step.lpNorm<Eigen::Infinity>() < tolerance) break;
+        }
+        for (std::size_t k = 0; k < c.nodes.size(); ++k) c.nodes[k].u = u[k];
+        for (VertexContact& vc : c.contacts) vc.force = 0.0;
+        for (const PenaltyRow& r : c.penalty)
+            if (r.one_sided && r.contact >= 0)
+                c.contacts[static_cast<std::size_t>(r.contact)].force = c.penalty_stiffness * std::max(0.0, -rowGap(r, c.x, u));
+    }
+};
+
+/// Moves a body by a generalised displacement (translation, rotation vector).
+void displaceBody(RigidState& b, const Vec6& u) {
+    b.position += u.head<3>();
+    const Vec3 rotation = u.tail<3>();
+    const double angle = rotation.norm();
+    if (angle > 0.0) b.orientation = (Quat(Eigen::AngleAxisd(angle, rotation / angle)) * b.orientation).normalized();
+}
+
+}  // namespace
+
+void limitClothStrain(ClothState& c, RigidTable& rigids, const StepContext& ctx) {
+    // Unknowns: free vertices and vertices glued to movable bodies, then the body nodes.
+    c.nodes.clear();
+    c.penalty.clear();
+    int next = 0;
+    for (std::size_t p = 0; p < c.vertices(); ++p) {
+        const bool moves = c.hold[p].kind == ParticleHold::Kind::Free || movableGlue(c, rigids, p);
+        c.dof[p] = moves ? next : -1;
+        if (moves) next += 3;
+    }
+    double stiffest = 0.0;
+    for (std::size_t e = 0; e < c.edgeCount(); ++e)
+        if (!c.broken[e]) stiffest = std::max(stiffest, c.stiffness[e]);
+    for (std::size_t p = 0; p < c.vertices(); ++p) stiffest = std::max(stiffest, c.mass[p] * ctx.inv_h * ctx.inv_h);
+    const double radius = c.desc.yarn_radius;
+    for (std::size_t k = 0; k < c.contacts.size(); ++k) {
+        const VertexContact& vc = c.contacts[k];
+        if (c.dof[vc.vertex] < 0) continue;
+        PenaltyRow r;
+        r.vertex = vc.vertex;
+        r.normal = vc.normal;
+        r.offset = vc.normal.dot(vc.point) + radius;
+        r.one_sided = true;
+        r.contact = static_cast<int>(k);
+        if (rigids.movable(vc.body)) {
+            r.node = nodeFor(c, rigids, vc.body);
+            r.arm = vc.point - rigids.bodies[vc.body.index].position;
+        }
+        c.penalty.push_back(r);
+    }
+    for (std::size_t p = 0; p < c.vertices(); ++p) {
+        if (!movableGlue(c, rigids, p)) continue;
+        const RigidState& b = rigids.bodies[c.hold[p].body.index];
+        const Vec3 point = gluePoint(b, c.hold[p].point);
+        const int node = nodeFor(c, rigids, c.hold[p].body);
+        for (int axis = 0; axis < 3; ++axis) {
+            PenaltyRow r;
+            r.vertex = static_cast<std::uint32_t>(p);
+            r.normal = Vec3::Unit(axis);
+            r.offset = r.normal.dot(point);
+            r.node = node;
+            r.arm = point - b.position;
+            r.one_sided = false;
+            c.penalty.push_back(r);
+        }
+    }
+    for (ClothBodyNode& node : c.nodes) {
+        node.dof = next;
+        next += 6;
+        const Mat6& m = node.mass;
+        stiffest = std::max(stiffest, m.diagonal().head<3>().maxCoeff() * ctx.inv_h * ctx.inv_h);
+    }
+    c.unknowns = next;
+    c.penalty_stiffness = kPenaltyFactor * stiffest;
+    if (c.unknowns == 0) return;
+    Solver solver{c, ctx, ctx.inv_h * ctx.inv_h, {}, {}};
+    solver.run();
+    // The bodies move by what the cloth did to them; World::step turns that into velocity.
+    for (const ClothBodyNode& node : c.nodes) {
+        RigidState& b = rigids.bodies[node.body.index];
+        displaceBody(b, node.u);
+        b.impulse += (node.mass.topLeftCorner<3, 3>() * node.u.head<3>()) * ctx.inv_h;
+    }
+}
+
+}  // namespace tearables::detail

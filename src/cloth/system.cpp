@@ -1,0 +1,213 @@
+// The cloths of a world and their step, in named stages (DESIGN.md, "How a step flows"):
+// prediction, collision with rigid bodies (the host's point query), strain limiting,
+// tension (Yarn Sec. 3.2), friction, material response (tears: the only topology change,
+// after the solves), velocities.
+#include "cloth/cloth_state.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+namespace tearables::detail {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
+
+bool finite(const Vec3& v) { return v.allFinite(); }
+
+Event releaseEvent(const ClothState& c, std::size_t vertex, EventCause cause, double time, std::int64_t step) {
+    Event e;
+    e.type = EventType::Release;
+    e.cause = cause;
+    e.object = c.desc.name;
+    e.particle = static_cast<int>(vertex);
+    e.time = time;
+    e.step = step;
+    return e;
+}
+
+}  // namespace
+
+ClothId ClothSystem::add(const ClothDesc& desc) {
+    validate(desc);
+    ClothState state = makeCloth(desc);
+    for (std::size_t i = 0; i < cloths_.size(); ++i)
+        if (!cloths_[i].alive) {
+            cloths_[i] = std::move(state);
+            return ClothId{static_cast<std::uint32_t>(i)};
+        }
+    cloths_.push_back(std::move(state));
+    return ClothId{static_cast<std::uint32_t>(cloths_.size() - 1)};
+}
+
+void ClothSystem::remove(ClothId id) {
+    get(id);
+    cloths_[id.index] = ClothState{};
+    cloths_[id.index].alive = false;
+}
+
+ClothState& ClothSystem::get(ClothId id) {
+    if (!contains(id)) throw InvalidInput("cloth", "no such cloth");
+    return cloths_[id.index];
+}
+
+const ClothState& ClothSystem::get(ClothId id) const {
+    if (!contains(id)) throw InvalidInput("cloth", "no such cloth");
+    return cloths_[id.index];
+}
+
+bool ClothSystem::contains(ClothId id) const { return id.index < cloths_.size() && cloths_[id.index].alive; }
+
+std::vector<ClothId> ClothSystem::ids() const {
+    std::vector<ClothId> out;
+    for (std::size_t i = 0; i < cloths_.size(); ++i)
+        if (cloths_[i].alive) out.push_back(ClothId{static_cast<std::uint32_t>(i)});
+    return out;
+}
+
+bool ClothSystem::empty() const {
+    return std::none_of(cloths_.begin(), cloths_.end(), [](const ClothState& c) { return c.alive; });
+}
+
+void ClothSystem::bounds(double h, const Vec3& gravity, std::vector<std::pair<Vec3, Vec3>>& out) const {
+    for (const ClothState& c : cloths_) {
+        if (!c.alive || c.frozen) continue;
+        Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+        double speed = 0.0;
+        for (std::size_t p = 0; p < c.vertices(); ++p) {
+            lo = lo.cwiseMin(c.x[p]);
+            hi = hi.cwiseMax(c.x[p]);
+            speed = std::max(speed, c.v[p].norm());
+        }
+        // Grown by the vertices' radius and what they can travel in the step.
+        const double grow = 2.0 * c.desc.yarn_radius + speed * h + gravity.norm() * h * h + 0.01;
+        if (lo.allFinite() && hi.allFinite()) out.emplace_back(lo.array() - grow, hi.array() + grow);
+    }
+}
+
+bool ClothSystem::usesBody(RigidId body) const {
+    for (const ClothState& c : cloths_) {
+        if (!c.alive) continue;
+        for (const ParticleHold& hold : c.hold)
+            if (hold.kind == ParticleHold::Kind::Glue && hold.body == body) return true;
+    }
+    return false;
+}
+
+void ClothSystem::releaseBody(RigidId body, double time, std::int64_t step, std::vector<Event>& pending) {
+    for (std::size_t i = 0; i < cloths_.size(); ++i) {
+        ClothState& c = cloths_[i];
+        if (!c.alive) continue;
+        for (std::size_t p = 0; p < c.vertices(); ++p)
+            if (c.hold[p].kind == ParticleHold::Kind::Glue && c.hold[p].body == body)
+                release(ClothId{static_cast<std::uint32_t>(i)}, p, EventCause::BodyRemoved, time, step, pending);
+    }
+}
+
+void ClothSystem::release(ClothId id, std::size_t vertex, EventCause cause, double time, std::int64_t step,
+                          std::vector<Event>& pending) {
+    ClothState& c = get(id);
+    if (c.hold[vertex].kind == ParticleHold::Kind::Free) return;
+    c.hold[vertex] = ParticleHold{};
+    pending.push_back(releaseEvent(c, vertex, cause, time, step));
+}
+
+void ClothSystem::step(RigidTable& rigids, const StepContext& ctx, const PointContactFinder& find, std::vector<Event>& events,
+                       StageTimes& times) {
+    auto live = [](const ClothState& c) { return c.alive && !c.frozen; };
+    const auto t0 = Clock::now();
+    for (ClothState& c : cloths_)
+        if (live(c)) predictCloth(c, rigids, ctx);
+    const auto t1 = Clock::now();
+    times.predict += seconds(t0, t1);
+
+    // Collision with rigid bodies: the host's narrow phase on spheres of the yarn radius,
+    // swept from the start of the step to the prediction.
+    query_.start.clear();
+    query_.predicted.clear();
+    query_.radius.clear();
+    query_cloth_.clear();
+    for (std::size_t i = 0; i < cloths_.size(); ++i) {
+        ClothState& c = cloths_[i];
+        c.contacts.clear();
+        if (!live(c)) continue;
+        query_.start.push_back(&c.x_prev);
+        query_.predicted.push_back(&c.x_pred);
+        query_.radius.push_back(c.desc.yarn_radius);
+        query_cloth_.push_back(static_cast<std::uint32_t>(i));
+    }
+    found_.clear();
+    if (!query_.start.empty() && find) find(query_, found_);
+    for (const PointContact& pc : found_) {
+        ClothState& c = cloths_[query_cloth_[pc.object]];
+        if (c.hold[pc.vertex].kind != ParticleHold::Kind::Free) continue;
+        // A cloth does not collide with a body it is glued to (as strings): the glue
+        // already couples them.
+        bool glued = false;
+        for (const ParticleHold& hold : c.hold) glued = glued || (hold.kind == ParticleHold::Kind::Glue && hold.body == pc.body);
+        if (glued) continue;
+        VertexContact vc;
+        vc.vertex = pc.vertex;
+        vc.normal = pc.normal;
+        vc.point = pc.point;
+        vc.body = pc.body;
+        const RigidState& body = rigids.bodies[pc.body.index];
+        vc.local = body.orientation.conjugate() * (pc.point - body.position);
+        vc.friction = std::max(0.0, pc.friction);
+        c.contacts.push_back(vc);
+    }
+    const auto t2 = Clock::now();
+    times.collision += seconds(t1, t2);
+
+    for (ClothState& c : cloths_)
+        if (live(c)) limitClothStrain(c, rigids, ctx);
+    const auto t3 = Clock::now();
+    times.strain_limit += seconds(t2, t3);
+
+    for (ClothState& c : cloths_)
+        if (live(c)) solveClothTension(c, ctx);
+    const auto t4 = Clock::now();
+    times.tension += seconds(t3, t4);
+
+    for (ClothState& c : cloths_)
+        if (live(c)) respondClothMaterial(c, ctx, events);
+    const auto t5 = Clock::now();
+    times.material += seconds(t4, t5);
+
+    const double max_speed = ctx.settings ? ctx.settings->max_speed : 500.0;
+    for (std::size_t i = 0; i < cloths_.size(); ++i) {
+        ClothState& c = cloths_[i];
+        if (!live(c)) continue;
+        bool ok = true;
+        for (std::size_t p = 0; p < c.vertices(); ++p) {
+            Vec3 v = (c.x[p] - c.x_prev[p]) * ctx.inv_h;
+            const double speed = v.norm();
+            if (speed > max_speed) v *= max_speed / speed;
+            c.v[p] = v;
+            ok = ok && finite(c.x[p]) && finite(v);
+        }
+        for (double t : c.tension) ok = ok && std::isfinite(t);
+        if (ok && !c.contacts.empty()) applyClothFriction(c, rigids, ctx);
+        std::fill(c.force.begin(), c.force.end(), Vec3::Zero());
+        if (!ok) {
+            for (std::size_t p = 0; p < c.vertices(); ++p) {
+                c.x[p] = finite(c.x_prev[p]) ? c.x_prev[p] : Vec3::Zero();
+                c.v[p].setZero();
+            }
+            std::fill(c.tension.begin(), c.tension.end(), 0.0);
+            c.frozen = true;
+            Event e;
+            e.type = EventType::Freeze;
+            e.cause = EventCause::NonFinite;
+            e.object = c.desc.name;
+            e.time = ctx.time;
+            e.step = ctx.step;
+            events.push_back(e);
+        }
+    }
+    times.velocities += seconds(t5, Clock::now());
+}
+
+}  // namespace tearables::detail

@@ -1,0 +1,90 @@
+// World's cloth API: validates the arguments and forwards to the ClothSystem that
+// World::Impl owns (kept out of core/world.cpp so that the core's file stays small).
+#include "cloth/cloth_state.hpp"
+#include "tearables/world.hpp"
+
+#include <string>
+
+namespace tearables {
+
+namespace {
+
+std::size_t resolveVertex(const detail::ClothState& c, int vertex) {
+    const int n = static_cast<int>(c.vertices());
+    if (vertex < -n || vertex >= n)
+        throw InvalidInput("vertex", "vertex index " + std::to_string(vertex) + " out of range (the cloth has " +
+                                         std::to_string(n) + " vertices)");
+    return static_cast<std::size_t>(vertex < 0 ? vertex + n : vertex);
+}
+
+}  // namespace
+
+ClothId World::addCloth(const ClothDesc& desc) { return clothSystem().add(desc); }
+void World::removeCloth(ClothId id) { clothSystem().remove(id); }
+std::vector<ClothId> World::cloths() const { return clothSystem().ids(); }
+bool World::contains(ClothId id) const { return clothSystem().contains(id); }
+const ClothDesc& World::clothDesc(ClothId id) const { return clothSystem().get(id).desc; }
+
+ClothView World::viewCloth(ClothId id) const {
+    const detail::ClothState& c = clothSystem().get(id);
+    ClothView v;
+    v.positions = &c.x;
+    v.velocities = &c.v;
+    v.masses = &c.mass;
+    v.edges = &c.edges;
+    v.kinds = &c.kinds;
+    v.tension = &c.tension;
+    v.rest_length = &c.rest_length;
+    v.max_length = &c.max_length;
+    v.broken = &c.broken;
+    v.resolution = {c.nu, c.nv};
+    v.yarn_radius = c.desc.yarn_radius;
+    v.tension_residual = c.tension_residual;
+    v.tension_iterations = c.tension_iterations;
+    v.frozen = c.frozen;
+    return v;
+}
+
+void World::attachClothToPoint(ClothId id, int vertex, const Vec3& point) {
+    detail::ClothState& c = clothSystem().get(id);
+    const std::size_t p = resolveVertex(c, vertex);
+    if (!point.allFinite()) throw InvalidInput("point", "must be finite");
+    c.hold[p].kind = detail::ParticleHold::Kind::Pin;
+    c.hold[p].point = point;
+    c.hold[p].body = RigidId{};
+    c.x[p] = point;
+    c.v[p].setZero();
+}
+
+void World::attachClothToRigid(ClothId id, int vertex, RigidId body, const Vec3& local_point) {
+    detail::ClothState& c = clothSystem().get(id);
+    const std::size_t p = resolveVertex(c, vertex);
+    const RigidState& b = rigid(body);  // throws for an unknown body
+    if (!local_point.allFinite()) throw InvalidInput("local", "must be finite");
+    c.hold[p].kind = detail::ParticleHold::Kind::Glue;
+    c.hold[p].point = local_point;
+    c.hold[p].body = body;
+    c.x[p] = detail::gluePoint(b, local_point);
+}
+
+void World::moveClothPin(ClothId id, int vertex, const Vec3& point) {
+    detail::ClothState& c = clothSystem().get(id);
+    const std::size_t p = resolveVertex(c, vertex);
+    if (c.hold[p].kind != detail::ParticleHold::Kind::Pin) throw InvalidInput("vertex", "is not pinned to a world point");
+    if (!point.allFinite()) throw InvalidInput("point", "must be finite");
+    c.hold[p].point = point;
+}
+
+void World::detachCloth(ClothId id, int vertex) {
+    detail::ClothState& c = clothSystem().get(id);
+    clothSystem().release(id, resolveVertex(c, vertex), EventCause::Request, time(), stepCount(), pendingEvents());
+}
+
+void World::applyClothForce(ClothId id, int vertex, const Vec3& force) {
+    detail::ClothState& c = clothSystem().get(id);
+    const std::size_t p = resolveVertex(c, vertex);
+    if (!force.allFinite()) throw InvalidInput("force", "must be finite");
+    c.force[p] += force;
+}
+
+}  // namespace tearables

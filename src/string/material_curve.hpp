@@ -1,0 +1,21 @@
+// The tensile stress-strain curve shared by strings and cloth yarns (Strings Sec. 5.1,
+// Yarn Sec. 3.3-3.4): bilinear, elastic slope E up to yield, then the plastic slope.
+#pragma once
+
+#include "string/string_state.hpp"
+
+namespace tearables::detail {
+
+/// Total strain on the curve at `stress` (Pa).
+inline double strainOnCurve(const SegmentMaterial& mat, double stress) {
+    if (stress <= mat.yield) return stress / mat.young;
+    return mat.yield / mat.young + (stress - mat.yield) / mat.plastic_modulus;
+}
+
+/// Permanent strain left after unloading from a peak `stress` past yield (unloading runs
+/// parallel to the elastic line): eps_curve(peak) - peak / E.
+inline double permanentStrain(const SegmentMaterial& mat, double stress) {
+    return stress <= mat.yield ? 0.0 : strainOnCurve(mat, stress) - stress / mat.young;
+}
+
+}  // namespace tearables::detail

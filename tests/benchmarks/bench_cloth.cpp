@@ -1,0 +1,83 @@
+// Google Benchmark: the cloth's tension solve (Yarn Sec. 3.2: regularised least squares on
+// the stacked momentum equations, sparse LDL^T of A^T A + lambda' I, iterated Tikhonov) for
+// 50 x 50 and 100 x 100 vertex cloths, and the full cloth step for comparison.
+// Run: build/tests/benchmarks/tearables_bench --benchmark_filter=Cloth
+#include "cloth/cloth_state.hpp"
+#include "tearables/world.hpp"
+
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+
+namespace {
+
+/// A cloth of n x n vertices (1 cm cells) pinned along its first row, draped over a
+/// cylinder (the warp yarns bent into an arc of their own length, so no yarn stretches),
+/// with the prediction x' = x'' - h^2 / m A T_true of a smooth, known tension field: the
+/// rows of a cloth in motion whose least-squares answer is T_true (residual ~0).
+tearables::detail::ClothState drapedCloth(int n) {
+    tearables::ClothDesc d;
+    d.resolution = {n, n};
+    d.size = {0.01 * (n - 1), 0.01 * (n - 1)};
+    for (int i = 0; i < n; ++i) d.pins.push_back({i, 0});
+    tearables::detail::ClothState c = tearables::detail::makeCloth(d);
+    const double radius = 0.5 * d.size[1];
+    for (std::size_t p = 0; p < c.vertices(); ++p) {  // bend the weft (along z) into an arc
+        const double s = c.x[p].z();
+        c.x[p].z() = radius * std::sin(s / radius);
+        c.x[p].y() = 1.0 - radius * (1.0 - std::cos(s / radius));
+    }
+    for (std::size_t p = 0; p < c.vertices(); ++p) c.x_pred[p] = c.x[p];
+    for (std::size_t e = 0; e < c.edgeCount(); ++e) {
+        const auto [a, b] = c.edges[e];
+        const tearables::Vec3 dir = (c.x[b] - c.x[a]).normalized();
+        const double t = 1.0 + 0.5 * std::sin(0.37 * static_cast<double>(e));
+        c.x_pred[a] -= 1e-4 / c.mass[a] * t * dir;  // x' = x'' - h^2/m (sum_e T_e s_e e_e)
+        c.x_pred[b] += 1e-4 / c.mass[b] * t * dir;
+    }
+    for (std::size_t p = 0; p < c.vertices(); ++p)
+        if (c.hold[p].kind != tearables::detail::ParticleHold::Kind::Free) c.x_pred[p] = c.x[p];
+    return c;
+}
+
+void BM_ClothTensionSolve(benchmark::State& state) {
+    const int n = static_cast<int>(state.range(0));
+    tearables::detail::ClothState c = drapedCloth(n);
+    tearables::WorldSettings settings;
+    tearables::detail::StepContext ctx;
+    ctx.h = 0.01;
+    ctx.inv_h = 100.0;
+    ctx.settings = &settings;
+    tearables::detail::solveClothTension(c, ctx);  // the first solve analyses the pattern (once per topology)
+    std::fill(c.tension.begin(), c.tension.end(), 0.0);
+    for (auto _ : state) {
+        tearables::detail::solveClothTension(c, ctx);
+        benchmark::DoNotOptimize(c.tension.data());
+    }
+    state.counters["yarns"] = static_cast<double>(c.edgeCount());
+    state.counters["refinements"] = c.tension_iterations;
+    state.counters["residual"] = c.tension_residual;
+}
+BENCHMARK(BM_ClothTensionSolve)->Arg(50)->Arg(100)->Unit(benchmark::kMillisecond);
+
+/// The whole cloth step (prediction, strain-limit Newton, tension, material) of a cloth
+/// hanging from two corners.
+void BM_ClothStep(benchmark::State& state) {
+    const int n = static_cast<int>(state.range(0));
+    tearables::World world;
+    tearables::ClothDesc d;
+    d.resolution = {n, n};
+    d.size = {0.01 * (n - 1), 0.01 * (n - 1)};
+    d.pins = {{0, 0}, {-1, 0}};
+    const tearables::ClothId id = world.addCloth(d);
+    for (int i = 0; i < 20; ++i) world.step(0.01);
+    for (auto _ : state) {
+        world.step(0.01);
+        benchmark::DoNotOptimize(world.viewCloth(id).tension->data());
+    }
+    state.counters["tension_ms"] = world.lastStageTimes().tension * 1e3;
+    state.counters["strain_limit_ms"] = world.lastStageTimes().strain_limit * 1e3;
+}
+BENCHMARK(BM_ClothStep)->Arg(20)->Arg(50)->Unit(benchmark::kMillisecond);
+
+}  // namespace
