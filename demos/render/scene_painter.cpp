@@ -46,6 +46,11 @@ Bounds sceneBounds(const scene::Scene& scene) {
         b.add(body.position - h);
         b.add(body.position + h);
     };
+    for (const scene::Cloth& c : scene.cloths) {
+        const Mat3 r = c.desc.orientation.normalized().toRotationMatrix();
+        for (int k = 0; k < 4; ++k)
+            b.add(c.desc.origin + r * Vec3((k & 1) ? c.desc.size[0] : 0.0, 0.0, (k & 2) ? c.desc.size[1] : 0.0), c.desc.yarn_radius);
+    }
     for (const scene::Body& body : scene.bodies) addBody(body);
     for (const scene::Driver& d : scene.drivers)
         if (d.body) addBody(*d.body);
@@ -127,6 +132,48 @@ Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::Fra
         colors.resize(n);
         for (std::size_t j = 0; j < n; ++j) colors[j] = tensionColor(loadFraction((*v.tension)[j], s.rupture_stress, v.radius));
         renderer.drawTube(*v.positions, radius, colors, *v.broken);
+    }
+    // Cloths: the weave's quads as two triangles each, gone where a yarn of the quad is
+    // torn; each vertex coloured by the highest load of its yarns; torn yarns' ends are
+    // left open (the mesh shows the cut).
+    std::vector<std::array<std::uint32_t, 3>> triangles;
+    std::vector<Rgb> vertex_colors;
+    std::vector<double> vertex_load;
+    for (const scene::FrameCloth& c : frame.cloths) {
+        const ClothView& v = c.view;
+        const int nu = v.resolution[0], nv = v.resolution[1];
+        const std::size_t n = v.vertexCount();
+        vertex_load.assign(n, 0.0);
+        std::vector<std::uint8_t> cut_right(n, 0), cut_up(n, 0);  // the yarn to (i+1, j) / (i, j+1) is torn
+        for (std::size_t e = 0; e < v.edgeCount(); ++e) {
+            const auto [a, b] = (*v.edges)[e];
+            if (a >= n || b >= n) continue;
+            if ((*v.broken)[e]) {
+                const std::uint32_t lo = std::min(a, b), hi = std::max(a, b);
+                if (hi == lo + 1) cut_right[lo] = 1;
+                else if (hi == lo + static_cast<std::uint32_t>(nu)) cut_up[lo] = 1;
+                continue;
+            }
+            const double load = loadFraction((*v.tension)[e], c.rupture_stress, v.yarn_radius);
+            vertex_load[a] = std::max(vertex_load[a], load);
+            vertex_load[b] = std::max(vertex_load[b], load);
+        }
+        vertex_colors.resize(n);
+        for (std::size_t p = 0; p < n; ++p) vertex_colors[p] = tensionColor(vertex_load[p]);
+        triangles.clear();
+        for (int j = 0; j + 1 < nv; ++j)
+            for (int i = 0; i + 1 < nu; ++i) {
+                const auto idx = [nu](int a, int b) { return static_cast<std::uint32_t>(b * nu + a); };
+                const std::uint32_t p00 = idx(i, j), p10 = idx(i + 1, j), p01 = idx(i, j + 1), p11 = idx(i + 1, j + 1);
+                if (cut_right[p00] || cut_up[p00] || cut_right[p01] || cut_up[p10]) continue;
+                triangles.push_back({p00, p10, p11});
+                triangles.push_back({p00, p11, p01});
+            }
+        TriangleMesh mesh;
+        mesh.positions = v.positions;
+        mesh.triangles = &triangles;
+        mesh.vertex_colors = &vertex_colors;
+        renderer.drawTriangleMesh(mesh);
     }
     return renderer.finish();
 }

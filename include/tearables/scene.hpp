@@ -135,11 +135,19 @@ struct FrameString {
     double rupture_stress = 0.0; ///< the material's tensile rupture stress, Pa (for colouring by load)
 };
 
+/// A cloth as a frame callback sees it.
+struct FrameCloth {
+    std::string name;
+    ClothView view;              ///< positions, edges, tension, broken: valid during the callback only
+    double rupture_stress = 0.0; ///< the yarns' tensile rupture stress, Pa (for colouring by load)
+};
+
 /// The state of a run at a written frame (for pictures; see RunOptions::on_frame).
 struct FrameState {
     long long step = 0;
     double time = 0.0;  ///< s
     std::vector<FrameString> strings;
+    std::vector<FrameCloth> cloths;
     std::vector<FrameBody> bodies;  ///< including spawned ones, in creation order
 };
 

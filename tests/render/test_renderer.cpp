@@ -158,3 +158,50 @@ TEST(Renderer, TriangleMeshWithVertexColoursAndCreases) {
         EXPECT_GT(difference(creased.at(cx, cy), sheet.at(cx, cy)), 20) << "no crease line";  // the line covers part of the pixel
     }
 }
+
+// A cloth shows as a surface: at step 0 of cloth-tear the pixel where its centre vertex
+// projects differs from the same frame without the cloth; after its yarns tore, the
+// quads along the cut are gone (fewer cloth pixels than a mesh with nothing torn).
+TEST(Renderer, ClothShowsAsASurfaceAndOpensWhereItTore) {
+    const auto text = scene::builtinSceneText("cloth-tear");
+    ASSERT_TRUE(text.has_value());
+    scene::Scene s = scene::parseScene(*text);
+    Renderer r(160, 90);
+    const View view = fitCamera(s, 160.0 / 90.0);
+    scene::RunOptions options;
+    options.every = 1000000;  // frames at step 0 and the last
+    int checked = 0;
+    auto covered = [](const Image& a, const Image& b) {
+        int n = 0;
+        for (int y = 0; y < 90; ++y)
+            for (int x = 0; x < 160; ++x) n += difference(a.at(x, y), b.at(x, y)) > 30;
+        return n;
+    };
+    options.on_frame = [&](const scene::FrameState& f) {
+        ASSERT_EQ(f.cloths.size(), 1u);
+        const Image with = paintFrame(r, s, f, view);
+        scene::FrameState bare = f;
+        bare.cloths.clear();
+        const Image without = paintFrame(r, s, bare, view);
+        const ClothView& v = f.cloths[0].view;
+        if (f.step == 0) {
+            const auto c = r.project((*v.positions)[v.vertexCount() / 2]);
+            ASSERT_TRUE(c.has_value());
+            EXPECT_GT(difference(with.at(static_cast<int>((*c)[0]), static_cast<int>((*c)[1])),
+                                 without.at(static_cast<int>((*c)[0]), static_cast<int>((*c)[1]))), 60);
+            ++checked;
+            return;
+        }
+        std::size_t torn = 0;
+        for (std::uint8_t b : *v.broken) torn += b;
+        ASSERT_GT(torn, 0u);
+        // The same positions drawn as if nothing had torn cover more pixels.
+        std::vector<std::uint8_t> whole(v.broken->size(), 0);
+        scene::FrameState intact = f;
+        intact.cloths[0].view.broken = &whole;
+        EXPECT_LT(covered(with, without), covered(paintFrame(r, s, intact, view), without));
+        ++checked;
+    };
+    scene::runScene(s, options);
+    EXPECT_EQ(checked, 2);
+}
