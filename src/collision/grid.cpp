@@ -269,7 +269,7 @@ double requiredCellSize(const Vec3* positions, std::size_t particle_count,
 
 void SegmentGrid::findPairs(const Vec3* positions, std::size_t particle_count,
                             const std::vector<CollisionSegment>& segments, double cell_size, double margin,
-                            NeighbourSearch search, std::vector<SegmentPair>& out, std::uint32_t skip_neighbours) {
+                            NeighbourSearch search, std::vector<SegmentPair>& out, std::uint32_t skip_neighbours, bool sorted) {
     out.clear();
     stats_ = GridStats{};
     if (!(cell_size > 0.0) || !std::isfinite(cell_size)) throw InvalidInput("cell_size", "must be finite and > 0");
@@ -430,9 +430,10 @@ void SegmentGrid::findPairs(const Vec3* positions, std::size_t particle_count,
                                  stats_};
         traverse(visit, kForward27, 13);
     }
-    std::sort(out.begin(), out.end(), [](const SegmentPair& l, const SegmentPair& r) {
-        return l.first != r.first ? l.first < r.first : l.second < r.second;
-    });
+    if (sorted)
+        std::sort(out.begin(), out.end(), [](const SegmentPair& l, const SegmentPair& r) {
+            return l.first != r.first ? l.first < r.first : l.second < r.second;
+        });
 }
 
 std::size_t SegmentGrid::reservedBytes() const {

@@ -139,7 +139,8 @@ public:
     /// segments share a particle (adjacent segments, whatever their chains), or when they
     /// belong to the same chain and |index_in_chain difference| <= skip_neighbours.
     /// `positions` holds particle_count particles; segments index into it. `out` is
-    /// cleared and receives the pairs sorted by (first, second), without duplicates.
+    /// cleared and receives the pairs without duplicates, sorted by (first, second) when
+    /// `sorted` (else in the search's own order, deterministic for the same input).
     ///
     /// Requires cell_size >= requiredCellSize(positions, particle_count, segments, margin)
     /// (for both searches; TwentySeven is then exact, Seven finds the subset described in
@@ -149,7 +150,7 @@ public:
     /// non-finite radius, a non-finite position or one beyond 2^30 cells.
     void findPairs(const Vec3* positions, std::size_t particle_count, const std::vector<CollisionSegment>& segments,
                    double cell_size, double margin, NeighbourSearch search, std::vector<SegmentPair>& out,
-                   std::uint32_t skip_neighbours = 1);
+                   std::uint32_t skip_neighbours = 1, bool sorted = true);
 
     /// Counters of the last findPairs call.
     const GridStats& lastStats() const { return stats_; }

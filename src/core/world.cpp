@@ -330,7 +330,8 @@ struct World::Impl {
         try {
             const double cell = detail::requiredCellSize(grid_positions.data(), grid_positions.size(), grid_segments, 0.0);
             grid.findPairs(grid_positions.data(), grid_positions.size(), grid_segments, cell, 0.0,
-                           detail::NeighbourSearch::TwentySeven, grid_pairs, stringContactSkip(thickest, shortest_segment));
+                           detail::NeighbourSearch::TwentySeven, grid_pairs, stringContactSkip(thickest, shortest_segment),
+                           /*sorted=*/false);  // most pairs are dropped below; the kept ones are sorted
         } catch (const InvalidInput&) {
             deep_pairs.clear();
             return;  // positions out of the grid's range (a string flying off): no contacts this step
@@ -383,6 +384,12 @@ struct World::Impl {
             c.friction = kStringFriction;
             string_pairs.push_back(c);
         }
+        // By key (string, segment, partner, partner segment): the warm start merges with
+        // the last step's pairs, and the deep pairs are binary-searched.
+        auto key = [](const detail::SegmentContact& c) { return std::make_tuple(c.string, c.segment, c.partner, c.partner_segment); };
+        std::sort(string_pairs.begin(), string_pairs.end(),
+                  [&](const detail::SegmentContact& l, const detail::SegmentContact& r) { return key(l) < key(r); });
+        std::sort(deep_next.begin(), deep_next.end());
         deep_pairs.swap(deep_next);
     }
 
