@@ -598,7 +598,7 @@ StringId World::addString(const StringDesc& desc) {
     s.blk_off.assign(n, Mat3::Zero());
     s.blk_rhs.assign(n, Vec3::Zero());
     s.blk_factor_gain.assign(n, Mat3::Zero());
-    s.blk_inverse.resize(n);
+    s.blk_factor.resize(n);
     s.row_projector.assign(n, Mat3::Identity());
     s.colliding.assign(n, 0);
     s.spring_force.assign(m, 0.0);

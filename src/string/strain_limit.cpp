@@ -124,20 +124,18 @@ bool fixedRow(const StringState& s, std::size_t p) {
 /// Hessians, symmetric positive definite, so no pivoting is needed.
 void factorBlockTridiagonal(StringState& s) {
     const std::size_t n = s.particles();
-    // The pivots are 3x3 SPD blocks, inverted in closed form (cofactors): a solve is then
-    // a mat-vec (Eigen's 3x3 LLT solves went through its general triangular kernels).
-    s.blk_inverse[0] = s.blk_diag[0].inverse();
+    s.blk_factor[0].compute(s.blk_diag[0]);
     for (std::size_t i = 1; i < n; ++i) {
         const Mat3& u = s.blk_off[i - 1];  // couples i-1 and i
         Mat3 d = s.blk_diag[i];
         if (u.isZero(0.0)) {
             s.blk_factor_gain[i].setZero();
         } else {
-            const Mat3 w = s.blk_inverse[i - 1] * u;  // D'^-1 U
+            const Mat3 w = s.blk_factor[i - 1].solve(u);  // D'^-1 U
             d -= u.transpose() * w;
             s.blk_factor_gain[i] = w.transpose();
         }
-        s.blk_inverse[i] = d.inverse();
+        s.blk_factor[i].compute(d);
     }
 }
 
@@ -146,8 +144,8 @@ void solveFactored(const StringState& s, std::vector<Vec3>& rhs) {
     const std::size_t n = s.particles();
     for (std::size_t i = 1; i < n; ++i)
         if (!s.blk_factor_gain[i].isZero(0.0)) rhs[i] -= s.blk_factor_gain[i] * rhs[i - 1];
-    rhs[n - 1] = s.blk_inverse[n - 1] * rhs[n - 1];
-    for (std::size_t i = n - 1; i-- > 0;) rhs[i] = s.blk_inverse[i] * (rhs[i] - s.blk_off[i] * rhs[i + 1]);
+    rhs[n - 1] = s.blk_factor[n - 1].solve(rhs[n - 1]);
+    for (std::size_t i = n - 1; i-- > 0;) rhs[i] = s.blk_factor[i].solve(rhs[i] - s.blk_off[i] * rhs[i + 1]);
 }
 
 using Vec6 = Eigen::Matrix<double, 6, 1>;
@@ -681,7 +679,7 @@ struct ChainSolver {
         inverse.resize(n);
         coupled.resize(n);
         for (std::size_t i = 0; i < n; ++i) {
-            inverse[i] = s.blk_inverse[i];
+            inverse[i] = s.blk_factor[i].solve(Mat3::Identity());
             coupled[i] = i > 0 && !s.blk_factor_gain[i].isZero(0.0);
         }
     }

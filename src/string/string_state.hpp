@@ -120,7 +120,7 @@ struct StringState {
     std::vector<Mat3> blk_diag, blk_off;  ///< block-tridiagonal Newton system (particles)
     std::vector<Vec3> blk_rhs;
     std::vector<Mat3> blk_factor_gain;    ///< factorisation: U_{i-1}^T D'_{i-1}^-1 (per particle)
-    std::vector<Mat3> blk_inverse;  ///< factorisation: the inverted pivots D'_i^-1
+    std::vector<Eigen::LLT<Mat3>> blk_factor;  ///< factorisation: Cholesky of D'_i
 
     // --- rigid contacts (collision stage) -------------------------------------------------
     std::vector<SegmentContact> contacts;
