@@ -74,18 +74,10 @@ public:
             const auto& broken = *query.broken[i];
             SegmentTree& tree = treeFor(query.strings[i].index, start, pred, radius, broken);
             for (btRigidBody* body : it->second) {
-                // Where the body was at the start of the step: Bullet has already moved it
-                // by x += h v, so step back along its velocities.
-                btTransform before;
-                btTransformUtil::integrateTransform(body->getWorldTransform(), -body->getLinearVelocity(),
-                                                    -body->getAngularVelocity(), static_cast<btScalar>(h), before);
-                btVector3 bmin, bmax, pmin, pmax;
-                body->getCollisionShape()->getAabb(body->getWorldTransform(), bmin, bmax);
-                body->getCollisionShape()->getAabb(before, pmin, pmax);
-                bmin.setMin(pmin);
-                bmax.setMax(pmax);
-                const double body_travel = static_cast<double>((body->getWorldTransform().getOrigin() - before.getOrigin()).length() +
-                                                               body->getAngularVelocity().length() * h * body->getCollisionShape()->getAngularMotionDisc());
+                const SweptBody swept(*body, h);
+                const btTransform& before = swept.before;
+                const btVector3 &bmin = swept.lo, &bmax = swept.hi;
+                const double body_travel = swept.travel;
                 const RigidId proxy = owner_.proxies_.at(body);
                 // The segments whose swept bounds overlap the body's: from the string's own
                 // btDbvt, in segment order (deterministic).
@@ -124,16 +116,10 @@ public:
             for (btRigidBody* body : owner_.bodiesIn(lo.array() - grow, hi.array() + grow)) {
                 // Only bodies that were given a proxy before the step (findCandidates).
                 if (!std::binary_search(owner_.mesh_candidates_.begin(), owner_.mesh_candidates_.end(), body)) continue;
-                btTransform before;
-                btTransformUtil::integrateTransform(body->getWorldTransform(), -body->getLinearVelocity(),
-                                                    -body->getAngularVelocity(), static_cast<btScalar>(h), before);
-                btVector3 bmin, bmax, pmin, pmax;
-                body->getCollisionShape()->getAabb(body->getWorldTransform(), bmin, bmax);
-                body->getCollisionShape()->getAabb(before, pmin, pmax);
-                bmin.setMin(pmin);
-                bmax.setMax(pmax);
-                const double body_travel = static_cast<double>((body->getWorldTransform().getOrigin() - before.getOrigin()).length() +
-                                                               body->getAngularVelocity().length() * h * body->getCollisionShape()->getAngularMotionDisc());
+                const SweptBody swept(*body, h);
+                const btTransform& before = swept.before;
+                const btVector3 &bmin = swept.lo, &bmax = swept.hi;
+                const double body_travel = swept.travel;
                 const RigidId proxy = owner_.proxies_.at(body);
                 for (std::size_t v = 0; v < start.size(); ++v) {
                     const double margin = radius + kContactMargin;
@@ -164,6 +150,26 @@ public:
 
 private:
     static constexpr double kContactMargin = 0.005;
+
+    /// A body over the step: where it was at the start (Bullet has already moved it by
+    /// x += h v, so step back along its velocities), the bounds of both poses, and how far
+    /// any of its points can have travelled.
+    struct SweptBody {
+        btTransform before;
+        btVector3 lo, hi;
+        double travel = 0.0;
+        SweptBody(const btRigidBody& body, double h) {
+            btTransformUtil::integrateTransform(body.getWorldTransform(), -body.getLinearVelocity(),
+                                                -body.getAngularVelocity(), static_cast<btScalar>(h), before);
+            btVector3 plo, phi;
+            body.getCollisionShape()->getAabb(body.getWorldTransform(), lo, hi);
+            body.getCollisionShape()->getAabb(before, plo, phi);
+            lo.setMin(plo);
+            hi.setMax(phi);
+            travel = static_cast<double>((body.getWorldTransform().getOrigin() - before.getOrigin()).length() +
+                                         body.getAngularVelocity().length() * h * body.getCollisionShape()->getAngularMotionDisc());
+        }
+    };
 
     /// A string's segments in a btDbvt of their swept bounds (where each segment was at the
     /// start of the step and where it is predicted to go, grown by its radius and the
