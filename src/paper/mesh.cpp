@@ -65,6 +65,25 @@ std::string checkMesh(const PaperSheet& s, double min_area) {
     if (s.v.size() != n || s.mass.size() != n || s.hold.size() != n || s.force.size() != n || s.x_pred.size() != n)
         return "per-vertex arrays differ in size";
     if (s.survived.size() != s.springs.size()) return "per-spring arrays differ in size";
+    PaperView v;
+    v.positions = &s.x;
+    v.velocities = &s.v;
+    v.masses = &s.mass;
+    v.triangles = &s.triangles;
+    v.springs = &s.springs;
+    return checkMesh(v, s.total_mass, min_area);
+}
+
+std::string checkMesh(const PaperView& view, double total_mass, double min_area) {
+    struct {
+        const std::vector<Vec3>& x;
+        const std::vector<double>& mass;
+        const std::vector<std::array<std::uint32_t, 3>>& triangles;
+        const std::vector<PaperSpring>& springs;
+        double total_mass;
+    } s{*view.positions, *view.masses, *view.triangles, *view.springs, total_mass};
+    const auto n = static_cast<std::uint32_t>(s.x.size());
+    if (s.mass.size() != n) return "per-vertex arrays differ in size";
     double total = 0.0;
     for (std::uint32_t v = 0; v < n; ++v) {
         if (!(s.mass[v] > 0.0)) return "vertex " + std::to_string(v) + " has no mass";

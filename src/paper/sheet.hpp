@@ -142,5 +142,7 @@ void revalidateSprings(PaperSheet& s, std::uint32_t vertex, std::uint32_t twin);
 /// spring, every spring's vertices in range and distinct, masses positive and summing to
 /// the sheet's. Returns "" when valid, else what is wrong.
 std::string checkMesh(const PaperSheet& s, double min_area = 1e-14);
+/// The same check on a view (what World::viewPaper gives), against the sheet's mass.
+std::string checkMesh(const PaperView& v, double total_mass, double min_area = 1e-14);
 
 }  // namespace tearables::detail
