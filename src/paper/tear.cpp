@@ -16,7 +16,7 @@
 // spring is duplicated so both new boundary edges keep theirs, and springs spanning the cut
 // (bending, hinge, auxiliary) are renamed to the side where they still span an edge, or
 // retired. A crack thus starts at the boundary and runs inward one vertex per step while
-// the stress stays above rupture. An overstretched edge with both ends inside the sheet
+// the stress stays above rupture. Held (pinned, glued) vertices are never split. An overstretched edge with both ends inside the sheet
 // waits until a crack reaches it (a vertex inside has a closed fan: cutting one edge of it
 // separates nothing). At most one split per vertex per step.
 #include "paper/sheet.hpp"
@@ -155,6 +155,9 @@ void tear(PaperSheet& s, PaperId id, const PaperStep& ctx, std::vector<Event>& e
         if (sp.broken || touched[sp.a] || touched[sp.b]) continue;
         const Vec3 dir = (s.x[sp.b] - s.x[sp.a]).normalized();
         for (std::uint32_t v : {sp.a, sp.b}) {
+            // A held vertex is not split: both halves would stay at the pin (or glue), and
+            // the crack would open nothing. The crack starts next to it instead.
+            if (s.hold[v].kind != VertexHold::Kind::Free) continue;
             if (!onBoundary(s, v, scratch)) continue;
             // The inner fan edge most perpendicular to the stretched edge.
             trianglesOf(s, v, fan);
