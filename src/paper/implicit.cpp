@@ -65,10 +65,14 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
     s.fixed.resize(n);
     s.block.resize(s.springs.size());
     // Forces: gravity, the user's, springs with damping. rhs collects h f + h^2 J v.
+    s.added_mass.resize(n, Mat3::Zero());
     for (std::size_t i = 0; i < n; ++i) {
-        s.fixed[i] = s.hold[i].kind != VertexHold::Kind::Free;
+        // Pins and glue to immovable bodies prescribe the velocity; a glue to a movable
+        // body was turned into added mass (coupleBodies).
+        s.fixed[i] = s.hold[i].kind == VertexHold::Kind::Pin ||
+                     (s.hold[i].kind == VertexHold::Kind::Glue && !rigids.movable(s.hold[i].body));
         s.rhs[i] = h * (s.mass[i] * ctx.gravity + s.force[i]);
-        s.diag_inv[i] = s.mass[i] * Mat3::Identity();  // W_ii accumulated here, inverted below
+        s.diag_inv[i] = s.mass[i] * Mat3::Identity() + s.added_mass[i];  // W_ii accumulated here, inverted below
     }
     const bool implicit = s.desc.integrator == PaperIntegrator::Implicit;
     for (std::size_t k = 0; k < s.springs.size(); ++k) {
@@ -97,7 +101,8 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
     if (!implicit) {
         // Semi-implicit (symplectic) Euler: v += h f / m. Stable only for h < 2 / omega.
         for (std::size_t i = 0; i < n; ++i)
-            s.v[i] = s.fixed[i] ? heldVelocity(s, i, rigids, ctx) : Vec3(s.v[i] + s.rhs[i] / s.mass[i]);
+            s.v[i] = s.fixed[i] ? heldVelocity(s, i, rigids, ctx)
+                                : Vec3(s.v[i] + (s.mass[i] * Mat3::Identity() + s.added_mass[i]).inverse() * s.rhs[i]);
     } else {
         for (std::size_t i = 0; i < n; ++i) {
             if (s.fixed[i]) {

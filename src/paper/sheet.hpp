@@ -54,7 +54,7 @@ struct PaperSheet {
     std::vector<Vec3> rhs;        ///< per vertex, h f + h^2 J v
     std::vector<Vec3> dv, dv_next;
     std::vector<std::uint8_t> fixed;  ///< per vertex, its velocity is prescribed (pinned, glued)
-    std::vector<Vec3> reaction;       ///< per vertex, force the sheet pulls a glued vertex with, N
+    std::vector<Mat3> added_mass;     ///< per vertex, movable bodies' mass lent to it this step (contact normal, glue), kg
 
     std::size_t vertices() const { return x.size(); }
 };
@@ -84,6 +84,29 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
 Vec3 springForce(const PaperSpring& sp, const Vec3& xa, const Vec3& xb, const Vec3& va, const Vec3& vb, double damping);
 
 // --- contact.cpp ---
+/// A vertex solved together with a share of a movable body's mass: along the contact
+/// normal (projector n n^T) or fully (glue, projector I).
+struct BodyCoupling {
+    std::uint32_t vertex = 0;
+    RigidId body;
+    Mat3 lent = Mat3::Zero();       ///< the body's mass lent to the vertex, kg (n n^T scaled for a contact)
+    Vec3 normal = Vec3::Zero();     ///< contact: unit, from the body toward the vertex; glue: zero
+    Vec3 arm = Vec3::Zero();        ///< from the body's centre of mass to the vertex, m
+    Vec3 body_velocity = Vec3::Zero();  ///< the body point's velocity before coupling, m/s
+};
+/// Before the solve: every glue to a movable body, and every contact with one that the
+/// vertex is about to close, lends the vertex a share (1 / `count_of(body)`) of the body's
+/// effective mass at that point (rotation included), and the vertex starts with the momentum-weighted common velocity. The stiff
+/// sheet then carries the body implicitly (a light vertex alone cannot: its momentum is
+/// too small to stop a box in a step, and the box would push through).
+void coupleBodies(PaperSheet& s, const std::vector<PointContact>& contacts, const std::vector<double>& count_of,
+                  const RigidTable& rigids, const PaperStep& ctx, std::vector<BodyCoupling>& out);
+/// Counts, per body, how many vertices coupleBodies would couple to it (glues and closing contacts).
+void countCouplings(const PaperSheet& s, const std::vector<PointContact>& contacts, const RigidTable& rigids,
+                    const PaperStep& ctx, std::vector<double>& count);
+/// After the solve: each coupled body receives what its share gained, as an impulse at
+/// the vertex (a contact only pushes, never pulls).
+void releaseBodies(const PaperSheet& s, const std::vector<BodyCoupling>& couplings, RigidTable& rigids);
 /// Resolves the vertices' contacts with rigid bodies (velocity level, with Coulomb
 /// friction, equal and opposite impulses to movable bodies). `contacts` are this sheet's.
 void resolveContacts(PaperSheet& s, const std::vector<PointContact>& contacts, RigidTable& rigids, const PaperStep& ctx);

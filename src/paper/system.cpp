@@ -179,39 +179,59 @@ void PaperSystem::step(const PaperStep& ctx, RigidTable& rigids, const PointCont
     if (sheets_.empty()) return;
     auto live = [](const PaperSheet& s) { return s.alive && !s.frozen; };
     auto t0 = Clock::now();
-    for (PaperSheet& s : sheets_) {
+    // Rigid bodies: one query of every live sheet's vertices, where they start and where
+    // they would go without their springs (gravity's pull); the host's contacts are
+    // speculative (a reach of both travels), so the springs' motion is covered.
+    query_.start.clear();
+    query_.predicted.clear();
+    query_.radius.clear();
+    query_sheet_.clear();
+    for (std::size_t i = 0; i < sheets_.size(); ++i) {
+        PaperSheet& s = sheets_[i];
         if (!live(s)) continue;
         // A glue to a body that left the table frees the vertex (the world's removeRigid
         // does this with an event; this guards the solve).
         for (VertexHold& hold : s.hold)
             if (hold.kind == VertexHold::Kind::Glue && (hold.body.index >= rigids.bodies.size() || !rigids.used[hold.body.index]))
                 hold = VertexHold{};
-        solveVelocities(s, rigids, ctx);
-    }
-    auto t1 = Clock::now();
-    times_.solve = seconds(t0, t1);
-
-    // Rigid bodies: one query of every live sheet's vertices (start and predicted).
-    query_.start.clear();
-    query_.predicted.clear();
-    query_.radius.clear();
-    query_sheet_.clear();
-    for (std::size_t i = 0; i < sheets_.size(); ++i) {
-        if (!live(sheets_[i])) continue;
-        query_.start.push_back(&sheets_[i].x);
-        query_.predicted.push_back(&sheets_[i].x_pred);
-        query_.radius.push_back(0.5 * sheets_[i].desc.thickness);
+        s.x_pred.resize(s.vertices());
+        for (std::size_t v = 0; v < s.vertices(); ++v) s.x_pred[v] = s.x[v] + ctx.h * (s.v[v] + ctx.h * ctx.gravity);
+        query_.start.push_back(&s.x);
+        query_.predicted.push_back(&s.x_pred);
+        query_.radius.push_back(0.5 * s.desc.thickness);
         query_sheet_.push_back(static_cast<std::uint32_t>(i));
     }
     contacts_.clear();
-    if (find) find(query_, contacts_);
+    if (find && !query_.start.empty()) find(query_, contacts_);
     per_sheet_.resize(sheets_.size());
     for (auto& list : per_sheet_) list.clear();
     for (const PointContact& c : contacts_) per_sheet_[query_sheet_[c.object]].push_back(c);
+    // Movable bodies lend their mass to the vertices that touch or hold them, shared
+    // equally among all of them (over every sheet): count them first.
+    share_.assign(rigids.bodies.size(), 0.0);
     for (std::size_t i = 0; i < sheets_.size(); ++i)
-        if (live(sheets_[i])) resolveContacts(sheets_[i], per_sheet_[i], rigids, ctx);
+        if (live(sheets_[i])) countCouplings(sheets_[i], per_sheet_[i], rigids, ctx, share_);
+    couplings_.resize(sheets_.size());
+    for (std::size_t i = 0; i < sheets_.size(); ++i)
+        if (live(sheets_[i])) coupleBodies(sheets_[i], per_sheet_[i], share_, rigids, ctx, couplings_[i]);
+    auto t1 = Clock::now();
+    times_.collision = seconds(t0, t1);
+
+    for (PaperSheet& s : sheets_)
+        if (live(s)) solveVelocities(s, rigids, ctx);
     auto t2 = Clock::now();
-    times_.collision = seconds(t1, t2);
+    times_.solve = seconds(t1, t2);
+
+    // The bodies get what their shares gained; then every contact is made to hold at the
+    // end of the step (static bodies, friction, what the coupling left).
+    for (std::size_t i = 0; i < sheets_.size(); ++i) {
+        if (!live(sheets_[i])) continue;
+        releaseBodies(sheets_[i], couplings_[i], rigids);
+        resolveContacts(sheets_[i], per_sheet_[i], rigids, ctx);
+    }
+    auto t3a = Clock::now();
+    times_.collision += seconds(t2, t3a);
+    t2 = t3a;
 
     for (PaperSheet& s : sheets_)
         if (live(s)) integratePositions(s, rigids, ctx);
@@ -251,3 +271,4 @@ void PaperSystem::step(const PaperStep& ctx, RigidTable& rigids, const PointCont
 }
 
 }  // namespace tearables::detail
+
