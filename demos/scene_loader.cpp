@@ -665,6 +665,156 @@ String parseString(const Node& n, std::uint64_t seed, const NameMap& bodies) {
 }
 
 // =============================================================================================
+// Papers
+// =============================================================================================
+
+/// A vertex of a sheet: an index, or [i, k] on the rectangle's grid (i along x, k along z;
+/// negative counts from the far side).
+std::uint32_t paperVertex(const Node& n, const PaperDesc& d, std::size_t vertices) {
+    if (n.value().is_array()) {
+        if (!d.vertices.empty()) n.fail("[i, k] names a grid vertex: this sheet is a mesh, give an index");
+        const std::vector<Node> ik = n.asArray();
+        if (ik.size() != 2) n.fail("expected [i, k] (2 integers), got " + describe(n.value()));
+        const long long nx = d.resolution[0], nz = d.resolution[1];
+        long long i = ik[0].asInteger(-nx, nx - 1), k = ik[1].asInteger(-nz, nz - 1);
+        if (i < 0) i += nx;
+        if (k < 0) k += nz;
+        return static_cast<std::uint32_t>(k * nx + i);
+    }
+    const auto count = static_cast<long long>(vertices);
+    long long v = n.asInteger(-count, count - 1);
+    if (v < 0) v += count;
+    return static_cast<std::uint32_t>(v);
+}
+
+/// The vertices of an edge of the rectangle: "x-", "x+", "z-" or "z+" (the side at the
+/// low or high end of that local axis).
+std::vector<std::uint32_t> paperEdge(const Node& n, const PaperDesc& d) {
+    if (!d.vertices.empty()) n.fail("edges are those of the rectangle: this sheet is a mesh");
+    const std::string e = n.asString();
+    std::vector<std::uint32_t> out;
+    const int nx = d.resolution[0], nz = d.resolution[1];
+    if (e == "x-" || e == "x+") {
+        for (int k = 0; k < nz; ++k) out.push_back(static_cast<std::uint32_t>(d.gridVertex(e == "x-" ? 0 : nx - 1, k)));
+    } else if (e == "z-" || e == "z+") {
+        for (int i = 0; i < nx; ++i) out.push_back(static_cast<std::uint32_t>(d.gridVertex(i, e == "z-" ? 0 : nz - 1)));
+    } else {
+        n.fail("must be \"x-\", \"x+\", \"z-\" or \"z+\" (got " + jsonQuoted(e) + ")");
+    }
+    return out;
+}
+
+/// A paper sheet (SCENE_FORMAT.md, "papers"); `seed` unless it gives "seed".
+Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
+    n.checkNoUnknownFields({"name", "origin", "size", "resolution", "orientation", "vertices", "triangles", "density",
+                            "stiffness", "bending", "damping", "jacobi_iterations", "integrator", "phi", "psi",
+                            "hinge_threshold", "breakable", "tearable", "rupture_stretch", "thickness", "friction", "seed",
+                            "attachments"});
+    Paper p;
+    PaperDesc& d = p.desc;
+    d.name = requiredName(n);
+    const bool mesh = n.has("vertices") || n.has("triangles");
+    if (mesh) {
+        for (const char* rect : {"origin", "size", "resolution", "orientation"})
+            if (const auto f = n.field(rect)) f->fail("belongs to a rectangle: this sheet gives vertices and triangles");
+        for (const Node& v : n.required("vertices").asArray()) d.vertices.push_back(v.asVec3());
+        for (const Node& t : n.required("triangles").asArray()) {
+            const std::vector<Node> ijk = t.asArray();
+            if (ijk.size() != 3) t.fail("expected [i, j, k] (3 vertex indices), got " + describe(t.value()));
+            const auto count = static_cast<long long>(d.vertices.size());
+            std::array<std::uint32_t, 3> tri{};
+            for (int c = 0; c < 3; ++c) tri[c] = static_cast<std::uint32_t>(ijk[c].asInteger(0, std::max(0LL, count - 1)));
+            d.triangles.push_back(tri);
+        }
+    } else {
+        d.origin = n.vec3("origin", d.origin);
+        if (const auto size = n.field("size")) {
+            const std::vector<double> v = size->asNumbers(2, Range::positive());
+            d.size[0] = v[0];
+            d.size[1] = v[1];
+        }
+        if (const auto res = n.field("resolution")) {
+            const std::vector<Node> v = res->asArray();
+            if (v.size() != 2) res->fail("expected [nx, nz] (2 integers), got " + describe(res->value()));
+            d.resolution[0] = static_cast<int>(v[0].asInteger(2, 1024));
+            d.resolution[1] = static_cast<int>(v[1].asInteger(2, 1024));
+        }
+        if (const auto q = n.field("orientation")) {
+            const std::vector<double> v = q->asNumbers(4);
+            const Quat quat(v[3], v[0], v[1], v[2]);  // written [x, y, z, w]
+            if (!(quat.norm() > 1e-12)) q->fail("must be a non-zero quaternion [x, y, z, w]");
+            d.orientation = quat.normalized();
+        }
+    }
+    d.density = n.number("density", d.density, Range::positive());
+    d.stiffness = n.number("stiffness", d.stiffness, Range::positive());
+    d.bending = n.number("bending", d.bending, Range::closed(0.0, 1.0));
+    d.damping = n.number("damping", d.damping, Range::closed(0.0, 1.0));
+    d.jacobi_iterations = static_cast<int>(n.integer("jacobi_iterations", d.jacobi_iterations, 1, 256));
+    if (const auto integ = n.field("integrator")) {
+        const std::string v = integ->asString();
+        if (v == "implicit") d.integrator = PaperIntegrator::Implicit;
+        else if (v == "explicit") d.integrator = PaperIntegrator::Explicit;
+        else integ->fail("must be \"implicit\" or \"explicit\" (got " + jsonQuoted(v) + ")");
+    }
+    d.phi = n.number("phi", d.phi, Range::leftOpen(0.0, 1000.0));
+    d.psi = n.number("psi", d.psi, Range::closed(0.0, 4.0));
+    d.hinge_threshold = n.number("hinge_threshold", d.hinge_threshold, Range{0.0, 1.0, false, true});
+    d.breakable = n.boolean("breakable", d.breakable);
+    d.tearable = n.boolean("tearable", d.tearable);
+    d.rupture_stretch = n.number("rupture_stretch", d.rupture_stretch, Range::leftOpen(0.0, 100.0));
+    d.thickness = n.number("thickness", d.thickness, Range::leftOpen(0.0, 1.0));
+    d.friction = n.number("friction", d.friction, Range::closed(0.0, 100.0));
+    d.seed = static_cast<std::uint64_t>(n.integer("seed", static_cast<long long>(seed), 0, LLONG_MAX));
+    try {
+        validate(d);  // the mesh, ranges the fields above cannot check alone
+    } catch (const InvalidInput& e) {
+        throw InvalidInput(e.field().empty() ? n.path() : n.path() + "." + e.field(), e.problem());
+    }
+    const std::size_t vertices = d.vertices.empty() ? static_cast<std::size_t>(d.resolution[0]) * d.resolution[1] : d.vertices.size();
+    if (const auto list = n.field("attachments")) {
+        std::map<std::uint32_t, std::string> taken;  // vertex -> attachment path
+        for (const Node& a : list->asArray()) {
+            a.checkNoUnknownFields({"vertex", "edge", "world", "body", "local"});
+            const auto vertex = a.field("vertex");
+            const auto edge = a.field("edge");
+            if (vertex && edge) edge->fail("give vertex or edge, not both");
+            if (!vertex && !edge) a.fail("needs vertex (an index or [i, k]) or edge (\"x-\", \"x+\", \"z-\", \"z+\")");
+            const std::vector<std::uint32_t> which = vertex ? std::vector<std::uint32_t>{paperVertex(*vertex, d, vertices)} : paperEdge(*edge, d);
+            const auto body = a.field("body");
+            const auto world = a.field("world");
+            const auto local = a.field("local");
+            if (body && world) world->fail("give either body or world, not both");
+            if (!body && !world) a.fail("needs body (a body's name) or world (true: where the vertex is, or a point)");
+            if (local && !body) local->fail("only allowed with body");
+            if (local && edge) local->fail("an edge is glued where it is: give no local point");
+            for (std::uint32_t v : which) {
+                if (const auto [it, fresh] = taken.emplace(v, a.path()); !fresh)
+                    (vertex ? *vertex : *edge).fail("vertex " + std::to_string(v) + " already has an attachment (" + it->second + ")");
+                if (body) {
+                    PaperGlue g;
+                    g.vertex = v;
+                    g.body = body->asString();
+                    if (bodies.count(g.body) == 0) body->fail("no body named " + jsonQuoted(g.body) + knownNames(namesOf(bodies), "bodies"));
+                    if (local) g.local = local->asVec3();
+                    p.glue.push_back(g);
+                } else {
+                    PaperAttachment pin;
+                    pin.vertex = v;
+                    if (world->value().is_boolean()) {
+                        if (!world->asBool()) world->fail("false attaches nothing: give true (where the vertex is) or a point");
+                    } else {
+                        pin.world = world->asVec3();
+                    }
+                    d.attachments.push_back(pin);
+                }
+            }
+        }
+    }
+    return p;
+}
+
+// =============================================================================================
 // Drivers
 // =============================================================================================
 
@@ -688,6 +838,7 @@ const std::vector<DriverKind>& driverKinds() {
         {"release", Driver::Type::Release, {"type", "target", "particle", "at"}},
         {"wind", Driver::Type::Wind, {"type", "value", "gust", "from", "until"}},
         {"spawn", Driver::Type::Spawn, {"type", "body", "at"}},
+        {"velocity", Driver::Type::Velocity, {"type", "body", "value", "from", "until"}},
     };
     return kinds;
 }
@@ -751,6 +902,14 @@ Driver parseDriver(const Node& n, const std::vector<String>& strings, NameMap& b
             d.value = n.required("value").asVec3();
             d.gust = n.number("gust", d.gust, Range::closed(0.0, 10.0));
             break;
+        case Driver::Type::Velocity: {
+            const Node body = n.required("body");
+            d.body_name = body.asString();
+            if (body_names.count(d.body_name) == 0)
+                body.fail("no body named " + jsonQuoted(d.body_name) + knownNames(namesOf(body_names), "bodies"));
+            d.value = n.required("value").asVec3();
+            break;
+        }
         case Driver::Type::Spawn: {
             const Node body = n.required("body");
             d.body = parseBody(body);
@@ -817,7 +976,12 @@ Scene parseScene(const std::string& json_text) {
         claimName(string_names, scene.strings.back().desc.name, strings[i].path(), "string");
     }
 
-    rejectUnavailable(top, "papers", "paper sheets are not available in this build yet");
+    NameMap paper_names;
+    const std::vector<Node> papers = top.array("papers");
+    for (std::size_t i = 0; i < papers.size(); ++i) {
+        scene.papers.push_back(parsePaper(papers[i], scene.seed + 1000 + i, body_names));
+        claimName(paper_names, scene.papers.back().desc.name, papers[i].path(), "paper");
+    }
     rejectUnavailable(top, "cloths", "cloths are not available in this build yet");
 
     for (const Node& n : top.array("drivers")) scene.drivers.push_back(parseDriver(n, scene.strings, body_names));

@@ -3,6 +3,7 @@
 // ("strings[0].material.tensile.rupture") and whose problem() says what is wrong.
 #pragma once
 
+#include "tearables/paper.hpp"
 #include "tearables/string.hpp"
 #include "tearables/types.hpp"
 
@@ -51,9 +52,22 @@ struct String {
     std::vector<Attachment> attachments;  ///< at most one per particle
 };
 
+/// A vertex of a paper sheet glued to a body (world pins are in PaperDesc::attachments).
+struct PaperGlue {
+    std::uint32_t vertex = 0;          ///< resolved vertex index
+    std::string body;                  ///< the body's name (must exist)
+    std::optional<Vec3> local;         ///< point in the body's frame, m; default: where the vertex is
+};
+
+/// A paper sheet of the scene.
+struct Paper {
+    PaperDesc desc;                    ///< name (unique among papers, non-empty), mesh, material, world pins
+    std::vector<PaperGlue> glue;       ///< vertices glued to bodies
+};
+
 /// A scripted action.
 struct Driver {
-    enum class Type { Force, Ramp, Twist, Move, Release, Wind, Spawn };
+    enum class Type { Force, Ramp, Twist, Move, Release, Wind, Spawn, Velocity };
     Type type = Type::Force;
     std::string target;       ///< string name (force, ramp, twist, move, release)
     int particle = -1;        ///< particle index (force, ramp, move, release)
@@ -66,6 +80,7 @@ struct Driver {
     double until = 1e300;     ///< s, > from (default: the whole run)
     double at = 0.0;          ///< release, spawn: s, >= 0
     std::optional<Body> body; ///< spawn: the body (its name unique among all bodies)
+    std::string body_name;    ///< velocity: the body whose linear velocity is set (value, m/s) between from and until
 };
 
 /// A whole scene.
@@ -76,6 +91,7 @@ struct Scene {
     std::uint64_t seed = 1;           ///< seeds every random choice (string i gets seed + i)
     std::vector<Body> bodies;
     std::vector<String> strings;
+    std::vector<Paper> papers;        ///< paper i gets seed + 1000 + i unless it gives its own
     std::vector<Driver> drivers;
     int output_every = 1;             ///< write a trace frame every this many steps, >= 1
     std::string source;               ///< file name or built-in scene name, for messages

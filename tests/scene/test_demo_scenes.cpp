@@ -7,7 +7,9 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <cstdio>
 #include <fstream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -72,4 +74,58 @@ TEST(DemoScenes, PlasticityKeepsTheElongationAboveYieldOnly) {  // Fig. 8, top r
     EXPECT_NEAR(length(last, "below"), 0.5, 0.5e-3);  // returned within 0.1%
     // 180 N on 1 mm radius: 57 MPa; permanent strain 4e7/3e9 + 1.7e7/3e8 - 5.7e7/3e9 = 5.1%.
     EXPECT_NEAR(length(last, "above") / 0.5 - 1.0, 0.051, 0.1 * 0.051);
+}
+
+namespace {
+
+/// The papers of a trace frame: name -> (creases, hinges, vertex count, largest |y - 1|).
+struct SheetState {
+    long long creases = 0, hinges = 0, tears = 0;
+    std::size_t vertices = 0;
+    double deviation = 0.0;
+};
+std::map<std::string, SheetState> sheets(const json& frame) {
+    std::map<std::string, SheetState> out;
+    for (const auto& [name, p] : frame["papers"].items()) {
+        SheetState s;
+        s.creases = p["creases"];
+        s.hinges = p["hinges"];
+        s.tears = p["tears"];
+        s.vertices = p["x"].size();
+        for (const json& x : p["x"]) s.deviation = std::max(s.deviation, std::abs(x[1].get<double>() - 1.0));
+        out[name] = s;
+    }
+    return out;
+}
+
+}  // namespace
+
+// Paper Fig. 9: the fragile sheet (phi = 1) creases far more than the rubbery one (phi = 5).
+TEST(DemoScenes, PaperPhiFragileCreasesMore) {
+    const auto s = sheets(lastFrame(run("paper-phi")));
+    ASSERT_EQ(s.size(), 2u);
+    std::printf("phi = 1: %lld creases, phi = 5: %lld\n", s.at("phi-1").creases, s.at("phi-5").creases);
+    EXPECT_GT(s.at("phi-1").creases, 3 * s.at("phi-5").creases + 3);
+}
+
+// Paper Fig. 8: both sheets crease; every crease inserted one vertex (the trace's vertex
+// list grows by exactly the creases: indices are stable, vertices only appended).
+TEST(DemoScenes, PaperPsiCreasesInsertVertices) {
+    const auto s = sheets(lastFrame(run("paper-psi")));
+    ASSERT_EQ(s.size(), 2u);
+    for (const auto& [name, sheet] : s) {
+        EXPECT_GT(sheet.creases, 0) << name;
+        EXPECT_EQ(sheet.vertices, 21u * 11u + static_cast<std::size_t>(sheet.creases + sheet.tears)) << name;
+    }
+}
+
+// Paper Fig. 10: after the sphere has gone, the breakable sheet keeps its creases; the
+// elastic one beside it, pressed the same, is flat again.
+TEST(DemoScenes, PaperBallKeepsCreases) {
+    const auto s = sheets(lastFrame(run("paper-ball")));
+    ASSERT_EQ(s.size(), 2u);
+    std::printf("after the ball: %.4f m (breakable), %.4f m (elastic)\n", s.at("paper").deviation, s.at("elastic").deviation);
+    EXPECT_GT(s.at("paper").creases, 0);
+    EXPECT_EQ(s.at("elastic").creases, 0);
+    EXPECT_GT(s.at("paper").deviation, 5.0 * s.at("elastic").deviation);
 }
