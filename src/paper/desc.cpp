@@ -151,6 +151,7 @@ PaperSheet buildSheet(const PaperDesc& desc) {
             halves.push_back({std::min(a, b), std::max(a, b), t[(e + 2) % 3]});
         }
     std::sort(halves.begin(), halves.end());
+    buildAdjacency(s);
     const double k = desc.stiffness;
     for (std::size_t i = 0; i < halves.size();) {
         std::size_t j = i + 1;
@@ -159,8 +160,8 @@ PaperSheet buildSheet(const PaperDesc& desc) {
         if (j - i == 2 && desc.bending > 0.0) {
             const std::uint32_t a = halves[i].opposite, b = halves[i + 1].opposite;
             const std::uint32_t sp = addSpring(s, a, b, (s.x[a] - s.x[b]).norm(), desc.bending * k, PaperSpringKind::Bending);
-            s.springs[sp].hinge[0] = halves[i].lo;
-            s.springs[sp].hinge[1] = halves[i].hi;
+            setSpringName(s, sp, 2, halves[i].lo);
+            setSpringName(s, sp, 3, halves[i].hi);
         }
         i = j;
     }

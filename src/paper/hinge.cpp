@@ -83,20 +83,19 @@ std::uint32_t breakSpring(PaperSheet& s, std::uint32_t index) {
     // `sp` may dangle after addSpring (the vector grows): use the index from here on.
     s.springs[index].broken = true;
     for (std::uint32_t t : tris) {
-        std::array<std::uint32_t, 3> first = s.triangles[t], second = s.triangles[t];
-        for (int c = 0; c < 3; ++c) {
-            if (first[c] == j) first[c] = m;   // (i, m, o): keeps the orientation
-            if (second[c] == i) second[c] = m; // (m, j, o)
-        }
-        const std::uint32_t o = thirdVertex(first, i, m);
-        s.triangles[t] = first;
-        s.triangles.push_back(second);
+        std::array<std::uint32_t, 3> second = s.triangles[t];
+        for (int c = 0; c < 3; ++c)
+            if (second[c] == i) second[c] = m;  // (m, j, o)
+        for (int c = 0; c < 3; ++c)
+            if (s.triangles[t][c] == j) setCorner(s, t, c, m);  // (i, m, o): keeps the orientation
+        const std::uint32_t o = thirdVertex(s.triangles[t], i, m);
+        addTriangle(s, second);
         addSpring(s, m, o, (s.x[o] - s.x[m]).norm(), k, PaperSpringKind::Structural);
     }
     addSpring(s, i, m, 0.5 * rest, k, PaperSpringKind::Structural);
     addSpring(s, m, j, 0.5 * rest, k, PaperSpringKind::Structural);
     const std::uint32_t aux = addSpring(s, i, j, std::max(length, 1e-6 * rest), k, PaperSpringKind::Auxiliary);
-    s.springs[aux].hinge[0] = m;
+    setSpringName(s, aux, 2, m);
     revalidateSprings(s, i, UINT32_MAX);
     revalidateSprings(s, j, UINT32_MAX);
     return m;
@@ -134,8 +133,8 @@ void creaseAndFold(PaperSheet& s, PaperId id, const PaperStep& ctx, std::vector<
             if (!(length < s.desc.hinge_threshold * sp.rest)) continue;
             s.springs[k].broken = true;
             const std::uint32_t hinge = addSpring(s, sp.a, sp.b, std::max(length, 1e-6 * sp.rest), s.desc.stiffness, PaperSpringKind::Hinge);
-            s.springs[hinge].hinge[0] = sp.hinge[0];
-            s.springs[hinge].hinge[1] = sp.hinge[1];
+            setSpringName(s, hinge, 2, sp.hinge[0]);
+            setSpringName(s, hinge, 3, sp.hinge[1]);
             ++s.counters.hinges;
             Event e;
             e.type = EventType::Hinge;

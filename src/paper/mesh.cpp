@@ -8,7 +8,62 @@
 
 namespace tearables::detail {
 
+namespace {
+
+void link(std::vector<std::uint32_t>& list, std::uint32_t item) { list.push_back(item); }
+void unlink(std::vector<std::uint32_t>& list, std::uint32_t item) {
+    const auto it = std::find(list.begin(), list.end(), item);
+    if (it != list.end()) list.erase(it);
+}
+std::uint32_t* springSlot(PaperSpring& sp, int slot) {
+    switch (slot) {
+        case 0: return &sp.a;
+        case 1: return &sp.b;
+        case 2: return &sp.hinge[0];
+        default: return &sp.hinge[1];
+    }
+}
+
+}  // namespace
+
+void buildAdjacency(PaperSheet& s) {
+    s.vertex_triangles.assign(s.x.size(), {});
+    s.vertex_springs.assign(s.x.size(), {});
+    for (std::size_t t = 0; t < s.triangles.size(); ++t)
+        for (std::uint32_t v : s.triangles[t]) link(s.vertex_triangles[v], static_cast<std::uint32_t>(t));
+    for (std::size_t k = 0; k < s.springs.size(); ++k)
+        for (int slot = 0; slot < 4; ++slot) {
+            const std::uint32_t v = *springSlot(s.springs[k], slot);
+            if (v < s.x.size()) link(s.vertex_springs[v], static_cast<std::uint32_t>(k));
+        }
+}
+
+std::uint32_t addTriangle(PaperSheet& s, const std::array<std::uint32_t, 3>& t) {
+    s.triangles.push_back(t);
+    const auto index = static_cast<std::uint32_t>(s.triangles.size() - 1);
+    for (std::uint32_t v : t) link(s.vertex_triangles[v], index);
+    return index;
+}
+
+void setCorner(PaperSheet& s, std::uint32_t t, int c, std::uint32_t v) {
+    std::uint32_t& corner = s.triangles[t][c];
+    if (corner == v) return;
+    unlink(s.vertex_triangles[corner], t);
+    corner = v;
+    link(s.vertex_triangles[v], t);
+}
+
+void setSpringName(PaperSheet& s, std::uint32_t k, int slot, std::uint32_t v) {
+    std::uint32_t* name = springSlot(s.springs[k], slot);
+    if (*name == v) return;
+    if (*name < s.vertex_springs.size()) unlink(s.vertex_springs[*name], k);
+    *name = v;
+    if (v < s.vertex_springs.size()) link(s.vertex_springs[v], k);
+}
+
 std::uint32_t addVertex(PaperSheet& s, const Vec3& x, const Vec3& v, double mass) {
+    s.vertex_triangles.emplace_back();
+    s.vertex_springs.emplace_back();
     s.x.push_back(x);
     s.x_pred.push_back(x);
     s.v.push_back(v);
@@ -27,25 +82,24 @@ std::uint32_t addSpring(PaperSheet& s, std::uint32_t a, std::uint32_t b, double 
     sp.kind = kind;
     s.springs.push_back(sp);
     s.survived.push_back(0.0);
-    return static_cast<std::uint32_t>(s.springs.size() - 1);
+    const auto index = static_cast<std::uint32_t>(s.springs.size() - 1);
+    if (a < s.vertex_springs.size()) link(s.vertex_springs[a], index);
+    if (b < s.vertex_springs.size()) link(s.vertex_springs[b], index);
+    return index;
 }
 
 void trianglesOf(const PaperSheet& s, std::uint32_t v, std::vector<std::uint32_t>& out) {
-    out.clear();
-    for (std::size_t t = 0; t < s.triangles.size(); ++t) {
-        const auto& tri = s.triangles[t];
-        if (tri[0] == v || tri[1] == v || tri[2] == v) out.push_back(static_cast<std::uint32_t>(t));
-    }
+    out = s.vertex_triangles[v];
+    std::sort(out.begin(), out.end());  // deterministic, whatever order the updates left
 }
 
 void trianglesWithEdge(const PaperSheet& s, std::uint32_t a, std::uint32_t b, std::vector<std::uint32_t>& out) {
     out.clear();
-    for (std::size_t t = 0; t < s.triangles.size(); ++t) {
+    for (std::uint32_t t : s.vertex_triangles[a]) {
         const auto& tri = s.triangles[t];
-        const bool ha = tri[0] == a || tri[1] == a || tri[2] == a;
-        const bool hb = tri[0] == b || tri[1] == b || tri[2] == b;
-        if (ha && hb) out.push_back(static_cast<std::uint32_t>(t));
+        if (tri[0] == b || tri[1] == b || tri[2] == b) out.push_back(t);
     }
+    std::sort(out.begin(), out.end());
 }
 
 std::uint32_t thirdVertex(const std::array<std::uint32_t, 3>& t, std::uint32_t a, std::uint32_t b) {
@@ -65,6 +119,21 @@ std::string checkMesh(const PaperSheet& s, double min_area) {
     if (s.v.size() != n || s.mass.size() != n || s.hold.size() != n || s.force.size() != n || s.x_pred.size() != n)
         return "per-vertex arrays differ in size";
     if (s.survived.size() != s.springs.size()) return "per-spring arrays differ in size";
+    if (s.vertex_triangles.size() != n || s.vertex_springs.size() != n) return "adjacency lists differ in size";
+    std::size_t listed = 0;
+    for (std::uint32_t v = 0; v < n; ++v) {
+        listed += s.vertex_triangles[v].size();
+        for (std::uint32_t t : s.vertex_triangles[v]) {
+            const auto& tri = s.triangles[t];
+            if (tri[0] != v && tri[1] != v && tri[2] != v) return "adjacency: triangle listed at a vertex it does not use";
+        }
+    }
+    if (listed != 3 * s.triangles.size()) return "adjacency: triangle lists incomplete";
+    for (std::size_t k = 0; k < s.springs.size(); ++k)
+        for (std::uint32_t name : {s.springs[k].a, s.springs[k].b}) {
+            const auto& list = s.vertex_springs[name];
+            if (std::find(list.begin(), list.end(), k) == list.end()) return "adjacency: spring not listed at its end";
+        }
     PaperView v;
     v.positions = &s.x;
     v.velocities = &s.v;
@@ -141,7 +210,9 @@ namespace tearables::detail {
 namespace {
 
 bool hasTriangle(const PaperSheet& s, std::uint32_t a, std::uint32_t b, std::uint32_t c) {
-    for (const auto& t : s.triangles) {
+    if (a >= s.vertex_triangles.size()) return false;
+    for (std::uint32_t index : s.vertex_triangles[a]) {
+        const auto& t = s.triangles[index];
         const bool ha = t[0] == a || t[1] == a || t[2] == a;
         const bool hb = t[0] == b || t[1] == b || t[2] == b;
         const bool hc = t[0] == c || t[1] == c || t[2] == c;
@@ -151,9 +222,11 @@ bool hasTriangle(const PaperSheet& s, std::uint32_t a, std::uint32_t b, std::uin
 }
 
 bool hasEdge(const PaperSheet& s, std::uint32_t a, std::uint32_t b) {
-    for (const auto& t : s.triangles)
-        for (int e = 0; e < 3; ++e)
-            if ((t[e] == a && t[(e + 1) % 3] == b) || (t[e] == b && t[(e + 1) % 3] == a)) return true;
+    if (a >= s.vertex_triangles.size()) return false;
+    for (std::uint32_t index : s.vertex_triangles[a]) {
+        const auto& t = s.triangles[index];
+        if (t[0] == b || t[1] == b || t[2] == b) return true;  // two corners of a triangle share an edge
+    }
     return false;
 }
 
@@ -171,29 +244,33 @@ bool springHolds(const PaperSheet& s, const PaperSpring& sp) {
 }
 
 void revalidateSprings(PaperSheet& s, std::uint32_t vertex, std::uint32_t twin) {
-    for (PaperSpring& sp : s.springs) {
+    std::vector<std::uint32_t> candidates = s.vertex_springs[vertex];
+    if (twin != UINT32_MAX) candidates.insert(candidates.end(), s.vertex_springs[twin].begin(), s.vertex_springs[twin].end());
+    std::sort(candidates.begin(), candidates.end());
+    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+    for (std::uint32_t k : candidates) {
+        PaperSpring& sp = s.springs[k];
         if (sp.broken || sp.kind == PaperSpringKind::Structural) continue;
-        // The four names a spring uses: its ends and what it spans.
-        std::uint32_t* names[4] = {&sp.a, &sp.b, &sp.hinge[0], &sp.hinge[1]};
-        int uses = 0;
-        for (std::uint32_t* n : names) uses += (*n == vertex || (twin != UINT32_MAX && *n == twin)) ? 1 : 0;
-        if (uses == 0) continue;
         if (springHolds(s, sp)) continue;
-        bool fixed = false;
+        int chosen = -1;
+        int slots[4];
+        int count = 0;
         if (twin != UINT32_MAX) {
-            // Try every renaming of `vertex` to `twin` among the names (at most 2^4).
-            std::uint32_t* slots[4];
-            int count = 0;
-            for (std::uint32_t* n : names)
-                if (*n == vertex) slots[count++] = n;
-            for (int mask = 1; mask < (1 << count) && !fixed; ++mask) {
-                for (int i = 0; i < count; ++i) *slots[i] = (mask >> i) & 1 ? twin : vertex;
-                fixed = sp.a != sp.b && springHolds(s, sp);
+            // Try every renaming of `vertex` to `twin` among the four names (ends, span).
+            for (int slot = 0; slot < 4; ++slot)
+                if (*springSlot(sp, slot) == vertex) slots[count++] = slot;
+            for (int mask = 1; mask < (1 << count) && chosen < 0; ++mask) {
+                PaperSpring trial = sp;
+                for (int i = 0; i < count; ++i) *springSlot(trial, slots[i]) = (mask >> i) & 1 ? twin : vertex;
+                if (trial.a != trial.b && springHolds(s, trial)) chosen = mask;
             }
-            if (!fixed)
-                for (int i = 0; i < count; ++i) *slots[i] = vertex;
         }
-        if (!fixed) sp.broken = true;
+        if (chosen < 0) {
+            sp.broken = true;
+            continue;
+        }
+        for (int i = 0; i < count; ++i)
+            if ((chosen >> i) & 1) setSpringName(s, k, slots[i], twin);
     }
 }
 

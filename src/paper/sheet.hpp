@@ -41,6 +41,12 @@ struct PaperSheet {
     // topology
     std::vector<std::array<std::uint32_t, 3>> triangles;
     std::vector<PaperSpring> springs;
+    /// Adjacency, kept up to date by the helpers of mesh.cpp (setCorner, addTriangle,
+    /// addSpring, setSpringName): per vertex, the triangles that use it, and the springs
+    /// that name it (as an end or as what they span). Topology changes look up only
+    /// their neighbourhood, never the whole mesh.
+    std::vector<std::vector<std::uint32_t>> vertex_triangles;
+    std::vector<std::vector<std::uint32_t>> vertex_springs;
     /// Per spring: the largest compression 1 - l/l0 it has survived (breaking draws only
     /// against the increase, so the chance to have broken by compression c is c^phi
     /// whatever the time step).
@@ -142,6 +148,14 @@ std::uint32_t splitVertex(PaperSheet& s, std::uint32_t vertex, std::uint32_t acr
 std::uint32_t addVertex(PaperSheet& s, const Vec3& x, const Vec3& v, double mass);
 /// Appends a spring; returns its index.
 std::uint32_t addSpring(PaperSheet& s, std::uint32_t a, std::uint32_t b, double rest, double k, PaperSpringKind kind);
+/// Rebuilds the adjacency lists from the triangles and springs.
+void buildAdjacency(PaperSheet& s);
+/// Appends a triangle; returns its index.
+std::uint32_t addTriangle(PaperSheet& s, const std::array<std::uint32_t, 3>& t);
+/// Sets corner c of triangle t to vertex v.
+void setCorner(PaperSheet& s, std::uint32_t t, int c, std::uint32_t v);
+/// Sets a name of spring k: slot 0 = a, 1 = b, 2 = hinge[0], 3 = hinge[1] (UINT32_MAX = none).
+void setSpringName(PaperSheet& s, std::uint32_t k, int slot, std::uint32_t v);
 /// Triangles that use vertex v (indices into s.triangles).
 void trianglesOf(const PaperSheet& s, std::uint32_t v, std::vector<std::uint32_t>& out);
 /// Triangles that have the edge {a, b}.

@@ -109,11 +109,11 @@ std::uint32_t splitVertex(PaperSheet& s, std::uint32_t vertex, std::uint32_t acr
     s.x_pred[twin] = s.x_pred[vertex];
     for (std::size_t i = 0; i < fan.size(); ++i)
         if (in_b[i])
-            for (std::uint32_t& c : s.triangles[fan[i]])
-                if (c == vertex) c = twin;
+            for (int c = 0; c < 3; ++c)
+                if (s.triangles[fan[i]][c] == vertex) setCorner(s, fan[i], c, twin);
     // Structural springs at the vertex follow their edge; the cut edge's is duplicated.
-    const std::size_t count = s.springs.size();
-    for (std::size_t k = 0; k < count; ++k) {
+    const std::vector<std::uint32_t> at_vertex = s.vertex_springs[vertex];  // a copy: renames change the list
+    for (const std::uint32_t k : at_vertex) {
         PaperSpring& sp = s.springs[k];
         if (sp.broken || sp.kind != PaperSpringKind::Structural) continue;
         if (sp.a != vertex && sp.b != vertex) continue;
@@ -129,7 +129,7 @@ std::uint32_t splitVertex(PaperSheet& s, std::uint32_t vertex, std::uint32_t acr
             const auto& t = s.triangles[fan[i]];
             if (in_b[i] && (t[0] == other || t[1] == other || t[2] == other)) in_side_b = true;
         }
-        if (in_side_b) (sp.a == vertex ? sp.a : sp.b) = twin;
+        if (in_side_b) setSpringName(s, k, sp.a == vertex ? 0 : 1, twin);
     }
     revalidateSprings(s, vertex, twin);
     revalidateSprings(s, across, UINT32_MAX);
