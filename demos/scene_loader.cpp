@@ -708,8 +708,8 @@ std::vector<std::uint32_t> paperEdge(const Node& n, const PaperDesc& d) {
 Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     n.checkNoUnknownFields({"name", "origin", "size", "resolution", "orientation", "vertices", "triangles", "density",
                             "stiffness", "bending", "damping", "jacobi_iterations", "integrator", "phi", "psi",
-                            "hinge_threshold", "breakable", "tearable", "rupture_stretch", "thickness", "friction", "seed",
-                            "attachments"});
+                            "hinge_threshold", "breakable", "tearable", "rupture_stretch", "tension", "thickness", "friction",
+                            "seed", "attachments"});
     Paper p;
     PaperDesc& d = p.desc;
     d.name = requiredName(n);
@@ -763,6 +763,12 @@ Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     d.breakable = n.boolean("breakable", d.breakable);
     d.tearable = n.boolean("tearable", d.tearable);
     d.rupture_stretch = n.number("rupture_stretch", d.rupture_stretch, Range::leftOpen(0.0, 100.0));
+    if (const auto t = n.field("tension")) {
+        const std::string v = t->asString();
+        if (v == "stretch") d.tension = PaperTension::Stretch;
+        else if (v == "momentum") d.tension = PaperTension::Momentum;
+        else t->fail("must be \"stretch\" or \"momentum\" (got " + jsonQuoted(v) + ")");
+    }
     d.thickness = n.number("thickness", d.thickness, Range::leftOpen(0.0, 1.0));
     d.friction = n.number("friction", d.friction, Range::closed(0.0, 100.0));
     d.seed = static_cast<std::uint64_t>(n.integer("seed", static_cast<long long>(seed), 0, LLONG_MAX));

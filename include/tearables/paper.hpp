@@ -37,6 +37,13 @@ enum class PaperIntegrator {
     Explicit,  ///< semi-implicit (symplectic) Euler: only to show that it diverges on stiff paper
 };
 
+/// How a sheet's edge tensions (the stress that tears it) are estimated.
+enum class PaperTension {
+    Stretch,   ///< the spring's own force k (l - l0): exact for this mass-spring model, O(edges)
+    Momentum,  ///< Yarn Sec. 3.2: the tensions that explain each free vertex's momentum change,
+               ///< by least squares regularised toward the spring force (lambda = 1e-6), sparse CG
+};
+
 /// Describes a paper sheet: a rectangle at a resolution, or any triangle mesh.
 struct PaperDesc {
     std::string name = "paper";          ///< for events and scenes
@@ -64,7 +71,9 @@ struct PaperDesc {
     bool breakable = true;               ///< springs break under compression and edges fold into hinges
     // --- tearing (beyond Paper) ---
     bool tearable = false;               ///< the sheet separates where an edge is stretched past rupture_stretch
-    double rupture_stretch = 0.02;       ///< relative stretch l/l0 - 1 at which an edge tears, > 0
+    double rupture_stretch = 0.02;       ///< relative stretch at which an edge tears, > 0: l/l0 - 1, or with
+                                         ///< Momentum tension the equivalent T / (k l0)
+    PaperTension tension = PaperTension::Stretch;  ///< how edge tensions are estimated
     // --- collision and the rest ---
     double thickness = 1e-3;             ///< m, > 0: vertices collide with rigid bodies as spheres of half this
     double friction = 0.5;               ///< Coulomb coefficient against rigid bodies, >= 0 (combined with the body's: max)
@@ -106,8 +115,8 @@ struct PaperCounters {
 
 /// Wall time of the sheets' stages in a step, s.
 struct PaperTimes {
-    double solve = 0, collision = 0, positions = 0, crease = 0, tear = 0;
-    double total() const { return solve + collision + positions + crease + tear; }
+    double solve = 0, collision = 0, tension = 0, positions = 0, crease = 0, tear = 0;
+    double total() const { return solve + collision + tension + positions + crease + tear; }
 };
 
 /// Read-only view of a sheet, valid until the next step or change.
@@ -123,6 +132,7 @@ struct PaperView {
     const std::vector<double>* masses = nullptr;     ///< per vertex, kg (sum is the sheet's mass, always)
     const std::vector<std::array<std::uint32_t, 3>>* triangles = nullptr;  ///< counter-clockwise
     const std::vector<PaperSpring>* springs = nullptr;
+    const std::vector<double>* tension = nullptr;    ///< per spring, N (structural springs; 0 for the others and broken ones)
     PaperCounters counters;
     double thickness = 0.0;                          ///< m
     bool frozen = false;                             ///< stopped after a non-finite state

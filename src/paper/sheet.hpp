@@ -60,7 +60,9 @@ struct PaperSheet {
     std::vector<Vec3> rhs;        ///< per vertex, h f + h^2 J v
     std::vector<Vec3> dv, dv_next;
     std::vector<std::uint8_t> fixed;  ///< per vertex, its velocity is prescribed (pinned, glued)
-    std::vector<Mat3> added_mass;     ///< per vertex, movable bodies' mass lent to it this step (contact normal, glue), kg
+    std::vector<Mat3> added_mass;
+    std::vector<Vec3> v_start;        ///< per vertex, velocity at the step start (momentum balance)
+    std::vector<double> tension;      ///< per spring, N (structural; 0 otherwise)     ///< per vertex, movable bodies' mass lent to it this step (contact normal, glue), kg
 
     std::size_t vertices() const { return x.size(); }
 };
@@ -133,6 +135,12 @@ void creaseAndFold(PaperSheet& s, PaperId id, const PaperStep& ctx, std::vector<
 /// Breaks structural spring `index` now (a vertex inserted, lifted by Eq. 8). Returns the
 /// new vertex, or UINT32_MAX when the spring cannot break (not an edge of a triangle).
 std::uint32_t breakSpring(PaperSheet& s, std::uint32_t index);
+
+// --- tension.cpp ---
+/// Per-spring tensions of the step (s.tension), before the positions are updated:
+/// the springs' forces (Stretch) or Yarn's momentum balance (Momentum).
+/// Vertices with a contact are left out of the balance (the contact's force is unknown).
+void estimateTension(PaperSheet& s, const std::vector<PointContact>& contacts, const PaperStep& ctx);
 
 // --- tear.cpp ---
 /// Separates the mesh where a structural edge is stretched past rupture_stretch

@@ -85,6 +85,7 @@ PaperView PaperSystem::view(PaperId id) const {
     v.masses = &s.mass;
     v.triangles = &s.triangles;
     v.springs = &s.springs;
+    v.tension = &s.tension;
     v.counters = s.counters;
     v.thickness = s.desc.thickness;
     v.frozen = s.frozen;
@@ -194,6 +195,7 @@ void PaperSystem::step(const PaperStep& ctx, RigidTable& rigids, const PointCont
         for (VertexHold& hold : s.hold)
             if (hold.kind == VertexHold::Kind::Glue && (hold.body.index >= rigids.bodies.size() || !rigids.used[hold.body.index]))
                 hold = VertexHold{};
+        s.v_start = s.v;  // before coupling changes it (momentum-balance tension)
         s.x_pred.resize(s.vertices());
         for (std::size_t v = 0; v < s.vertices(); ++v) s.x_pred[v] = s.x[v] + ctx.h * (s.v[v] + ctx.h * ctx.gravity);
         query_.start.push_back(&s.x);
@@ -231,7 +233,10 @@ void PaperSystem::step(const PaperStep& ctx, RigidTable& rigids, const PointCont
     }
     auto t3a = Clock::now();
     times_.collision += seconds(t2, t3a);
-    t2 = t3a;
+    for (std::size_t i = 0; i < sheets_.size(); ++i)
+        if (live(sheets_[i])) estimateTension(sheets_[i], per_sheet_[i], ctx);
+    t2 = Clock::now();
+    times_.tension = seconds(t3a, t2);
 
     for (PaperSheet& s : sheets_)
         if (live(s)) integratePositions(s, rigids, ctx);

@@ -1,12 +1,12 @@
 // Paper sheets: tearing (beyond Paper).
 //
-// Stress measure. The issue asks for edge tensions by Yarn's momentum-balance least
-// squares. That estimate exists to recover tensions from a strain-LIMITED solve, where
-// positions are projected and no spring force is ever computed. Here the sheet is a
-// mass-spring system integrated implicitly: each edge's tension is its spring force
-// k (l - l0), and it is what the implicit solve balanced, so the relative stretch
-// l/l0 - 1 (tension / (k l0)) is the edge's stress measure. We use it (cheaper, and
-// exact for this model); the least squares is left out (see the report).
+// Stress measure (PaperDesc::tension, tension.cpp). Stretch, the default: the edge's
+// relative stretch l/l0 - 1 at the end of the step, i.e. its spring force over k l0: for
+// this implicitly integrated mass-spring model the spring force is the tension the solve
+// balanced. Momentum: Yarn's momentum-balance least squares (the tensions that explain
+// each free vertex's momentum change), compared as the equivalent stretch T / (k l0);
+// it also sees what the truncated Jacobi solve really applied, at the cost of a sparse
+// solve per step.
 //
 // Separation. An edge stretched past rupture_stretch opens a crack perpendicular to it:
 // at one of its ends that lies on the sheet's boundary (or on an earlier cut), the fan of
@@ -142,7 +142,11 @@ void tear(PaperSheet& s, PaperId id, const PaperStep& ctx, std::vector<Event>& e
     for (std::size_t k = 0; k < s.springs.size(); ++k) {
         const PaperSpring& sp = s.springs[k];
         if (sp.broken || sp.kind != PaperSpringKind::Structural) continue;
-        const double stretch = (s.x[sp.b] - s.x[sp.a]).norm() / sp.rest - 1.0;
+        // The stress measure: the edge's stretch, or its momentum-balance tension as the
+        // stretch that would carry it (T / (k l0)).
+        const double stretch = s.desc.tension == PaperTension::Momentum && k < s.tension.size()
+                                   ? s.tension[k] / (sp.stiffness * sp.rest)
+                                   : (s.x[sp.b] - s.x[sp.a]).norm() / sp.rest - 1.0;
         if (stretch > s.desc.rupture_stretch) over.emplace_back(stretch, static_cast<std::uint32_t>(k));
     }
     if (over.empty()) return;

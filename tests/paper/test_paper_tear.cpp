@@ -30,8 +30,9 @@ int pieces(const PaperView& v) {
     return count;
 }
 
-TEST(PaperTear, PulledAtTwoCornersTearsBetweenThemWhereStretched) {
+void pulledAtTwoCorners(PaperTension tension) {
     PaperDesc d;
+    d.tension = tension;
     d.size[0] = 0.2;
     d.size[1] = 0.1;
     d.resolution[0] = 21;
@@ -98,6 +99,9 @@ TEST(PaperTear, PulledAtTwoCornersTearsBetweenThemWhereStretched) {
     EXPECT_GT(testing::maxEdgeStrain(control.viewPaper(cid)), d.rupture_stretch);
 }
 
+TEST(PaperTear, PulledAtTwoCornersTearsBetweenThemWhereStretched) { pulledAtTwoCorners(PaperTension::Stretch); }
+TEST(PaperTear, PulledAtTwoCornersTearsWithMomentumBalanceTension) { pulledAtTwoCorners(PaperTension::Momentum); }
+
 /// Below the rupture stretch nothing tears: a sheet hanging from its two top corners
 /// under its weight (strain far below 2%).
 TEST(PaperTear, NoTearBelowRupture) {
@@ -122,6 +126,58 @@ TEST(PaperTear, NoTearBelowRupture) {
     EXPECT_EQ(world.viewPaper(id).counters.tears, 0u);
     EXPECT_LT(peak, d.rupture_stretch);
     std::printf("hanging from two corners: peak strain %.3g\n", peak);
+}
+
+}  // namespace
+}  // namespace tearables
+
+namespace tearables {
+namespace {
+
+/// Yarn's momentum-balance tensions on a sheet hanging at rest from its top edge: the
+/// springs crossing any horizontal cut carry the weight of the sheet below it (the balance
+/// of the part below the cut, an invariant of any exact solution: the edges' solved
+/// tensions plus the bending springs' known forces), and the load decreases downward.
+TEST(PaperTension, MomentumBalanceCarriesTheWeightBelowEachCut) {
+    PaperDesc d;
+    d.size[0] = 0.1;
+    d.size[1] = 0.1;
+    d.resolution[0] = 8;
+    d.resolution[1] = 8;
+    d.orientation = Quat(Eigen::AngleAxisd(0.5 * M_PI, Vec3::UnitX()));  // local z points down: row 0 on top
+    d.breakable = false;
+    d.tension = PaperTension::Momentum;
+    d.jacobi_iterations = 16;
+    for (int i = 0; i < d.resolution[0]; ++i) d.attachments.push_back(PaperAttachment{static_cast<std::uint32_t>(i), {}, Vec3::Zero(), {}});
+    World world;
+    const PaperId id = world.addPaper(d);
+    for (int step = 0; step < 600; ++step) world.step(1.0 / 60.0);
+    const PaperView v = world.viewPaper(id);
+    ASSERT_LT(testing::maxSpeed(v), 1e-3);  // at rest
+    const double g = 9.81;
+    double previous = 1e300;
+    for (int cut = 1; cut + 1 < d.resolution[1]; ++cut) {
+        // Edges between row `cut` and row `cut + 1`, and the mass below.
+        double carried = 0.0, below = 0.0;
+        for (std::size_t k = 0; k < v.springs->size(); ++k) {
+            const PaperSpring& sp = (*v.springs)[k];
+            if (sp.broken) continue;
+            const int ra = static_cast<int>(sp.a) / d.resolution[0], rb = static_cast<int>(sp.b) / d.resolution[0];
+            if (std::min(ra, rb) > cut || std::max(ra, rb) <= cut) continue;  // does not cross the cut
+            const std::uint32_t upper = ra <= cut ? sp.a : sp.b, lower = ra <= cut ? sp.b : sp.a;
+            const Vec3 e = (*v.positions)[upper] - (*v.positions)[lower];
+            // Structural edges: the balance's tensions; the bending springs across the cut
+            // carry their share too (their spring force, known to the balance).
+            const double t = sp.kind == PaperSpringKind::Structural ? (*v.tension)[k] : sp.stiffness * (e.norm() - sp.rest);
+            carried += t * e.normalized().y();
+        }
+        for (std::size_t i = 0; i < v.vertexCount(); ++i)
+            if (static_cast<int>(i) / d.resolution[0] > cut) below += (*v.masses)[i] * g;
+        std::printf("cut %d: tension carries %.6f N, weight below %.6f N\n", cut, carried, below);
+        EXPECT_NEAR(carried, below, 0.005 * below + 1e-9) << "cut " << cut;
+        EXPECT_LT(carried, previous);
+        previous = carried;
+    }
 }
 
 }  // namespace

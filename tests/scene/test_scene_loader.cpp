@@ -212,7 +212,7 @@ TEST(SceneLoader, PapersParseEveryField) {
         { "name": "card", "origin": [1, 2, 3], "size": [0.1, 0.2], "resolution": [3, 4],
           "orientation": [0, 0.7071068, 0, 0.7071068], "density": 0.3, "stiffness": 2e4, "bending": 0.2, "damping": 0.05,
           "jacobi_iterations": 12, "integrator": "explicit", "phi": 3, "psi": 1.5, "hinge_threshold": 0.25,
-          "breakable": false, "tearable": true, "rupture_stretch": 0.05, "thickness": 0.002, "friction": 0.8, "seed": 42,
+          "breakable": false, "tearable": true, "rupture_stretch": 0.05, "tension": "momentum", "thickness": 0.002, "friction": 0.8, "seed": 42,
           "attachments": [ {"vertex": [-1, -1], "world": [5, 6, 7]}, {"vertex": 1, "body": "clip", "local": [0.1, 0, 0]},
                            {"edge": "x-", "body": "clip"} ] },
         { "name": "mesh", "vertices": [[0, 0, 0], [1, 0, 0], [0, 0, 1]], "triangles": [[0, 2, 1]] }
@@ -251,6 +251,8 @@ TEST(SceneLoader, PapersParseEveryField) {
     EXPECT_FALSE(b.desc.breakable);
     EXPECT_TRUE(b.desc.tearable);
     EXPECT_DOUBLE_EQ(b.desc.rupture_stretch, 0.05);
+    EXPECT_EQ(b.desc.tension, PaperTension::Momentum);
+    EXPECT_EQ(a.tension, PaperTension::Stretch);
     EXPECT_DOUBLE_EQ(b.desc.thickness, 0.002);
     EXPECT_DOUBLE_EQ(b.desc.friction, 0.8);
     EXPECT_EQ(b.desc.seed, 42u);
@@ -413,6 +415,7 @@ const ErrorCase kErrorCases[] = {
     {"PaperBreakable", R"({"papers": [{"name": "s", "breakable": 1}]})", "papers[0].breakable", "expected a boolean"},
     {"PaperRupture", R"({"papers": [{"name": "s", "rupture_stretch": 0}]})", "papers[0].rupture_stretch", "in (0, 100]"},
     {"PaperIntegrator", R"({"papers": [{"name": "s", "integrator": "rk4"}]})", "papers[0].integrator", "\"implicit\" or \"explicit\""},
+    {"PaperTension", R"({"papers": [{"name": "s", "tension": "local"}]})", "papers[0].tension", "\"stretch\" or \"momentum\""},
     {"PaperOrientationZero", R"({"papers": [{"name": "s", "orientation": [0, 0, 0, 0]}]})", "papers[0].orientation", "non-zero"},
     {"PaperMeshWithSize", R"({"papers": [{"name": "s", "size": [1, 1], "vertices": [[0,0,0],[1,0,0],[0,0,1]], "triangles": [[0,2,1]]}]})",
      "papers[0].size", "belongs to a rectangle"},
