@@ -159,3 +159,35 @@ TEST(PaperDesc, AttachmentsHoldVerticesToPointsAndBodies) {
 
 }  // namespace
 }  // namespace tearables
+
+namespace tearables {
+namespace {
+
+/// Non-finite input is refused at every entry point; a sheet driven non-finite anyway (a
+/// finite but absurd force) is frozen with a Freeze event and its neighbour goes on.
+TEST(PaperDesc, NonFiniteRefusedAndABlownUpSheetIsFrozen) {
+    World world;
+    PaperDesc d = PaperDesc{};
+    d.resolution[0] = 4;
+    d.resolution[1] = 4;
+    const PaperId bad = world.addPaper(d);
+    d.origin = Vec3(1, 1, 0);
+    const PaperId good = world.addPaper(d);
+    EXPECT_THROW(world.applyPaperForce(bad, 0, Vec3(NAN, 0, 0)), InvalidInput);
+    EXPECT_THROW(world.attachPaperToPoint(bad, 0, Vec3(INFINITY, 0, 0)), InvalidInput);
+    EXPECT_THROW(world.attachPaperToRigid(bad, 0, RigidId{3}, Vec3::Zero()), InvalidInput);
+    world.applyPaperForce(bad, 5, Vec3(1e308, 1e308, 0));
+    world.step(1.0 / 60.0);
+    bool frozen_event = false;
+    for (const Event& e : world.events()) frozen_event = frozen_event || (e.type == EventType::Freeze && e.object == d.name);
+    EXPECT_TRUE(frozen_event);
+    EXPECT_TRUE(world.viewPaper(bad).frozen);
+    for (int i = 0; i < 10; ++i) world.step(1.0 / 60.0);
+    EXPECT_TRUE(testing::allFinite(world.viewPaper(bad)));
+    EXPECT_TRUE(testing::allFinite(world.viewPaper(good)));
+    EXPECT_FALSE(world.viewPaper(good).frozen);
+    EXPECT_LT((*world.viewPaper(good).positions)[0].y(), 1.0);  // it falls on
+}
+
+}  // namespace
+}  // namespace tearables
