@@ -44,9 +44,12 @@ void resolveContacts(PaperSheet& s, const std::vector<PointContact>& contacts, R
             if (i >= s.vertices() || s.fixed[i]) continue;
             RigidState& body = rigids.bodies[c.body.index];
             const bool movable = rigids.movable(c.body);
-            const Vec3 arm = c.point - body.position;
+            // The host found the point where the body was when the step began; the
+            // strings and releaseBodies may have moved the body since (translation).
+            const Vec3 point = c.point + (body.position - rigids.start_position[c.body.index]);
+            const Vec3 arm = point - body.position;
             const Vec3 n = c.normal;
-            const double gap = n.dot(s.x[i] - c.point) - radius;
+            const double gap = n.dot(s.x[i] - point) - radius;
             const double target = -gap * ctx.inv_h;
             const double vn = n.dot(s.v[i]);
             if (vn >= target) continue;
@@ -96,6 +99,7 @@ void coupleBodies(PaperSheet& s, const std::vector<PointContact>& contacts, cons
                   const RigidTable& rigids, const PaperStep& ctx, std::vector<BodyCoupling>& out) {
     out.clear();
     s.added_mass.assign(s.vertices(), Mat3::Zero());
+    s.added_force.assign(s.vertices(), Vec3::Zero());
     for (std::size_t i = 0; i < s.vertices(); ++i) {
         const VertexHold& hold = s.hold[i];
         if (hold.kind != VertexHold::Kind::Glue || !rigids.movable(hold.body)) continue;
@@ -108,11 +112,16 @@ void coupleBodies(PaperSheet& s, const std::vector<PointContact>& contacts, cons
         // The body's mass as seen at the glue point, K^-1 with K = 1/M - [r] I^-1 [r]
         // (rotation included), shared among the vertices it couples to.
         c.lent = Mat3::Identity() / (body.inverse_mass * count_of[hold.body.index]);
-        // The glued vertex starts where and as the body point is now (the host has moved
-        // the body this step already).
-        s.x[i] = gluePoint(body, hold.point);
-        s.v[i] = c.body_velocity;
+        // The glued vertex starts where the body point was before the host's step (the
+        // host has moved the body already) and as it went before the host's gravity kick:
+        // the lent mass's weight goes into the solve instead (added_force), so the sheet
+        // carries it implicitly. (Left to the host, the kick reached the solve as a
+        // velocity jump of the vertex against its neighbours: their damping and the
+        // truncated Jacobi solve then held a 2 g weight at 24% strain.)
+        s.x[i] = gluePoint(body, hold.point) - ctx.h * c.body_velocity;  // where it was before the host's step
+        s.v[i] = c.body_velocity - ctx.h * ctx.gravity;
         s.added_mass[i] += c.lent;
+        s.added_force[i] += c.lent * ctx.gravity;
         out.push_back(c);
     }
     for (const PointContact& pc : contacts) {
@@ -128,28 +137,36 @@ void coupleBodies(PaperSheet& s, const std::vector<PointContact>& contacts, cons
         const Vec3& n = pc.normal;
         const double share = 1.0 / (body.inverse_mass * count_of[pc.body.index]);
         c.lent = share * (n * n.transpose());
-        // Inelastic along the normal: vertex and share start with their common velocity.
+        // Inelastic along the normal: vertex and share start with their common velocity
+        // (the body's before the host's gravity kick, whose weight goes into the solve,
+        // as for glue).
         const double m = s.mass[c.vertex];
-        const double common = (m * n.dot(s.v[c.vertex]) + share * n.dot(c.body_velocity)) / (m + share);
+        const double common = (m * n.dot(s.v[c.vertex]) + share * n.dot(c.body_velocity - ctx.h * ctx.gravity)) / (m + share);
         s.v[c.vertex] += (common - n.dot(s.v[c.vertex])) * n;
         c.normal = n;
         s.added_mass[c.vertex] += c.lent;
+        s.added_force[c.vertex] += c.lent * ctx.gravity;
         out.push_back(c);
     }
 }
 
-void releaseBodies(const PaperSheet& s, const std::vector<BodyCoupling>& couplings, RigidTable& rigids) {
+void releaseBodies(const PaperSheet& s, const std::vector<BodyCoupling>& couplings, RigidTable& rigids, const PaperStep& ctx) {
     for (const BodyCoupling& c : couplings) {
         RigidState& body = rigids.bodies[c.body.index];
         // What the share gained in the solve, from the velocity the body point had.
         Vec3 impulse = c.lent * (s.v[c.vertex] - c.body_velocity);
         // A contact pushes the body away from the vertex (along -n), never pulls it.
         if (c.normal.squaredNorm() > 0.0 && impulse.dot(c.normal) > 0.0) impulse.setZero();
-        // Translation only: the impulse goes through the centre of mass. Applied at the
-        // contact point, the torques of the many vertex contacts, each solved as if alone,
-        // overshot: a box resting on a sheet rocked, spun up to 27 rad/s and tumbled off.
-        // A limitation: the sheet does not turn a body (a box on a slope is not tipped).
-        pushBody(body, Vec3::Zero(), impulse);
+        // Position-based, as the strings couple: the body is moved by what its share
+        // moved differently from the host's step, h dv; the world turns that move into
+        // the velocity change dv when the step ends. (An impulse alone left the host's
+        // fall of g h^2 per step uncorrected: a glued weight sank until the springs were
+        // stretched 24%.) Translation only: the impulse goes through the centre of mass.
+        // Applied at the contact point, the torques of the many vertex contacts, each
+        // solved as if alone, overshot: a box resting on a sheet rocked, spun up to 27
+        // rad/s and tumbled off. A limitation: the sheet does not turn a body.
+        body.position += body.inverse_mass * ctx.h * impulse;
+        body.impulse += impulse;
     }
 }
 
@@ -160,8 +177,11 @@ void integratePositions(PaperSheet& s, RigidTable& rigids, const PaperStep& ctx)
             s.x[i] = hold.point;
         } else if (hold.kind == VertexHold::Kind::Glue) {
             RigidState& body = rigids.bodies[hold.body.index];
-            // The body got the sheet's pull in releaseBodies; the vertex stays glued.
-            s.x[i] = gluePoint(body, hold.point);
+            if (rigids.movable(hold.body)) {
+                s.x[i] += ctx.h * s.v[i];  // solved with the body's share; the body follows (releaseBodies)
+            } else {
+                s.x[i] = gluePoint(body, hold.point);
+            }
         } else {
             s.x[i] += ctx.h * s.v[i];
         }

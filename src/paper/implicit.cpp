@@ -66,12 +66,13 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
     s.block.resize(s.springs.size());
     // Forces: gravity, the user's, springs with damping. rhs collects h f + h^2 J v.
     s.added_mass.resize(n, Mat3::Zero());
+    s.added_force.resize(n, Vec3::Zero());
     for (std::size_t i = 0; i < n; ++i) {
         // Pins and glue to immovable bodies prescribe the velocity; a glue to a movable
         // body was turned into added mass (coupleBodies).
         s.fixed[i] = s.hold[i].kind == VertexHold::Kind::Pin ||
                      (s.hold[i].kind == VertexHold::Kind::Glue && !rigids.movable(s.hold[i].body));
-        s.rhs[i] = h * (s.mass[i] * ctx.gravity + s.force[i]);
+        s.rhs[i] = h * (s.mass[i] * ctx.gravity + s.force[i] + s.added_force[i]);
         s.diag_inv[i] = s.mass[i] * Mat3::Identity() + s.added_mass[i];  // W_ii accumulated here, inverted below
     }
     const bool implicit = s.desc.integrator == PaperIntegrator::Implicit;

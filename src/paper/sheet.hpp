@@ -60,6 +60,7 @@ struct PaperSheet {
     std::vector<Vec3> rhs;        ///< per vertex, h f + h^2 J v
     std::vector<Vec3> dv, dv_next;
     std::vector<std::uint8_t> fixed;  ///< per vertex, its velocity is prescribed (pinned, glued)
+    std::vector<Vec3> added_force;    ///< per vertex, the weight of the mass lent to it, N
     std::vector<Mat3> added_mass;
     std::vector<Vec3> v_start;        ///< per vertex, velocity at the step start (momentum balance)
     std::vector<double> tension;      ///< per spring, N (structural; 0 otherwise)     ///< per vertex, movable bodies' mass lent to it this step (contact normal, glue), kg
@@ -112,9 +113,9 @@ void coupleBodies(PaperSheet& s, const std::vector<PointContact>& contacts, cons
 /// Counts, per body, how many vertices coupleBodies would couple to it (glues and closing contacts).
 void countCouplings(const PaperSheet& s, const std::vector<PointContact>& contacts, const RigidTable& rigids,
                     const PaperStep& ctx, std::vector<double>& count);
-/// After the solve: each coupled body receives what its share gained, as an impulse at
-/// the vertex (a contact only pushes, never pulls).
-void releaseBodies(const PaperSheet& s, const std::vector<BodyCoupling>& couplings, RigidTable& rigids);
+/// After the solve: each coupled body is moved by what its share gained times h (the world
+/// turns the move into velocity); a contact only pushes, never pulls.
+void releaseBodies(const PaperSheet& s, const std::vector<BodyCoupling>& couplings, RigidTable& rigids, const PaperStep& ctx);
 /// Resolves the vertices' contacts with rigid bodies (velocity level, with Coulomb
 /// friction, equal and opposite impulses to movable bodies). `contacts` are this sheet's.
 void resolveContacts(PaperSheet& s, const std::vector<PointContact>& contacts, RigidTable& rigids, const PaperStep& ctx);

@@ -207,7 +207,20 @@ void PaperSystem::step(const PaperStep& ctx, RigidTable& rigids, const PointCont
     if (find && !query_.start.empty()) find(query_, contacts_);
     per_sheet_.resize(sheets_.size());
     for (auto& list : per_sheet_) list.clear();
-    for (const PointContact& c : contacts_) per_sheet_[query_sheet_[c.object]].push_back(c);
+    // A sheet does not collide with a body it is glued to (as strings): the glue already
+    // couples them, and a second coupling through contacts would count the body twice.
+    glued_.resize(sheets_.size());
+    for (std::size_t i = 0; i < sheets_.size(); ++i) {
+        glued_[i].clear();
+        if (!live(sheets_[i]) || contacts_.empty()) continue;
+        for (const VertexHold& hold : sheets_[i].hold)
+            if (hold.kind == VertexHold::Kind::Glue) glued_[i].push_back(hold.body.index);
+        std::sort(glued_[i].begin(), glued_[i].end());
+    }
+    for (const PointContact& c : contacts_) {
+        const std::uint32_t sheet = query_sheet_[c.object];
+        if (!std::binary_search(glued_[sheet].begin(), glued_[sheet].end(), c.body.index)) per_sheet_[sheet].push_back(c);
+    }
     // Movable bodies lend their mass to the vertices that touch or hold them, shared
     // equally among all of them (over every sheet): count them first.
     share_.assign(rigids.bodies.size(), 0.0);
@@ -228,7 +241,7 @@ void PaperSystem::step(const PaperStep& ctx, RigidTable& rigids, const PointCont
     // end of the step (static bodies, friction, what the coupling left).
     for (std::size_t i = 0; i < sheets_.size(); ++i) {
         if (!live(sheets_[i])) continue;
-        releaseBodies(sheets_[i], couplings_[i], rigids);
+        releaseBodies(sheets_[i], couplings_[i], rigids, ctx);
         resolveContacts(sheets_[i], per_sheet_[i], rigids, ctx);
     }
     auto t3a = Clock::now();

@@ -49,6 +49,7 @@ private:
     std::vector<std::uint32_t> query_sheet_;
     std::vector<PointContact> contacts_;
     std::vector<std::vector<PointContact>> per_sheet_;
+    std::vector<std::vector<std::uint32_t>> glued_;      // per sheet, the bodies it is glued to (sorted)
     std::vector<double> share_;                          // per body, how many vertices it is coupled to
     std::vector<std::vector<BodyCoupling>> couplings_;   // per sheet
     PaperTimes times_;

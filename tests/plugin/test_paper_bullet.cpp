@@ -85,14 +85,8 @@ TEST(PaperBullet, SpherePressKeepsCreasesAfterItLeaves) {
 TEST(PaperBullet, SheetHoldsALightBoxRestingOnIt) {
     Physics p;
     BulletWorld paper(*p.world);
-    // Paper on a frame: all four edges held. Without breaking: with creases under the box
-    // it rattles and can slip through near the frame (see the report's known weaknesses).
-    PaperDesc d = cornerSheet(false);
-    d.attachments.clear();
-    for (int k = 0; k < d.resolution[1]; ++k)
-        for (int i = 0; i < d.resolution[0]; ++i)
-            if (i == 0 || k == 0 || i == d.resolution[0] - 1 || k == d.resolution[1] - 1)
-                d.attachments.push_back(PaperAttachment{static_cast<std::uint32_t>(d.gridVertex(i, k)), {}, Vec3::Zero(), {}});
+    // A breakable sheet held at its four corners (it sags and creases under the box).
+    const PaperDesc d = cornerSheet(true);
     const PaperId id = paper.addPaper(d);
     const double half = 0.015, mass = 0.005;  // a 3 cm, 5 g box on a 3.2 g sheet
     btRigidBody& box = p.box(btVector3(half, half, half), mass, btVector3(0, static_cast<btScalar>(1.0 + half + 0.002), 0));
@@ -100,10 +94,10 @@ TEST(PaperBullet, SheetHoldsALightBoxRestingOnIt) {
     // rounded to a blob. Small bodies need a small margin.
     box.getCollisionShape()->setMargin(0.001f);
     double low = 1e9, high = -1e9;
-    for (int step = 0; step < 240; ++step) {
+    for (int step = 0; step < 360; ++step) {
         p.step(1, kH);
         ASSERT_TRUE(testing::allFinite(paper.core().viewPaper(id)));
-        if (step >= 180) {  // the last second
+        if (step >= 300) {  // the last second
             low = std::min(low, static_cast<double>(box.getCenterOfMassPosition().y()));
             high = std::max(high, static_cast<double>(box.getCenterOfMassPosition().y()));
         }
@@ -116,7 +110,8 @@ TEST(PaperBullet, SheetHoldsALightBoxRestingOnIt) {
                 high - low, box.getCenterOfMassPosition().x(), box.getCenterOfMassPosition().z());
     // It is held on the sheet: not through it (its bottom is not below the sheet's lowest
     // point), still in the middle, and no longer falling (it stays within 3 cm in the
-    // last second; free fall would take it 10 m).
+    // last second, sinking slowly as the sheet keeps creasing under it; free fall would
+    // take it 10 m).
     EXPECT_GT(bottom, lowest - 0.5 * v.thickness - 0.002);
     EXPECT_LT(std::hypot(box.getCenterOfMassPosition().x(), box.getCenterOfMassPosition().z()), 0.05);
     EXPECT_LT(high - low, 0.03);
