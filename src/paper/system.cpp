@@ -1,6 +1,8 @@
-// Paper sheets: creation, attachments and the order of a sheet's stages in a step
-// (forces and the implicit solve -> rigid contacts -> positions -> creases and hinges ->
-// tears -> finite check). Topology changes happen only in the crease and tear stages,
+// Paper sheets: creation, attachments and the order of a sheet's stages in a step:
+// rigid contacts (one PointQuery of all sheets to the host) -> bodies lend their mass to
+// the vertices they touch or hold -> forces and the implicit solve -> bodies get their
+// shares' motion, contacts enforced -> edge tensions -> positions -> creases and hinges
+// -> tears -> finite check. Topology changes happen only in the crease and tear stages,
 // after the positions are final, never inside a solver loop.
 #include "paper/system.hpp"
 #include "string/string_state.hpp"
@@ -268,8 +270,8 @@ void PaperSystem::step(const PaperStep& ctx, RigidTable& rigids, const PointCont
         bool ok = true;
         for (std::size_t v = 0; v < s.vertices() && ok; ++v) ok = s.x[v].allFinite() && s.v[v].allFinite();
         if (!ok) {
-            // Frozen where it was: non-finite vertices go back to the last finite point
-            // we know (the prediction's start is gone; zero is a safe place to stop).
+            // Frozen: finite vertices stay where they are, non-finite ones are put at the
+            // origin (the sheet is no longer simulated; its view stays finite).
             for (std::size_t v = 0; v < s.vertices(); ++v) {
                 if (!s.x[v].allFinite()) s.x[v].setZero();
                 s.v[v].setZero();
