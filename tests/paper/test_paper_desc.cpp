@@ -191,3 +191,33 @@ TEST(PaperDesc, NonFiniteRefusedAndABlownUpSheetIsFrozen) {
 
 }  // namespace
 }  // namespace tearables
+
+namespace tearables {
+namespace {
+
+/// Any triangle mesh: a hexagonal fan (a vertex inside, six around), pinned at one rim
+/// vertex, falls, swings and creases; its mass is the mesh's area times the density and
+/// stays so, and the mesh stays valid.
+TEST(PaperDesc, AnyTriangleMeshSimulates) {
+    PaperDesc d;
+    d.vertices.push_back(Vec3(0, 1, 0));
+    for (int k = 0; k < 6; ++k) d.vertices.push_back(Vec3(0.05 * std::cos(k * M_PI / 3), 1, 0.05 * std::sin(k * M_PI / 3)));
+    for (std::uint32_t k = 0; k < 6; ++k) d.triangles.push_back({0, 1 + (k + 1) % 6, 1 + k});  // normal +y
+    d.phi = 0.3;  // fragile: it creases as it swings
+    d.attachments.push_back(PaperAttachment{1, {}, Vec3::Zero(), {}});
+    World world;
+    const PaperId id = world.addPaper(d);
+    const double area = 6.0 * 0.5 * 0.05 * 0.05 * std::sin(M_PI / 3);
+    EXPECT_NEAR(testing::totalMass(world.viewPaper(id)), d.density * area, 1e-12);
+    for (int step = 0; step < 120; ++step) {
+        world.step(1.0 / 60.0);
+        ASSERT_EQ(detail::checkMesh(world.viewPaper(id), d.density * area), "") << "step " << step;
+    }
+    const PaperView v = world.viewPaper(id);
+    EXPECT_TRUE(testing::allFinite(v));
+    EXPECT_LT((*v.positions)[4].y(), 0.95);  // the far rim vertex fell
+    EXPECT_EQ(v.vertexCount(), 7u + v.counters.creases + v.counters.tears);
+}
+
+}  // namespace
+}  // namespace tearables
