@@ -130,6 +130,7 @@ PaperSheet buildSheet(const PaperDesc& desc) {
     s.force.assign(n, Vec3::Zero());
     s.mass.assign(n, 0.0);
     s.hold.assign(n, VertexHold{});
+    s.crack_tip.assign(n, 0);
     // Lumped masses: a third of each triangle's mass to each corner.
     for (const auto& t : s.triangles) {
         const double area = 0.5 * (s.x[t[1]] - s.x[t[0]]).cross(s.x[t[2]] - s.x[t[0]]).norm();

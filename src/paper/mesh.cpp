@@ -70,6 +70,7 @@ std::uint32_t addVertex(PaperSheet& s, const Vec3& x, const Vec3& v, double mass
     s.force.push_back(Vec3::Zero());
     s.mass.push_back(mass);
     s.hold.push_back(VertexHold{});
+    s.crack_tip.push_back(0);
     return static_cast<std::uint32_t>(s.x.size() - 1);
 }
 
@@ -116,7 +117,8 @@ Vec3 triangleNormal(const PaperSheet& s, const std::array<std::uint32_t, 3>& t) 
 
 std::string checkMesh(const PaperSheet& s, double min_area) {
     const auto n = static_cast<std::uint32_t>(s.x.size());
-    if (s.v.size() != n || s.mass.size() != n || s.hold.size() != n || s.force.size() != n || s.x_pred.size() != n)
+    if (s.v.size() != n || s.mass.size() != n || s.hold.size() != n || s.force.size() != n || s.x_pred.size() != n ||
+        s.crack_tip.size() != n)
         return "per-vertex arrays differ in size";
     if (s.survived.size() != s.springs.size()) return "per-spring arrays differ in size";
     if (s.vertex_triangles.size() != n || s.vertex_springs.size() != n) return "adjacency lists differ in size";

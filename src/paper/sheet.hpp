@@ -38,6 +38,7 @@ struct PaperSheet {
     std::vector<Vec3> force;      ///< user forces for the next step, N
     std::vector<double> mass;     ///< kg
     std::vector<VertexHold> hold;
+    std::vector<std::uint8_t> crack_tip;  ///< 1 where a tear's cut ends inside the sheet (tear.cpp)
     // topology
     std::vector<std::array<std::uint32_t, 3>> triangles;
     std::vector<PaperSpring> springs;

@@ -16,7 +16,8 @@
 // spring is duplicated so both new boundary edges keep theirs, and springs spanning the cut
 // (bending, hinge, auxiliary) are renamed to the side where they still span an edge, or
 // retired. A crack thus starts at the boundary and runs inward one vertex per step while
-// the stress stays above rupture. Held (pinned, glued) vertices are never split. An overstretched edge with both ends inside the sheet
+// the stress stays above rupture; the far end of each cut is remembered as a crack tip,
+// whose edges are torn first, and at most one new crack starts per step. Held (pinned, glued) vertices are never split. An overstretched edge with both ends inside the sheet
 // waits until a crack reaches it (a vertex inside has a closed fan: cutting one edge of it
 // separates nothing). At most one split per vertex per step.
 #include "paper/sheet.hpp"
@@ -150,15 +151,27 @@ void tear(PaperSheet& s, PaperId id, const PaperStep& ctx, std::vector<Event>& e
         if (stretch > s.desc.rupture_stretch) over.emplace_back(stretch, static_cast<std::uint32_t>(k));
     }
     if (over.empty()) return;
-    // Most stretched first; ties by index (deterministic).
-    std::sort(over.begin(), over.end(), [](const auto& a, const auto& b) { return a.first != b.first ? a.first > b.first : a.second < b.second; });
+    // Edges at a crack tip first (a crack runs on), then the most stretched; ties by
+    // index (deterministic). At most kNewCracks new cracks start per step: under an even
+    // load (a pulled edge) every boundary vertex would start one at once and the sheet
+    // would be notched all along instead of torn.
+    auto atTip = [&](std::uint32_t k) { return s.crack_tip[s.springs[k].a] || s.crack_tip[s.springs[k].b]; };
+    std::sort(over.begin(), over.end(), [&](const auto& a, const auto& b) {
+        const bool ta = atTip(a.second), tb = atTip(b.second);
+        if (ta != tb) return ta;
+        return a.first != b.first ? a.first > b.first : a.second < b.second;
+    });
+    constexpr int kNewCracks = 1;
+    int started = 0;
     std::vector<std::uint8_t> touched(s.vertices(), 0);
     std::vector<std::uint32_t> scratch, fan;
     for (const auto& [stretch, k] : over) {
         const PaperSpring sp = s.springs[k];
         if (sp.broken || touched[sp.a] || touched[sp.b]) continue;
         const Vec3 dir = (s.x[sp.b] - s.x[sp.a]).normalized();
-        for (std::uint32_t v : {sp.a, sp.b}) {
+        const std::uint32_t first = s.crack_tip[sp.b] && !s.crack_tip[sp.a] ? sp.b : sp.a;
+        for (std::uint32_t v : {first, first == sp.a ? sp.b : sp.a}) {
+            if (!s.crack_tip[v] && started >= kNewCracks) continue;
             // A held vertex is not split: both halves would stay at the pin (or glue), and
             // the crack would open nothing. The crack starts next to it instead.
             if (s.hold[v].kind != VertexHold::Kind::Free) continue;
@@ -188,6 +201,9 @@ void tear(PaperSheet& s, PaperId id, const PaperStep& ctx, std::vector<Event>& e
             if (twin == UINT32_MAX) continue;
             touched.resize(s.vertices(), 0);
             touched[v] = touched[twin] = touched[best] = 1;
+            if (!s.crack_tip[v]) ++started;
+            s.crack_tip[v] = s.crack_tip[twin] = 0;  // both sides are open boundary now
+            s.crack_tip[best] = 1;                    // the cut ends here
             ++s.counters.tears;
             Event e;
             e.type = EventType::Tear;
