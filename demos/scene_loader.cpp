@@ -837,10 +837,10 @@ struct DriverKind {
 
 const std::vector<DriverKind>& driverKinds() {
     static const std::vector<DriverKind> kinds = {
-        {"force", Driver::Type::Force, {"type", "target", "particle", "value", "from", "until"}},
+        {"force", Driver::Type::Force, {"type", "target", "particle", "vertex", "value", "from", "until"}},
         {"ramp", Driver::Type::Ramp, {"type", "target", "particle", "value", "rate", "from"}},
         {"twist", Driver::Type::Twist, {"type", "target", "end", "rate", "from", "until"}},
-        {"move", Driver::Type::Move, {"type", "target", "particle", "velocity", "from", "until"}},
+        {"move", Driver::Type::Move, {"type", "target", "particle", "vertex", "velocity", "from", "until"}},
         {"release", Driver::Type::Release, {"type", "target", "particle", "at"}},
         {"wind", Driver::Type::Wind, {"type", "value", "gust", "from", "until"}},
         {"spawn", Driver::Type::Spawn, {"type", "body", "at"}},
@@ -851,7 +851,7 @@ const std::vector<DriverKind>& driverKinds() {
 
 /// A driver; `strings` are the scene's strings (targets), `body_names` all bodies so far
 /// (a spawned body's name must be new; it is added).
-Driver parseDriver(const Node& n, const std::vector<String>& strings, NameMap& body_names) {
+Driver parseDriver(const Node& n, const std::vector<String>& strings, const std::vector<Paper>& papers, NameMap& body_names) {
     n.expectObject();
     const Node type = n.required("type");
     const std::string type_name = type.asString();
@@ -867,18 +867,32 @@ Driver parseDriver(const Node& n, const std::vector<String>& strings, NameMap& b
     Driver d;
     d.type = kind->type;
     long long particles = 0;
+    const Paper* paper = nullptr;
     if (kind->allows("target")) {
         const Node target = n.required("target");
         d.target = target.asString();
         const auto s = std::find_if(strings.begin(), strings.end(), [&](const String& x) { return x.desc.name == d.target; });
-        if (s == strings.end()) {
+        const auto p = std::find_if(papers.begin(), papers.end(), [&](const Paper& x) { return x.desc.name == d.target; });
+        // force and move drive a paper's vertex too ("vertex": an index or [i, k]).
+        if (s == strings.end() && p != papers.end() && kind->allows("vertex")) {
+            paper = &*p;
+        } else if (s == strings.end()) {
             std::vector<std::string> names;
             for (const String& x : strings) names.push_back(x.desc.name);
             target.fail("no string named " + jsonQuoted(d.target) + knownNames(names, "strings"));
+        } else {
+            particles = static_cast<long long>(s->desc.points.size());
         }
-        particles = static_cast<long long>(s->desc.points.size());
     }
-    if (kind->allows("particle")) {
+    if (paper) {
+        if (const auto particle = n.field("particle")) particle->fail("a paper's vertex is given as \"vertex\"");
+        const PaperDesc& pd = paper->desc;
+        const std::size_t vertices = pd.vertices.empty() ? static_cast<std::size_t>(pd.resolution[0]) * pd.resolution[1] : pd.vertices.size();
+        d.paper_vertex = static_cast<int>(paperVertex(n.required("vertex"), pd, vertices));
+    } else if (const auto vertex = n.field("vertex")) {
+        vertex->fail("only for a paper target (strings take \"particle\")");
+    }
+    if (kind->allows("particle") && !paper) {
         const auto p = n.field("particle");
         d.particle = p ? particleIndex(*p, particles) : static_cast<int>(particles - 1);
     }
@@ -990,7 +1004,7 @@ Scene parseScene(const std::string& json_text) {
     }
     rejectUnavailable(top, "cloths", "cloths are not available in this build yet");
 
-    for (const Node& n : top.array("drivers")) scene.drivers.push_back(parseDriver(n, scene.strings, body_names));
+    for (const Node& n : top.array("drivers")) scene.drivers.push_back(parseDriver(n, scene.strings, scene.papers, body_names));
 
     if (const auto output = top.field("output")) {
         output->checkNoUnknownFields({"every"});

@@ -237,6 +237,12 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
                         throw InvalidInput(path + ".end", "that end of \"" + s.desc.name +
                                                               "\" is not clamped: attach its particle to a world point");
                 }
+        if (drv.type == Driver::Type::Move && drv.paper_vertex >= 0)
+            for (const Paper& p : scene.papers)
+                if (p.desc.name == drv.target)
+                    for (const PaperGlue& g : p.glue)
+                        if (static_cast<int>(g.vertex) == drv.paper_vertex)
+                            throw InvalidInput(path + ".vertex", "is glued to body \"" + g.body + "\" and cannot be moved");
         if (drv.type == Driver::Type::Move)
             for (const String& s : scene.strings)
                 if (s.desc.name == drv.target)
@@ -287,6 +293,8 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
             throw InvalidInput(path + "." + e.field(), e.problem());
         }
     }
+    std::map<std::string, PaperId> paper_by_name;
+    for (std::size_t i = 0; i < paper_ids.size(); ++i) paper_by_name[scene.papers[i].desc.name] = paper_ids[i];
     std::map<std::string, StringId> string_ids;
     for (std::size_t i = 0; i < ids.size(); ++i) string_ids[scene.strings[i].desc.name] = ids[i];
 
@@ -317,13 +325,27 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
             const bool active = t0 >= drv.from && t0 < drv.until;
             switch (drv.type) {
                 case Driver::Type::Force:
-                    if (active) core.applyForce(string_ids.at(drv.target), drv.particle, drv.value);
+                    if (active && drv.paper_vertex >= 0)
+                        core.applyPaperForce(paper_by_name.at(drv.target), static_cast<std::uint32_t>(drv.paper_vertex), drv.value);
+                    else if (active)
+                        core.applyForce(string_ids.at(drv.target), drv.particle, drv.value);
                     break;
                 case Driver::Type::Ramp:
                     if (active) core.applyForce(string_ids.at(drv.target), drv.particle, drv.value * (drv.rate * (t0 - drv.from)));
                     break;
                 case Driver::Type::Move:
-                    if (active) {
+                    if (active && drv.paper_vertex >= 0) {
+                        // A paper vertex: pinned where it is at first, then moved.
+                        const PaperId id = paper_by_name.at(drv.target);
+                        const auto v = static_cast<std::uint32_t>(drv.paper_vertex);
+                        const Vec3 at = (*core.viewPaper(id).positions)[v];
+                        try {
+                            core.movePaperPin(id, v, at + dt * drv.velocity);
+                        } catch (const InvalidInput&) {  // not pinned yet (a glued vertex cannot be moved)
+                            core.attachPaperToPoint(id, v, at);
+                            core.movePaperPin(id, v, at + dt * drv.velocity);
+                        }
+                    } else if (active) {
                         const StringId id = string_ids.at(drv.target);
                         Vec3 target;
                         if (!core.pinTarget(id, drv.particle, &target)) {

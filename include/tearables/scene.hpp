@@ -81,6 +81,7 @@ struct Driver {
     double at = 0.0;          ///< release, spawn: s, >= 0
     std::optional<Body> body; ///< spawn: the body (its name unique among all bodies)
     std::string body_name;    ///< velocity: the body whose linear velocity is set (value, m/s) between from and until
+    int paper_vertex = -1;    ///< force, move on a paper target: the vertex (resolved); -1 = the target is a string
 };
 
 /// A whole scene.

@@ -217,7 +217,9 @@ TEST(SceneLoader, PapersParseEveryField) {
                            {"edge": "x-", "body": "clip"} ] },
         { "name": "mesh", "vertices": [[0, 0, 0], [1, 0, 0], [0, 0, 1]], "triangles": [[0, 2, 1]] }
       ],
-      "drivers": [{"type": "velocity", "body": "clip", "value": [0, -1, 0], "from": 0.5, "until": 1}]
+      "drivers": [{"type": "velocity", "body": "clip", "value": [0, -1, 0], "from": 0.5, "until": 1},
+                  {"type": "move", "target": "sheet", "vertex": [-1, 0], "velocity": [0.1, 0, 0]},
+                  {"type": "force", "target": "card", "vertex": 5, "value": [0, 1, 0]}]
     })");
     ASSERT_EQ(scene.papers.size(), 3u);
     const PaperDesc& a = scene.papers[0].desc;
@@ -267,9 +269,12 @@ TEST(SceneLoader, PapersParseEveryField) {
     EXPECT_EQ(b.glue[4].vertex, 9u);
     EXPECT_FALSE(b.glue[1].local.has_value());
     EXPECT_EQ(scene.papers[2].desc.vertices.size(), 3u);
-    ASSERT_EQ(scene.drivers.size(), 1u);
+    ASSERT_EQ(scene.drivers.size(), 3u);
     EXPECT_EQ(scene.drivers[0].type, Driver::Type::Velocity);
     EXPECT_EQ(scene.drivers[0].body_name, "clip");
+    EXPECT_EQ(scene.drivers[0].paper_vertex, -1);
+    EXPECT_EQ(scene.drivers[1].paper_vertex, 21);  // [-1, 0] on a 22-wide grid
+    EXPECT_EQ(scene.drivers[2].paper_vertex, 5);
 }
 
 TEST(SceneLoader, AbsentFieldsTakeTheirDefaults) {
@@ -437,6 +442,12 @@ const ErrorCase kErrorCases[] = {
      "papers[0].attachments[0].world", "false attaches nothing"},
     {"PaperAttachmentBadEdge", R"({"papers": [{"name": "s", "attachments": [{"edge": "y+", "world": true}]}]})",
      "papers[0].attachments[0].edge", "must be \"x-\""},
+    {"PaperDriverParticle", R"({"papers": [{"name": "s"}], "drivers": [{"type": "force", "target": "s", "particle": 0, "vertex": 0, "value": [0, 1, 0]}]})",
+     "drivers[0].particle", "a paper's vertex is given as \"vertex\""},
+    {"PaperDriverNoVertex", R"({"papers": [{"name": "s"}], "drivers": [{"type": "move", "target": "s", "velocity": [0, 1, 0]}]})",
+     "drivers[0].vertex", "missing required field"},
+    {"StringDriverVertex", R"({"strings": [{"name": "r", "from": [0, 1, 0], "to": [0, 0, 0]}], "drivers": [{"type": "force", "target": "r", "vertex": 0, "value": [0, 1, 0]}]})",
+     "drivers[0].vertex", "only for a paper target"},
     {"VelocityDriverNoBody", R"({"drivers": [{"type": "velocity", "body": "ball", "value": [0, 1, 0]}]})",
      "drivers[0].body", "no body named \"ball\""},
     {"ClothsNotYet", R"({"cloths": [{}]})", "cloths", "cloths are not available in this build yet"},
