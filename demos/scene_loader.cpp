@@ -766,6 +766,162 @@ Cloth parseCloth(const Node& n, std::uint64_t seed, const NameMap& bodies) {
 }
 
 // =============================================================================================
+// Papers
+// =============================================================================================
+
+/// A vertex of a sheet: an index, or [i, k] on the rectangle's grid (i along x, k along z;
+/// negative counts from the far side).
+std::uint32_t paperVertex(const Node& n, const PaperDesc& d, std::size_t vertices) {
+    if (n.value().is_array()) {
+        if (!d.vertices.empty()) n.fail("[i, k] names a grid vertex: this sheet is a mesh, give an index");
+        const std::vector<Node> ik = n.asArray();
+        if (ik.size() != 2) n.fail("expected [i, k] (2 integers), got " + describe(n.value()));
+        const long long nx = d.resolution[0], nz = d.resolution[1];
+        long long i = ik[0].asInteger(-nx, nx - 1), k = ik[1].asInteger(-nz, nz - 1);
+        if (i < 0) i += nx;
+        if (k < 0) k += nz;
+        return static_cast<std::uint32_t>(k * nx + i);
+    }
+    const auto count = static_cast<long long>(vertices);
+    long long v = n.asInteger(-count, count - 1);
+    if (v < 0) v += count;
+    return static_cast<std::uint32_t>(v);
+}
+
+/// The vertices of an edge of the rectangle: "x-", "x+", "z-" or "z+" (the side at the
+/// low or high end of that local axis).
+std::vector<std::uint32_t> paperEdge(const Node& n, const PaperDesc& d) {
+    if (!d.vertices.empty()) n.fail("edges are those of the rectangle: this sheet is a mesh");
+    const std::string e = n.asString();
+    std::vector<std::uint32_t> out;
+    const int nx = d.resolution[0], nz = d.resolution[1];
+    if (e == "x-" || e == "x+") {
+        for (int k = 0; k < nz; ++k) out.push_back(static_cast<std::uint32_t>(d.gridVertex(e == "x-" ? 0 : nx - 1, k)));
+    } else if (e == "z-" || e == "z+") {
+        for (int i = 0; i < nx; ++i) out.push_back(static_cast<std::uint32_t>(d.gridVertex(i, e == "z-" ? 0 : nz - 1)));
+    } else {
+        n.fail("must be \"x-\", \"x+\", \"z-\" or \"z+\" (got " + jsonQuoted(e) + ")");
+    }
+    return out;
+}
+
+/// A paper sheet (SCENE_FORMAT.md, "papers"); `seed` unless it gives "seed".
+Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
+    n.checkNoUnknownFields({"name", "origin", "size", "resolution", "orientation", "vertices", "triangles", "density",
+                            "stiffness", "bending", "damping", "jacobi_iterations", "integrator", "phi", "psi",
+                            "hinge_threshold", "breakable", "tearable", "rupture_stretch", "tension", "thickness", "friction",
+                            "seed", "attachments"});
+    Paper p;
+    PaperDesc& d = p.desc;
+    d.name = requiredName(n);
+    const bool mesh = n.has("vertices") || n.has("triangles");
+    if (mesh) {
+        for (const char* rect : {"origin", "size", "resolution", "orientation"})
+            if (const auto f = n.field(rect)) f->fail("belongs to a rectangle: this sheet gives vertices and triangles");
+        for (const Node& v : n.required("vertices").asArray()) d.vertices.push_back(v.asVec3());
+        for (const Node& t : n.required("triangles").asArray()) {
+            const std::vector<Node> ijk = t.asArray();
+            if (ijk.size() != 3) t.fail("expected [i, j, k] (3 vertex indices), got " + describe(t.value()));
+            const auto count = static_cast<long long>(d.vertices.size());
+            std::array<std::uint32_t, 3> tri{};
+            for (int c = 0; c < 3; ++c) tri[c] = static_cast<std::uint32_t>(ijk[c].asInteger(0, std::max(0LL, count - 1)));
+            d.triangles.push_back(tri);
+        }
+    } else {
+        d.origin = n.vec3("origin", d.origin);
+        if (const auto size = n.field("size")) {
+            const std::vector<double> v = size->asNumbers(2, Range::positive());
+            d.size[0] = v[0];
+            d.size[1] = v[1];
+        }
+        if (const auto res = n.field("resolution")) {
+            const std::vector<Node> v = res->asArray();
+            if (v.size() != 2) res->fail("expected [nx, nz] (2 integers), got " + describe(res->value()));
+            d.resolution[0] = static_cast<int>(v[0].asInteger(2, 1024));
+            d.resolution[1] = static_cast<int>(v[1].asInteger(2, 1024));
+        }
+        if (const auto q = n.field("orientation")) {
+            const std::vector<double> v = q->asNumbers(4);
+            const Quat quat(v[3], v[0], v[1], v[2]);  // written [x, y, z, w]
+            if (!(quat.norm() > 1e-12)) q->fail("must be a non-zero quaternion [x, y, z, w]");
+            d.orientation = quat.normalized();
+        }
+    }
+    d.density = n.number("density", d.density, Range::positive());
+    d.stiffness = n.number("stiffness", d.stiffness, Range::positive());
+    d.bending = n.number("bending", d.bending, Range::closed(0.0, 1.0));
+    d.damping = n.number("damping", d.damping, Range::closed(0.0, 1.0));
+    d.jacobi_iterations = static_cast<int>(n.integer("jacobi_iterations", d.jacobi_iterations, 1, 256));
+    if (const auto integ = n.field("integrator")) {
+        const std::string v = integ->asString();
+        if (v == "implicit") d.integrator = PaperIntegrator::Implicit;
+        else if (v == "explicit") d.integrator = PaperIntegrator::Explicit;
+        else integ->fail("must be \"implicit\" or \"explicit\" (got " + jsonQuoted(v) + ")");
+    }
+    d.phi = n.number("phi", d.phi, Range::leftOpen(0.0, 1000.0));
+    d.psi = n.number("psi", d.psi, Range::closed(0.0, 4.0));
+    d.hinge_threshold = n.number("hinge_threshold", d.hinge_threshold, Range{0.0, 1.0, false, true});
+    d.breakable = n.boolean("breakable", d.breakable);
+    d.tearable = n.boolean("tearable", d.tearable);
+    d.rupture_stretch = n.number("rupture_stretch", d.rupture_stretch, Range::leftOpen(0.0, 100.0));
+    if (const auto t = n.field("tension")) {
+        const std::string v = t->asString();
+        if (v == "stretch") d.tension = PaperTension::Stretch;
+        else if (v == "momentum") d.tension = PaperTension::Momentum;
+        else t->fail("must be \"stretch\" or \"momentum\" (got " + jsonQuoted(v) + ")");
+    }
+    d.thickness = n.number("thickness", d.thickness, Range::leftOpen(0.0, 1.0));
+    d.friction = n.number("friction", d.friction, Range::closed(0.0, 100.0));
+    d.seed = static_cast<std::uint64_t>(n.integer("seed", static_cast<long long>(seed), 0, LLONG_MAX));
+    try {
+        validate(d);  // the mesh, ranges the fields above cannot check alone
+    } catch (const InvalidInput& e) {
+        throw InvalidInput(e.field().empty() ? n.path() : n.path() + "." + e.field(), e.problem());
+    }
+    const std::size_t vertices = d.vertices.empty() ? static_cast<std::size_t>(d.resolution[0]) * d.resolution[1] : d.vertices.size();
+    if (const auto list = n.field("attachments")) {
+        std::map<std::uint32_t, std::string> taken;  // vertex -> attachment path
+        for (const Node& a : list->asArray()) {
+            a.checkNoUnknownFields({"vertex", "edge", "world", "body", "local"});
+            const auto vertex = a.field("vertex");
+            const auto edge = a.field("edge");
+            if (vertex && edge) edge->fail("give vertex or edge, not both");
+            if (!vertex && !edge) a.fail("needs vertex (an index or [i, k]) or edge (\"x-\", \"x+\", \"z-\", \"z+\")");
+            const std::vector<std::uint32_t> which = vertex ? std::vector<std::uint32_t>{paperVertex(*vertex, d, vertices)} : paperEdge(*edge, d);
+            const auto body = a.field("body");
+            const auto world = a.field("world");
+            const auto local = a.field("local");
+            if (body && world) world->fail("give either body or world, not both");
+            if (!body && !world) a.fail("needs body (a body's name) or world (true: where the vertex is, or a point)");
+            if (local && !body) local->fail("only allowed with body");
+            if (local && edge) local->fail("an edge is glued where it is: give no local point");
+            for (std::uint32_t v : which) {
+                if (const auto [it, fresh] = taken.emplace(v, a.path()); !fresh)
+                    (vertex ? *vertex : *edge).fail("vertex " + std::to_string(v) + " already has an attachment (" + it->second + ")");
+                if (body) {
+                    PaperGlue g;
+                    g.vertex = v;
+                    g.body = body->asString();
+                    if (bodies.count(g.body) == 0) body->fail("no body named " + jsonQuoted(g.body) + knownNames(namesOf(bodies), "bodies"));
+                    if (local) g.local = local->asVec3();
+                    p.glue.push_back(g);
+                } else {
+                    PaperAttachment pin;
+                    pin.vertex = v;
+                    if (world->value().is_boolean()) {
+                        if (!world->asBool()) world->fail("false attaches nothing: give true (where the vertex is) or a point");
+                    } else {
+                        pin.world = world->asVec3();
+                    }
+                    d.attachments.push_back(pin);
+                }
+            }
+        }
+    }
+    return p;
+}
+
+// =============================================================================================
 // Drivers
 // =============================================================================================
 
@@ -789,13 +945,15 @@ const std::vector<DriverKind>& driverKinds() {
         {"release", Driver::Type::Release, {"type", "target", "particle", "vertex", "at"}},
         {"wind", Driver::Type::Wind, {"type", "value", "gust", "from", "until"}},
         {"spawn", Driver::Type::Spawn, {"type", "body", "at"}},
+        {"velocity", Driver::Type::Velocity, {"type", "body", "value", "from", "until"}},
     };
     return kinds;
 }
 
 /// A driver; `strings` are the scene's strings (targets), `body_names` all bodies so far
 /// (a spawned body's name must be new; it is added).
-Driver parseDriver(const Node& n, const std::vector<String>& strings, const std::vector<Cloth>& cloths, NameMap& body_names) {
+Driver parseDriver(const Node& n, const std::vector<String>& strings, const std::vector<Cloth>& cloths,
+                   const std::vector<Paper>& papers, NameMap& body_names) {
     n.expectObject();
     const Node type = n.required("type");
     const std::string type_name = type.asString();
@@ -811,31 +969,45 @@ Driver parseDriver(const Node& n, const std::vector<String>& strings, const std:
     Driver d;
     d.type = kind->type;
     long long particles = 0;
+    const Paper* paper = nullptr;
     if (kind->allows("target")) {
         const Node target = n.required("target");
         d.target = target.asString();
         const auto s = std::find_if(strings.begin(), strings.end(), [&](const String& x) { return x.desc.name == d.target; });
         const auto c = std::find_if(cloths.begin(), cloths.end(), [&](const Cloth& x) { return x.desc.name == d.target; });
-        if (s == strings.end() && (c == cloths.end() || d.type == Driver::Type::Twist)) {
-            std::vector<std::string> names;
-            for (const String& x : strings) names.push_back(x.desc.name);
-            if (d.type != Driver::Type::Twist)
-                for (const Cloth& x : cloths) names.push_back(x.desc.name);
-            target.fail("no string" + std::string(d.type == Driver::Type::Twist ? "" : " or cloth") + " named " +
-                        jsonQuoted(d.target) + knownNames(names, d.type == Driver::Type::Twist ? "strings" : "strings and cloths"));
-        }
+        const auto p = std::find_if(papers.begin(), papers.end(), [&](const Paper& x) { return x.desc.name == d.target; });
+        const bool on_vertex = d.type != Driver::Type::Twist;             // cloth vertices: force, ramp, move, release
+        const bool on_paper = d.type == Driver::Type::Force || d.type == Driver::Type::Move;  // paper vertices
         if (s != strings.end()) {
             particles = static_cast<long long>(s->desc.points.size());
-            if (const auto v = n.field("vertex")) v->fail("only for a cloth target (a string's is particle)");
-        } else {
+            if (const auto v = n.field("vertex")) v->fail("only for a cloth or paper target (a string's is particle)");
+        } else if (c != cloths.end() && on_vertex) {
             d.cloth = true;
-            if (const auto p = n.field("particle")) p->fail("a cloth's vertex is given as vertex: [i, j]");
+            if (const auto particle = n.field("particle")) particle->fail("a cloth's vertex is given as vertex: [i, j]");
             const Node vertex = n.required("vertex");
             const auto [i, j] = clothVertex(vertex, c->desc);
             d.particle = j * c->desc.resolution[0] + i;
+        } else if (p != papers.end() && on_paper) {
+            paper = &*p;
+        } else {
+            std::vector<std::string> names;
+            for (const String& x : strings) names.push_back(x.desc.name);
+            if (on_vertex)
+                for (const Cloth& x : cloths) names.push_back(x.desc.name);
+            if (on_paper)
+                for (const Paper& x : papers) names.push_back(x.desc.name);
+            const std::string what = !on_vertex ? "string" : on_paper ? "string, cloth or paper" : "string or cloth";
+            const std::string plural = !on_vertex ? "strings" : on_paper ? "strings, cloths and papers" : "strings and cloths";
+            target.fail("no " + what + " named " + jsonQuoted(d.target) + knownNames(names, plural));
         }
     }
-    if (kind->allows("particle") && !d.cloth) {
+    if (paper) {
+        if (const auto particle = n.field("particle")) particle->fail("a paper's vertex is given as \"vertex\"");
+        const PaperDesc& pd = paper->desc;
+        const std::size_t vertices = pd.vertices.empty() ? static_cast<std::size_t>(pd.resolution[0]) * pd.resolution[1] : pd.vertices.size();
+        d.paper_vertex = static_cast<int>(paperVertex(n.required("vertex"), pd, vertices));
+    }
+    if (kind->allows("particle") && !d.cloth && !paper) {
         const auto p = n.field("particle");
         d.particle = p ? particleIndex(*p, particles) : static_cast<int>(particles - 1);
     }
@@ -865,6 +1037,14 @@ Driver parseDriver(const Node& n, const std::vector<String>& strings, const std:
             d.value = n.required("value").asVec3();
             d.gust = n.number("gust", d.gust, Range::closed(0.0, 10.0));
             break;
+        case Driver::Type::Velocity: {
+            const Node body = n.required("body");
+            d.body_name = body.asString();
+            if (body_names.count(d.body_name) == 0)
+                body.fail("no body named " + jsonQuoted(d.body_name) + knownNames(namesOf(body_names), "bodies"));
+            d.value = n.required("value").asVec3();
+            break;
+        }
         case Driver::Type::Spawn: {
             const Node body = n.required("body");
             d.body = parseBody(body);
@@ -899,11 +1079,6 @@ Camera parseCamera(const Node& n) {
     if (c.eye && c.target && (*c.eye - *c.target).norm() < 1e-9)
         n.required("target").fail("must differ from eye (the camera needs a direction to look in)");
     return c;
-}
-
-/// "papers" and "cloths" are part of the format but not of this build: only absent or [] pass.
-void rejectUnavailable(const Node& top, const char* key, const char* problem) {
-    if (const auto list = top.field(key); list && !list->asArray().empty()) list->fail(problem);
 }
 
 }  // namespace
@@ -942,15 +1117,20 @@ Scene parseScene(const std::string& json_text) {
         claimName(string_names, scene.strings.back().desc.name, strings[i].path(), "string");
     }
 
-    rejectUnavailable(top, "papers", "paper sheets are not available in this build yet");
-
     const std::vector<Node> cloths = top.array("cloths");
     for (std::size_t i = 0; i < cloths.size(); ++i) {
         scene.cloths.push_back(parseCloth(cloths[i], scene.seed + strings.size() + i, body_names));
         claimName(string_names, scene.cloths.back().desc.name, cloths[i].path(), "string or cloth");
     }
+    // Strings, cloths and papers share one namespace: a driver's target names one of them.
+    const std::vector<Node> papers = top.array("papers");
+    for (std::size_t i = 0; i < papers.size(); ++i) {
+        scene.papers.push_back(parsePaper(papers[i], scene.seed + 1000 + i, body_names));
+        claimName(string_names, scene.papers.back().desc.name, papers[i].path(), "paper");
+    }
 
-    for (const Node& n : top.array("drivers")) scene.drivers.push_back(parseDriver(n, scene.strings, scene.cloths, body_names));
+    for (const Node& n : top.array("drivers"))
+        scene.drivers.push_back(parseDriver(n, scene.strings, scene.cloths, scene.papers, body_names));
 
     if (const auto output = top.field("output")) {
         output->checkNoUnknownFields({"every"});

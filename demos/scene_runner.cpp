@@ -126,7 +126,8 @@ json vec(const Vec3& v) { return json::array({v.x(), v.y(), v.z()}); }
 json vec(const btVector3& v) { return json::array({v.x(), v.y(), v.z()}); }
 
 json frame(long long step, double t, const Scene& scene, const std::vector<StringId>& ids,
-           const std::vector<ClothId>& cloth_ids, const World& core, const BulletScene& bs) {
+           const std::vector<ClothId>& cloth_ids, const std::vector<PaperId>& paper_ids, const World& core,
+           const BulletScene& bs) {
     json f;
     f["step"] = step;
     f["t"] = t;
@@ -178,6 +179,25 @@ json frame(long long step, double t, const Scene& scene, const std::vector<Strin
         }
         f["cloths"] = std::move(cloths);
     }
+    json papers = json::object();
+    for (std::size_t i = 0; i < paper_ids.size(); ++i) {
+        const PaperView v = core.viewPaper(paper_ids[i]);
+        json x = json::array(), triangles = json::array();
+        for (const Vec3& p : *v.positions) x.push_back(vec(p));
+        for (const auto& tri : *v.triangles) triangles.push_back(json::array({tri[0], tri[1], tri[2]}));
+        long long broken = 0, hinges = 0;
+        for (const PaperSpring& sp : *v.springs) {
+            broken += sp.broken && sp.kind == PaperSpringKind::Structural;
+            hinges += !sp.broken && sp.kind == PaperSpringKind::Hinge;
+        }
+        papers[scene.papers[i].desc.name] = {{"x", std::move(x)},
+                                             {"triangles", std::move(triangles)},
+                                             {"broken_springs", broken},
+                                             {"hinges", hinges},
+                                             {"creases", v.counters.creases},
+                                             {"tears", v.counters.tears}};
+    }
+    if (!paper_ids.empty()) f["papers"] = std::move(papers);
     json bodies = json::object();
     for (std::size_t i = 0; i < bs.bodies.size(); ++i) {
         const btRigidBody* b = bs.bodies[i].get();
@@ -214,6 +234,9 @@ json eventJson(const Event& e) {
     if (e.particle >= 0) j["particle"] = e.particle;
     j["cause"] = toString(e.cause);
     if (e.type == EventType::Tear || e.type == EventType::Yield) j["stress"] = e.stress;
+    // Paper: a crease's compression 1 - l/l0, a hinge's folded ratio l/l0 (dimensionless).
+    if (e.type == EventType::Crease) j["compression"] = e.stress;
+    if (e.type == EventType::Hinge) j["ratio"] = e.stress;
     return j;
 }
 
@@ -257,6 +280,12 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
                         throw InvalidInput(path + ".end", "that end of \"" + s.desc.name +
                                                               "\" is not clamped: attach its particle to a world point");
                 }
+        if (drv.type == Driver::Type::Move && drv.paper_vertex >= 0)
+            for (const Paper& p : scene.papers)
+                if (p.desc.name == drv.target)
+                    for (const PaperGlue& g : p.glue)
+                        if (static_cast<int>(g.vertex) == drv.paper_vertex)
+                            throw InvalidInput(path + ".vertex", "is glued to body \"" + g.body + "\" and cannot be moved");
         if (drv.type == Driver::Type::Move)
             for (const String& s : scene.strings)
                 if (s.desc.name == drv.target)
@@ -302,8 +331,27 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
             throw InvalidInput(path + "." + e.field(), e.problem());
         }
     }
+    std::vector<PaperId> paper_ids;
+    for (std::size_t i = 0; i < scene.papers.size(); ++i) {
+        const Paper& p = scene.papers[i];
+        const std::string path = "papers[" + std::to_string(i) + "]";
+        try {
+            paper_ids.push_back(ropes.addPaper(p.desc));
+            for (const PaperGlue& g : p.glue) {
+                btRigidBody* body = bs.by_name.at(g.body);
+                // Default: glued where the vertex is, in the body's frame.
+                const btVector3 at = tearables::toBullet((*ropes.core().viewPaper(paper_ids.back()).positions)[g.vertex]);
+                const btVector3 local = g.local ? tearables::toBullet(*g.local) : body->getCenterOfMassTransform().inverse() * at;
+                ropes.attachPaper(paper_ids.back(), g.vertex, *body, local);
+            }
+        } catch (const InvalidInput& e) {
+            throw InvalidInput(path + "." + e.field(), e.problem());
+        }
+    }
     std::map<std::string, ClothId> cloth_by_name;
     for (std::size_t i = 0; i < cloth_ids.size(); ++i) cloth_by_name[scene.cloths[i].desc.name] = cloth_ids[i];
+    std::map<std::string, PaperId> paper_by_name;
+    for (std::size_t i = 0; i < paper_ids.size(); ++i) paper_by_name[scene.papers[i].desc.name] = paper_ids[i];
     std::map<std::string, StringId> string_ids;
     for (std::size_t i = 0; i < ids.size(); ++i) string_ids[scene.strings[i].desc.name] = ids[i];
 
@@ -317,14 +365,14 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         if (ec) throw std::runtime_error("cannot create " + dir.string() + ": " + ec.message());
         trace = openOut(dir / "trace.jsonl");
         events = openOut(dir / "events.jsonl");
-        trace << frame(0, 0.0, scene, ids, cloth_ids, ropes.core(), bs).dump() << '\n';
+        trace << frame(0, 0.0, scene, ids, cloth_ids, paper_ids, ropes.core(), bs).dump() << '\n';
     }
     if (options.on_frame) options.on_frame(frameState(0, 0.0, scene, ids, cloth_ids, ropes.core(), bs));
 
     // --- run --------------------------------------------------------------------------
     std::vector<std::uint8_t> done(scene.drivers.size(), 0);
     std::map<std::string, long long> counts;
-    double wall = 0.0;
+    double wall = 0.0, paper_seconds = 0.0;
     const long long progress_every = std::max<long long>(1, steps / 100);
     std::uint64_t wind_state = scene.seed * 0x9E3779B97F4A7C15ull + 1;
     for (long long step = 1; step <= steps; ++step) {
@@ -373,13 +421,27 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
             }
             switch (drv.type) {
                 case Driver::Type::Force:
-                    if (active) core.applyForce(string_ids.at(drv.target), drv.particle, drv.value);
+                    if (active && drv.paper_vertex >= 0)
+                        core.applyPaperForce(paper_by_name.at(drv.target), static_cast<std::uint32_t>(drv.paper_vertex), drv.value);
+                    else if (active)
+                        core.applyForce(string_ids.at(drv.target), drv.particle, drv.value);
                     break;
                 case Driver::Type::Ramp:
                     if (active) core.applyForce(string_ids.at(drv.target), drv.particle, drv.value * (drv.rate * (t0 - drv.from)));
                     break;
                 case Driver::Type::Move:
-                    if (active) {
+                    if (active && drv.paper_vertex >= 0) {
+                        // A paper vertex: pinned where it is at first, then moved.
+                        const PaperId id = paper_by_name.at(drv.target);
+                        const auto v = static_cast<std::uint32_t>(drv.paper_vertex);
+                        const Vec3 at = (*core.viewPaper(id).positions)[v];
+                        try {
+                            core.movePaperPin(id, v, at + dt * drv.velocity);
+                        } catch (const InvalidInput&) {  // not pinned yet (a glued vertex cannot be moved)
+                            core.attachPaperToPoint(id, v, at);
+                            core.movePaperPin(id, v, at + dt * drv.velocity);
+                        }
+                    } else if (active) {
                         const StringId id = string_ids.at(drv.target);
                         Vec3 target;
                         if (!core.pinTarget(id, drv.particle, &target)) {
@@ -432,6 +494,16 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
                 case Driver::Type::Twist:
                     if (active) core.turnEnd(string_ids.at(drv.target), drv.end, drv.rate * dt);
                     break;
+                case Driver::Type::Velocity:
+                    if (active)
+                        for (std::size_t b = 0; b < bs.bodies.size(); ++b)
+                            if (bs.specs[b].name == drv.body_name) {
+                                // A kinematic body keeps moving at it; a dynamic one is set to it.
+                                bs.specs[b].linear_velocity = drv.value;
+                                bs.bodies[b]->setLinearVelocity(toBullet(drv.value));
+                                bs.bodies[b]->activate();
+                            }
+                    break;
             }
         }
         moveKinematic(bs, dt);
@@ -439,6 +511,7 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         const auto a = std::chrono::steady_clock::now();
         bs.world.stepSimulation(static_cast<btScalar>(dt), 1, static_cast<btScalar>(dt));
         wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count();
+        paper_seconds += ropes.core().lastPaperTimes().total();
         if (!ropes.lastError().empty()) throw std::runtime_error("step " + std::to_string(step) + ": " + ropes.lastError());
 
         for (const Event& e : ropes.events()) {
@@ -448,7 +521,7 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         ropes.clearEvents();
         const bool frame_step = step % every == 0 || step == steps;
         if (write && frame_step)
-            trace << frame(step, static_cast<double>(step) * dt, scene, ids, cloth_ids, ropes.core(), bs).dump() << '\n';
+            trace << frame(step, static_cast<double>(step) * dt, scene, ids, cloth_ids, paper_ids, ropes.core(), bs).dump() << '\n';
         if (options.on_frame && frame_step) options.on_frame(frameState(step, static_cast<double>(step) * dt, scene, ids, cloth_ids, ropes.core(), bs));
         if (options.progress && (step % progress_every == 0 || step == steps)) drawProgress(step, steps);
     }
@@ -474,6 +547,12 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         for (double l : *v.rest_length) digest.add(l);
         digest.add(v.broken->data(), v.broken->size());
     }
+    for (PaperId id : paper_ids) {
+        const PaperView v = ropes.core().viewPaper(id);
+        for (const Vec3& p : *v.positions) digest.add(p);
+        for (const Vec3& p : *v.velocities) digest.add(p);
+        for (const auto& tri : *v.triangles) digest.add(tri.data(), sizeof tri);
+    }
     for (const auto& b : bs.bodies) {
         const btTransform& xf = b->getWorldTransform();
         digest.add(toCore(xf.getOrigin()));
@@ -491,7 +570,8 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
                        {"twist", st.twist},               {"collision", st.collision},
                        {"strain_limit", st.strain_limit}, {"tension", st.tension},
                        {"material", st.material},         {"velocities", st.velocities},
-                       {"rigid_bodies", std::max(0.0, wall - st.total())}};
+                       {"paper", paper_seconds},
+                       {"rigid_bodies", std::max(0.0, wall - st.total() - paper_seconds)}};
         json ev = json::object();
         for (const auto& [type, n] : counts) ev[type] = n;
         json summary = {{"steps", steps},          {"simulated_seconds", result.simulated_seconds},

@@ -436,6 +436,19 @@ void BulletWorld::attachCloth(ClothId id, int vertex, btRigidBody& body, const b
     core_->attachClothToRigid(id, vertex, proxyFor(body), toCore(local_point));
 }
 
+PaperId BulletWorld::addPaper(const PaperDesc& desc) { return core_->addPaper(desc); }
+
+void BulletWorld::attachPaper(PaperId id, std::uint32_t vertex, const btVector3& world_point) {
+    core_->attachPaperToPoint(id, vertex, toCore(world_point));
+}
+
+void BulletWorld::attachPaper(PaperId id, std::uint32_t vertex, btRigidBody& body, const btVector3& local_point) {
+    if (!body.getBroadphaseHandle()) throw InvalidInput("body", "is not in the Bullet world");
+    if (!core_->contains(id)) throw InvalidInput("paper", "no such paper sheet");
+    if (vertex >= core_->viewPaper(id).vertexCount()) throw InvalidInput("vertex", "out of range");
+    core_->attachPaperToRigid(id, vertex, proxyFor(body), toCore(local_point));
+}
+
 void BulletWorld::forgetBody(const btRigidBody& body) {
     auto it = proxies_.find(&body);
     if (it == proxies_.end()) return;

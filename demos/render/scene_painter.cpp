@@ -146,24 +146,24 @@ Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::Fra
         vertex_load.assign(n, 0.0);
         std::vector<std::uint8_t> cut_right(n, 0), cut_up(n, 0);  // the yarn to (i+1, j) / (i, j+1) is torn
         for (std::size_t e = 0; e < v.edgeCount(); ++e) {
-            const auto [a, b] = (*v.edges)[e];
-            if (a >= n || b >= n) continue;
+            const auto [ea, eb] = (*v.edges)[e];
+            if (ea >= n || eb >= n) continue;
             if ((*v.broken)[e]) {
-                const std::uint32_t lo = std::min(a, b), hi = std::max(a, b);
+                const std::uint32_t lo = std::min(ea, eb), hi = std::max(ea, eb);
                 if (hi == lo + 1) cut_right[lo] = 1;
                 else if (hi == lo + static_cast<std::uint32_t>(nu)) cut_up[lo] = 1;
                 continue;
             }
             const double load = loadFraction((*v.tension)[e], c.rupture_stress, v.yarn_radius);
-            vertex_load[a] = std::max(vertex_load[a], load);
-            vertex_load[b] = std::max(vertex_load[b], load);
+            vertex_load[ea] = std::max(vertex_load[ea], load);
+            vertex_load[eb] = std::max(vertex_load[eb], load);
         }
         vertex_colors.resize(n);
         for (std::size_t p = 0; p < n; ++p) vertex_colors[p] = tensionColor(vertex_load[p]);
         triangles.clear();
         for (int j = 0; j + 1 < nv; ++j)
             for (int i = 0; i + 1 < nu; ++i) {
-                const auto idx = [nu](int a, int b) { return static_cast<std::uint32_t>(b * nu + a); };
+                const auto idx = [nu](int u, int w) { return static_cast<std::uint32_t>(w * nu + u); };
                 const std::uint32_t p00 = idx(i, j), p10 = idx(i + 1, j), p01 = idx(i, j + 1), p11 = idx(i + 1, j + 1);
                 if (cut_right[p00] || cut_up[p00] || cut_right[p01] || cut_up[p10]) continue;
                 triangles.push_back({p00, p10, p11});

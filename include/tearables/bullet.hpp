@@ -18,6 +18,7 @@
 #pragma once
 
 #include "tearables/events.hpp"
+#include "tearables/paper.hpp"
 #include "tearables/string.hpp"
 #include "tearables/world.hpp"
 
@@ -78,6 +79,15 @@ public:
     void attachCloth(ClothId id, int vertex, btRigidBody& body, const btVector3& local_point);
     /// Drops every attachment to `body` now (call before deleting a body strings hold).
     void forgetBody(const btRigidBody& body);
+
+    /// Validates and creates a paper sheet (throws InvalidInput naming the field). Its
+    /// vertices collide with the world's rigid bodies, two ways.
+    PaperId addPaper(const PaperDesc& desc);
+    /// Pins a vertex of a sheet to a world point.
+    void attachPaper(PaperId id, std::uint32_t vertex, const btVector3& world_point);
+    /// Glues a vertex of a sheet to a rigid body at a point in the body's frame (relative
+    /// to its centre of mass); the body must be in this Bullet world. Two-way.
+    void attachPaper(PaperId id, std::uint32_t vertex, btRigidBody& body, const btVector3& local_point);
 
     /// Events since the last clearEvents(), over every internal step Bullet took.
     const std::vector<Event>& events() const;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "tearables/cloth.hpp"
+#include "tearables/paper.hpp"
 #include "tearables/string.hpp"
 #include "tearables/types.hpp"
 #include "tearables/world.hpp"
@@ -67,9 +68,22 @@ struct Cloth {
     std::vector<ClothAttachment> attachments;///< vertices glued to bodies
 };
 
+/// A vertex of a paper sheet glued to a body (world pins are in PaperDesc::attachments).
+struct PaperGlue {
+    std::uint32_t vertex = 0;          ///< resolved vertex index
+    std::string body;                  ///< the body's name (must exist)
+    std::optional<Vec3> local;         ///< point in the body's frame, m; default: where the vertex is
+};
+
+/// A paper sheet of the scene.
+struct Paper {
+    PaperDesc desc;                    ///< name (unique among papers, non-empty), mesh, material, world pins
+    std::vector<PaperGlue> glue;       ///< vertices glued to bodies
+};
+
 /// A scripted action.
 struct Driver {
-    enum class Type { Force, Ramp, Twist, Move, Release, Wind, Spawn };
+    enum class Type { Force, Ramp, Twist, Move, Release, Wind, Spawn, Velocity };
     Type type = Type::Force;
     std::string target;       ///< string or cloth name (force, ramp, twist, move, release)
     int particle = -1;        ///< particle index (force, ramp, move, release), or the cloth's flat vertex index
@@ -83,6 +97,8 @@ struct Driver {
     double until = 1e300;     ///< s, > from (default: the whole run)
     double at = 0.0;          ///< release, spawn: s, >= 0
     std::optional<Body> body; ///< spawn: the body (its name unique among all bodies)
+    std::string body_name;    ///< velocity: the body whose linear velocity is set (value, m/s) between from and until
+    int paper_vertex = -1;    ///< force, move on a paper target: the vertex (resolved); -1 = the target is a string
 };
 
 /// Where the pictures (`--png`) look from. Every field is optional: what is absent is
@@ -102,6 +118,7 @@ struct Scene {
     std::vector<Body> bodies;
     std::vector<String> strings;
     std::vector<Cloth> cloths;
+    std::vector<Paper> papers;        ///< paper i gets seed + 1000 + i unless it gives its own
     std::vector<Driver> drivers;
     int output_every = 1;             ///< write a trace frame every this many steps, >= 1
     Camera camera;                    ///< for pictures; absent fields are fitted to the scene

@@ -4,6 +4,7 @@
 
 #include "tearables/cloth.hpp"
 #include "tearables/events.hpp"
+#include "tearables/paper.hpp"
 #include "tearables/string.hpp"
 #include "tearables/types.hpp"
 
@@ -242,6 +243,31 @@ public:
     void detachCloth(ClothId id, int vertex);
     /// Adds a force (N) on a vertex for the next step only.
     void applyClothForce(ClothId id, int vertex, const Vec3& force);
+    // --- paper sheets (paper.hpp; stepped after the strings, in src/paper/) ---
+    /// Validates and creates a sheet. Throws InvalidInput naming the field; nothing is created then.
+    PaperId addPaper(const PaperDesc& desc);
+    /// Removes a sheet; its id becomes invalid.
+    void removePaper(PaperId id);
+    /// Sheets that exist, in slot order.
+    std::vector<PaperId> papers() const;
+    /// True when `id` names a sheet of this world.
+    bool contains(PaperId id) const;
+    /// Read-only state of a sheet (vertices, triangles, springs, damage counters).
+    PaperView viewPaper(PaperId id) const;
+    /// The descriptor a sheet was created from.
+    const PaperDesc& paperDesc(PaperId id) const;
+    /// Pins a vertex to a world point (m).
+    void attachPaperToPoint(PaperId id, std::uint32_t vertex, const Vec3& point);
+    /// Glues a vertex to a rigid body at a point in the body's frame (m); two-way.
+    void attachPaperToRigid(PaperId id, std::uint32_t vertex, RigidId body, const Vec3& local_point);
+    /// Moves a vertex's world pin (kinematic driving); throws if it is not pinned.
+    void movePaperPin(PaperId id, std::uint32_t vertex, const Vec3& point);
+    /// Frees a vertex (a Release event is emitted); no-op when free.
+    void detachPaper(PaperId id, std::uint32_t vertex);
+    /// Adds a force (N) on a vertex for the next step only.
+    void applyPaperForce(PaperId id, std::uint32_t vertex, const Vec3& force);
+    /// Wall time of the sheets' stages in the last step.
+    const PaperTimes& lastPaperTimes() const;
 
 private:
     detail::ClothSystem& clothSystem();

@@ -5,6 +5,7 @@
 #include "cloth/cloth_state.hpp"
 #include "collision/capsule.hpp"
 #include "collision/grid.hpp"
+#include "paper/system.hpp"
 #include "string/string_state.hpp"
 
 #include <algorithm>
@@ -128,6 +129,7 @@ struct World::Impl {
     std::vector<RigidContact> contacts;
     CollisionQuery query;
     detail::ClothSystem cloths;  // cloth state and solvers (src/cloth/), stepped after the strings
+    detail::PaperSystem papers;  // paper sheets (src/paper/), stepped after the strings
     double time = 0.0;
     std::int64_t steps = 0;
 
@@ -654,6 +656,7 @@ std::vector<StringId> World::strings() const {
 std::vector<std::pair<Vec3, Vec3>> World::meshBounds(double h) const {
     std::vector<std::pair<Vec3, Vec3>> out;  // sheets and cloths add their swept bounds here
     impl_->cloths.bounds(h, impl_->settings.gravity, out);
+    impl_->papers.bounds(h, impl_->settings.gravity, out);
     return out;
 }
 
@@ -769,11 +772,13 @@ void World::removeRigid(RigidId id) {
                 impl_->release(s, StringId{static_cast<std::uint32_t>(i)}, p, EventCause::BodyRemoved);
     }
     impl_->cloths.releaseBody(id, impl_->time, impl_->steps, impl_->pending);
+    impl_->papers.forgetBody(id, impl_->time, impl_->steps, impl_->pending);
     impl_->rigids.used[id.index] = 0;
     impl_->rigids.bodies[id.index].present = false;
 }
 
 bool World::rigidInUse(RigidId id) const {
+    if (impl_->papers.usesBody(id)) return true;
     for (const StringState& s : impl_->strings) {
         if (!s.alive) continue;
         for (const ParticleHold& hold : s.hold)
@@ -899,6 +904,17 @@ void World::step(double h) {
         w.cloths.step(rigids, ctx, [&w](const PointQuery& q, std::vector<PointContact>& out) { w.findPointContacts(q, out); },
                       w.events, cloth_times);
 
+    // Paper sheets: their own stages (src/paper/system.cpp); contacts through the host.
+    {
+        detail::PaperStep pctx;
+        pctx.h = h;
+        pctx.inv_h = ctx.inv_h;
+        pctx.gravity = ctx.gravity;
+        pctx.max_speed = w.settings.max_speed;
+        pctx.time = ctx.time;
+        pctx.step = ctx.step;
+        w.papers.step(pctx, rigids, [&w](const PointQuery& q, std::vector<PointContact>& out) { w.findPointContacts(q, out); }, w.events);
+    }
     // Bodies moved by the strings get the matching velocity change (position-based
     // coupling: dv = dx / h, dw = dtheta / h), so Bullet carries the reaction on.
     for (std::size_t i = 0; i < rigids.bodies.size(); ++i) {
@@ -912,7 +928,8 @@ void World::step(double h) {
         b.angular_velocity += rot.axis() * (angle * ctx.inv_h);
     }
     auto t5 = Clock::now();
-    t.velocities = seconds(t4, t5) - cloth_times.total();  // the cloths' stages are counted as theirs
+    // The cloths' stages are counted as theirs; the sheets' are in lastPaperTimes().
+    t.velocities = seconds(t4, t5) - cloth_times.total() - w.papers.lastTimes().total();
     t += cloth_times;
 
     w.time = ctx.time;
@@ -937,6 +954,24 @@ StringView World::view(StringId id) const {
 
 const StringDesc& World::desc(StringId id) const { return impl_->get(id).desc; }
 const std::vector<Event>& World::events() const { return impl_->events; }
+
+// Paper sheets: forwarded to the paper system (src/paper/system.cpp).
+PaperId World::addPaper(const PaperDesc& desc) { return impl_->papers.add(desc, impl_->rigids); }
+void World::removePaper(PaperId id) { impl_->papers.remove(id); }
+std::vector<PaperId> World::papers() const { return impl_->papers.ids(); }
+bool World::contains(PaperId id) const { return impl_->papers.contains(id); }
+PaperView World::viewPaper(PaperId id) const { return impl_->papers.view(id); }
+const PaperDesc& World::paperDesc(PaperId id) const { return impl_->papers.get(id).desc; }
+void World::attachPaperToPoint(PaperId id, std::uint32_t vertex, const Vec3& point) { impl_->papers.attachToPoint(id, vertex, point); }
+void World::attachPaperToRigid(PaperId id, std::uint32_t vertex, RigidId body, const Vec3& local_point) {
+    impl_->papers.attachToRigid(id, vertex, body, local_point, impl_->rigids);
+}
+void World::movePaperPin(PaperId id, std::uint32_t vertex, const Vec3& point) { impl_->papers.movePin(id, vertex, point); }
+void World::detachPaper(PaperId id, std::uint32_t vertex) {
+    impl_->papers.detach(id, vertex, EventCause::Request, impl_->time, impl_->steps, impl_->pending);
+}
+void World::applyPaperForce(PaperId id, std::uint32_t vertex, const Vec3& force) { impl_->papers.applyForce(id, vertex, force); }
+const PaperTimes& World::lastPaperTimes() const { return impl_->papers.lastTimes(); }
 void World::setContactProvider(ContactProvider* provider) { impl_->contact_provider = provider; }
 const std::vector<RigidContact>& World::lastContacts() const { return impl_->contacts; }
 const StageTimes& World::lastStageTimes() const { return impl_->last; }

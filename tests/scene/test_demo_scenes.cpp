@@ -7,7 +7,9 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <cstdio>
 #include <fstream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -120,4 +122,81 @@ TEST(DemoScenes, ClothTearRunsAcrossThePull) {
     ASSERT_FALSE(columns.empty());
     EXPECT_LE(*std::max_element(columns.begin(), columns.end()) - *std::min_element(columns.begin(), columns.end()), 2);
     EXPECT_EQ(lastFrame(out)["cloths"]["cloth"]["broken"].size(), rows.size());
+}
+
+namespace {
+
+/// The papers of a trace frame: name -> (creases, hinges, vertex count, largest |y - 1|).
+struct SheetState {
+    long long creases = 0, hinges = 0, tears = 0;
+    std::size_t vertices = 0;
+    double deviation = 0.0;
+};
+std::map<std::string, SheetState> sheets(const json& frame) {
+    std::map<std::string, SheetState> out;
+    for (const auto& [name, p] : frame["papers"].items()) {
+        SheetState s;
+        s.creases = p["creases"];
+        s.hinges = p["hinges"];
+        s.tears = p["tears"];
+        s.vertices = p["x"].size();
+        for (const json& x : p["x"]) s.deviation = std::max(s.deviation, std::abs(x[1].get<double>() - 1.0));
+        out[name] = s;
+    }
+    return out;
+}
+
+}  // namespace
+
+// Paper Fig. 9: the fragile sheet (phi = 1) creases far more than the rubbery one (phi = 5).
+TEST(DemoScenes, PaperPhiFragileCreasesMore) {
+    const auto s = sheets(lastFrame(run("paper-phi")));
+    ASSERT_EQ(s.size(), 2u);
+    std::printf("phi = 1: %lld creases, phi = 5: %lld\n", s.at("phi-1").creases, s.at("phi-5").creases);
+    EXPECT_GT(s.at("phi-1").creases, 3 * s.at("phi-5").creases + 3);
+}
+
+// Paper Fig. 8: both sheets crease; every crease inserted one vertex (the trace's vertex
+// list grows by exactly the creases: indices are stable, vertices only appended).
+TEST(DemoScenes, PaperPsiCreasesInsertVertices) {
+    const auto s = sheets(lastFrame(run("paper-psi")));
+    ASSERT_EQ(s.size(), 2u);
+    for (const auto& [name, sheet] : s) {
+        EXPECT_GT(sheet.creases, 0) << name;
+        EXPECT_EQ(sheet.vertices, 21u * 11u + static_cast<std::size_t>(sheet.creases + sheet.tears)) << name;
+    }
+}
+
+// Paper Fig. 10: after the sphere has gone, the breakable sheet keeps its creases; the
+// elastic one beside it, pressed the same, is flat again.
+TEST(DemoScenes, PaperBallKeepsCreases) {
+    const auto s = sheets(lastFrame(run("paper-ball")));
+    ASSERT_EQ(s.size(), 2u);
+    std::printf("after the ball: %.4f m (breakable), %.4f m (elastic)\n", s.at("paper").deviation, s.at("elastic").deviation);
+    EXPECT_GT(s.at("paper").creases, 0);
+    EXPECT_EQ(s.at("elastic").creases, 0);
+    EXPECT_GT(s.at("paper").deviation, 5.0 * s.at("elastic").deviation);
+}
+
+// Drivers on a paper's vertices: a corner pinned and moved by a "move" driver goes where
+// the driver takes it, and a "force" driver lifts another vertex against gravity.
+TEST(DemoScenes, PaperVertexDrivers) {
+    const fs::path dir = fs::path(TEARABLES_TEST_OUT) / "paper-drivers";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const fs::path file = dir / "scene.json";
+    std::ofstream(file) << R"({"dt": 0.01, "steps": 100,
+      "papers": [{"name": "s", "origin": [0, 1, 0], "size": [0.1, 0.1], "resolution": [5, 5], "breakable": false}],
+      "drivers": [{"type": "move", "target": "s", "vertex": [0, 0], "velocity": [0, 0.5, 0]},
+                  {"type": "force", "target": "s", "vertex": [-1, -1], "value": [0, 0.01, 0]}]})";
+    const fs::path out = dir / "out";
+    const std::string cmd = std::string(TEARABLES_CLI) + " run " + file.string() + " --quiet --out " + out.string();
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    const json last = lastFrame(out);
+    const json& x = last["papers"]["s"]["x"];
+    ASSERT_EQ(x.size(), 25u);
+    EXPECT_NEAR(x[0][1].get<double>(), 1.0 + 0.5 * 1.0, 1e-9);  // moved up 0.5 m in 1 s
+    EXPECT_NEAR(x[0][0].get<double>(), -0.05, 1e-9);
+    // The far corner, pulled up by 0.01 N (about 40 times its vertex's weight), rises too.
+    EXPECT_GT(x[24][1].get<double>(), 1.0);
 }

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -200,6 +201,86 @@ TEST(SceneLoader, FullSceneParsesEveryField) {
     EXPECT_DOUBLE_EQ(spawn.at, 1.5);
 }
 
+// Every field of SCENE_FORMAT.md's papers example, and the extensions, arrive in the descriptor.
+TEST(SceneLoader, PapersParseEveryField) {
+    const Scene scene = parseScene(R"({
+      "bodies": [{"name": "clip", "shape": {"box": [0.05, 0.05, 0.05]}, "mass": 1}],
+      "papers": [
+        { "name": "sheet", "origin": [0, 1, 0], "size": [0.21, 0.297], "resolution": [22, 30],
+          "orientation": [0, 0, 0, 1],
+          "density": 0.08,
+          "stiffness": 5e3, "damping": 0.01, "jacobi_iterations": 8,
+          "phi": 1.0, "psi": 0.5, "hinge_threshold": 0.5,
+          "breakable": true, "tearable": false, "rupture_stretch": 0.02,
+          "attachments": [ {"vertex": [0, 0], "world": true} ] },
+        { "name": "card", "origin": [1, 2, 3], "size": [0.1, 0.2], "resolution": [3, 4],
+          "orientation": [0, 0.7071068, 0, 0.7071068], "density": 0.3, "stiffness": 2e4, "bending": 0.2, "damping": 0.05,
+          "jacobi_iterations": 12, "integrator": "explicit", "phi": 3, "psi": 1.5, "hinge_threshold": 0.25,
+          "breakable": false, "tearable": true, "rupture_stretch": 0.05, "tension": "momentum", "thickness": 0.002, "friction": 0.8, "seed": 42,
+          "attachments": [ {"vertex": [-1, -1], "world": [5, 6, 7]}, {"vertex": 1, "body": "clip", "local": [0.1, 0, 0]},
+                           {"edge": "x-", "body": "clip"} ] },
+        { "name": "mesh", "vertices": [[0, 0, 0], [1, 0, 0], [0, 0, 1]], "triangles": [[0, 2, 1]] }
+      ],
+      "drivers": [{"type": "velocity", "body": "clip", "value": [0, -1, 0], "from": 0.5, "until": 1},
+                  {"type": "move", "target": "sheet", "vertex": [-1, 0], "velocity": [0.1, 0, 0]},
+                  {"type": "force", "target": "card", "vertex": 5, "value": [0, 1, 0]}]
+    })");
+    ASSERT_EQ(scene.papers.size(), 3u);
+    const PaperDesc& a = scene.papers[0].desc;
+    EXPECT_EQ(a.name, "sheet");
+    EXPECT_EQ(a.origin, Vec3(0, 1, 0));
+    EXPECT_DOUBLE_EQ(a.size[0], 0.21);
+    EXPECT_DOUBLE_EQ(a.size[1], 0.297);
+    EXPECT_EQ(a.resolution[0], 22);
+    EXPECT_EQ(a.resolution[1], 30);
+    EXPECT_DOUBLE_EQ(a.density, 0.08);
+    EXPECT_DOUBLE_EQ(a.stiffness, 5e3);
+    EXPECT_DOUBLE_EQ(a.damping, 0.01);
+    EXPECT_EQ(a.jacobi_iterations, 8);
+    EXPECT_DOUBLE_EQ(a.phi, 1.0);
+    EXPECT_DOUBLE_EQ(a.psi, 0.5);
+    EXPECT_DOUBLE_EQ(a.hinge_threshold, 0.5);
+    EXPECT_TRUE(a.breakable);
+    EXPECT_FALSE(a.tearable);
+    EXPECT_DOUBLE_EQ(a.rupture_stretch, 0.02);
+    ASSERT_EQ(a.attachments.size(), 1u);
+    EXPECT_EQ(a.attachments[0].vertex, 0u);
+    EXPECT_FALSE(a.attachments[0].world.has_value());  // true: where the vertex is
+    EXPECT_EQ(a.seed, scene.seed + 1000);
+    const Paper& b = scene.papers[1];
+    EXPECT_NEAR(b.desc.orientation.y(), std::sqrt(0.5), 1e-6);
+    EXPECT_DOUBLE_EQ(b.desc.bending, 0.2);
+    EXPECT_EQ(b.desc.integrator, PaperIntegrator::Explicit);
+    EXPECT_DOUBLE_EQ(b.desc.phi, 3.0);
+    EXPECT_DOUBLE_EQ(b.desc.psi, 1.5);
+    EXPECT_DOUBLE_EQ(b.desc.hinge_threshold, 0.25);
+    EXPECT_FALSE(b.desc.breakable);
+    EXPECT_TRUE(b.desc.tearable);
+    EXPECT_DOUBLE_EQ(b.desc.rupture_stretch, 0.05);
+    EXPECT_EQ(b.desc.tension, PaperTension::Momentum);
+    EXPECT_EQ(a.tension, PaperTension::Stretch);
+    EXPECT_DOUBLE_EQ(b.desc.thickness, 0.002);
+    EXPECT_DOUBLE_EQ(b.desc.friction, 0.8);
+    EXPECT_EQ(b.desc.seed, 42u);
+    ASSERT_EQ(b.desc.attachments.size(), 1u);
+    EXPECT_EQ(b.desc.attachments[0].vertex, 11u);  // [-1, -1] on a 3 x 4 grid
+    EXPECT_EQ(*b.desc.attachments[0].world, Vec3(5, 6, 7));
+    ASSERT_EQ(b.glue.size(), 1u + 4u);  // vertex 1 and the x- edge (4 vertices)
+    EXPECT_EQ(b.glue[0].vertex, 1u);
+    EXPECT_EQ(b.glue[0].body, "clip");
+    EXPECT_EQ(*b.glue[0].local, Vec3(0.1, 0, 0));
+    EXPECT_EQ(b.glue[1].vertex, 0u);
+    EXPECT_EQ(b.glue[4].vertex, 9u);
+    EXPECT_FALSE(b.glue[1].local.has_value());
+    EXPECT_EQ(scene.papers[2].desc.vertices.size(), 3u);
+    ASSERT_EQ(scene.drivers.size(), 3u);
+    EXPECT_EQ(scene.drivers[0].type, Driver::Type::Velocity);
+    EXPECT_EQ(scene.drivers[0].body_name, "clip");
+    EXPECT_EQ(scene.drivers[0].paper_vertex, -1);
+    EXPECT_EQ(scene.drivers[1].paper_vertex, 21);  // [-1, 0] on a 22-wide grid
+    EXPECT_EQ(scene.drivers[2].paper_vertex, 5);
+}
+
 TEST(SceneLoader, AbsentFieldsTakeTheirDefaults) {
     const Scene s = parseScene(R"({"bodies": [{"name": "b", "shape": {"sphere": 1}}],
                                    "strings": [{"name": "r", "from": [0, 0, 0], "to": [1, 0, 0]}]})");
@@ -332,7 +413,6 @@ const ErrorCase kErrorCases[] = {
     {"GravityElementType", R"({"gravity": [0, null, 0]})", "gravity[1]", "expected a number, got null"},
     {"OutputEveryZero", R"({"output": {"every": 0}})", "output.every", "must be in [1, 1000000000] (got 0)"},
     {"OutputUnknownField", R"({"output": {"evry": 2}})", "output.evry", "unknown field (allowed: every)"},
-    {"PapersNotYet", R"({"papers": [{"name": "sheet"}]})", "papers", "paper sheets are not available in this build yet"},
     // --- cloths
     {"ClothMissingName", R"({"cloths": [{}]})", "cloths[0].name", "missing required field"},
     {"ClothUnknownField", R"({"cloths": [{"name": "c", "colour": 1}]})", "cloths[0].colour", "unknown field"},
@@ -358,6 +438,52 @@ const ErrorCase kErrorCases[] = {
      "drivers[0].particle", "vertex: [i, j]"},
     {"DriverClothVertexMissing", R"({"cloths": [{"name": "c"}], "drivers": [{"type": "force", "target": "c", "value": [0, 1, 0]}]})",
      "drivers[0].vertex", "missing required field"},
+    // --- papers
+    {"PaperMissingName", R"({"papers": [{}]})", "papers[0].name", "missing required field"},
+    {"PaperDuplicateName", R"({"papers": [{"name": "s"}, {"name": "s"}]})", "papers[1].name", "duplicate paper name"},
+    {"PaperUnknownField", R"({"papers": [{"name": "s", "colour": 1}]})", "papers[0].colour", "unknown field"},
+    {"PaperSizeZero", R"({"papers": [{"name": "s", "size": [0.2, 0]}]})", "papers[0].size[1]", "greater than 0"},
+    {"PaperResolutionOne", R"({"papers": [{"name": "s", "resolution": [1, 4]}]})", "papers[0].resolution[0]", "in [2, 1024]"},
+    {"PaperDensity", R"({"papers": [{"name": "s", "density": -1}]})", "papers[0].density", "greater than 0"},
+    {"PaperStiffness", R"({"papers": [{"name": "s", "stiffness": 0}]})", "papers[0].stiffness", "greater than 0"},
+    {"PaperDamping", R"({"papers": [{"name": "s", "damping": 2}]})", "papers[0].damping", "in [0, 1]"},
+    {"PaperJacobi", R"({"papers": [{"name": "s", "jacobi_iterations": 0}]})", "papers[0].jacobi_iterations", "in [1, 256]"},
+    {"PaperPhi", R"({"papers": [{"name": "s", "phi": 0}]})", "papers[0].phi", "in (0, 1000]"},
+    {"PaperPsi", R"({"papers": [{"name": "s", "psi": -1}]})", "papers[0].psi", "in [0, 4]"},
+    {"PaperHinge", R"({"papers": [{"name": "s", "hinge_threshold": 1}]})", "papers[0].hinge_threshold", "in [0, 1)"},
+    {"PaperBreakable", R"({"papers": [{"name": "s", "breakable": 1}]})", "papers[0].breakable", "expected a boolean"},
+    {"PaperRupture", R"({"papers": [{"name": "s", "rupture_stretch": 0}]})", "papers[0].rupture_stretch", "in (0, 100]"},
+    {"PaperIntegrator", R"({"papers": [{"name": "s", "integrator": "rk4"}]})", "papers[0].integrator", "\"implicit\" or \"explicit\""},
+    {"PaperTension", R"({"papers": [{"name": "s", "tension": "local"}]})", "papers[0].tension", "\"stretch\" or \"momentum\""},
+    {"PaperOrientationZero", R"({"papers": [{"name": "s", "orientation": [0, 0, 0, 0]}]})", "papers[0].orientation", "non-zero"},
+    {"PaperMeshWithSize", R"({"papers": [{"name": "s", "size": [1, 1], "vertices": [[0,0,0],[1,0,0],[0,0,1]], "triangles": [[0,2,1]]}]})",
+     "papers[0].size", "belongs to a rectangle"},
+    {"PaperMeshBadIndex", R"({"papers": [{"name": "s", "vertices": [[0,0,0],[1,0,0],[0,0,1]], "triangles": [[0,2,3]]}]})",
+     "papers[0].triangles[0][2]", "in [0, 2]"},
+    {"PaperMeshDegenerate", R"({"papers": [{"name": "s", "vertices": [[0,0,0],[1,0,0],[2,0,0]], "triangles": [[0,2,1]]}]})",
+     "papers[0].triangles[0]", "degenerate"},
+    {"PaperAttachmentVertexRange", R"({"papers": [{"name": "s", "resolution": [3, 3], "attachments": [{"vertex": [3, 0], "world": true}]}]})",
+     "papers[0].attachments[0].vertex[0]", "in [-3, 2]"},
+    {"PaperAttachmentIndexRange", R"({"papers": [{"name": "s", "resolution": [3, 3], "attachments": [{"vertex": 9, "world": true}]}]})",
+     "papers[0].attachments[0].vertex", "in [-9, 8]"},
+    {"PaperAttachmentTwice", R"({"papers": [{"name": "s", "resolution": [3, 3], "attachments": [{"vertex": 0, "world": true}, {"vertex": [0, 0], "world": true}]}]})",
+     "papers[0].attachments[1].vertex", "already has an attachment (papers[0].attachments[0])"},
+    {"PaperAttachmentNoBody", R"({"papers": [{"name": "s", "attachments": [{"vertex": 0, "body": "nope"}]}]})",
+     "papers[0].attachments[0].body", "no body named \"nope\""},
+    {"PaperAttachmentNeither", R"({"papers": [{"name": "s", "attachments": [{"vertex": 0}]}]})",
+     "papers[0].attachments[0]", "needs body"},
+    {"PaperAttachmentWorldFalse", R"({"papers": [{"name": "s", "attachments": [{"vertex": 0, "world": false}]}]})",
+     "papers[0].attachments[0].world", "false attaches nothing"},
+    {"PaperAttachmentBadEdge", R"({"papers": [{"name": "s", "attachments": [{"edge": "y+", "world": true}]}]})",
+     "papers[0].attachments[0].edge", "must be \"x-\""},
+    {"PaperDriverParticle", R"({"papers": [{"name": "s"}], "drivers": [{"type": "force", "target": "s", "particle": 0, "vertex": 0, "value": [0, 1, 0]}]})",
+     "drivers[0].particle", "a paper's vertex is given as \"vertex\""},
+    {"PaperDriverNoVertex", R"({"papers": [{"name": "s"}], "drivers": [{"type": "move", "target": "s", "velocity": [0, 1, 0]}]})",
+     "drivers[0].vertex", "missing required field"},
+    {"StringDriverVertex", R"({"strings": [{"name": "r", "from": [0, 1, 0], "to": [0, 0, 0]}], "drivers": [{"type": "force", "target": "r", "vertex": 0, "value": [0, 1, 0]}]})",
+     "drivers[0].vertex", "only for a cloth or paper target"},
+    {"VelocityDriverNoBody", R"({"drivers": [{"type": "velocity", "body": "ball", "value": [0, 1, 0]}]})",
+     "drivers[0].body", "no body named \"ball\""},
     {"PapersNotArray", R"({"papers": {}})", "papers", "expected an array, got an object"},
     // --- bodies
     {"BodyNegativeMass", bodiesScene(R"({"name": "b", "shape": {"sphere": 1}, "mass": -1})"), "bodies[0].mass",
@@ -477,10 +603,10 @@ const ErrorCase kErrorCases[] = {
      "strings[0].attachments[0].offset", "unknown field"},
     // --- drivers
     {"DriverUnknownType", driverScene(R"({"type": "shake", "target": "rope"})"), "drivers[0].type",
-     "unknown driver type \"shake\" (allowed: force, ramp, twist, move, release, wind, spawn)"},
+     "unknown driver type \"shake\" (allowed: force, ramp, twist, move, release, wind, spawn, velocity)"},
     {"DriverMissingType", driverScene(R"({"target": "rope"})"), "drivers[0].type", "missing required field"},
     {"DriverUnknownTarget", driverScene(R"({"type": "force", "target": "rop", "value": [0, 1, 0]})"),
-     "drivers[0].target", "no string or cloth named \"rop\" (strings and cloths: rope)"},
+     "drivers[0].target", "no string, cloth or paper named \"rop\" (strings, cloths and papers: rope)"},
     {"DriverParticleOutOfRange", driverScene(R"({"type": "force", "target": "rope", "particle": -12, "value": [0, 1, 0]})"),
      "drivers[0].particle", "particle index out of range"},
     {"DriverParticleFraction", driverScene(R"({"type": "release", "target": "rope", "particle": 1.5})"),

@@ -1,0 +1,191 @@
+// Paper sheets: contacts of the vertices with rigid bodies, and the position update with
+// pins and glue.
+//
+// Each vertex is a sphere of half the sheet's thickness. The host (the Bullet plugin)
+// reports a contact point on the body where the body is at the end of its step, with the
+// normal from the body toward the vertex. A vertex may approach the body by no more than
+// its gap (speculative contact): n . v >= -gap / h. The velocity change that enforces it
+// is the vertex's normal impulse; Coulomb friction limits the tangential change of the
+// velocity relative to the body's surface to mu times the normal one. The body receives
+// the equal and opposite impulse (linear momentum is conserved), as the strings' contacts
+// do, but through its centre of mass (releaseBodies says why).
+// A light vertex cannot stop a heavy body in one step: the body is held over the next
+// steps, as the implicit solve turns the vertex's displacement into spring force and the
+// vertex passes it on through the contact (a light box comes to rest on a sheet; a sphere
+// pushed by its host presses the sheet and is hardly slowed).
+#include "paper/sheet.hpp"
+#include "string/string_state.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace tearables::detail {
+
+namespace {
+
+/// Passes over the contacts: a vertex touching a body at two points, or two bodies,
+/// settles in a few.
+constexpr int kContactPasses = 3;
+
+void pushBody(RigidState& body, const Vec3& arm, const Vec3& impulse) {
+    body.linear_velocity += body.inverse_mass * impulse;
+    body.angular_velocity += body.inverseInertiaWorld() * arm.cross(impulse);
+    body.impulse += impulse;
+}
+
+}  // namespace
+
+void resolveContacts(PaperSheet& s, const std::vector<PointContact>& contacts, RigidTable& rigids, const PaperStep& ctx) {
+    if (contacts.empty()) return;
+    const double radius = 0.5 * s.desc.thickness;
+    for (int pass = 0; pass < kContactPasses; ++pass) {
+        for (const PointContact& c : contacts) {
+            const std::uint32_t i = c.vertex;
+            if (i >= s.vertices() || s.fixed[i]) continue;
+            RigidState& body = rigids.bodies[c.body.index];
+            const bool movable = rigids.movable(c.body);
+            // The host found the point where the body was when the step began; the
+            // strings and releaseBodies may have moved the body since (translation).
+            const Vec3 point = c.point + (body.position - rigids.start_position[c.body.index]);
+            const Vec3 arm = point - body.position;
+            const Vec3 n = c.normal;
+            const double gap = n.dot(s.x[i] - point) - radius;
+            const double target = -gap * ctx.inv_h;
+            const double vn = n.dot(s.v[i]);
+            if (vn >= target) continue;
+            const double dvn = target - vn;
+            Vec3 dv = dvn * n;
+            // Friction on the motion relative to the body's surface.
+            const Vec3 body_v = body.linear_velocity + body.angular_velocity.cross(arm);
+            Vec3 rel = s.v[i] + dv - body_v;
+            rel -= n * n.dot(rel);
+            const double slip = rel.norm();
+            const double mu = std::max(s.desc.friction, c.friction);
+            if (slip > 0.0) dv -= rel * std::min(1.0, mu * dvn / slip);
+            s.v[i] += dv;
+            // Through the centre of mass (see releaseBodies).
+            if (movable) pushBody(body, Vec3::Zero(), -s.mass[i] * dv);
+        }
+    }
+}
+
+namespace {
+
+/// The contact's body is movable and the vertex will close the gap this step (with
+/// gravity's pull and a quarter radius of slack).
+bool closing(const PaperSheet& s, const PointContact& c, const RigidTable& rigids, const PaperStep& ctx) {
+    if (c.vertex >= s.vertices() || !rigids.movable(c.body)) return false;
+    if (s.hold[c.vertex].kind != VertexHold::Kind::Free) return false;
+    const RigidState& body = rigids.bodies[c.body.index];
+    const Vec3 body_v = body.linear_velocity + body.angular_velocity.cross(c.point - body.position);
+    const double radius = 0.5 * s.desc.thickness;
+    const double gap = c.normal.dot(s.x[c.vertex] - c.point) - radius;
+    const double approach = c.normal.dot(s.v[c.vertex] + ctx.h * ctx.gravity - body_v);
+    return gap + ctx.h * approach < 0.25 * radius;
+}
+
+}  // namespace
+
+void countCouplings(const PaperSheet& s, const std::vector<PointContact>& contacts, const RigidTable& rigids,
+                    const PaperStep& ctx, std::vector<double>& count) {
+    count.resize(rigids.bodies.size(), 0.0);
+    for (std::size_t i = 0; i < s.vertices(); ++i)
+        if (s.hold[i].kind == VertexHold::Kind::Glue && rigids.movable(s.hold[i].body)) count[s.hold[i].body.index] += 1.0;
+    for (const PointContact& c : contacts)
+        if (closing(s, c, rigids, ctx)) count[c.body.index] += 1.0;
+}
+
+void coupleBodies(PaperSheet& s, const std::vector<PointContact>& contacts, const std::vector<double>& count_of,
+                  const RigidTable& rigids, const PaperStep& ctx, std::vector<BodyCoupling>& out) {
+    out.clear();
+    s.added_mass.assign(s.vertices(), Mat3::Zero());
+    s.added_force.assign(s.vertices(), Vec3::Zero());
+    for (std::size_t i = 0; i < s.vertices(); ++i) {
+        const VertexHold& hold = s.hold[i];
+        if (hold.kind != VertexHold::Kind::Glue || !rigids.movable(hold.body)) continue;
+        const RigidState& body = rigids.bodies[hold.body.index];
+        BodyCoupling c;
+        c.vertex = static_cast<std::uint32_t>(i);
+        c.body = hold.body;
+        c.arm = gluePoint(body, hold.point) - body.position;
+        c.body_velocity = body.linear_velocity + body.angular_velocity.cross(c.arm);
+        // The body's mass as seen at the glue point, K^-1 with K = 1/M - [r] I^-1 [r]
+        // (rotation included), shared among the vertices it couples to.
+        c.lent = Mat3::Identity() / (body.inverse_mass * count_of[hold.body.index]);
+        // The glued vertex starts where the body point was before the host's step (the
+        // host has moved the body already) and as it went before the host's gravity kick:
+        // the lent mass's weight goes into the solve instead (added_force), so the sheet
+        // carries it implicitly. (Left to the host, the kick reached the solve as a
+        // velocity jump of the vertex against its neighbours: their damping and the
+        // truncated Jacobi solve then held a 2 g weight at 24% strain.)
+        s.x[i] = gluePoint(body, hold.point) - ctx.h * c.body_velocity;  // where it was before the host's step
+        s.v[i] = c.body_velocity - ctx.h * ctx.gravity;
+        s.added_mass[i] += c.lent;
+        s.added_force[i] += c.lent * ctx.gravity;
+        out.push_back(c);
+    }
+    for (const PointContact& pc : contacts) {
+        if (!closing(s, pc, rigids, ctx)) continue;
+        const RigidState& body = rigids.bodies[pc.body.index];
+        BodyCoupling c;
+        c.vertex = pc.vertex;
+        c.body = pc.body;
+        c.arm = pc.point - body.position;
+        c.body_velocity = body.linear_velocity + body.angular_velocity.cross(c.arm);
+        // The body's mass along the normal at the contact point (rotation included),
+        // shared among the vertices it couples to.
+        const Vec3& n = pc.normal;
+        const double share = 1.0 / (body.inverse_mass * count_of[pc.body.index]);
+        c.lent = share * (n * n.transpose());
+        // Inelastic along the normal: vertex and share start with their common velocity
+        // (the body's before the host's gravity kick, whose weight goes into the solve,
+        // as for glue).
+        const double m = s.mass[c.vertex];
+        const double common = (m * n.dot(s.v[c.vertex]) + share * n.dot(c.body_velocity - ctx.h * ctx.gravity)) / (m + share);
+        s.v[c.vertex] += (common - n.dot(s.v[c.vertex])) * n;
+        c.normal = n;
+        s.added_mass[c.vertex] += c.lent;
+        s.added_force[c.vertex] += c.lent * ctx.gravity;
+        out.push_back(c);
+    }
+}
+
+void releaseBodies(const PaperSheet& s, const std::vector<BodyCoupling>& couplings, RigidTable& rigids, const PaperStep& ctx) {
+    for (const BodyCoupling& c : couplings) {
+        RigidState& body = rigids.bodies[c.body.index];
+        // What the share gained in the solve, from the velocity the body point had.
+        Vec3 impulse = c.lent * (s.v[c.vertex] - c.body_velocity);
+        // A contact pushes the body away from the vertex (along -n), never pulls it.
+        if (c.normal.squaredNorm() > 0.0 && impulse.dot(c.normal) > 0.0) impulse.setZero();
+        // Position-based, as the strings couple: the body is moved by what its share
+        // moved differently from the host's step, h dv; the world turns that move into
+        // the velocity change dv when the step ends. (An impulse alone left the host's
+        // fall of g h^2 per step uncorrected: a glued weight sank until the springs were
+        // stretched 24%.) Translation only: the impulse goes through the centre of mass.
+        // Applied at the contact point, the torques of the many vertex contacts, each
+        // solved as if alone, overshot: a box resting on a sheet rocked, spun up to 27
+        // rad/s and tumbled off. A limitation: the sheet does not turn a body.
+        body.position += body.inverse_mass * ctx.h * impulse;
+        body.impulse += impulse;
+    }
+}
+
+void integratePositions(PaperSheet& s, RigidTable& rigids, const PaperStep& ctx) {
+    for (std::size_t i = 0; i < s.vertices(); ++i) {
+        const VertexHold& hold = s.hold[i];
+        if (hold.kind == VertexHold::Kind::Pin) {
+            s.x[i] = hold.point;
+        } else if (hold.kind == VertexHold::Kind::Glue) {
+            RigidState& body = rigids.bodies[hold.body.index];
+            if (rigids.movable(hold.body)) {
+                s.x[i] += ctx.h * s.v[i];  // solved with the body's share; the body follows (releaseBodies)
+            } else {
+                s.x[i] = gluePoint(body, hold.point);
+            }
+        } else {
+            s.x[i] += ctx.h * s.v[i];
+        }
+    }
+}
+
+}  // namespace tearables::detail

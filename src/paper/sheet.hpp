@@ -1,0 +1,195 @@
+// Paper sheets: the state of one sheet and the kernels of its step, one file per stage
+// (desc.cpp: validation and the rest mesh; implicit.cpp: forces and the Jacobi solve;
+// contact.cpp: rigid bodies; hinge.cpp: breakable hinge springs; tear.cpp: tearing;
+// mesh.cpp: topology helpers and the validity check). No Bullet here.
+#pragma once
+
+#include "tearables/events.hpp"
+#include "tearables/paper.hpp"
+#include "tearables/world.hpp"
+
+#include <array>
+#include <cstdint>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace tearables::detail {
+
+struct RigidTable;
+
+/// What holds a vertex.
+struct VertexHold {
+    enum class Kind : std::uint8_t { Free, Pin, Glue };
+    Kind kind = Kind::Free;
+    Vec3 point = Vec3::Zero();  ///< Pin: world target; Glue: point in the body's frame
+    RigidId body;               ///< Glue
+};
+
+/// One sheet. Vertices are structure of arrays; springs and triangles are appended only.
+struct PaperSheet {
+    PaperDesc desc;
+    bool alive = true;
+    bool frozen = false;
+    // per vertex (n)
+    std::vector<Vec3> x;          ///< positions at the start of the step / after it, m
+    std::vector<Vec3> x_pred;     ///< predicted positions of the step (collision query), m
+    std::vector<Vec3> v;          ///< velocities, m/s
+    std::vector<Vec3> force;      ///< user forces for the next step, N
+    std::vector<double> mass;     ///< kg
+    std::vector<VertexHold> hold;
+    std::vector<std::uint8_t> crack_tip;  ///< 1 where a tear's cut ends inside the sheet (tear.cpp)
+    // topology
+    std::vector<std::array<std::uint32_t, 3>> triangles;
+    std::vector<PaperSpring> springs;
+    /// Adjacency, kept up to date by the helpers of mesh.cpp (setCorner, addTriangle,
+    /// addSpring, setSpringName): per vertex, the triangles that use it, and the springs
+    /// that name it (as an end or as what they span). Topology changes look up only
+    /// their neighbourhood, never the whole mesh.
+    std::vector<std::vector<std::uint32_t>> vertex_triangles;
+    std::vector<std::vector<std::uint32_t>> vertex_springs;
+    /// Per spring: the largest compression 1 - l/l0 it has survived (breaking draws only
+    /// against the increase, so the chance to have broken by compression c is c^phi
+    /// whatever the time step).
+    std::vector<double> survived;
+    PaperCounters counters;
+    std::mt19937_64 rng;
+    double total_mass = 0.0;
+    // solver scratch (sized to the mesh; grows only when the topology grows)
+    std::vector<Mat3> diag_inv;   ///< per vertex, inverse of W_ii
+    std::vector<Mat3> block;      ///< per spring, h c P + h^2 K (the coupling W_ij = -block)
+    std::vector<Vec3> rhs;        ///< per vertex, h f + h^2 J v
+    std::vector<Vec3> dv, dv_next;
+    std::vector<std::uint8_t> fixed;  ///< per vertex, its velocity is prescribed (pinned, glued)
+    std::vector<Vec3> added_force;    ///< per vertex, the weight of the mass lent to it, N
+    std::vector<Mat3> added_mass;
+    std::vector<Vec3> v_start;        ///< per vertex, velocity at the step start (momentum balance)
+    std::vector<double> tension;      ///< per spring, N (structural; 0 otherwise)     ///< per vertex, movable bodies' mass lent to it this step (contact normal, glue), kg
+
+    std::size_t vertices() const { return x.size(); }
+};
+
+/// Per-step context of the sheets.
+struct PaperStep {
+    double h = 0.0;
+    double inv_h = 0.0;
+    Vec3 gravity = Vec3::Zero();
+    double max_speed = 500.0;
+    double time = 0.0;
+    std::int64_t step = 0;
+};
+
+// --- desc.cpp ---
+/// Builds a sheet from a validated descriptor (rest mesh, masses, springs). Attachments to
+/// bodies are resolved by the caller (it knows the bodies).
+PaperSheet buildSheet(const PaperDesc& desc);
+/// The rest positions and triangles a descriptor describes (the rectangle or the mesh).
+void restMesh(const PaperDesc& desc, std::vector<Vec3>& x, std::vector<std::array<std::uint32_t, 3>>& triangles);
+
+// --- implicit.cpp ---
+/// Forces and the velocity solve: Paper Sec. III.A (implicit) or explicit Euler. Writes
+/// the new velocities into s.v and the predicted positions into s.x_pred.
+void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& ctx);
+/// Spring force on vertex a of a spring (b gets the opposite), N, damping included.
+Vec3 springForce(const PaperSpring& sp, const Vec3& xa, const Vec3& xb, const Vec3& va, const Vec3& vb, double damping);
+
+// --- contact.cpp ---
+/// A vertex solved together with a share of a movable body's mass: along the contact
+/// normal (projector n n^T) or fully (glue, projector I).
+struct BodyCoupling {
+    std::uint32_t vertex = 0;
+    RigidId body;
+    Mat3 lent = Mat3::Zero();       ///< the body's mass lent to the vertex, kg (n n^T scaled for a contact)
+    Vec3 normal = Vec3::Zero();     ///< contact: unit, from the body toward the vertex; glue: zero
+    Vec3 arm = Vec3::Zero();        ///< from the body's centre of mass to the vertex, m
+    Vec3 body_velocity = Vec3::Zero();  ///< the body point's velocity before coupling, m/s
+};
+/// Before the solve: every glue to a movable body, and every contact with one that the
+/// vertex is about to close, lends the vertex a share (1 / `count_of(body)`) of the body's
+/// effective mass at that point (rotation included), and the vertex starts with the momentum-weighted common velocity. The stiff
+/// sheet then carries the body implicitly (a light vertex alone cannot: its momentum is
+/// too small to stop a box in a step, and the box would push through).
+void coupleBodies(PaperSheet& s, const std::vector<PointContact>& contacts, const std::vector<double>& count_of,
+                  const RigidTable& rigids, const PaperStep& ctx, std::vector<BodyCoupling>& out);
+/// Counts, per body, how many vertices coupleBodies would couple to it (glues and closing contacts).
+void countCouplings(const PaperSheet& s, const std::vector<PointContact>& contacts, const RigidTable& rigids,
+                    const PaperStep& ctx, std::vector<double>& count);
+/// After the solve: each coupled body is moved by what its share gained times h (the world
+/// turns the move into velocity); a contact only pushes, never pulls.
+void releaseBodies(const PaperSheet& s, const std::vector<BodyCoupling>& couplings, RigidTable& rigids, const PaperStep& ctx);
+/// Resolves the vertices' contacts with rigid bodies (velocity level, with Coulomb
+/// friction, equal and opposite impulses to movable bodies). `contacts` are this sheet's.
+void resolveContacts(PaperSheet& s, const std::vector<PointContact>& contacts, RigidTable& rigids, const PaperStep& ctx);
+/// Moves the vertices by their velocities, holds pins and glued vertices, and gives glued
+/// bodies the sheet's pull.
+void integratePositions(PaperSheet& s, RigidTable& rigids, const PaperStep& ctx);
+
+// --- hinge.cpp ---
+/// Draws whether a spring compressed to `ratio` = l/l0 (having survived `survived`
+/// compression before) breaks now: Paper Eq. 7, conditioned on having survived.
+bool drawBreak(double ratio, double survived, double phi, std::mt19937_64& rng);
+/// Lift of the inserted vertex, Paper Eq. 8: h = psi/2 sqrt(l0^2 - l^2), m.
+double creaseLift(double rest, double length, double psi);
+/// Breaks the compressed breakable springs (inserting a lifted vertex each, with the
+/// re-triangulation and the auxiliary spring) and inserts hinge springs across folded
+/// edges. Appends Crease and Hinge events.
+void creaseAndFold(PaperSheet& s, PaperId id, const PaperStep& ctx, std::vector<Event>& events);
+/// Breaks structural spring `index` now (a vertex inserted, lifted by Eq. 8). Returns the
+/// new vertex, or UINT32_MAX when the spring cannot break (not an edge of a triangle).
+std::uint32_t breakSpring(PaperSheet& s, std::uint32_t index);
+
+// --- tension.cpp ---
+/// Per-spring tensions of the step (s.tension), before the positions are updated:
+/// the springs' forces (Stretch) or Yarn's momentum balance (Momentum).
+/// Vertices with a contact are left out of the balance (the contact's force is unknown).
+void estimateTension(PaperSheet& s, const std::vector<PointContact>& contacts, const PaperStep& ctx);
+
+// --- tear.cpp ---
+/// Separates the mesh where a structural edge is stretched past rupture_stretch
+/// (vertices duplicated along the cut). Appends Tear events.
+void tear(PaperSheet& s, PaperId id, const PaperStep& ctx, std::vector<Event>& events);
+/// Splits vertex `vertex` of the sheet along the fan edge (vertex, across): the
+/// triangles on one side get a new vertex. Returns the new vertex or UINT32_MAX when the
+/// split is not possible (not a boundary vertex, or `across` is not an inner fan edge).
+std::uint32_t splitVertex(PaperSheet& s, std::uint32_t vertex, std::uint32_t across);
+
+// --- mesh.cpp ---
+/// Appends a vertex (all per-vertex arrays grow); returns its index.
+std::uint32_t addVertex(PaperSheet& s, const Vec3& x, const Vec3& v, double mass);
+/// Appends a spring; returns its index.
+std::uint32_t addSpring(PaperSheet& s, std::uint32_t a, std::uint32_t b, double rest, double k, PaperSpringKind kind);
+/// Rebuilds the adjacency lists from the triangles and springs.
+void buildAdjacency(PaperSheet& s);
+/// Appends a triangle; returns its index.
+std::uint32_t addTriangle(PaperSheet& s, const std::array<std::uint32_t, 3>& t);
+/// Sets corner c of triangle t to vertex v.
+void setCorner(PaperSheet& s, std::uint32_t t, int c, std::uint32_t v);
+/// Sets a name of spring k: slot 0 = a, 1 = b, 2 = hinge[0], 3 = hinge[1] (UINT32_MAX = none).
+void setSpringName(PaperSheet& s, std::uint32_t k, int slot, std::uint32_t v);
+/// Triangles that use vertex v (indices into s.triangles).
+void trianglesOf(const PaperSheet& s, std::uint32_t v, std::vector<std::uint32_t>& out);
+/// Triangles that have the edge {a, b}.
+void trianglesWithEdge(const PaperSheet& s, std::uint32_t a, std::uint32_t b, std::vector<std::uint32_t>& out);
+/// The vertex of triangle t that is neither a nor b.
+std::uint32_t thirdVertex(const std::array<std::uint32_t, 3>& t, std::uint32_t a, std::uint32_t b);
+/// Unit normal of triangle t (counter-clockwise), or zero when degenerate.
+Vec3 triangleNormal(const PaperSheet& s, const std::array<std::uint32_t, 3>& t);
+/// True when a live non-structural spring still has what it spans: a Bending or Hinge
+/// spring the two triangles of its hinge edge with its ends opposite; an Auxiliary spring
+/// the two edges from its ends to its crease vertex (hinge[0]).
+bool springHolds(const PaperSheet& s, const PaperSpring& sp);
+/// After a change of topology around `vertex` (split into `vertex` and `twin`, or
+/// re-triangulated when twin is UINT32_MAX): every live non-structural spring that names
+/// them is renamed to the side where it still holds, or retired (broken) when it holds on
+/// neither, so that no spring dangles across a cut or a crease.
+void revalidateSprings(PaperSheet& s, std::uint32_t vertex, std::uint32_t twin);
+/// Checks the mesh: every triangle non-degenerate (area > min_area), consistently oriented
+/// (shared edges traversed in opposite directions), edges shared by at most two triangles,
+/// every live structural spring an edge of a triangle and every edge a live structural
+/// spring, every spring's vertices in range and distinct, masses positive and summing to
+/// the sheet's. Returns "" when valid, else what is wrong.
+std::string checkMesh(const PaperSheet& s, double min_area = 1e-14);
+/// The same check on a view (what World::viewPaper gives), against the sheet's mass.
+std::string checkMesh(const PaperView& v, double total_mass, double min_area = 1e-14);
+
+}  // namespace tearables::detail

@@ -1,0 +1,294 @@
+// Paper sheets: creation, attachments and the order of a sheet's stages in a step:
+// rigid contacts (one PointQuery of all sheets to the host) -> bodies lend their mass to
+// the vertices they touch or hold -> forces and the implicit solve -> bodies get their
+// shares' motion, contacts enforced -> edge tensions -> positions -> creases and hinges
+// -> tears -> finite check. Topology changes happen only in the crease and tear stages,
+// after the positions are final, never inside a solver loop.
+#include "paper/system.hpp"
+#include "string/string_state.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+namespace tearables::detail {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
+
+void checkVertex(const PaperSheet& s, std::uint32_t vertex) {
+    if (vertex >= s.vertices())
+        throw InvalidInput("vertex", "index " + std::to_string(vertex) + " out of range (the sheet has " + std::to_string(s.vertices()) +
+                                         " vertices)");
+}
+
+void checkBody(const RigidTable& rigids, RigidId body, const std::string& field) {
+    if (body.index >= rigids.bodies.size() || !rigids.used[body.index]) throw InvalidInput(field, "no such rigid body");
+}
+
+}  // namespace
+
+PaperId PaperSystem::add(const PaperDesc& desc, const RigidTable& rigids) {
+    validate(desc);
+    for (std::size_t i = 0; i < desc.attachments.size(); ++i)
+        if (desc.attachments[i].body.valid()) checkBody(rigids, desc.attachments[i].body, "attachments[" + std::to_string(i) + "].body");
+    PaperSheet s = buildSheet(desc);
+    for (const PaperAttachment& a : desc.attachments) {
+        VertexHold& hold = s.hold[a.vertex];
+        if (a.body.valid()) {
+            hold.kind = VertexHold::Kind::Glue;
+            hold.body = a.body;
+            hold.point = a.local;
+            s.x[a.vertex] = gluePoint(rigids.bodies[a.body.index], a.local);
+        } else {
+            hold.kind = VertexHold::Kind::Pin;
+            hold.point = a.world ? *a.world : s.x[a.vertex];
+            s.x[a.vertex] = hold.point;
+        }
+    }
+    s.x_pred = s.x;
+    for (std::size_t i = 0; i < sheets_.size(); ++i)
+        if (!sheets_[i].alive) {
+            sheets_[i] = std::move(s);
+            return PaperId{static_cast<std::uint32_t>(i)};
+        }
+    sheets_.push_back(std::move(s));
+    return PaperId{static_cast<std::uint32_t>(sheets_.size() - 1)};
+}
+
+void PaperSystem::remove(PaperId id) {
+    get(id) = PaperSheet{};
+    sheets_[id.index].alive = false;
+}
+
+std::vector<PaperId> PaperSystem::ids() const {
+    std::vector<PaperId> out;
+    for (std::size_t i = 0; i < sheets_.size(); ++i)
+        if (sheets_[i].alive) out.push_back(PaperId{static_cast<std::uint32_t>(i)});
+    return out;
+}
+
+PaperSheet& PaperSystem::get(PaperId id) {
+    if (!contains(id)) throw InvalidInput("paper", "no such paper sheet");
+    return sheets_[id.index];
+}
+const PaperSheet& PaperSystem::get(PaperId id) const {
+    if (!contains(id)) throw InvalidInput("paper", "no such paper sheet");
+    return sheets_[id.index];
+}
+
+PaperView PaperSystem::view(PaperId id) const {
+    const PaperSheet& s = get(id);
+    PaperView v;
+    v.positions = &s.x;
+    v.velocities = &s.v;
+    v.masses = &s.mass;
+    v.triangles = &s.triangles;
+    v.springs = &s.springs;
+    v.tension = &s.tension;
+    v.counters = s.counters;
+    v.thickness = s.desc.thickness;
+    v.frozen = s.frozen;
+    return v;
+}
+
+void PaperSystem::attachToPoint(PaperId id, std::uint32_t vertex, const Vec3& point) {
+    PaperSheet& s = get(id);
+    checkVertex(s, vertex);
+    if (!point.allFinite()) throw InvalidInput("point", "must be finite");
+    s.hold[vertex] = VertexHold{VertexHold::Kind::Pin, point, RigidId{}};
+    s.x[vertex] = point;
+    s.v[vertex].setZero();
+}
+
+void PaperSystem::attachToRigid(PaperId id, std::uint32_t vertex, RigidId body, const Vec3& local, const RigidTable& rigids) {
+    PaperSheet& s = get(id);
+    checkVertex(s, vertex);
+    checkBody(rigids, body, "body");
+    if (!local.allFinite()) throw InvalidInput("local", "must be finite");
+    s.hold[vertex] = VertexHold{VertexHold::Kind::Glue, local, body};
+    s.x[vertex] = gluePoint(rigids.bodies[body.index], local);
+}
+
+void PaperSystem::movePin(PaperId id, std::uint32_t vertex, const Vec3& point) {
+    PaperSheet& s = get(id);
+    checkVertex(s, vertex);
+    if (s.hold[vertex].kind != VertexHold::Kind::Pin) throw InvalidInput("vertex", "is not pinned to a world point");
+    if (!point.allFinite()) throw InvalidInput("point", "must be finite");
+    s.hold[vertex].point = point;
+}
+
+void PaperSystem::detach(PaperId id, std::uint32_t vertex, EventCause cause, double time, std::int64_t step, std::vector<Event>& events) {
+    PaperSheet& s = get(id);
+    checkVertex(s, vertex);
+    if (s.hold[vertex].kind == VertexHold::Kind::Free) return;
+    s.hold[vertex] = VertexHold{};
+    Event e;
+    e.type = EventType::Release;
+    e.cause = cause;
+    e.object = s.desc.name;
+    e.particle = static_cast<int>(vertex);
+    e.time = time;
+    e.step = step;
+    events.push_back(e);
+}
+
+void PaperSystem::applyForce(PaperId id, std::uint32_t vertex, const Vec3& force) {
+    PaperSheet& s = get(id);
+    checkVertex(s, vertex);
+    if (!force.allFinite()) throw InvalidInput("force", "must be finite");
+    s.force[vertex] += force;
+}
+
+void PaperSystem::forgetBody(RigidId body, double time, std::int64_t step, std::vector<Event>& events) {
+    for (std::size_t i = 0; i < sheets_.size(); ++i) {
+        if (!sheets_[i].alive) continue;
+        for (std::size_t v = 0; v < sheets_[i].vertices(); ++v)
+            if (sheets_[i].hold[v].kind == VertexHold::Kind::Glue && sheets_[i].hold[v].body == body)
+                detach(PaperId{static_cast<std::uint32_t>(i)}, static_cast<std::uint32_t>(v), EventCause::BodyRemoved, time, step, events);
+    }
+}
+
+bool PaperSystem::usesBody(RigidId body) const {
+    for (const PaperSheet& s : sheets_) {
+        if (!s.alive) continue;
+        for (const VertexHold& hold : s.hold)
+            if (hold.kind == VertexHold::Kind::Glue && hold.body == body) return true;
+    }
+    return false;
+}
+
+void PaperSystem::bounds(double h, const Vec3& gravity, std::vector<std::pair<Vec3, Vec3>>& out) const {
+    for (const PaperSheet& s : sheets_) {
+        if (!s.alive || s.frozen || s.x.empty()) continue;
+        Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+        double speed = 0.0;
+        for (std::size_t i = 0; i < s.vertices(); ++i) {
+            lo = lo.cwiseMin(s.x[i]);
+            hi = hi.cwiseMax(s.x[i]);
+            speed = std::max(speed, s.v[i].norm());
+        }
+        // Travel in a step: the fastest vertex, plus what gravity adds, plus slack for the
+        // springs' pull (a centimetre: far more than a stiff sheet moves in a step).
+        const double grow = 0.5 * s.desc.thickness + speed * h + gravity.norm() * h * h + 0.01;
+        out.emplace_back(Vec3(lo.array() - grow), Vec3(hi.array() + grow));
+    }
+}
+
+void PaperSystem::step(const PaperStep& ctx, RigidTable& rigids, const PointContactFinder& find, std::vector<Event>& events) {
+    times_ = PaperTimes{};
+    if (sheets_.empty()) return;
+    auto live = [](const PaperSheet& s) { return s.alive && !s.frozen; };
+    auto t0 = Clock::now();
+    // Rigid bodies: one query of every live sheet's vertices, where they start and where
+    // they would go without their springs (gravity's pull); the host's contacts are
+    // speculative (a reach of both travels), so the springs' motion is covered.
+    query_.start.clear();
+    query_.predicted.clear();
+    query_.radius.clear();
+    query_sheet_.clear();
+    for (std::size_t i = 0; i < sheets_.size(); ++i) {
+        PaperSheet& s = sheets_[i];
+        if (!live(s)) continue;
+        // A glue to a body that left the table frees the vertex (the world's removeRigid
+        // does this with an event; this guards the solve).
+        for (VertexHold& hold : s.hold)
+            if (hold.kind == VertexHold::Kind::Glue && (hold.body.index >= rigids.bodies.size() || !rigids.used[hold.body.index]))
+                hold = VertexHold{};
+        s.v_start = s.v;  // before coupling changes it (momentum-balance tension)
+        s.x_pred.resize(s.vertices());
+        for (std::size_t v = 0; v < s.vertices(); ++v) s.x_pred[v] = s.x[v] + ctx.h * (s.v[v] + ctx.h * ctx.gravity);
+        query_.start.push_back(&s.x);
+        query_.predicted.push_back(&s.x_pred);
+        query_.radius.push_back(0.5 * s.desc.thickness);
+        query_sheet_.push_back(static_cast<std::uint32_t>(i));
+    }
+    contacts_.clear();
+    if (find && !query_.start.empty()) find(query_, contacts_);
+    per_sheet_.resize(sheets_.size());
+    for (auto& list : per_sheet_) list.clear();
+    // A sheet does not collide with a body it is glued to (as strings): the glue already
+    // couples them, and a second coupling through contacts would count the body twice.
+    glued_.resize(sheets_.size());
+    for (std::size_t i = 0; i < sheets_.size(); ++i) {
+        glued_[i].clear();
+        if (!live(sheets_[i]) || contacts_.empty()) continue;
+        for (const VertexHold& hold : sheets_[i].hold)
+            if (hold.kind == VertexHold::Kind::Glue) glued_[i].push_back(hold.body.index);
+        std::sort(glued_[i].begin(), glued_[i].end());
+    }
+    for (const PointContact& c : contacts_) {
+        const std::uint32_t sheet = query_sheet_[c.object];
+        if (!std::binary_search(glued_[sheet].begin(), glued_[sheet].end(), c.body.index)) per_sheet_[sheet].push_back(c);
+    }
+    // Movable bodies lend their mass to the vertices that touch or hold them, shared
+    // equally among all of them (over every sheet): count them first.
+    share_.assign(rigids.bodies.size(), 0.0);
+    for (std::size_t i = 0; i < sheets_.size(); ++i)
+        if (live(sheets_[i])) countCouplings(sheets_[i], per_sheet_[i], rigids, ctx, share_);
+    couplings_.resize(sheets_.size());
+    for (std::size_t i = 0; i < sheets_.size(); ++i)
+        if (live(sheets_[i])) coupleBodies(sheets_[i], per_sheet_[i], share_, rigids, ctx, couplings_[i]);
+    auto t1 = Clock::now();
+    times_.collision = seconds(t0, t1);
+
+    for (PaperSheet& s : sheets_)
+        if (live(s)) solveVelocities(s, rigids, ctx);
+    auto t2 = Clock::now();
+    times_.solve = seconds(t1, t2);
+
+    // The bodies get what their shares gained; then every contact is made to hold at the
+    // end of the step (static bodies, friction, what the coupling left).
+    for (std::size_t i = 0; i < sheets_.size(); ++i) {
+        if (!live(sheets_[i])) continue;
+        releaseBodies(sheets_[i], couplings_[i], rigids, ctx);
+        resolveContacts(sheets_[i], per_sheet_[i], rigids, ctx);
+    }
+    auto t3a = Clock::now();
+    times_.collision += seconds(t2, t3a);
+    for (std::size_t i = 0; i < sheets_.size(); ++i)
+        if (live(sheets_[i])) estimateTension(sheets_[i], per_sheet_[i], ctx);
+    t2 = Clock::now();
+    times_.tension = seconds(t3a, t2);
+
+    for (PaperSheet& s : sheets_)
+        if (live(s)) integratePositions(s, rigids, ctx);
+    auto t3 = Clock::now();
+    times_.positions = seconds(t2, t3);
+
+    for (std::size_t i = 0; i < sheets_.size(); ++i)
+        if (live(sheets_[i])) creaseAndFold(sheets_[i], PaperId{static_cast<std::uint32_t>(i)}, ctx, events);
+    auto t4 = Clock::now();
+    times_.crease = seconds(t3, t4);
+
+    for (std::size_t i = 0; i < sheets_.size(); ++i) {
+        PaperSheet& s = sheets_[i];
+        if (!live(s)) continue;
+        tear(s, PaperId{static_cast<std::uint32_t>(i)}, ctx, events);
+        bool ok = true;
+        for (std::size_t v = 0; v < s.vertices() && ok; ++v) ok = s.x[v].allFinite() && s.v[v].allFinite();
+        if (!ok) {
+            // Frozen: finite vertices stay where they are, non-finite ones are put at the
+            // origin (the sheet is no longer simulated; its view stays finite).
+            for (std::size_t v = 0; v < s.vertices(); ++v) {
+                if (!s.x[v].allFinite()) s.x[v].setZero();
+                s.v[v].setZero();
+            }
+            s.frozen = true;
+            Event e;
+            e.type = EventType::Freeze;
+            e.cause = EventCause::NonFinite;
+            e.object = s.desc.name;
+            e.time = ctx.time;
+            e.step = ctx.step;
+            events.push_back(e);
+        }
+        std::fill(s.force.begin(), s.force.end(), Vec3::Zero());
+    }
+    times_.tear = seconds(t4, Clock::now());
+}
+
+}  // namespace tearables::detail
+

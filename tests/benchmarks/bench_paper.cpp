@@ -1,0 +1,42 @@
+// Google Benchmark: one step of a paper sheet (Paper Sec. III.A implicit Euler with 8
+// Jacobi iterations, creasing checks, no rigid bodies): a sheet held at two corners, hanging
+// and swinging, at 32x32, 64x64 and 128x128 vertices (h = 1/60 s), with and without
+// breakable springs (creases form while it swings), and with Yarn's momentum-balance
+// tension (a sparse least squares per step).
+// Run: build/tests/benchmarks/tearables_bench --benchmark_filter=Paper
+#include "tearables/world.hpp"
+
+#include <benchmark/benchmark.h>
+
+namespace {
+
+void paperStep(benchmark::State& state, bool breakable, tearables::PaperTension tension = tearables::PaperTension::Stretch) {
+    const int n = static_cast<int>(state.range(0));
+    tearables::World world;
+    tearables::PaperDesc d;
+    d.size[0] = 0.3;
+    d.size[1] = 0.3;
+    d.resolution[0] = n;
+    d.resolution[1] = n;
+    d.breakable = breakable;
+    d.tension = tension;
+    d.attachments.push_back(tearables::PaperAttachment{0, {}, tearables::Vec3::Zero(), {}});
+    d.attachments.push_back(tearables::PaperAttachment{static_cast<std::uint32_t>(n - 1), {}, tearables::Vec3::Zero(), {}});
+    const auto id = world.addPaper(d);
+    for (int i = 0; i < 30; ++i) world.step(1.0 / 60.0);  // falling and swinging
+    for (auto _ : state) {
+        world.step(1.0 / 60.0);
+        benchmark::DoNotOptimize(world.viewPaper(id).positions->data());
+    }
+    state.SetItemsProcessed(state.iterations() * n * n);
+    state.counters["vertices"] = static_cast<double>(world.viewPaper(id).vertexCount());
+}
+
+void BM_PaperStep(benchmark::State& state) { paperStep(state, false); }
+void BM_PaperStepBreakable(benchmark::State& state) { paperStep(state, true); }
+void BM_PaperStepMomentumTension(benchmark::State& state) { paperStep(state, false, tearables::PaperTension::Momentum); }
+BENCHMARK(BM_PaperStepMomentumTension)->Arg(32)->Arg(64)->Arg(128)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_PaperStep)->Arg(32)->Arg(64)->Arg(128)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_PaperStepBreakable)->Arg(32)->Arg(64)->Arg(128)->Unit(benchmark::kMillisecond);
+
+}  // namespace
