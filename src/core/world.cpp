@@ -831,6 +831,8 @@ void World::step(double h) {
             if (!live(s)) continue;
             if (sweep == 0 || touchesMovableBody(s)) detail::limitStrain(s, rigids, ctx);
         }
+    for (StringState& s : w.strings)
+        if (live(s)) detail::clampTravel(s, ctx);
     auto t2 = Clock::now();
     t.strain_limit = seconds(t1, t2);
     // String-string and self collision: the strings that touch are solved again, together
