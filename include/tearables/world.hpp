@@ -11,6 +11,10 @@
 
 namespace tearables {
 
+namespace detail {
+struct WorldAccess;  // snapshots (src/core/snapshot.cpp) read and replace the whole state
+}
+
 /// World-wide solver settings.
 struct WorldSettings {
     Vec3 gravity{0.0, -9.81, 0.0};  ///< m/s^2, finite
@@ -220,6 +224,7 @@ public:
 private:
     struct Impl;
     std::unique_ptr<Impl> impl_;
+    friend struct detail::WorldAccess;
 };
 
 /// Throws InvalidInput naming the field when `settings` is not valid.

@@ -4,6 +4,7 @@
 
 #include "collision/capsule.hpp"
 #include "collision/grid.hpp"
+#include "core/world_access.hpp"
 #include "string/string_state.hpp"
 
 #include <algorithm>
@@ -925,5 +926,11 @@ double World::time() const { return impl_->time; }
 std::int64_t World::stepCount() const { return impl_->steps; }
 WorldSettings& World::settings() { return impl_->settings; }
 const WorldSettings& World::settings() const { return impl_->settings; }
+
+// The parts of the state that persist from one step to the next, for snapshots.
+detail::WorldParts detail::WorldAccess::parts(World& world) {
+    World::Impl& w = *world.impl_;
+    return {&w.settings, &w.strings, &w.rigids, &w.pending, &w.events, &w.previous_pairs, &w.deep_pairs, &w.time, &w.steps};
+}
 
 }  // namespace tearables
