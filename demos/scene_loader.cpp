@@ -160,6 +160,7 @@ private:
         std::string key;  ///< object: the key of the value being read
     };
     std::vector<Frame> stack_;
+    static constexpr std::size_t kMaxDepth = 64;
 
     /// The path of the value about to be read.
     std::string nextPath() const {
@@ -189,6 +190,13 @@ private:
         return true;
     }
     bool open(json v) {
+        // Found by the fuzz regression test (issue 8): every open level keeps its path, so
+        // 100000 nested arrays cost O(depth^2) (two minutes, gigabytes). A scene nests a
+        // handful of levels.
+        if (stack_.size() >= kMaxDepth) {
+            error.emplace(nextPath(), "nested deeper than " + std::to_string(kMaxDepth) + " levels");
+            return false;
+        }
         std::string path = nextPath();
         json* where = place(std::move(v));
         stack_.push_back({where, std::move(path), {}});
