@@ -11,6 +11,7 @@
 
 #include <cmath>
 #include <memory>
+#include <limits>
 #include <numeric>
 
 namespace {
@@ -287,6 +288,51 @@ TEST(RuntimeFaults, WorldsDestroyedInEitherOrderWithBodiesHeld) {
             phys.reset();
         }
     }
+}
+
+}  // namespace
+
+namespace {
+
+// A string driven non-finite while it touches another (string-string collision solves them
+// together): only the one the force acted on is frozen; the one under it goes on finite.
+TEST(RuntimeFaults, NonFiniteStringDoesNotPoisonAStringItTouches) {
+    World world;
+    const StringId calm = world.addString(rope({-0.5, 1, 0}, {0.5, 1, 0}, 20, false));
+    world.attachToPoint(calm, 0, {-0.5, 1, 0});
+    world.attachToPoint(calm, -1, {0.5, 1, 0});
+    const StringId wild = world.addString(rope({0, 1.01, -0.5}, {0, 1.01, 0.5}, 20, false));  // lies across it
+    for (int i = 0; i < 8; ++i) world.step(0.01);
+    // Resting on it: the middles are about two radii (4 mm) apart.
+    const double gap = ((*world.view(wild).positions)[10] - (*world.view(calm).positions)[10]).norm();
+    ASSERT_LT(gap, 0.006);
+    world.applyForce(wild, 10, {1e308, -1e308, 1e308});
+    world.step(0.01);
+    EXPECT_TRUE(world.view(wild).frozen);
+    EXPECT_FALSE(world.view(calm).frozen);
+    for (int i = 0; i < 50; ++i) world.step(0.01);
+    EXPECT_TRUE(allFinite(world, calm));
+    EXPECT_FALSE(world.view(calm).frozen);
+}
+
+// A non-finite gravity set on the Bullet world: the plugin's step refuses it (an error
+// reported through lastError(), never thrown into Bullet) and changes nothing; with the
+// gravity back, the ropes go on.
+TEST(RuntimeFaults, NonFiniteBulletGravityIsRefusedByTheStep) {
+    Physics phys;
+    BulletWorld ropes(*phys.world);
+    const StringId id = ropes.addString(rope({0, 2, 0}, {0, 1, 0}, 10));
+    ropes.attach(id, 0, btVector3(0, 2, 0));
+    phys.step(5);
+    const std::vector<Vec3> before = *ropes.core().view(id).positions;
+    phys.world->setGravity(btVector3(0, std::numeric_limits<float>::quiet_NaN(), 0));
+    phys.step(1);
+    EXPECT_NE(ropes.lastError().find("gravity"), std::string::npos) << ropes.lastError();
+    EXPECT_EQ(*ropes.core().view(id).positions, before);
+    phys.world->setGravity(btVector3(0, -9.81f, 0));
+    phys.step(10);
+    EXPECT_TRUE(allFinite(ropes.core(), id));
+    EXPECT_FALSE(ropes.core().view(id).frozen);
 }
 
 }  // namespace
