@@ -609,7 +609,6 @@ Snapshot Snapshot::read(std::istream& in) {
             io(s, string);
             if (string.alive) {
                 checkString(string, d.rigids, "snapshot.STRG[" + std::to_string(d.strings.size() - 1) + "]");
-                string.blk_factor.resize(string.particles());
             } else {
                 string = detail::StringState{};
                 string.alive = false;
@@ -650,6 +649,11 @@ void Snapshot::restore(World& world) const {
     const detail::WorldParts w = detail::WorldAccess::parts(world);
     *w.settings = data_->settings;
     *w.strings = data_->strings;
+    // The block factorisation is rebuilt by every step; it is sized here, not copied
+    // (a default-constructed Eigen::LLT has an uninitialised status that UBSan flags
+    // when copied: found by the sanitizer build).
+    for (detail::StringState& s : *w.strings)
+        if (s.alive) s.blk_factor.resize(s.particles());
     *w.rigids = data_->rigids;
     *w.pending = data_->pending;
     w.events->clear();
