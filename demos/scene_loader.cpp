@@ -28,6 +28,10 @@ namespace {
 using json = nlohmann::json;
 
 constexpr const char* kFormat = "tearables-scene/1";
+/// Bullet stores sizes and masses in single precision: shapes up to 1e6 m, bodies up to
+/// 1e9 kg keep their inertias finite floats.
+constexpr double kMaxSize = 1e6;
+constexpr double kMaxBodyMass = 1e9;
 
 /// Name -> path of the object that defined it (for "duplicate name" messages).
 using NameMap = std::map<std::string, std::string>;
@@ -156,6 +160,7 @@ private:
         std::string key;  ///< object: the key of the value being read
     };
     std::vector<Frame> stack_;
+    static constexpr std::size_t kMaxDepth = 64;
 
     /// The path of the value about to be read.
     std::string nextPath() const {
@@ -185,6 +190,13 @@ private:
         return true;
     }
     bool open(json v) {
+        // Found by the fuzz regression test (issue 8): every open level keeps its path, so
+        // 100000 nested arrays cost O(depth^2) (two minutes, gigabytes). A scene nests a
+        // handful of levels.
+        if (stack_.size() >= kMaxDepth) {
+            error.emplace(nextPath(), "nested deeper than " + std::to_string(kMaxDepth) + " levels");
+            return false;
+        }
         std::string path = nextPath();
         json* where = place(std::move(v));
         stack_.push_back({where, std::move(path), {}});
@@ -226,6 +238,9 @@ struct Range {
     static Range atLeast(double lo) { return {lo, std::numeric_limits<double>::infinity(), false, false}; }
     static Range closed(double lo, double hi) { return {lo, hi, false, false}; }
     static Range leftOpen(double lo, double hi) { return {lo, hi, true, false}; }
+    /// Positions, offsets and velocities that Bullet stores in single precision: within
+    /// +-1e6 (m, m/s, rad/s, m/s^2), where a float still resolves them (issue 8).
+    static Range bullet() { return closed(-1e6, 1e6); }
 
     bool contains(double v) const {
         return std::isfinite(v) && (lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi);
@@ -339,8 +354,23 @@ public:
         return out;
     }
 
-    Vec3 asVec3() const {
-        const std::vector<double> v = asNumbers(3);
+    /// A positive number (a size, a mass) of at most `max`: "greater than 0" below, the
+    /// whole range above.
+    double asPositiveAtMost(double max) const {
+        const double v = asNumber(Range::positive());
+        if (v > max) fail("must be " + Range::leftOpen(0.0, max).text() + " (got " + gotText() + ")");
+        return v;
+    }
+    /// `count` numbers, each asPositiveAtMost(max).
+    std::vector<double> asPositivesAtMost(std::size_t count, double max) const {
+        asNumbers(count, Range::positive());
+        std::vector<double> out;
+        for (const Node& e : asArray()) out.push_back(e.asPositiveAtMost(max));
+        return out;
+    }
+
+    Vec3 asVec3(const Range& range = Range::any()) const {
+        const std::vector<double> v = asNumbers(3, range);
         return {v[0], v[1], v[2]};
     }
 
@@ -383,9 +413,9 @@ public:
         const auto f = field(key);
         return f ? f->asBool() : fallback;
     }
-    Vec3 vec3(const std::string& key, const Vec3& fallback) const {
+    Vec3 vec3(const std::string& key, const Vec3& fallback, const Range& range = Range::any()) const {
         const auto f = field(key);
-        return f ? f->asVec3() : fallback;
+        return f ? f->asVec3(range) : fallback;
     }
     /// The elements of the array field `key`; none when absent.
     std::vector<Node> array(const std::string& key) const {
@@ -453,20 +483,20 @@ Shape parseShape(const Node& n) {
     Shape s;
     if (const auto box = n.field("box")) {
         s.kind = Shape::Kind::Box;
-        const std::vector<double> h = box->asNumbers(3, Range::positive());
+        const std::vector<double> h = box->asPositivesAtMost(3, kMaxSize);
         s.half_extents = {h[0], h[1], h[2]};
     } else if (const auto sphere = n.field("sphere")) {
         s.kind = Shape::Kind::Sphere;
-        s.radius = sphere->asNumber(Range::positive());
+        s.radius = sphere->asPositiveAtMost(kMaxSize);
     } else if (const auto capsule = n.field("capsule")) {
         s.kind = Shape::Kind::Capsule;
-        const std::vector<double> c = capsule->asNumbers(2, Range::positive());
+        const std::vector<double> c = capsule->asPositivesAtMost(2, kMaxSize);
         s.radius = c[0];
         s.half_height = c[1];
     } else {
         const Node plane = n.required("plane");
         s.kind = Shape::Kind::Plane;
-        const std::vector<double> p = plane.asNumbers(4);
+        const std::vector<double> p = plane.asNumbers(4, Range::bullet());
         const Vec3 normal(p[0], p[1], p[2]);
         const double length = normal.norm();
         if (!(length > 1e-12)) plane.fail("the normal [nx, ny, nz] must not be zero");
@@ -486,20 +516,21 @@ Body parseBody(const Node& n) {
     b.shape = parseShape(n.required("shape"));
     const bool plane = b.shape.kind == Shape::Kind::Plane;
     b.mass = n.number("mass", plane ? 0.0 : b.mass, Range::atLeast(0.0));
+    if (b.mass > kMaxBodyMass) n.required("mass").fail("must be in [0, 1e+09] (got " + formatNumber(b.mass) + ")");
     if (plane && b.mass != 0.0)
         n.required("mass").fail("a plane must be static: mass 0 (got " + formatNumber(b.mass) + ")");
     b.kinematic = n.boolean("kinematic", b.kinematic);
     if (plane && b.kinematic) n.required("kinematic").fail("a plane cannot be kinematic (it is static)");
-    b.position = n.vec3("position", b.position);
+    b.position = n.vec3("position", b.position, Range::bullet());
     if (const auto q = n.field("orientation")) {
         const std::vector<double> v = q->asNumbers(4);
         const Quat quat(v[3], v[0], v[1], v[2]);  // written [x, y, z, w]
         if (!(quat.norm() > 1e-12)) q->fail("must be a non-zero quaternion [x, y, z, w]");
         b.orientation = quat.normalized();
     }
-    b.linear_velocity = n.vec3("linear_velocity", b.linear_velocity);
-    b.angular_velocity = n.vec3("angular_velocity", b.angular_velocity);
-    b.friction = n.number("friction", b.friction, Range::atLeast(0.0));
+    b.linear_velocity = n.vec3("linear_velocity", b.linear_velocity, Range::bullet());
+    b.angular_velocity = n.vec3("angular_velocity", b.angular_velocity, Range::bullet());
+    b.friction = n.number("friction", b.friction, Range::closed(0.0, 1e3));
     b.restitution = n.number("restitution", b.restitution, Range::closed(0.0, 1.0));
     return b;
 }
@@ -518,14 +549,14 @@ std::vector<Vec3> parseGeometry(const Node& n) {
         if (list.size() < 2) points->fail("a string needs at least 2 points (got " + std::to_string(list.size()) + ")");
         std::vector<Vec3> out;
         out.reserve(list.size());
-        for (const Node& p : list) out.push_back(p.asVec3());
+        for (const Node& p : list) out.push_back(p.asVec3(Range::bullet()));
         return out;  // zero-length segments: validate() reports points[i]
     }
     if (!n.has("from") && !n.has("to") && !n.has("segments"))
         n.fail("needs its geometry: points, or from, to and segments");
-    const Vec3 from = n.required("from").asVec3();
+    const Vec3 from = n.required("from").asVec3(Range::bullet());
     const Node to_node = n.required("to");
-    const Vec3 to = to_node.asVec3();
+    const Vec3 to = to_node.asVec3(Range::bullet());
     const long long segments = n.integer("segments", 10, 1, 1'000'000);
     const double length = (to - from).norm();
     if (!(length > 1e-9)) to_node.fail("must differ from from (the string would have zero length)");
@@ -548,7 +579,7 @@ std::vector<std::pair<int, double>> parseParticleMasses(const Node& n, long long
         const int resolved = resolveParticle(value, index, particles);
         const auto [it, fresh] = seen.emplace(resolved, value.path());
         if (!fresh) value.fail("particle " + std::to_string(resolved) + " already has a mass (" + it->second + ")");
-        out.emplace_back(static_cast<int>(index), value.asNumber(Range::positive()));
+        out.emplace_back(static_cast<int>(index), value.asPositiveAtMost(1e12));  // kg, as validate(StringDesc)
     }
     return out;
 }
@@ -623,10 +654,10 @@ std::vector<Attachment> parseAttachments(const Node& list, long long particles, 
         if (body) {
             a.body = body->asString();
             if (bodies.count(*a.body) == 0) body->fail("no body named " + jsonQuoted(*a.body) + knownNames(namesOf(bodies), "bodies"));
-            if (local) a.local = local->asVec3();
+            if (local) a.local = local->asVec3(Range::bullet());
         } else {
             if (local) local->fail("only allowed with body");
-            a.world = world->asVec3();
+            a.world = world->asVec3(Range::bullet());
         }
         out.push_back(std::move(a));
     }
@@ -1031,7 +1062,7 @@ Driver parseDriver(const Node& n, const std::vector<String>& strings, const std:
             d.rate = n.required("rate").asNumber();
             break;
         }
-        case Driver::Type::Move: d.velocity = n.required("velocity").asVec3(); break;
+        case Driver::Type::Move: d.velocity = n.required("velocity").asVec3(Range::bullet()); break;
         case Driver::Type::Release: break;
         case Driver::Type::Wind:
             d.value = n.required("value").asVec3();
@@ -1101,7 +1132,7 @@ Scene parseScene(const std::string& json_text) {
     if (const auto camera = top.field("camera")) scene.camera = parseCamera(*camera);
     scene.dt = top.number("dt", scene.dt, Range::leftOpen(0.0, 0.1));
     scene.steps = top.integer("steps", scene.steps, 0, 1'000'000'000);
-    scene.gravity = top.vec3("gravity", scene.gravity);
+    scene.gravity = top.vec3("gravity", scene.gravity, Range::bullet());
     scene.seed = static_cast<std::uint64_t>(top.integer("seed", static_cast<long long>(scene.seed), 0, LLONG_MAX));
 
     NameMap body_names;

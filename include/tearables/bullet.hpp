@@ -25,6 +25,7 @@
 #include <LinearMath/btVector3.h>
 
 #include <cstdint>
+#include <iosfwd>
 #include <map>
 #include <memory>
 #include <string>
@@ -107,6 +108,17 @@ public:
 
     /// The last error caught inside a step (the step never throws into Bullet), or "".
     const std::string& lastError() const;
+
+    /// Writes the whole tearables state (tearables/snapshot.hpp) and which Bullet body each
+    /// rigid proxy stands for, as an index into `bodies`: list every body the strings may
+    /// hold or touch (all of them, simplest), in an order you can repeat. Throws
+    /// InvalidInput("bodies") when a body the strings use is missing from the list.
+    void saveSnapshot(std::ostream& out, const std::vector<const btRigidBody*>& bodies) const;
+    /// Restores a snapshot written by saveSnapshot into this plugin, mapping the proxies to
+    /// `bodies` by the same order (the bodies must be in this Bullet world, in the state
+    /// they had when it was written: Bullet's own state is the user's to restore). Throws
+    /// SnapshotError or InvalidInput("bodies[i]"); nothing changes then.
+    void loadSnapshot(std::istream& in, const std::vector<btRigidBody*>& bodies);
 
 private:
     class Action;

@@ -25,9 +25,9 @@ enum class TensionEstimator {
 struct StringDesc {
     std::string name;              ///< for events and traces; may be empty
     std::vector<Vec3> points;      ///< particle rest positions, m; at least 2, finite, no zero-length segment
-    double radius = 0.002;         ///< cross-section radius, m, > 0
-    double density = 1150.0;       ///< kg/m^3, > 0; segment mass = density * pi r^2 * length, split over its ends
-    /// Replaced particle masses, kg, > 0: (particle index, mass); a negative index counts from the end (-1 = last).
+    double radius = 0.002;         ///< cross-section radius, m, [1e-7, 10]
+    double density = 1150.0;       ///< kg/m^3, [1e-3, 1e5]; segment mass = density * pi r^2 * length, split over its ends
+    /// Replaced particle masses, kg, [1e-15, 1e12], at most one per particle: (particle index, mass); a negative index counts from the end (-1 = last).
     std::vector<std::pair<int, double>> particle_masses;
     Material material;             ///< stress-strain curves
     int csm_half_width = 2;        ///< chain shape matching region half-width w, 1..8 (bending stiffness)
@@ -37,7 +37,7 @@ struct StringDesc {
     double bending = 1.0;
     /// Twist region half-width, 1..8: one value for all segments, or one per segment.
     std::vector<int> twist_half_width = {2};
-    TensionEstimator tension = TensionEstimator::Momentum;  ///< tension estimator
+    TensionEstimator tension = TensionEstimator::Momentum;  ///< tension estimator (one of the enum's values)
     bool tearable = true;          ///< segments break where their stress passes rupture
     double damping = 0.0;          ///< linear velocity damping, 1/s, >= 0 (air drag stand-in)
     /// Retardation time of the material's stretch (Kelvin-Voigt), s, [0, 1]: damps the

@@ -15,6 +15,7 @@ namespace tearables {
 
 namespace detail {
 class ClothSystem;
+struct WorldAccess;  // snapshots (src/core/snapshot.cpp) read and replace the whole state
 }
 
 /// World-wide solver settings.
@@ -183,7 +184,9 @@ public:
     /// Adds a force (N) on a particle for the next step only (cleared after it).
     void applyForce(StringId id, int particle, const Vec3& force);
 
-    /// Registers a rigid body proxy; the host keeps it up to date.
+    /// Registers a rigid body proxy; the host keeps it up to date. Throws InvalidInput
+    /// ("body.position", "body.orientation", ...) for a non-finite state, a non-unit
+    /// orientation or a negative inverse mass.
     RigidId addRigid(const RigidState& state);
     /// The proxy for the host to write before and read after a step.
     RigidState& rigid(RigidId id);
@@ -198,8 +201,10 @@ public:
     /// Contacts of the last step (after the collision stage), for inspection and tests.
     const std::vector<RigidContact>& lastContacts() const;
 
-    /// Advances all strings and cloths by `h` seconds (> 0, finite). Never throws; an object that
-    /// goes non-finite is frozen with a Freeze event.
+    /// Advances all strings, cloths and paper sheets by `h` seconds, [1e-7, 1]. Throws
+    /// InvalidInput ("h", or the name of a setting made invalid through settings()) before
+    /// changing anything; otherwise never throws: an object that goes non-finite is frozen
+    /// with a Freeze event.
     void step(double h);
 
     /// Read-only state of a string.
@@ -276,6 +281,7 @@ private:
 
     struct Impl;
     std::unique_ptr<Impl> impl_;
+    friend struct detail::WorldAccess;
 };
 
 /// Throws InvalidInput naming the field when `settings` is not valid.

@@ -6,6 +6,7 @@
 #include "collision/capsule.hpp"
 #include "collision/grid.hpp"
 #include "paper/system.hpp"
+#include "core/world_access.hpp"
 #include "string/string_state.hpp"
 
 #include <algorithm>
@@ -74,6 +75,11 @@ constexpr double kStringTouchSlop = 0.1;
 std::uint32_t stringContactSkip(double thickest_radius, double shortest_segment) {
     return static_cast<std::uint32_t>(1.0 + std::ceil(2.0 * thickest_radius / shortest_segment));
 }
+
+/// The time steps World::step takes, s: shorter ones make 1/h and the penalties overflow,
+/// longer ones are no simulation.
+constexpr double kMinStep = 1e-7;
+constexpr double kMaxStep = 1.0;
 
 using Clock = std::chrono::steady_clock;
 
@@ -742,9 +748,14 @@ void World::applyForce(StringId id, int particle, const Vec3& force) {
 }
 
 RigidId World::addRigid(const RigidState& state) {
-    if (!finite(state.position) || !std::isfinite(state.inverse_mass) || state.inverse_mass < 0.0 ||
-        !state.inverse_inertia_local.allFinite() || !state.orientation.coeffs().allFinite())
-        throw InvalidInput("body", "rigid state must be finite with a non-negative inverse mass");
+    if (!finite(state.position)) throw InvalidInput("body.position", "must be finite");
+    if (!state.orientation.coeffs().allFinite() || std::abs(state.orientation.norm() - 1.0) > 1e-3)
+        throw InvalidInput("body.orientation", "must be a finite unit quaternion");
+    if (!finite(state.linear_velocity)) throw InvalidInput("body.linear_velocity", "must be finite");
+    if (!finite(state.angular_velocity)) throw InvalidInput("body.angular_velocity", "must be finite");
+    if (!std::isfinite(state.inverse_mass) || state.inverse_mass < 0.0)
+        throw InvalidInput("body.inverse_mass", "must be finite and at least 0");
+    if (!state.inverse_inertia_local.allFinite()) throw InvalidInput("body.inverse_inertia_local", "must be finite");
     RigidTable& t = impl_->rigids;
     for (std::size_t i = 0; i < t.bodies.size(); ++i)
         if (!t.used[i]) {
@@ -789,9 +800,13 @@ bool World::rigidInUse(RigidId id) const {
 
 void World::step(double h) {
     Impl& w = *impl_;
+    // Refused before anything changes (issue 8): a step the solver can take, and settings
+    // that are valid (settings() hands out a reference).
+    if (!(h >= kMinStep && h <= kMaxStep))
+        throw InvalidInput("h", "the time step must be a finite number in [1e-07, 1] s (got " + std::to_string(h) + ")");
+    validate(w.settings);
     w.events.clear();
     w.events.swap(w.pending);
-    if (!(h > 0.0) || !std::isfinite(h)) return;  // refused: nothing changes
 
     StepContext ctx;
     ctx.h = h;
@@ -850,6 +865,8 @@ void World::step(double h) {
             if (!live(s)) continue;
             if (sweep == 0 || touchesMovableBody(s)) detail::limitStrain(s, rigids, ctx);
         }
+    for (StringState& s : w.strings)
+        if (live(s)) detail::clampTravel(s, ctx);
     auto t2 = Clock::now();
     t.strain_limit = seconds(t1, t2);
     // String-string and self collision: the strings that touch are solved again, together
@@ -982,5 +999,11 @@ double World::time() const { return impl_->time; }
 std::int64_t World::stepCount() const { return impl_->steps; }
 WorldSettings& World::settings() { return impl_->settings; }
 const WorldSettings& World::settings() const { return impl_->settings; }
+
+// The parts of the state that persist from one step to the next, for snapshots.
+detail::WorldParts detail::WorldAccess::parts(World& world) {
+    World::Impl& w = *world.impl_;
+    return {&w.settings, &w.strings, &w.rigids, &w.pending, &w.events, &w.previous_pairs, &w.deep_pairs, &w.time, &w.steps};
+}
 
 }  // namespace tearables

@@ -2,6 +2,7 @@
 #include "tearables/string.hpp"
 #include "tearables/world.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -31,6 +32,22 @@ void requireRange(const std::string& field, double v, double lo, double hi) {
         throw InvalidInput(field, "must be in [" + num(lo) + ", " + num(hi) + "] (got " + num(v) + ")");
 }
 
+/// Positive, and within the range where the solver's derived quantities (segment masses,
+/// stiffnesses, twist inertias, their inverses) stay normal double-precision numbers.
+void requirePhysical(const std::string& field, double v, double lo, double hi) {
+    requirePositive(field, v);
+    requireRange(field, v, lo, hi);
+}
+
+// Physical ranges (issue 8): wide enough for every real string (a 0.1 um fibre to a 10 m
+// hawser; aerogel to osmium; foam to graphene), narrow enough that nothing derived from
+// them under- or overflows.
+constexpr double kMinRadius = 1e-7, kMaxRadius = 10.0;        // m
+constexpr double kMinDensity = 1e-3, kMaxDensity = 1e5;       // kg/m^3
+constexpr double kMinStress = 1e-3, kMaxStress = 1e13;        // Pa (moduli and stresses)
+constexpr double kMinStrain = 1e-9, kMaxStrain = 1e3;         // torsional strain
+constexpr double kMinMass = 1e-15, kMaxMass = 1e12;           // kg
+
 }  // namespace
 
 StringDesc StringDesc::straight(const Vec3& from, const Vec3& to, int segments) {
@@ -59,27 +76,40 @@ void validate(const StringDesc& d) {
                                           " and " + std::to_string(i) + " coincide)");
         }
     }
-    requirePositive("radius", d.radius);
-    requirePositive("density", d.density);
+    requirePhysical("radius", d.radius, kMinRadius, kMaxRadius);
+    requirePhysical("density", d.density, kMinDensity, kMaxDensity);
     const int n = static_cast<int>(d.points.size());
+    std::vector<int> massed;
     for (const auto& [index, mass] : d.particle_masses) {
         const std::string f = "particle_masses[" + std::to_string(index) + "]";
         if (index < -n || index >= n)
             throw InvalidInput(f, "particle index out of range (the string has " + std::to_string(n) + " particles)");
-        requirePositive(f, mass);
+        requirePhysical(f, mass, kMinMass, kMaxMass);
+        const int resolved = index < 0 ? index + n : index;
+        if (std::find(massed.begin(), massed.end(), resolved) != massed.end())
+            throw InvalidInput(f, "particle " + std::to_string(resolved) + " already has a mass");
+        massed.push_back(resolved);
+    }
+    // Segment masses from the geometry: a segment so long that its mass overflows.
+    const double area = 3.14159265358979323846 * d.radius * d.radius;
+    for (std::size_t i = 1; i < d.points.size(); ++i) {
+        const double mass = d.density * area * (d.points[i] - d.points[i - 1]).norm();
+        if (!std::isfinite(mass) || !(mass > 0.0) || !std::isfinite(1.0 / mass))
+            throw InvalidInput("points[" + std::to_string(i) + "]",
+                               "segment " + std::to_string(i - 1) + " has no usable mass (" + num(mass) + " kg)");
     }
     const TensileCurve& t = d.material.tensile;
-    requirePositive("material.tensile.young", t.young);
-    requirePositive("material.tensile.yield", t.yield);
-    requirePositive("material.tensile.plastic_modulus", t.plastic_modulus);
-    requirePositive("material.tensile.rupture", t.rupture);
+    requirePhysical("material.tensile.young", t.young, kMinStress, kMaxStress);
+    requirePhysical("material.tensile.yield", t.yield, kMinStress, kMaxStress);
+    requirePhysical("material.tensile.plastic_modulus", t.plastic_modulus, kMinStress, kMaxStress);
+    requirePhysical("material.tensile.rupture", t.rupture, kMinStress, kMaxStress);
     if (!(t.rupture > t.yield))
         throw InvalidInput("material.tensile.rupture", "must be greater than yield (" + num(t.rupture) + " <= " + num(t.yield) + ")");
     const TorsionCurve& q = d.material.torsion;
-    requirePositive("material.torsion.modulus", q.modulus);
-    requirePositive("material.torsion.yield", q.yield);
-    requirePositive("material.torsion.plastic_modulus", q.plastic_modulus);
-    requirePositive("material.torsion.rupture", q.rupture);
+    requirePhysical("material.torsion.modulus", q.modulus, kMinStress, kMaxStress);
+    requirePhysical("material.torsion.yield", q.yield, kMinStrain, kMaxStrain);
+    requirePhysical("material.torsion.plastic_modulus", q.plastic_modulus, kMinStress, kMaxStress);
+    requirePhysical("material.torsion.rupture", q.rupture, kMinStrain, kMaxStrain);
     if (!(q.rupture > q.yield))
         throw InvalidInput("material.torsion.rupture", "must be greater than yield (" + num(q.rupture) + " <= " + num(q.yield) + ")");
     requireRange("material.variation", d.material.variation, 0.0, 0.5);
@@ -94,6 +124,9 @@ void validate(const StringDesc& d) {
         if (d.twist_half_width[i] < 1 || d.twist_half_width[i] > 8)
             throw InvalidInput(d.twist_half_width.size() == 1 ? "twist_half_width" : "twist_half_width[" + std::to_string(i) + "]",
                                "must be in [1, 8] (got " + std::to_string(d.twist_half_width[i]) + ")");
+    if (d.tension != TensionEstimator::Momentum && d.tension != TensionEstimator::Local)
+        throw InvalidInput("tension", "must be TensionEstimator::Momentum or TensionEstimator::Local (got " +
+                                          std::to_string(static_cast<int>(d.tension)) + ")");
     requireRange("damping", d.damping, 0.0, 1e3);
     requireRange("axial_damping", d.axial_damping, 0.0, 1.0);
 }

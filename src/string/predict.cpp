@@ -43,6 +43,30 @@ void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
     }
 }
 
+// The speed clamp on positions (issue 8): after the strain limit, no free particle has
+// moved farther than max_speed * h this step. A finite but absurd user force (1e30 N)
+// otherwise flings a torn piece 1e26 m in one step, where the swept collision search sees
+// it cross every other string and the joint solve drags them along. Held particles follow
+// their hold and are left alone; below the clamp nothing changes.
+void clampTravel(StringState& s, const StepContext& ctx) {
+    const double reach = ctx.settings->max_speed * ctx.h;
+    const std::size_t n = s.particles();
+    for (std::size_t p = 0; p < n; ++p) {
+        if (s.hold[p].kind != ParticleHold::Kind::Free) continue;
+        const Vec3 d = s.x[p] - s.x_prev[p];
+        const double travel2 = d.squaredNorm();
+        if (travel2 > reach * reach) {
+            s.x[p] = s.x_prev[p] + d * (reach / std::sqrt(travel2));
+            // A particle that no segment holds any more: its run-away prediction goes too
+            // (the string-string joint solve and its collision search start from it). One
+            // on a segment keeps it, so that the pull reads as tension and tears it.
+            const bool before = p > 0 && !s.broken[p - 1];
+            const bool after = p + 1 < n && !s.broken[p];
+            if (!before && !after) s.x_pred[p] = s.x[p];
+        }
+    }
+}
+
 // Position-based velocity update: v = (x - x_prev) / h, for every particle (held ones
 // included, so a moved pin or a swinging body gives its particle the right velocity).
 // The speed clamp (a guard against blow-ups) acts here, on the constrained result: a

@@ -184,6 +184,7 @@ bool applyFriction(StringState& s, RigidTable& rigids, const StepContext& ctx);
 void estimateTension(StringState& s, const StepContext& ctx);
 void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::vector<Event>& events);
 void updateVelocities(StringState& s, const StepContext& ctx);
+void clampTravel(StringState& s, const StepContext& ctx);
 void updateTwistStiffness(StringState& s);
 void updateRestShape(StringState& s);
 void shapeMatch(StringState& s);

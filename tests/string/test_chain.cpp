@@ -208,8 +208,8 @@ TEST(Chain, NonFiniteInputIsRefusedAndTheWorldStepsOn) {
     EXPECT_THROW(world.applyForce(id, -1, {std::nan(""), 0, 0}), tearables::InvalidInput);
     EXPECT_THROW(world.applyForce(id, 11, {0, 1, 0}), tearables::InvalidInput);
     EXPECT_THROW(world.attachToPoint(id, 3, {0, INFINITY, 0}), tearables::InvalidInput);
-    world.step(std::nan(""));
-    world.step(-0.01);
+    EXPECT_THROW(world.step(std::nan("")), tearables::InvalidInput);
+    EXPECT_THROW(world.step(-0.01), tearables::InvalidInput);
     EXPECT_EQ(world.stepCount(), 0);
     for (int i = 0; i < 10; ++i) world.step(0.01);
     for (const Vec3& p : *world.view(id).positions) EXPECT_TRUE(p.allFinite());

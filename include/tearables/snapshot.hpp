@@ -1,0 +1,82 @@
+// tearables: snapshots of the whole core state (issue 8).
+//
+// A snapshot holds everything a World carries from one step to the next: every string's
+// full state (positions, velocities, rest lengths, material state after variation,
+// plasticity and damage, twist, attachments, its random generator), the rigid body
+// proxies by slot, the string-string warm start, pending events, time, step count and
+// settings. Restored into a world, the run continues bit-identically to the uninterrupted
+// one, provided the host's rigid bodies are in the same state (the Bullet plugin maps its
+// bodies by the order the user passes them: BulletWorld::saveSnapshot / loadSnapshot).
+//
+// Format (little-endian, version kSnapshotVersion):
+//   "TEARSNAP" (8 bytes), u32 version, u32 reserved (0),
+//   sections: char tag[4], u64 payload length, payload  (one section per object or table),
+//   "END " section of length 0,
+//   u64 FNV-1a checksum of every byte before it.
+// Core tags: "WRLD" (settings, time, steps, slot counts), "RIGD" (rigid proxies), "STRG"
+// (one per string slot), "SCOL" (string-string warm start), "EVNT" (pending events).
+// Sheets and cloths add their own tags ("PAPR", "CLTH"); a host adds its own (the Bullet
+// plugin: "BULT"). A reader refuses a file of another version, a truncated or corrupt
+// file, and a section it does not know, with a SnapshotError; the world is then unchanged.
+#pragma once
+
+#include "tearables/types.hpp"
+#include "tearables/world.hpp"
+
+#include <cstdint>
+#include <iosfwd>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace tearables {
+
+/// The version this build writes and the only one it reads.
+constexpr std::uint32_t kSnapshotVersion = 1;
+
+/// A snapshot was refused: field() is "snapshot" or "snapshot.<section>", problem() says
+/// what is wrong (wrong magic, version, checksum, truncated, inconsistent section).
+class SnapshotError : public InvalidInput {
+public:
+    using InvalidInput::InvalidInput;
+};
+
+/// A section added by a host (4-character tag, not one of the core's) and its bytes.
+struct SnapshotSection {
+    std::string tag;
+    std::string payload;
+};
+
+/// A snapshot read and checked, not yet applied.
+class Snapshot {
+public:
+    /// Reads and checks a whole snapshot; throws SnapshotError (nothing is changed).
+    static Snapshot read(std::istream& in);
+    /// Replaces the whole state of `world` by the snapshot's (its strings, proxies, time,
+    /// settings); cannot fail once read() succeeded.
+    void restore(World& world) const;
+    /// Sections a host added, in file order.
+    const std::vector<SnapshotSection>& hostSections() const;
+    /// True when the snapshot has a rigid proxy in slot `id` (for a host's mapping).
+    bool hasRigid(RigidId id) const;
+
+    Snapshot(Snapshot&&) noexcept;
+    Snapshot& operator=(Snapshot&&) noexcept;
+    ~Snapshot();
+
+private:
+    struct Data;
+    explicit Snapshot(std::unique_ptr<Data> data);
+    std::unique_ptr<Data> data_;
+};
+
+/// Writes the whole core state of `world` (and a host's sections) to `out`. Throws
+/// std::runtime_error when the stream fails, InvalidInput for a bad host section tag.
+void saveSnapshot(const World& world, std::ostream& out, const std::vector<SnapshotSection>& host = {});
+
+/// Reads a snapshot written by saveSnapshot and restores it into `world`. A snapshot with
+/// host sections (written by BulletWorld::saveSnapshot) is refused: load it through its
+/// host. Throws SnapshotError; the world is unchanged then.
+void loadSnapshot(World& world, std::istream& in);
+
+}  // namespace tearables

@@ -1,0 +1,674 @@
+// Snapshots of the whole core state (include/tearables/snapshot.hpp has the format).
+//
+// One function per state type lists its fields once (`io`), for writing and reading
+// alike, so that the two can never disagree. Everything is written little-endian as
+// 64-bit words (integers) and IEEE bit patterns (doubles): restoring gives back the same
+// bits, which is what a bit-identical continuation needs. A reader checks the magic, the
+// version and the checksum first, then the sizes of everything it reads and the
+// consistency of every string (per-particle and per-segment arrays, attachments to rigid
+// slots that exist, a valid descriptor), so that a damaged file is refused rather than
+// stepped.
+#include "tearables/snapshot.hpp"
+
+#include "core/world_access.hpp"
+#include "string/string_state.hpp"
+
+#include <cmath>
+#include <cstring>
+#include <istream>
+#include <iterator>
+#include <limits>
+#include <ostream>
+#include <sstream>
+#include <type_traits>
+
+namespace tearables {
+
+namespace {
+
+constexpr char kMagic[8] = {'T', 'E', 'A', 'R', 'S', 'N', 'A', 'P'};
+constexpr const char* kCoreTags[] = {"WRLD", "RIGD", "STRG", "SCOL", "EVNT", "END "};
+/// A header (magic, version, reserved) and the checksum: the least a file can have.
+constexpr std::size_t kHeaderBytes = 8 + 4 + 4;
+constexpr std::size_t kChecksumBytes = 8;
+
+std::uint64_t fnv1a(const char* data, std::size_t size) {
+    std::uint64_t h = 1469598103934665603ull;
+    for (std::size_t i = 0; i < size; ++i) {
+        h ^= static_cast<unsigned char>(data[i]);
+        h *= 1099511628211ull;
+    }
+    return h;
+}
+
+bool isCoreTag(const std::string& tag) {
+    for (const char* t : kCoreTags)
+        if (tag == t) return true;
+    return false;
+}
+
+// --- archives ------------------------------------------------------------------------------
+
+class Writer {
+public:
+    static constexpr bool kReading = false;
+    std::string bytes;
+
+    void word(std::uint64_t& v) {
+        for (int i = 0; i < 8; ++i) bytes.push_back(static_cast<char>((v >> (8 * i)) & 0xffu));
+    }
+    void raw(const char* data, std::size_t n) { bytes.append(data, n); }
+    /// Elements of a vector about to be read: nothing to check when writing.
+    void expectElements(std::uint64_t) {}
+    [[noreturn]] void fail(const std::string& problem) { throw SnapshotError("snapshot", problem); }
+};
+
+class Reader {
+public:
+    static constexpr bool kReading = true;
+    Reader(const char* begin, const char* end, std::string where) : p_(begin), end_(end), where_(std::move(where)) {}
+
+    void word(std::uint64_t& v) {
+        need(8);
+        v = 0;
+        for (int i = 0; i < 8; ++i) v |= static_cast<std::uint64_t>(static_cast<unsigned char>(p_[i])) << (8 * i);
+        p_ += 8;
+    }
+    void raw(char* data, std::size_t n) {
+        need(n);
+        std::memcpy(data, p_, n);
+        p_ += n;
+    }
+    /// A vector of `count` elements of at least 8 bytes each must fit in what is left
+    /// (a damaged length never allocates gigabytes).
+    void expectElements(std::uint64_t count) {
+        if (count > remaining() / 8) fail("a length of " + std::to_string(count) + " elements does not fit in the section");
+    }
+    std::size_t remaining() const { return static_cast<std::size_t>(end_ - p_); }
+    [[noreturn]] void fail(const std::string& problem) const { throw SnapshotError(where_, problem); }
+    const std::string& where() const { return where_; }
+
+private:
+    void need(std::size_t n) const {
+        if (remaining() < n) fail("truncated section");
+    }
+    const char* p_;
+    const char* end_;
+    std::string where_;
+};
+
+// --- primitives ---------------------------------------------------------------------------
+
+template <class A>
+void io(A& a, std::uint64_t& v) {
+    a.word(v);
+}
+template <class A>
+void io(A& a, double& v) {
+    std::uint64_t bits = 0;
+    std::memcpy(&bits, &v, sizeof bits);
+    a.word(bits);
+    std::memcpy(&v, &bits, sizeof bits);
+}
+template <class A>
+void io(A& a, bool& v) {
+    std::uint64_t w = v ? 1 : 0;
+    a.word(w);
+    if (w > 1) a.fail("a flag is neither 0 nor 1");
+    v = w == 1;
+}
+/// Signed and unsigned integers other than u64: as a 64-bit two's complement word,
+/// checked to fit the type when read.
+template <class A, class T>
+std::enable_if_t<std::is_integral_v<T> && !std::is_same_v<T, bool> && !std::is_same_v<T, std::uint64_t>> io(A& a, T& v) {
+    std::uint64_t w = static_cast<std::uint64_t>(static_cast<std::int64_t>(v));
+    if constexpr (std::is_unsigned_v<T>) w = static_cast<std::uint64_t>(v);
+    a.word(w);
+    if constexpr (A::kReading) {
+        if constexpr (std::is_unsigned_v<T>) {
+            if (w > static_cast<std::uint64_t>(std::numeric_limits<T>::max())) a.fail("an integer out of range");
+            v = static_cast<T>(w);
+        } else {
+            const auto s = static_cast<std::int64_t>(w);
+            if (s < std::numeric_limits<T>::min() || s > std::numeric_limits<T>::max()) a.fail("an integer out of range");
+            v = static_cast<T>(s);
+        }
+    }
+}
+/// An enum with values 0..max.
+template <class A, class E>
+void ioEnum(A& a, E& e, int max, const char* what) {
+    auto v = static_cast<std::int64_t>(e);
+    io(a, v);
+    if (v < 0 || v > max) a.fail(std::string("unknown ") + what + " " + std::to_string(v));
+    e = static_cast<E>(v);
+}
+template <class A, int R, int C>
+void io(A& a, Eigen::Matrix<double, R, C>& m) {
+    for (Eigen::Index i = 0; i < m.size(); ++i) io(a, m.data()[i]);
+}
+template <class A>
+void io(A& a, Quat& q) {
+    io(a, q.coeffs());
+}
+template <class A>
+void io(A& a, std::string& s) {
+    std::uint64_t n = s.size();
+    io(a, n);
+    if constexpr (A::kReading) {
+        if (n > a.remaining()) a.fail("a string longer than the section");
+        s.resize(static_cast<std::size_t>(n));
+        a.raw(s.data(), s.size());
+    } else {
+        a.raw(s.data(), s.size());
+    }
+}
+template <class A, class T>
+void io(A& a, std::vector<T>& v);
+template <class A, class T, class U>
+void io(A& a, std::pair<T, U>& p) {
+    io(a, p.first);
+    io(a, p.second);
+}
+template <class A>
+void io(A& a, detail::DeepPair& t) {
+    io(a, std::get<0>(t));
+    io(a, std::get<1>(t));
+    io(a, std::get<2>(t));
+    io(a, std::get<3>(t));
+}
+template <class A>
+void io(A& a, StringId& id) {
+    io(a, id.index);
+}
+template <class A>
+void io(A& a, RigidId& id) {
+    io(a, id.index);
+}
+/// The generator's full state in the standard's text form (exact by definition).
+template <class A>
+void io(A& a, std::mt19937_64& rng) {
+    std::string text;
+    if constexpr (!A::kReading) {
+        std::ostringstream s;
+        s << rng;
+        text = s.str();
+    }
+    io(a, text);
+    if constexpr (A::kReading) {
+        std::istringstream s(text);
+        s >> rng;
+        if (s.fail()) a.fail("the random generator's state is damaged");
+    }
+}
+
+// --- state types --------------------------------------------------------------------------
+
+template <class A>
+void io(A& a, Material& m) {
+    io(a, m.tensile.young);
+    io(a, m.tensile.yield);
+    io(a, m.tensile.plastic_modulus);
+    io(a, m.tensile.rupture);
+    io(a, m.torsion.modulus);
+    io(a, m.torsion.yield);
+    io(a, m.torsion.plastic_modulus);
+    io(a, m.torsion.rupture);
+    io(a, m.variation);
+}
+template <class A>
+void io(A& a, StringDesc& d) {
+    io(a, d.name);
+    io(a, d.points);
+    io(a, d.radius);
+    io(a, d.density);
+    io(a, d.particle_masses);
+    io(a, d.material);
+    io(a, d.csm_half_width);
+    io(a, d.bending);
+    io(a, d.twist_half_width);
+    ioEnum(a, d.tension, 1, "tension estimator");
+    io(a, d.tearable);
+    io(a, d.damping);
+    io(a, d.axial_damping);
+    io(a, d.seed);
+}
+template <class A>
+void io(A& a, WorldSettings& s) {
+    io(a, s.gravity);
+    io(a, s.strain_iterations);
+    io(a, s.coupling_iterations);
+    io(a, s.strain_tolerance);
+    io(a, s.max_speed);
+    io(a, s.rigid_contacts);
+    io(a, s.string_collisions);
+}
+template <class A>
+void io(A& a, detail::ParticleHold& h) {
+    ioEnum(a, h.kind, 2, "attachment kind");
+    io(a, h.point);
+    io(a, h.body);
+}
+template <class A>
+void io(A& a, detail::SegmentMaterial& m) {
+    io(a, m.young);
+    io(a, m.yield);
+    io(a, m.plastic_modulus);
+    io(a, m.rupture);
+    io(a, m.shear_modulus);
+    io(a, m.torsion_yield);
+    io(a, m.torsion_plastic);
+    io(a, m.torsion_rupture);
+}
+template <class A>
+void io(A& a, detail::SegmentContact& c) {
+    io(a, c.segment);
+    io(a, c.s);
+    io(a, c.normal);
+    io(a, c.local);
+    io(a, c.body);
+    io(a, c.gap);
+    io(a, c.friction);
+    io(a, c.node);
+    io(a, c.depth);
+    io(a, c.stiffness);
+    io(a, c.active);
+    io(a, c.string);
+    io(a, c.partner);
+    io(a, c.partner_segment);
+    io(a, c.partner_s);
+    io(a, c.start_normal);
+    io(a, c.start_distance);
+    io(a, c.force);
+}
+template <class A>
+void io(A& a, RigidState& b) {
+    io(a, b.position);
+    io(a, b.orientation);
+    io(a, b.linear_velocity);
+    io(a, b.angular_velocity);
+    io(a, b.inverse_mass);
+    io(a, b.inverse_inertia_local);
+    io(a, b.awake);
+    io(a, b.present);
+    io(a, b.impulse);
+}
+template <class A>
+void io(A& a, Event& e) {
+    ioEnum(a, e.type, static_cast<int>(EventType::Hinge), "event type");
+    ioEnum(a, e.cause, static_cast<int>(EventCause::NonFinite), "event cause");
+    io(a, e.string);
+    io(a, e.object);
+    io(a, e.segment);
+    io(a, e.particle);
+    io(a, e.stress);
+    io(a, e.time);
+    io(a, e.step);
+}
+template <class A, class T>
+void io(A& a, std::vector<T>& v) {
+    std::uint64_t n = v.size();
+    io(a, n);
+    if constexpr (A::kReading) {
+        a.expectElements(n);
+        v.clear();
+        v.resize(static_cast<std::size_t>(n));
+    }
+    for (T& e : v) io(a, e);
+}
+// std::vector<std::uint8_t> and friends go through the integral overload per element.
+
+/// Every field of a string that lives from one step to the next, and the solver scratch
+/// that a step may read before writing (kept so that the continuation is bit-identical).
+/// Not kept, rebuilt by every step: contacts, body nodes and their columns, the block
+/// factorisation, the shape-matching scratch.
+template <class A>
+void io(A& a, detail::StringState& s) {
+    io(a, s.alive);
+    if (!s.alive) return;  // a free slot: only its place is kept
+    io(a, s.desc);
+    io(a, s.frozen);
+    io(a, s.x);
+    io(a, s.v);
+    io(a, s.x_prev);
+    io(a, s.x_pred);
+    io(a, s.force);
+    io(a, s.mass);
+    io(a, s.inv_mass);
+    io(a, s.hold);
+    io(a, s.glue_impulse);
+    io(a, s.glue_movable);
+    io(a, s.rest_length);
+    io(a, s.max_length);
+    io(a, s.compliance);
+    io(a, s.tension);
+    io(a, s.twist);
+    io(a, s.radius);
+    io(a, s.broken);
+    io(a, s.yielded);
+    io(a, s.original_length);
+    io(a, s.peak_stress);
+    io(a, s.material);
+    io(a, s.dir);
+    io(a, s.diag);
+    io(a, s.off);
+    io(a, s.rhs);
+    io(a, s.scratch);
+    io(a, s.violation);
+    io(a, s.impulse);
+    io(a, s.active);
+    io(a, s.blk_diag);
+    io(a, s.blk_off);
+    io(a, s.blk_rhs);
+    io(a, s.blk_factor_gain);
+    io(a, s.spring_force);
+    io(a, s.row_projector);
+    io(a, s.colliding);
+    io(a, s.prev_stretch);
+    io(a, s.rest_direction);
+    io(a, s.rest_shape);
+    io(a, s.csm_goal);
+    io(a, s.csm_mass);
+    io(a, s.twist_velocity);
+    io(a, s.twist_old);
+    io(a, s.twist_inertia);
+    io(a, s.twist_width);
+    io(a, s.rest_twist);
+    io(a, s.joint_stiffness);
+    io(a, s.torsion_peak);
+    io(a, s.joint_strain);
+    io(a, s.torsion_yielded);
+    io(a, s.twist_force);
+    for (double& v : s.end_twist) io(a, v);
+    for (double& v : s.twist_glued_pred) io(a, v);
+    for (double& v : s.twist_glued_axis_inertia) io(a, v);
+    io(a, s.shortest_rest);
+    io(a, s.rng);
+}
+
+// --- consistency of what was read ----------------------------------------------------------
+
+/// The arrays of a string agree with its particle count, its descriptor is valid and its
+/// attachments name rigid slots that exist: what the step assumes without checking.
+void checkString(const detail::StringState& s, const detail::RigidTable& rigids, const std::string& where) {
+    auto fail = [&](const std::string& problem) { throw SnapshotError(where, problem); };
+    try {
+        validate(s.desc);
+    } catch (const InvalidInput& e) {
+        fail("the string's descriptor is invalid: " + std::string(e.what()));
+    }
+    const std::size_t n = s.x.size();
+    if (n < 2 || n != s.desc.points.size()) fail("the particle count does not match the descriptor");
+    const std::size_t m = n - 1, joints = m - 1;
+    auto size = [&](std::size_t actual, std::size_t expected, const char* name) {
+        if (actual != expected)
+            fail(std::string(name) + " has " + std::to_string(actual) + " entries, expected " + std::to_string(expected));
+    };
+    size(s.v.size(), n, "v");
+    size(s.x_prev.size(), n, "x_prev");
+    size(s.x_pred.size(), n, "x_pred");
+    size(s.force.size(), n, "force");
+    size(s.mass.size(), n, "mass");
+    size(s.inv_mass.size(), n, "inv_mass");
+    size(s.hold.size(), n, "hold");
+    size(s.glue_impulse.size(), n, "glue_impulse");
+    size(s.glue_movable.size(), n, "glue_movable");
+    size(s.blk_diag.size(), n, "blk_diag");
+    size(s.blk_off.size(), n, "blk_off");
+    size(s.blk_rhs.size(), n, "blk_rhs");
+    size(s.blk_factor_gain.size(), n, "blk_factor_gain");
+    size(s.row_projector.size(), n, "row_projector");
+    size(s.colliding.size(), n, "colliding");
+    size(s.rest_shape.size(), n, "rest_shape");
+    size(s.csm_goal.size(), n, "csm_goal");
+    size(s.csm_mass.size(), n, "csm_mass");
+    size(s.twist_force.size(), n, "twist_force");
+    for (const auto* v : {&s.rest_length, &s.max_length, &s.compliance, &s.tension, &s.twist, &s.radius,
+                          &s.original_length, &s.peak_stress, &s.diag, &s.off, &s.rhs, &s.scratch, &s.violation,
+                          &s.impulse, &s.spring_force, &s.prev_stretch, &s.twist_velocity, &s.twist_old,
+                          &s.twist_inertia, &s.twist_width})
+        size(v->size(), m, "a per-segment array");
+    size(s.broken.size(), m, "broken");
+    size(s.yielded.size(), m, "yielded");
+    size(s.active.size(), m, "active");
+    size(s.material.size(), m, "material");
+    size(s.dir.size(), m, "dir");
+    size(s.rest_direction.size(), m, "rest_direction");
+    for (const auto* v : {&s.rest_twist, &s.joint_stiffness, &s.torsion_peak, &s.joint_strain})
+        size(v->size(), joints, "a per-joint array");
+    size(s.torsion_yielded.size(), joints, "torsion_yielded");
+    for (std::size_t p = 0; p < n; ++p) {
+        const detail::ParticleHold& h = s.hold[p];
+        if (h.kind == detail::ParticleHold::Kind::Glue &&
+            (h.body.index >= rigids.bodies.size() || !rigids.used[h.body.index]))
+            fail("particle " + std::to_string(p) + " is glued to rigid slot " + std::to_string(h.body.index) +
+                 ", which the snapshot does not have");
+        if (!(s.mass[p] > 0.0) || !std::isfinite(s.inv_mass[p])) fail("particle " + std::to_string(p) + " has no valid mass");
+    }
+    for (std::size_t j = 0; j < m; ++j)
+        if (!(s.rest_length[j] > 0.0) || !(s.material[j].young > 0.0))
+            fail("segment " + std::to_string(j) + " has no valid rest length or material");
+}
+
+}  // namespace
+
+// --- Snapshot -------------------------------------------------------------------------------
+
+struct Snapshot::Data {
+    WorldSettings settings;
+    std::vector<detail::StringState> strings;
+    detail::RigidTable rigids;
+    std::vector<Event> pending;
+    std::vector<detail::SegmentContact> previous_pairs;
+    std::vector<detail::DeepPair> deep_pairs;
+    double time = 0.0;
+    std::int64_t steps = 0;
+    std::vector<SnapshotSection> host;
+};
+
+Snapshot::Snapshot(std::unique_ptr<Data> data) : data_(std::move(data)) {}
+Snapshot::Snapshot(Snapshot&&) noexcept = default;
+Snapshot& Snapshot::operator=(Snapshot&&) noexcept = default;
+Snapshot::~Snapshot() = default;
+const std::vector<SnapshotSection>& Snapshot::hostSections() const { return data_->host; }
+bool Snapshot::hasRigid(RigidId id) const {
+    return id.index < data_->rigids.bodies.size() && data_->rigids.used[id.index];
+}
+
+void saveSnapshot(const World& world, std::ostream& out, const std::vector<SnapshotSection>& host) {
+    for (const SnapshotSection& s : host)
+        if (s.tag.size() != 4 || isCoreTag(s.tag))
+            throw InvalidInput("host", "a host section needs a 4-character tag that is not a core tag (got \"" + s.tag + "\")");
+    const detail::WorldParts w = detail::WorldAccess::parts(const_cast<World&>(world));
+    Writer file;
+    file.raw(kMagic, sizeof kMagic);
+    std::uint64_t header = kSnapshotVersion;  // u32 version, u32 reserved
+    file.word(header);
+    auto section = [&](const char* tag, const std::string& payload) {
+        file.raw(tag, 4);
+        std::uint64_t length = payload.size();
+        file.word(length);
+        file.raw(payload.data(), payload.size());
+    };
+    {
+        Writer s;
+        io(s, *w.settings);
+        io(s, *w.time);
+        io(s, *w.steps);
+        std::uint64_t slots = w.strings->size(), bodies = w.rigids->bodies.size();
+        io(s, slots);
+        io(s, bodies);
+        section("WRLD", s.bytes);
+    }
+    {
+        Writer s;
+        io(s, w.rigids->bodies);
+        io(s, w.rigids->used);
+        io(s, w.rigids->start_position);
+        std::vector<Quat> orientations = w.rigids->start_orientation;
+        io(s, orientations);
+        section("RIGD", s.bytes);
+    }
+    for (detail::StringState& string : *w.strings) {
+        Writer s;
+        io(s, string);
+        section("STRG", s.bytes);
+    }
+    {
+        Writer s;
+        io(s, *w.previous_pairs);
+        io(s, *w.deep_pairs);
+        section("SCOL", s.bytes);
+    }
+    {
+        Writer s;
+        io(s, *w.pending);
+        section("EVNT", s.bytes);
+    }
+    for (const SnapshotSection& h : host) section(h.tag.c_str(), h.payload);
+    section("END ", std::string());
+    std::uint64_t checksum = fnv1a(file.bytes.data(), file.bytes.size());
+    file.word(checksum);
+    out.write(file.bytes.data(), static_cast<std::streamsize>(file.bytes.size()));
+    if (!out) throw std::runtime_error("writing the snapshot failed");
+}
+
+Snapshot Snapshot::read(std::istream& in) {
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (bytes.size() < sizeof kMagic || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
+        throw SnapshotError("snapshot", "not a tearables snapshot (no TEARSNAP header)");
+    if (bytes.size() < kHeaderBytes + kChecksumBytes)
+        throw SnapshotError("snapshot", "truncated (" + std::to_string(bytes.size()) + " bytes)");
+    Reader header(bytes.data() + sizeof kMagic, bytes.data() + kHeaderBytes, "snapshot");
+    std::uint64_t word = 0;
+    header.word(word);
+    const auto version = static_cast<std::uint32_t>(word & 0xffffffffu);
+    if (version != kSnapshotVersion)
+        throw SnapshotError("snapshot.version", "version " + std::to_string(version) + " (this build reads version " +
+                                                    std::to_string(kSnapshotVersion) + ")");
+    if ((word >> 32) != 0) throw SnapshotError("snapshot", "reserved header bits are set");
+    const std::size_t body_end = bytes.size() - kChecksumBytes;
+    Reader tail(bytes.data() + body_end, bytes.data() + bytes.size(), "snapshot");
+    std::uint64_t checksum = 0;
+    tail.word(checksum);
+    if (checksum != fnv1a(bytes.data(), body_end))
+        throw SnapshotError("snapshot", "checksum mismatch: the file is truncated or corrupt");
+
+    auto data = std::make_unique<Data>();
+    Data& d = *data;
+    Reader file(bytes.data() + kHeaderBytes, bytes.data() + body_end, "snapshot");
+    bool have_world = false, have_rigids = false, ended = false;
+    std::uint64_t slots = 0, bodies = 0;
+    while (!ended) {
+        if (file.remaining() == 0) file.fail("truncated: no END section");
+        std::string tag(4, ' ');
+        file.raw(tag.data(), 4);
+        std::uint64_t length = 0;
+        file.word(length);
+        if (length > file.remaining()) file.fail("section \"" + tag + "\" is longer than the file");
+        std::string payload(static_cast<std::size_t>(length), '\0');
+        file.raw(payload.data(), payload.size());
+        Reader s(payload.data(), payload.data() + payload.size(), "snapshot." + tag);
+        if (tag == "WRLD") {
+            if (have_world) s.fail("appears twice");
+            io(s, d.settings);
+            io(s, d.time);
+            io(s, d.steps);
+            io(s, slots);
+            io(s, bodies);
+            try {
+                validate(d.settings);
+            } catch (const InvalidInput& e) {
+                s.fail(std::string("invalid settings: ") + e.what());
+            }
+            if (!std::isfinite(d.time) || d.time < 0.0 || d.steps < 0) s.fail("invalid time or step count");
+            have_world = true;
+        } else if (tag == "RIGD") {
+            if (!have_world || have_rigids) s.fail("out of order (expected once, after WRLD)");
+            io(s, d.rigids.bodies);
+            io(s, d.rigids.used);
+            io(s, d.rigids.start_position);
+            io(s, d.rigids.start_orientation);
+            const std::size_t n = d.rigids.bodies.size();
+            if (n != bodies || d.rigids.used.size() != n || d.rigids.start_position.size() != n ||
+                d.rigids.start_orientation.size() != n)
+                s.fail("the rigid table's arrays disagree");
+            for (std::size_t i = 0; i < n; ++i) {
+                const RigidState& b = d.rigids.bodies[i];
+                if (!b.position.allFinite() || !b.orientation.coeffs().allFinite() || !b.linear_velocity.allFinite() ||
+                    !b.angular_velocity.allFinite() || !std::isfinite(b.inverse_mass) || b.inverse_mass < 0.0 ||
+                    !b.inverse_inertia_local.allFinite())
+                    s.fail("rigid slot " + std::to_string(i) + " has a non-finite state");
+            }
+            have_rigids = true;
+        } else if (tag == "STRG") {
+            if (!have_rigids) s.fail("out of order (expected after RIGD)");
+            if (d.strings.size() >= slots) s.fail("more string sections than the world has slots");
+            d.strings.emplace_back();
+            detail::StringState& string = d.strings.back();
+            io(s, string);
+            if (string.alive) {
+                checkString(string, d.rigids, "snapshot.STRG[" + std::to_string(d.strings.size() - 1) + "]");
+            } else {
+                string = detail::StringState{};
+                string.alive = false;
+            }
+        } else if (tag == "SCOL") {
+            io(s, d.previous_pairs);
+            io(s, d.deep_pairs);
+        } else if (tag == "EVNT") {
+            io(s, d.pending);
+        } else if (tag == "END ") {
+            ended = true;
+        } else {
+            bool printable = true;
+            for (char c : tag) printable = printable && c >= 0x20 && c < 0x7f;
+            if (!printable) s.fail("a section with an unreadable tag (the file is corrupt)");
+            d.host.push_back({tag, std::move(payload)});
+            continue;
+        }
+        if (s.remaining() != 0) s.fail(std::to_string(s.remaining()) + " bytes left over at the end of the section");
+    }
+    if (file.remaining() != 0) file.fail("data after the END section");
+    if (!have_world || !have_rigids) file.fail("the WRLD or RIGD section is missing");
+    if (d.strings.size() != slots)
+        file.fail("has " + std::to_string(d.strings.size()) + " string sections for " + std::to_string(slots) + " slots");
+    for (const detail::SegmentContact& c : d.previous_pairs) {
+        auto ok = [&](std::uint32_t string, std::uint32_t segment) {
+            return string < d.strings.size() && d.strings[string].alive && segment < d.strings[string].segments();
+        };
+        if (!ok(c.string, c.segment) || !ok(c.partner, c.partner_segment))
+            throw SnapshotError("snapshot.SCOL", "a contact names a segment the snapshot does not have");
+    }
+    for (const Event& e : d.pending)
+        if (!std::isfinite(e.stress) || !std::isfinite(e.time)) throw SnapshotError("snapshot.EVNT", "a non-finite event");
+    return Snapshot(std::move(data));
+}
+
+void Snapshot::restore(World& world) const {
+    const detail::WorldParts w = detail::WorldAccess::parts(world);
+    *w.settings = data_->settings;
+    *w.strings = data_->strings;
+    // The block factorisation is rebuilt by every step; it is sized here, not copied
+    // (a default-constructed Eigen::LLT has an uninitialised status that UBSan flags
+    // when copied: found by the sanitizer build).
+    for (detail::StringState& s : *w.strings)
+        if (s.alive) s.blk_factor.resize(s.particles());
+    *w.rigids = data_->rigids;
+    *w.pending = data_->pending;
+    w.events->clear();
+    *w.previous_pairs = data_->previous_pairs;
+    *w.deep_pairs = data_->deep_pairs;
+    *w.time = data_->time;
+    *w.steps = data_->steps;
+}
+
+void loadSnapshot(World& world, std::istream& in) {
+    const Snapshot snapshot = Snapshot::read(in);
+    if (!snapshot.hostSections().empty())
+        throw SnapshotError("snapshot." + snapshot.hostSections().front().tag,
+                            "a host's section (written by BulletWorld::saveSnapshot? load it through BulletWorld)");
+    snapshot.restore(world);
+}
+
+}  // namespace tearables

@@ -1,0 +1,35 @@
+// Access to the whole state of a World for snapshots (src/core/snapshot.cpp): the parts
+// that persist from one step to the next. Sheets and cloths add theirs here.
+#pragma once
+
+#include "string/string_state.hpp"
+#include "tearables/world.hpp"
+
+#include <cstdint>
+#include <tuple>
+#include <vector>
+
+namespace tearables::detail {
+
+/// A string-string pair that started a step too deep (world.cpp, kStringDeepStart):
+/// (string, segment, string, segment).
+using DeepPair = std::tuple<std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t>;
+
+/// Pointers into a World's state; valid while the world lives.
+struct WorldParts {
+    WorldSettings* settings;
+    std::vector<StringState>* strings;          ///< by slot (dead slots included: ids stay)
+    RigidTable* rigids;                         ///< by slot
+    std::vector<Event>* pending;                ///< emitted between steps, reported with the next
+    std::vector<Event>* events;                 ///< of the last step
+    std::vector<SegmentContact>* previous_pairs;///< string-string warm start
+    std::vector<DeepPair>* deep_pairs;          ///< string-string pairs not yet apart
+    double* time;
+    std::int64_t* steps;
+};
+
+struct WorldAccess {
+    static WorldParts parts(World& world);
+};
+
+}  // namespace tearables::detail
