@@ -9,8 +9,14 @@
 #include <BulletCollision/CollisionShapes/btEmptyShape.h>
 #include <btBulletDynamicsCommon.h>
 #include <BulletCollision/BroadphaseCollision/btDbvt.h>
+#include <BulletCollision/CollisionShapes/btTriangleShape.h>
+#include <BulletCollision/NarrowPhaseCollision/btGjkEpaPenetrationDepthSolver.h>
+#include <BulletCollision/NarrowPhaseCollision/btGjkPairDetector.h>
+#include <BulletCollision/NarrowPhaseCollision/btPointCollector.h>
+#include <BulletCollision/NarrowPhaseCollision/btVoronoiSimplexSolver.h>
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -100,11 +106,13 @@ public:
     void findPointContacts(const PointQuery& query, std::vector<PointContact>& out) override {
         const double h = owner_.step_;
         std::vector<RigidContact> found;
+        std::vector<const std::vector<Vec3>*> seen_meshes;
         for (std::size_t i = 0; i < query.start.size(); ++i) {
             const auto& start = *query.start[i];
             const auto& pred = *query.predicted[i];
             const double radius = query.radius[i];
             if (start.empty() || start.size() != pred.size() || !(radius > 0.0)) continue;
+            const auto* triangles = i < query.triangles.size() ? query.triangles[i] : nullptr;
             // The object's swept bounds: candidate bodies from Bullet's broadphase.
             Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
             for (std::size_t v = 0; v < start.size(); ++v) {
@@ -113,26 +121,42 @@ public:
             }
             if (!lo.allFinite() || !hi.allFinite()) continue;
             const double grow = radius + kContactMargin;
-            for (btRigidBody* body : owner_.bodiesIn(lo.array() - grow, hi.array() + grow)) {
-                // Only bodies that were given a proxy before the step (findCandidates).
-                if (!std::binary_search(owner_.mesh_candidates_.begin(), owner_.mesh_candidates_.end(), body)) continue;
+            const double margin = radius + kContactMargin;
+            std::vector<btRigidBody*> bodies = owner_.bodiesIn(lo.array() - grow, hi.array() + grow);
+            // Only bodies that were given a proxy before the step (findCandidates).
+            bodies.erase(std::remove_if(bodies.begin(), bodies.end(),
+                                        [&](btRigidBody* b) {
+                                            return !std::binary_search(owner_.mesh_candidates_.begin(),
+                                                                       owner_.mesh_candidates_.end(), b);
+                                        }),
+                         bodies.end());
+            if (bodies.empty()) continue;
+            // A surface: its triangles in a btDbvt of their swept bounds, kept from step to
+            // step; a body's candidates are the triangles that overlap its swept bounds.
+            TriangleTree* tree = nullptr;
+            if (triangles && !triangles->empty()) {
+                tree = &triangleTree(query.start[i], start, pred, *triangles, margin);
+                seen_meshes.push_back(query.start[i]);
+                vertex_stamp_.assign(start.size(), 0);
+                touched_stamp_.assign(start.size(), 0);
+            }
+            std::uint32_t stamp = 0;
+            for (btRigidBody* body : bodies) {
                 const SweptBody swept(*body, h);
-                const btTransform& before = swept.before;
                 const btVector3 &bmin = swept.lo, &bmax = swept.hi;
-                const double body_travel = swept.travel;
                 const RigidId proxy = owner_.proxies_.at(body);
-                for (std::size_t v = 0; v < start.size(); ++v) {
-                    const double margin = radius + kContactMargin;
+                // A vertex: a sphere at the start of the step, reaching as far as both can
+                // travel (as the segments' capsules do).
+                auto testVertex = [&](std::size_t v) {
                     const Vec3 vlo = start[v].cwiseMin(pred[v]).array() - margin;
                     const Vec3 vhi = start[v].cwiseMax(pred[v]).array() + margin;
                     if (vlo.x() > bmax.x() || vlo.y() > bmax.y() || vlo.z() > bmax.z() || vhi.x() < bmin.x() ||
                         vhi.y() < bmin.y() || vhi.z() < bmin.z())
-                        continue;
-                    // A sphere at the start of the step, reaching as far as both can travel
-                    // (as the segments' capsules do).
+                        return;
                     found.clear();
-                    testSphere(start[v], radius, *body, before, body_travel + (pred[v] - start[v]).norm() + kContactMargin,
+                    testSphere(start[v], radius, *body, swept.before, swept.travel + (pred[v] - start[v]).norm() + kContactMargin,
                                proxy, found);
+                    if (tree && !found.empty()) touched_stamp_[v] = stamp;
                     for (const RigidContact& rc : found) {
                         PointContact c;
                         c.object = static_cast<std::uint32_t>(i);
@@ -143,9 +167,44 @@ public:
                         c.friction = rc.friction;
                         out.push_back(c);
                     }
+                };
+                if (!tree) {
+                    for (std::size_t v = 0; v < start.size(); ++v) testVertex(v);
+                    continue;
+                }
+                hits_.clear();
+                Overlaps collect(hits_);
+                tree->tree.collideTV(tree->tree.m_root, btDbvtVolume::FromMM(bmin, bmax), collect);
+                std::sort(hits_.begin(), hits_.end());  // a deterministic order
+                ++stamp;
+                for (const std::uint32_t t : hits_)
+                    for (const std::uint32_t v : (*triangles)[t])
+                        if (v < start.size() && vertex_stamp_[v] != stamp) {
+                            vertex_stamp_[v] = stamp;
+                            testVertex(v);
+                        }
+                // Faces: only convex bodies (Bullet's GJK); compounds and triangle meshes
+                // touch the surface at its vertices.
+                if (!body->getCollisionShape()->isConvex()) continue;
+                for (const std::uint32_t t : hits_) {
+                    const auto& tri = (*triangles)[t];
+                    if (tri[0] >= start.size() || tri[1] >= start.size() || tri[2] >= start.size()) continue;
+                    // All three corners touch the body already: their contacts hold the
+                    // triangle (and lend the body's mass to the solve, which a face
+                    // contact does not). A face contact is for a body that reaches
+                    // between the corners: a small ball, a box's edge or corner.
+                    if (touched_stamp_[tri[0]] == stamp && touched_stamp_[tri[1]] == stamp && touched_stamp_[tri[2]] == stamp)
+                        continue;
+                    double travel = 0.0;
+                    for (std::uint32_t v : tri) travel = std::max(travel, (pred[v] - start[v]).norm());
+                    testFace(i, tri, start, radius, *body, swept, swept.travel + travel + kContactMargin, proxy, out);
                 }
             }
         }
+        // Forget the trees of meshes that were not asked about (removed, frozen).
+        std::sort(seen_meshes.begin(), seen_meshes.end());
+        for (auto it = triangle_trees_.begin(); it != triangle_trees_.end();)
+            it = std::binary_search(seen_meshes.begin(), seen_meshes.end(), it->first) ? std::next(it) : triangle_trees_.erase(it);
     }
 
 private:
@@ -213,6 +272,97 @@ private:
 
     std::map<std::uint32_t, std::unique_ptr<SegmentTree>> trees_;  // per string index
     std::vector<std::uint32_t> hits_;  ///< m: near contacts are kept, in case the solve closes them
+
+    /// A surface's triangles in a btDbvt of their swept bounds (where the corners were at
+    /// the start of the step and where they are predicted to go, grown by the radius and the
+    /// margin). Kept from step to step, keyed by the mesh's vertex array; triangles are only
+    /// ever appended, so leaf t stays triangle t and is updated in place.
+    struct TriangleTree {
+        btDbvt tree;
+        std::vector<btDbvtNode*> leaves;
+    };
+
+    TriangleTree& triangleTree(const void* key, const std::vector<Vec3>& start, const std::vector<Vec3>& pred,
+                               const std::vector<std::array<std::uint32_t, 3>>& triangles, double margin) {
+        std::unique_ptr<TriangleTree>& slot = triangle_trees_[key];
+        if (!slot || slot->leaves.size() > triangles.size()) slot = std::make_unique<TriangleTree>();
+        TriangleTree& t = *slot;
+        t.leaves.resize(triangles.size(), nullptr);
+        for (std::size_t k = 0; k < triangles.size(); ++k) {
+            Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+            for (std::uint32_t v : triangles[k]) {
+                if (v >= start.size()) continue;
+                lo = lo.cwiseMin(start[v]).cwiseMin(pred[v]);
+                hi = hi.cwiseMax(start[v]).cwiseMax(pred[v]);
+            }
+            if (!lo.allFinite() || !hi.allFinite()) lo = hi = Vec3::Constant(1e30);  // far away: never a candidate
+            const btDbvtVolume volume = btDbvtVolume::FromMM(toBullet(Vec3(lo.array() - margin)), toBullet(Vec3(hi.array() + margin)));
+            if (t.leaves[k])
+                t.tree.update(t.leaves[k], const_cast<btDbvtVolume&>(volume));
+            else
+                t.leaves[k] = t.tree.insert(volume, reinterpret_cast<void*>(static_cast<std::uintptr_t>(k)));
+        }
+        return t;
+    }
+
+    std::map<const void*, std::unique_ptr<TriangleTree>> triangle_trees_;  // per mesh (its vertex array)
+    std::vector<std::uint32_t> vertex_stamp_;   // per vertex: the body it was last tested against
+    std::vector<std::uint32_t> touched_stamp_;  // per vertex: the body it last touched
+
+    /// A body touching a surface inside a triangle (speculative, as a vertex): Bullet's GJK
+    /// (with EPA when they overlap) between the triangle where it was at the start of the
+    /// step and the convex body where it was. Kept when the closest point of the triangle
+    /// lies between its corners (its largest barycentric weight below 0.9: near a corner,
+    /// the corner's own sphere answers) and the gap is within the reach.
+    void testFace(std::size_t object, const std::array<std::uint32_t, 3>& tri, const std::vector<Vec3>& x, double radius,
+                  btRigidBody& body, const SweptBody& swept, double reach, RigidId proxy, std::vector<PointContact>& out) {
+        const Vec3 &p0 = x[tri[0]], &p1 = x[tri[1]], &p2 = x[tri[2]];
+        const Vec3 e1 = p1 - p0, e2 = p2 - p0;
+        const double area2 = e1.cross(e2).squaredNorm();
+        if (!(area2 > 1e-24)) return;
+        btTriangleShape shape(toBullet(p0), toBullet(p1), toBullet(p2));
+        shape.setMargin(0);
+        const auto* convex = static_cast<const btConvexShape*>(body.getCollisionShape());
+        btVoronoiSimplexSolver simplex;
+        btGjkEpaPenetrationDepthSolver epa;
+        btGjkPairDetector gjk(&shape, convex, &simplex, &epa);
+        btGjkPairDetector::ClosestPointInput input;
+        input.m_transformA.setIdentity();
+        input.m_transformB = swept.before;
+        const double limit = radius + reach;
+        input.m_maximumDistanceSquared = static_cast<btScalar>(limit * limit);
+        btPointCollector result;
+        gjk.getClosestPoints(input, result, nullptr);
+        if (!result.m_hasResult || result.m_distance > limit) return;
+        // From the body (B) toward the triangle (A); the triangle's point is past the gap.
+        const Vec3 normal = toCore(result.m_normalOnBInWorld).normalized();
+        if (!normal.allFinite()) return;
+        const Vec3 on_body = toCore(result.m_pointInWorld);
+        const Vec3 on_triangle = on_body + static_cast<double>(result.m_distance) * normal;
+        // Barycentric weights of that point.
+        const Vec3 d = on_triangle - p0;
+        const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2), d1 = d.dot(e1), d2 = d.dot(e2);
+        const double det = d11 * d22 - d12 * d12;
+        if (!(det > 0.0)) return;
+        double w1 = (d22 * d1 - d12 * d2) / det, w2 = (d11 * d2 - d12 * d1) / det;
+        Vec3 w(1.0 - w1 - w2, w1, w2);
+        w = w.cwiseMax(0.0);
+        if (!(w.sum() > 0.0)) return;
+        w /= w.sum();
+        if (w.maxCoeff() > 0.9) return;
+        PointContact c;
+        c.object = static_cast<std::uint32_t>(object);
+        c.vertex = tri[0];
+        c.face = tri;
+        c.weights = w;
+        // The contact point and normal move with the body: from the earlier pose to now.
+        const btTransform& now = body.getWorldTransform();
+        c.point = toCore(now * (swept.before.inverse() * toBullet(on_body)));
+        c.normal = toCore(now.getBasis() * (swept.before.getBasis().transpose() * toBullet(normal))).normalized();
+        c.body = proxy;
+        c.friction = body.getFriction();
+        out.push_back(c);
+    }
 
     /// Collects the deepest point Bullet reports between the capsule and the body.
     struct Deepest : btCollisionWorld::ContactResultCallback {

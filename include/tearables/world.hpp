@@ -8,6 +8,8 @@
 #include "tearables/string.hpp"
 #include "tearables/types.hpp"
 
+#include <array>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -82,20 +84,32 @@ struct CollisionQuery {
 /// Vertices of meshes (paper sheets, cloths) for a host's collision query: each object's
 /// vertices are spheres of the object's radius (its half thickness), swept from where they
 /// were at the start of the step to where they are predicted to go.
+///
+/// An object that gives its triangles (paper sheets) is also a surface of that thickness:
+/// a body may touch it inside a triangle, between the vertices (a small ball, a box's edge).
 struct PointQuery {
     std::vector<const std::vector<Vec3>*> start;      ///< per object, vertex positions at the step start
     std::vector<const std::vector<Vec3>*> predicted;  ///< per object, predicted vertex positions
     std::vector<double> radius;                       ///< per object, m, > 0
+    /// Per object, its triangles (vertex indices), or null: vertices only. May be shorter
+    /// than `start` (missing entries are null).
+    std::vector<const std::vector<std::array<std::uint32_t, 3>>*> triangles;
 };
 
-/// A mesh vertex touching a rigid body (the answer to a PointQuery).
+/// A mesh vertex, or a point inside a triangle, touching a rigid body (the answer to a
+/// PointQuery).
 struct PointContact {
     std::uint32_t object = 0;      ///< index into the PointQuery's arrays
-    std::uint32_t vertex = 0;      ///< the vertex
+    std::uint32_t vertex = 0;      ///< the vertex (a face contact: face[0])
     Vec3 normal = Vec3::UnitY();   ///< unit, from the body toward the vertex
     Vec3 point = Vec3::Zero();     ///< on the body's surface, world, m (where the body is now)
     RigidId body;                  ///< the body's proxy (inverse mass 0 = static)
     double friction = 0.5;         ///< Coulomb coefficient, >= 0
+    /// A face contact: the touching point of the surface is sum_k weights[k] x[face[k]]
+    /// (barycentric weights, >= 0, summing to 1). All zero for a vertex contact.
+    std::array<std::uint32_t, 3> face{};
+    Vec3 weights = Vec3::Zero();
+    bool onFace() const { return weights.squaredNorm() > 0.0; }
 };
 
 /// Finds contacts between strings and rigid bodies; implemented by the host (the Bullet

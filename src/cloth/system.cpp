@@ -141,6 +141,7 @@ void ClothSystem::step(RigidTable& rigids, const StepContext& ctx, const PointCo
     found_.clear();
     if (!query_.start.empty() && find) find(query_, found_);
     for (const PointContact& pc : found_) {
+        if (pc.onFace()) continue;  // a cloth gives no triangles: vertex contacts only
         ClothState& c = cloths_[query_cloth_[pc.object]];
         if (c.hold[pc.vertex].kind != ParticleHold::Kind::Free) continue;
         // A cloth does not collide with a body it is glued to (as strings): the glue

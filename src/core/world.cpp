@@ -182,7 +182,17 @@ struct World::Impl {
         }
         out.erase(std::remove_if(out.begin(), out.end(),
                                  [&](const PointContact& c) {
-                                     return c.object >= q.start.size() || c.vertex >= q.start[c.object]->size() ||
+                                     if (c.object >= q.start.size()) return true;
+                                     const std::size_t n = q.start[c.object]->size();
+                                     if (c.onFace()) {
+                                         const auto* tris = c.object < q.triangles.size() ? q.triangles[c.object] : nullptr;
+                                         if (!tris || !finite(c.weights) || c.weights.minCoeff() < 0.0 ||
+                                             std::abs(c.weights.sum() - 1.0) > 1e-6 || c.face[0] != c.vertex)
+                                             return true;
+                                         for (std::uint32_t v : c.face)
+                                             if (v >= n) return true;
+                                     }
+                                     return c.vertex >= n ||
                                             c.body.index >= rigids.bodies.size() || !rigids.used[c.body.index] ||
                                             !finite(c.normal) || !finite(c.point) || !std::isfinite(c.friction) ||
                                             std::abs(c.normal.norm() - 1.0) > 1e-3;

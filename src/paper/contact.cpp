@@ -33,6 +33,48 @@ void pushBody(RigidState& body, const Vec3& arm, const Vec3& impulse) {
     body.impulse += impulse;
 }
 
+/// A body touching the sheet inside a triangle, at the point p = sum_k w_k x_k. The same
+/// velocity-level condition as a vertex's, n . v_p >= -gap / h, on the point's velocity
+/// v_p = sum_k w_k v_k: the normal impulse j that enforces it is shared by the corners in
+/// proportion to their weights, dv_k = w_k j n / m_k, with the point's effective mass
+/// 1 / sum_k w_k^2 / m_k (a corner that is pinned or glued takes no share, as if
+/// infinitely heavy). Friction limits the point's tangential slip to mu times the normal
+/// change, shared the same way. The body gets the opposite impulse, through its centre of
+/// mass as the vertices' contacts do.
+void resolveFaceContact(PaperSheet& s, const PointContact& c, RigidTable& rigids, const PaperStep& ctx, double radius) {
+    double w2m = 0.0;  // sum w_k^2 / m_k over the corners that can move
+    Vec3 x = Vec3::Zero(), v = Vec3::Zero();
+    for (int k = 0; k < 3; ++k) {
+        const std::uint32_t i = c.face[k];
+        if (i >= s.vertices()) return;
+        x += c.weights[k] * s.x[i];
+        v += c.weights[k] * s.v[i];
+        if (!s.fixed[i]) w2m += c.weights[k] * c.weights[k] / s.mass[i];
+    }
+    if (!(w2m > 0.0)) return;
+    RigidState& body = rigids.bodies[c.body.index];
+    const Vec3 point = c.point + (body.position - rigids.start_position[c.body.index]);
+    const Vec3& n = c.normal;
+    const double gap = n.dot(x - point) - radius;
+    const double target = -gap * ctx.inv_h;
+    const double vn = n.dot(v);
+    if (vn >= target) return;
+    const double dvn = target - vn;
+    Vec3 dv = dvn * n;  // wanted change of the point's velocity
+    const Vec3 body_v = body.linear_velocity + body.angular_velocity.cross(point - body.position);
+    Vec3 rel = v + dv - body_v;
+    rel -= n * n.dot(rel);
+    const double slip = rel.norm();
+    const double mu = std::max(s.desc.friction, c.friction);
+    if (slip > 0.0) dv -= rel * std::min(1.0, mu * dvn / slip);
+    const Vec3 impulse = dv / w2m;  // on the sheet, at the point
+    for (int k = 0; k < 3; ++k) {
+        const std::uint32_t i = c.face[k];
+        if (!s.fixed[i]) s.v[i] += (c.weights[k] / s.mass[i]) * impulse;
+    }
+    if (rigids.movable(c.body)) pushBody(body, Vec3::Zero(), -impulse);
+}
+
 }  // namespace
 
 void resolveContacts(PaperSheet& s, const std::vector<PointContact>& contacts, RigidTable& rigids, const PaperStep& ctx) {
@@ -40,6 +82,10 @@ void resolveContacts(PaperSheet& s, const std::vector<PointContact>& contacts, R
     const double radius = 0.5 * s.desc.thickness;
     for (int pass = 0; pass < kContactPasses; ++pass) {
         for (const PointContact& c : contacts) {
+            if (c.onFace()) {
+                resolveFaceContact(s, c, rigids, ctx, radius);
+                continue;
+            }
             const std::uint32_t i = c.vertex;
             if (i >= s.vertices() || s.fixed[i]) continue;
             RigidState& body = rigids.bodies[c.body.index];
@@ -74,7 +120,8 @@ namespace {
 /// The contact's body is movable and the vertex will close the gap this step (with
 /// gravity's pull and a quarter radius of slack).
 bool closing(const PaperSheet& s, const PointContact& c, const RigidTable& rigids, const PaperStep& ctx) {
-    if (c.vertex >= s.vertices() || !rigids.movable(c.body)) return false;
+    // Face contacts lend no mass: they act at velocity level only (resolveContacts).
+    if (c.onFace() || c.vertex >= s.vertices() || !rigids.movable(c.body)) return false;
     if (s.hold[c.vertex].kind != VertexHold::Kind::Free) return false;
     const RigidState& body = rigids.bodies[c.body.index];
     const Vec3 body_v = body.linear_velocity + body.angular_velocity.cross(c.point - body.position);

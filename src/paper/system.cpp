@@ -188,6 +188,7 @@ void PaperSystem::step(const PaperStep& ctx, RigidTable& rigids, const PointCont
     query_.start.clear();
     query_.predicted.clear();
     query_.radius.clear();
+    query_.triangles.clear();
     query_sheet_.clear();
     for (std::size_t i = 0; i < sheets_.size(); ++i) {
         PaperSheet& s = sheets_[i];
@@ -203,6 +204,7 @@ void PaperSystem::step(const PaperStep& ctx, RigidTable& rigids, const PointCont
         query_.start.push_back(&s.x);
         query_.predicted.push_back(&s.x_pred);
         query_.radius.push_back(0.5 * s.desc.thickness);
+        query_.triangles.push_back(&s.triangles);  // a surface: bodies touch it between vertices too
         query_sheet_.push_back(static_cast<std::uint32_t>(i));
     }
     contacts_.clear();

@@ -47,8 +47,12 @@ void estimateTension(PaperSheet& s, const std::vector<PointContact>& contacts, c
     std::vector<std::uint8_t> row(n, 0);
     for (std::size_t i = 0; i < n; ++i)
         row[i] = !s.fixed[i] && (s.added_mass.size() != n || s.added_mass[i].isZero(0.0));
-    for (const PointContact& c : contacts)
+    for (const PointContact& c : contacts) {
         if (c.vertex < n) row[c.vertex] = 0;
+        if (c.onFace())
+            for (std::uint32_t v : c.face)
+                if (v < n) row[v] = 0;
+    }
     // b_i = m (v'' - v) / h - m g - f_user - f_other_springs.
     std::vector<Vec3> b(n, Vec3::Zero());
     for (std::size_t i = 0; i < n; ++i)
