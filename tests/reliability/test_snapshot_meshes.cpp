@@ -5,6 +5,7 @@
 // Bullet world, with Bullet bodies, through BulletWorld::saveSnapshot); a world
 // whose cloths or sheets are not the snapshot's refuses it, naming the difference, and
 // is left as it was.
+#include "core/world_access.hpp"
 #include "tearables/bullet.hpp"
 #include "tearables/snapshot.hpp"
 #include "tearables/world.hpp"
@@ -484,6 +485,50 @@ TEST(SnapshotMeshes, WorldWithOtherClothsOrSheetsRefusesAndChangesNothing) {
                   "paper slots");
     EXPECT_TRUE(fresh.papers().empty());
     EXPECT_TRUE(fresh.cloths().empty());
+}
+
+// A damaged cloth or sheet behind a valid checksum (written from a world whose state was
+// broken on purpose: the writer does not check) is refused naming the section and what is
+// wrong, and the world it was loaded into stays as it was.
+TEST(SnapshotMeshes, DamagedClothsAndSheetsAreRefusedAndChangeNothing) {
+    auto damaged = [](auto&& spoil) {
+        BothScene scene;
+        for (int i = 0; i < 3; ++i) scene.cloth.step();
+        spoil(tearables::detail::WorldAccess::parts(scene.cloth.world));
+        std::stringstream out;
+        tearables::saveSnapshot(scene.cloth.world, out);
+        return out.str();
+    };
+    struct Case {
+        std::string bytes, field, message;
+    };
+    const Case cases[] = {
+        {damaged([](const tearables::detail::WorldParts& w) { w.papers->at(0).triangles[3][1] = 100000; }), "snapshot.PAPR[0]",
+         "triangle 3 names vertex 100000"},
+        {damaged([](const tearables::detail::WorldParts& w) { w.papers->at(0).vertex_springs[5].push_back(0); }), "snapshot.PAPR[0]",
+         "vertex 5 lists spring 0, which does not name it"},
+        {damaged([](const tearables::detail::WorldParts& w) { w.papers->at(0).survived.pop_back(); }), "snapshot.PAPR[0]", "survived has"},
+        {damaged([](const tearables::detail::WorldParts& w) { w.papers->at(0).mass[7] *= 2.0; }), "snapshot.PAPR[0]",
+         "do not sum to the sheet's mass"},
+        {damaged([](const tearables::detail::WorldParts& w) {
+             auto& hold = w.papers->at(0).hold[9];
+             hold.kind = tearables::detail::VertexHold::Kind::Glue;
+             hold.body = RigidId{7};
+         }),
+         "snapshot.PAPR[0]", "vertex 9 is glued to rigid slot 7"},
+        {damaged([](const tearables::detail::WorldParts& w) { w.cloths->at(0).edges[4][0] = 500; }), "snapshot.CLTH[0]",
+         "lists edge 4, which does not end at it"},
+        {damaged([](const tearables::detail::WorldParts& w) { w.cloths->at(0).edge_springs[2].push_back(99999); }), "snapshot.CLTH[0]",
+         "edge 2 names soft spring 99999"},
+        {damaged([](const tearables::detail::WorldParts& w) { w.cloths->at(0).nu = 8; }), "snapshot.CLTH[0]",
+         "does not match the descriptor's resolution"},
+        {damaged([](const tearables::detail::WorldParts& w) { w.cloths->at(0).tension.pop_back(); }), "snapshot.CLTH[0]", "a per-edge array"},
+    };
+    for (const Case& c : cases) {
+        ClothScene target;
+        for (int i = 0; i < 2; ++i) target.step();
+        expectRefused(target.world, [&] { target.step(); }, c.bytes, c.field, c.message, c.message);
+    }
 }
 
 // --- both in a Bullet world -----------------------------------------------------------------
