@@ -540,18 +540,37 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         for (double l : *v.rest_length) digest.add(l);
         digest.add(v.broken->data(), v.broken->size());
     }
+    // Cloths and sheets: everything their views show (tensions, plastic lengths, the
+    // sheet's springs with their kinds, hinges and broken flags, its masses and counters),
+    // so that a run that differs only in damage or tension has another digest.
     for (ClothId id : cloth_ids) {
         const ClothView v = ropes.core().viewCloth(id);
         for (const Vec3& p : *v.positions) digest.add(p);
         for (const Vec3& p : *v.velocities) digest.add(p);
         for (double l : *v.rest_length) digest.add(l);
+        for (double l : *v.max_length) digest.add(l);
+        for (double t : *v.tension) digest.add(t);
         digest.add(v.broken->data(), v.broken->size());
+        digest.add(static_cast<double>(v.frozen));
     }
     for (PaperId id : paper_ids) {
         const PaperView v = ropes.core().viewPaper(id);
         for (const Vec3& p : *v.positions) digest.add(p);
         for (const Vec3& p : *v.velocities) digest.add(p);
+        for (double m : *v.masses) digest.add(m);
         for (const auto& tri : *v.triangles) digest.add(tri.data(), sizeof tri);
+        for (const PaperSpring& sp : *v.springs) {
+            const std::uint32_t names[5] = {sp.a, sp.b, sp.hinge[0], sp.hinge[1],
+                                            static_cast<std::uint32_t>(sp.kind) | (sp.broken ? 0x100u : 0u)};
+            digest.add(names, sizeof names);
+            digest.add(sp.rest);
+            digest.add(sp.stiffness);
+        }
+        for (double t : *v.tension) digest.add(t);
+        const double counters[3] = {static_cast<double>(v.counters.creases), static_cast<double>(v.counters.hinges),
+                                    static_cast<double>(v.counters.tears)};
+        digest.add(counters, sizeof counters);
+        digest.add(static_cast<double>(v.frozen));
     }
     for (const auto& b : bs.bodies) {
         const btTransform& xf = b->getWorldTransform();

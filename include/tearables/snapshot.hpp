@@ -2,22 +2,44 @@
 //
 // A snapshot holds everything a World carries from one step to the next: every string's
 // full state (positions, velocities, rest lengths, material state after variation,
-// plasticity and damage, twist, attachments, its random generator), the rigid body
-// proxies by slot, the string-string warm start, pending events, time, step count and
-// settings. Restored into a world, the run continues bit-identically to the uninterrupted
-// one, provided the host's rigid bodies are in the same state (the Bullet plugin maps its
-// bodies by the order the user passes them: BulletWorld::saveSnapshot / loadSnapshot).
+// plasticity and damage, twist, attachments, its random generator), every cloth's and
+// paper sheet's (below), the rigid body proxies by slot, the string-string warm start,
+// pending events, time, step count and settings. Restored into a world, the run continues
+// bit-identically to the uninterrupted one, provided the host's rigid bodies are in the
+// same state (the Bullet plugin maps its bodies by the order the user passes them:
+// BulletWorld::saveSnapshot / loadSnapshot).
 //
 // Format (little-endian, version kSnapshotVersion):
 //   "TEARSNAP" (8 bytes), u32 version, u32 reserved (0),
 //   sections: char tag[4], u64 payload length, payload  (one section per object or table),
 //   "END " section of length 0,
 //   u64 FNV-1a checksum of every byte before it.
-// Core tags: "WRLD" (settings, time, steps, slot counts), "RIGD" (rigid proxies), "STRG"
-// (one per string slot), "SCOL" (string-string warm start), "EVNT" (pending events).
-// Sheets and cloths add their own tags ("PAPR", "CLTH"); a host adds its own (the Bullet
-// plugin: "BULT"). A reader refuses a file of another version, a truncated or corrupt
-// file, and a section it does not know, with a SnapshotError; the world is then unchanged.
+// Integers are written as 64-bit words, doubles as their IEEE bits, strings and arrays
+// with a length word first. Core tags, in this order:
+//   "WRLD"  settings, time, steps, and the slot counts of strings, rigid bodies, cloths
+//           and paper sheets (version 2 added the last two);
+//   "RIGD"  the rigid proxies by slot;
+//   "STRG"  one per string slot (dead slots included: ids stay);
+//   "CLTH"  one per cloth slot (version 2): descriptor, vertices (positions, velocities,
+//           start and predicted positions, pending forces, masses, pins and glues), yarn
+//           edges (vertices, warp/weft, rest, original and maximum lengths, tension,
+//           stiffness, peak stress, broken and yielded flags, material after variation),
+//           soft springs and which edges they go with, per-vertex edge lists, the last
+//           edge directions, the topology counter, the last tension residual, the random
+//           generator. The solvers' scratch and factorisations are rebuilt;
+//   "PAPR"  one per paper sheet slot (version 2): descriptor, vertices (positions,
+//           predicted positions, velocities, pending forces, masses, pins and glues,
+//           crack tips), the mesh as it is now (triangles, springs with kind, rest,
+//           stiffness, broken flag and hinge edge), the adjacency lists in their order,
+//           per-spring survived compression and tension, the crease/hinge/tear counters,
+//           the random generator, the sheet's mass;
+//   "SCOL"  string-string warm start;
+//   "EVNT"  pending events.
+// A host adds its own (the Bullet plugin: "BULT"). A reader refuses a file of another
+// version, a truncated or corrupt file, and a section it does not know, with a
+// SnapshotError; the world is then unchanged. A world that already has cloths or sheets
+// takes only a snapshot of the same ones (same slots, same descriptors); strings, rigid
+// proxies and everything else are replaced.
 #pragma once
 
 #include "tearables/types.hpp"
@@ -32,7 +54,7 @@
 namespace tearables {
 
 /// The version this build writes and the only one it reads.
-constexpr std::uint32_t kSnapshotVersion = 1;
+constexpr std::uint32_t kSnapshotVersion = 2;
 
 /// A snapshot was refused: field() is "snapshot" or "snapshot.<section>", problem() says
 /// what is wrong (wrong magic, version, checksum, truncated, inconsistent section).
@@ -52,8 +74,11 @@ class Snapshot {
 public:
     /// Reads and checks a whole snapshot; throws SnapshotError (nothing is changed).
     static Snapshot read(std::istream& in);
-    /// Replaces the whole state of `world` by the snapshot's (its strings, proxies, time,
-    /// settings); cannot fail once read() succeeded.
+    /// Replaces the whole state of `world` by the snapshot's (its strings, cloths, paper
+    /// sheets, proxies, time, settings). Throws SnapshotError ("snapshot.CLTH" or
+    /// "snapshot.PAPR", naming the first difference) when the world has cloths or sheets
+    /// that are not the snapshot's: other slots, names or descriptors (a world without
+    /// any takes the snapshot's); nothing is changed then. Cannot fail otherwise.
     void restore(World& world) const;
     /// Sections a host added, in file order.
     const std::vector<SnapshotSection>& hostSections() const;
@@ -74,9 +99,9 @@ private:
 /// std::runtime_error when the stream fails, InvalidInput for a bad host section tag.
 void saveSnapshot(const World& world, std::ostream& out, const std::vector<SnapshotSection>& host = {});
 
-/// Reads a snapshot written by saveSnapshot and restores it into `world`. A snapshot with
-/// host sections (written by BulletWorld::saveSnapshot) is refused: load it through its
-/// host. Throws SnapshotError; the world is unchanged then.
+/// Reads a snapshot written by saveSnapshot and restores it into `world` (Snapshot::restore).
+/// A snapshot with host sections (written by BulletWorld::saveSnapshot) is refused: load
+/// it through its host. Throws SnapshotError; the world is unchanged then.
 void loadSnapshot(World& world, std::istream& in);
 
 }  // namespace tearables

@@ -172,6 +172,7 @@ public:
                  std::vector<Event>& pending);
 
 private:
+    friend struct WorldAccess;  // snapshots read and replace the cloths (src/core/snapshot.cpp)
     std::vector<ClothState> cloths_;
     PointQuery query_;
     std::vector<PointContact> found_;

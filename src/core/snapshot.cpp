@@ -5,19 +5,21 @@
 // 64-bit words (integers) and IEEE bit patterns (doubles): restoring gives back the same
 // bits, which is what a bit-identical continuation needs. A reader checks the magic, the
 // version and the checksum first, then the sizes of everything it reads and the
-// consistency of every string (per-particle and per-segment arrays, attachments to rigid
-// slots that exist, a valid descriptor), so that a damaged file is refused rather than
-// stepped.
+// consistency of every string, cloth and sheet (per-particle, per-edge and per-spring
+// arrays, indices into the mesh, attachments to rigid slots that exist, a valid
+// descriptor), so that a damaged file is refused rather than stepped.
 #include "tearables/snapshot.hpp"
 
 #include "core/world_access.hpp"
 #include "string/string_state.hpp"
 
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <istream>
 #include <iterator>
 #include <limits>
+#include <optional>
 #include <ostream>
 #include <sstream>
 #include <type_traits>
@@ -27,7 +29,7 @@ namespace tearables {
 namespace {
 
 constexpr char kMagic[8] = {'T', 'E', 'A', 'R', 'S', 'N', 'A', 'P'};
-constexpr const char* kCoreTags[] = {"WRLD", "RIGD", "STRG", "SCOL", "EVNT", "END "};
+constexpr const char* kCoreTags[] = {"WRLD", "RIGD", "STRG", "CLTH", "PAPR", "SCOL", "EVNT", "END "};
 /// A header (magic, version, reserved) and the checksum: the least a file can have.
 constexpr std::size_t kHeaderBytes = 8 + 4 + 4;
 constexpr std::size_t kChecksumBytes = 8;
@@ -165,6 +167,26 @@ void io(A& a, std::string& s) {
 }
 template <class A, class T>
 void io(A& a, std::vector<T>& v);
+template <class A, class T, std::size_t N>
+void io(A& a, std::array<T, N>& v) {
+    for (T& e : v) io(a, e);
+}
+/// A fixed C array (the descriptors' `double size[2]`, a spring's `hinge[2]`).
+template <class A, class T, std::size_t N>
+void ioArray(A& a, T (&v)[N]) {
+    for (T& e : v) io(a, e);
+}
+template <class A>
+void io(A& a, std::optional<Vec3>& o) {
+    bool has = o.has_value();
+    io(a, has);
+    if (!has) {
+        o.reset();
+        return;
+    }
+    if (!o) o.emplace(Vec3::Zero());
+    io(a, *o);
+}
 template <class A, class T, class U>
 void io(A& a, std::pair<T, U>& p) {
     io(a, p.first);
@@ -305,6 +327,50 @@ void io(A& a, Event& e) {
     io(a, e.time);
     io(a, e.step);
 }
+// Cloths (src/cloth/cloth_state.hpp).
+template <class A>
+void io(A& a, ClothPin& p) {
+    io(a, p.i);
+    io(a, p.j);
+    io(a, p.at_rest);
+    io(a, p.point);
+}
+template <class A>
+void io(A& a, YarnKind& k) {
+    ioEnum(a, k, static_cast<int>(YarnKind::Weft), "yarn kind");
+}
+template <class A>
+void io(A& a, detail::SoftSpring& s) {
+    io(a, s.a);
+    io(a, s.b);
+    io(a, s.rest);
+    io(a, s.stiffness);
+    io(a, s.alive);
+}
+// Paper sheets (src/paper/sheet.hpp).
+template <class A>
+void io(A& a, PaperAttachment& t) {
+    io(a, t.vertex);
+    io(a, t.body);
+    io(a, t.local);
+    io(a, t.world);
+}
+template <class A>
+void io(A& a, detail::VertexHold& h) {
+    ioEnum(a, h.kind, 2, "vertex hold kind");
+    io(a, h.point);
+    io(a, h.body);
+}
+template <class A>
+void io(A& a, PaperSpring& sp) {
+    io(a, sp.a);
+    io(a, sp.b);
+    io(a, sp.rest);
+    io(a, sp.stiffness);
+    ioEnum(a, sp.kind, static_cast<int>(PaperSpringKind::Hinge), "spring kind");
+    io(a, sp.broken);
+    ioArray(a, sp.hinge);
+}
 template <class A, class T>
 void io(A& a, std::vector<T>& v) {
     std::uint64_t n = v.size();
@@ -386,6 +452,129 @@ void io(A& a, detail::StringState& s) {
     io(a, s.rng);
 }
 
+template <class A>
+void io(A& a, ClothDesc& d) {
+    io(a, d.name);
+    io(a, d.origin);
+    io(a, d.size);
+    io(a, d.resolution);
+    io(a, d.orientation);
+    io(a, d.areal_density);
+    io(a, d.density);
+    io(a, d.yarn_radius);
+    io(a, d.material);
+    io(a, d.lambda);
+    io(a, d.shear_stiffness);
+    io(a, d.bending_stiffness);
+    io(a, d.damping);
+    io(a, d.plastic_time);
+    io(a, d.tearable);
+    io(a, d.pins);
+    io(a, d.seed);
+}
+
+/// Every field of a cloth that lives from one step to the next. Not kept, rebuilt by
+/// every step before it is read: contacts, body nodes, penalty rows, the Newton solve's
+/// unknowns, Hessian and factorisation, the tension solve's rows and right-hand sides.
+/// The two sparse factorisations keep a symbolic analysis between steps; a restored cloth
+/// analyses its pattern afresh (the analysis is a function of the pattern alone, so the
+/// factors, and the run, are the same bits: tests/reliability/test_snapshot.cpp).
+/// `dir` is kept: an edge shorter than 1e-15 m keeps the last step's direction.
+template <class A>
+void io(A& a, detail::ClothState& c) {
+    io(a, c.alive);
+    io(a, c.desc);
+    io(a, c.frozen);
+    io(a, c.nu);
+    io(a, c.nv);
+    io(a, c.x);
+    io(a, c.v);
+    io(a, c.x_prev);
+    io(a, c.x_pred);
+    io(a, c.force);
+    io(a, c.mass);
+    io(a, c.hold);
+    io(a, c.edges);
+    io(a, c.kinds);
+    io(a, c.rest_length);
+    io(a, c.original_length);
+    io(a, c.max_length);
+    io(a, c.tension);
+    io(a, c.stiffness);
+    io(a, c.peak_stress);
+    io(a, c.broken);
+    io(a, c.yielded);
+    io(a, c.material);
+    io(a, c.edge_springs);
+    io(a, c.vertex_edges);
+    io(a, c.springs);
+    io(a, c.shortest_rest);
+    io(a, c.dir);
+    io(a, c.topology);
+    io(a, c.tension_residual);
+    io(a, c.tension_iterations);
+    io(a, c.rng);
+}
+
+template <class A>
+void io(A& a, PaperDesc& d) {
+    io(a, d.name);
+    io(a, d.origin);
+    io(a, d.orientation);
+    ioArray(a, d.size);
+    ioArray(a, d.resolution);
+    io(a, d.vertices);
+    io(a, d.triangles);
+    io(a, d.density);
+    io(a, d.stiffness);
+    io(a, d.bending);
+    io(a, d.damping);
+    io(a, d.jacobi_iterations);
+    ioEnum(a, d.integrator, static_cast<int>(PaperIntegrator::Explicit), "integrator");
+    io(a, d.phi);
+    io(a, d.psi);
+    io(a, d.hinge_threshold);
+    io(a, d.breakable);
+    io(a, d.tearable);
+    io(a, d.rupture_stretch);
+    ioEnum(a, d.tension, static_cast<int>(PaperTension::Momentum), "tension estimator");
+    io(a, d.thickness);
+    io(a, d.friction);
+    io(a, d.seed);
+    io(a, d.attachments);
+}
+
+/// Every field of a sheet that lives from one step to the next: the mesh as it is now
+/// (vertices inserted by creases and tears, triangles, springs with their kinds, hinges
+/// and broken flags), the adjacency lists in their order (topology changes search them in
+/// that order), the compression each spring survived, the crack tips, the counters and the
+/// random generator. Not kept, rebuilt by every step before it is read: the implicit
+/// solve's blocks and right-hand sides, the bodies' lent masses, the start velocities.
+template <class A>
+void io(A& a, detail::PaperSheet& s) {
+    io(a, s.alive);
+    io(a, s.desc);
+    io(a, s.frozen);
+    io(a, s.x);
+    io(a, s.x_pred);
+    io(a, s.v);
+    io(a, s.force);
+    io(a, s.mass);
+    io(a, s.hold);
+    io(a, s.crack_tip);
+    io(a, s.triangles);
+    io(a, s.springs);
+    io(a, s.vertex_triangles);
+    io(a, s.vertex_springs);
+    io(a, s.survived);
+    io(a, s.counters.creases);
+    io(a, s.counters.hinges);
+    io(a, s.counters.tears);
+    io(a, s.rng);
+    io(a, s.total_mass);
+    io(a, s.tension);
+}
+
 // --- consistency of what was read ----------------------------------------------------------
 
 /// The arrays of a string agree with its particle count, its descriptor is valid and its
@@ -450,6 +639,154 @@ void checkString(const detail::StringState& s, const detail::RigidTable& rigids,
             fail("segment " + std::to_string(j) + " has no valid rest length or material");
 }
 
+/// A glue names a rigid slot that exists.
+bool bodyExists(const detail::RigidTable& rigids, RigidId body) {
+    return body.index < rigids.bodies.size() && rigids.used[body.index];
+}
+
+/// The arrays of a cloth agree with its weave (vertex and edge counts of its resolution),
+/// every index names a vertex, edge or spring that exists, glues name rigid slots that
+/// exist, masses and rest lengths are positive: what the step assumes without checking.
+void checkCloth(const detail::ClothState& c, const detail::RigidTable& rigids, const std::string& where) {
+    auto fail = [&](const std::string& problem) { throw SnapshotError(where, problem); };
+    try {
+        validate(c.desc);
+    } catch (const InvalidInput& e) {
+        fail("the cloth's descriptor is invalid: " + std::string(e.what()));
+    }
+    if (c.nu != c.desc.resolution[0] || c.nv != c.desc.resolution[1]) fail("the weave does not match the descriptor's resolution");
+    const std::size_t n = static_cast<std::size_t>(c.nu) * static_cast<std::size_t>(c.nv);
+    const std::size_t m = static_cast<std::size_t>(c.nu - 1) * static_cast<std::size_t>(c.nv) +
+                          static_cast<std::size_t>(c.nu) * static_cast<std::size_t>(c.nv - 1);
+    auto size = [&](std::size_t actual, std::size_t expected, const char* name) {
+        if (actual != expected)
+            fail(std::string(name) + " has " + std::to_string(actual) + " entries, expected " + std::to_string(expected));
+    };
+    for (const auto* v : {&c.x, &c.v, &c.x_prev, &c.x_pred, &c.force}) size(v->size(), n, "a per-vertex array");
+    size(c.mass.size(), n, "mass");
+    size(c.hold.size(), n, "hold");
+    size(c.vertex_edges.size(), n, "vertex_edges");
+    size(c.edges.size(), m, "edges");
+    size(c.kinds.size(), m, "kinds");
+    for (const auto* v : {&c.rest_length, &c.original_length, &c.max_length, &c.tension, &c.stiffness, &c.peak_stress})
+        size(v->size(), m, "a per-edge array");
+    size(c.broken.size(), m, "broken");
+    size(c.yielded.size(), m, "yielded");
+    size(c.material.size(), m, "material");
+    size(c.edge_springs.size(), m, "edge_springs");
+    size(c.dir.size(), m, "dir");
+    if (c.topology < 1) fail("the topology counter is 0");
+    for (std::size_t p = 0; p < n; ++p) {
+        const detail::ParticleHold& h = c.hold[p];
+        if (h.kind == detail::ParticleHold::Kind::Glue && !bodyExists(rigids, h.body))
+            fail("vertex " + std::to_string(p) + " is glued to rigid slot " + std::to_string(h.body.index) +
+                 ", which the snapshot does not have");
+        if (!(c.mass[p] > 0.0) || !std::isfinite(c.mass[p])) fail("vertex " + std::to_string(p) + " has no valid mass");
+        for (std::uint32_t e : c.vertex_edges[p])
+            if (e >= m || (c.edges[e][0] != p && c.edges[e][1] != p))
+                fail("vertex " + std::to_string(p) + " lists edge " + std::to_string(e) + ", which does not end at it");
+    }
+    for (std::size_t e = 0; e < m; ++e) {
+        if (c.edges[e][0] >= n || c.edges[e][1] >= n || c.edges[e][0] == c.edges[e][1])
+            fail("edge " + std::to_string(e) + " names a vertex the cloth does not have");
+        if (!(c.rest_length[e] > 0.0) || !(c.stiffness[e] > 0.0) || !(c.material[e].young > 0.0))
+            fail("edge " + std::to_string(e) + " has no valid rest length, stiffness or material");
+        for (std::uint32_t k : c.edge_springs[e])
+            if (k >= c.springs.size()) fail("edge " + std::to_string(e) + " names soft spring " + std::to_string(k) + ", which does not exist");
+    }
+    for (std::size_t k = 0; k < c.springs.size(); ++k)
+        if (c.springs[k].a >= n || c.springs[k].b >= n || !(c.springs[k].rest > 0.0))
+            fail("soft spring " + std::to_string(k) + " names a vertex the cloth does not have or has no rest length");
+    if (!(c.shortest_rest > 0.0)) fail("the shortest rest length is not positive");
+}
+
+/// Sizes the solver scratch of a cloth read from a snapshot as makeCloth does, and makes
+/// both factorisations analyse their patterns afresh at the next step.
+void prepareCloth(detail::ClothState& c) {
+    const std::size_t n = c.vertices(), m = c.edgeCount();
+    c.x_trial = c.x;
+    c.dof.assign(n, -1);
+    c.projector.assign(n, Mat3::Identity());
+    c.has_row.assign(n, 0);
+    c.row_rhs.assign(n, Vec3::Zero());
+    c.unknown.assign(m, -1);
+    c.tension_topology = 0;  // never a topology (they start at 1): the tension pattern is rebuilt
+    c.newton_analysed = false;
+}
+
+/// Reads one CLTH payload (checked when alive; a dead slot comes back empty).
+detail::ClothState readCloth(const std::string& payload, const detail::RigidTable& rigids, const std::string& where) {
+    Reader s(payload.data(), payload.data() + payload.size(), where);
+    detail::ClothState c;
+    io(s, c);
+    if (s.remaining() != 0) s.fail(std::to_string(s.remaining()) + " bytes left over at the end of the section");
+    if (!c.alive) {
+        c = detail::ClothState{};
+        c.alive = false;
+        return c;
+    }
+    checkCloth(c, rigids, where);
+    prepareCloth(c);
+    return c;
+}
+
+/// The mesh of a sheet names only vertices, triangles and springs it has, its per-vertex
+/// and per-spring arrays agree, every adjacency entry is true of the mesh, glues name
+/// rigid slots that exist and masses are positive: what the step assumes without checking.
+void checkPaper(const detail::PaperSheet& s, const detail::RigidTable& rigids, const std::string& where) {
+    auto fail = [&](const std::string& problem) { throw SnapshotError(where, problem); };
+    try {
+        validate(s.desc);
+    } catch (const InvalidInput& e) {
+        fail("the sheet's descriptor is invalid: " + std::string(e.what()));
+    }
+    const std::size_t n = s.x.size(), t = s.triangles.size(), k = s.springs.size();
+    if (n < 3 || t == 0) fail("the sheet has no mesh");
+    auto size = [&](std::size_t actual, std::size_t expected, const char* name) {
+        if (actual != expected)
+            fail(std::string(name) + " has " + std::to_string(actual) + " entries, expected " + std::to_string(expected));
+    };
+    for (const auto* v : {&s.x_pred, &s.v, &s.force}) size(v->size(), n, "a per-vertex array");
+    size(s.mass.size(), n, "mass");
+    size(s.hold.size(), n, "hold");
+    size(s.crack_tip.size(), n, "crack_tip");
+    size(s.vertex_triangles.size(), n, "vertex_triangles");
+    size(s.vertex_springs.size(), n, "vertex_springs");
+    size(s.survived.size(), k, "survived");
+    // Tensions are of the springs the last tension stage saw: creases add springs after it.
+    if (s.tension.size() > k) fail("tension has " + std::to_string(s.tension.size()) + " entries for " + std::to_string(k) + " springs");
+    for (std::size_t i = 0; i < t; ++i)
+        for (std::uint32_t v : s.triangles[i])
+            if (v >= n) fail("triangle " + std::to_string(i) + " names vertex " + std::to_string(v) + ", which the sheet does not have");
+    auto names = [](const PaperSpring& sp, std::uint32_t v) {
+        return sp.a == v || sp.b == v || sp.hinge[0] == v || sp.hinge[1] == v;
+    };
+    for (std::size_t i = 0; i < k; ++i) {
+        const PaperSpring& sp = s.springs[i];
+        if (sp.a >= n || sp.b >= n || sp.a == sp.b || (sp.hinge[0] >= n && sp.hinge[0] != UINT32_MAX) ||
+            (sp.hinge[1] >= n && sp.hinge[1] != UINT32_MAX))
+            fail("spring " + std::to_string(i) + " names a vertex the sheet does not have");
+        if (!(sp.rest >= 0.0) || !(sp.stiffness >= 0.0)) fail("spring " + std::to_string(i) + " has no valid rest length or stiffness");
+    }
+    double total = 0.0;
+    for (std::uint32_t v = 0; v < n; ++v) {
+        const detail::VertexHold& h = s.hold[v];
+        if (h.kind == detail::VertexHold::Kind::Glue && !bodyExists(rigids, h.body))
+            fail("vertex " + std::to_string(v) + " is glued to rigid slot " + std::to_string(h.body.index) +
+                 ", which the snapshot does not have");
+        if (!(s.mass[v] > 0.0) || !std::isfinite(s.mass[v])) fail("vertex " + std::to_string(v) + " has no valid mass");
+        total += s.mass[v];
+        for (std::uint32_t i : s.vertex_triangles[v])
+            if (i >= t || (s.triangles[i][0] != v && s.triangles[i][1] != v && s.triangles[i][2] != v))
+                fail("vertex " + std::to_string(v) + " lists triangle " + std::to_string(i) + ", which does not use it");
+        for (std::uint32_t i : s.vertex_springs[v])
+            if (i >= k || !names(s.springs[i], v))
+                fail("vertex " + std::to_string(v) + " lists spring " + std::to_string(i) + ", which does not name it");
+    }
+    if (!(s.total_mass > 0.0) || std::abs(total - s.total_mass) > 1e-9 * s.total_mass)
+        fail("the vertices' masses do not sum to the sheet's mass");
+}
+
 }  // namespace
 
 // --- Snapshot -------------------------------------------------------------------------------
@@ -457,6 +794,15 @@ void checkString(const detail::StringState& s, const detail::RigidTable& rigids,
 struct Snapshot::Data {
     WorldSettings settings;
     std::vector<detail::StringState> strings;
+    /// A cloth holds its solvers (not copyable): its checked section is kept and read
+    /// again by restore(); its descriptor is kept to compare with the world's.
+    struct Cloth {
+        std::string payload;
+        bool alive = false;
+        ClothDesc desc;
+    };
+    std::vector<Cloth> cloths;
+    std::vector<detail::PaperSheet> papers;
     detail::RigidTable rigids;
     std::vector<Event> pending;
     std::vector<detail::SegmentContact> previous_pairs;
@@ -496,8 +842,11 @@ void saveSnapshot(const World& world, std::ostream& out, const std::vector<Snaps
         io(s, *w.time);
         io(s, *w.steps);
         std::uint64_t slots = w.strings->size(), bodies = w.rigids->bodies.size();
+        std::uint64_t cloth_slots = w.cloths->size(), paper_slots = w.papers->size();
         io(s, slots);
         io(s, bodies);
+        io(s, cloth_slots);
+        io(s, paper_slots);
         section("WRLD", s.bytes);
     }
     {
@@ -513,6 +862,16 @@ void saveSnapshot(const World& world, std::ostream& out, const std::vector<Snaps
         Writer s;
         io(s, string);
         section("STRG", s.bytes);
+    }
+    for (detail::ClothState& cloth : *w.cloths) {
+        Writer s;
+        io(s, cloth);
+        section("CLTH", s.bytes);
+    }
+    for (detail::PaperSheet& sheet : *w.papers) {
+        Writer s;
+        io(s, sheet);
+        section("PAPR", s.bytes);
     }
     {
         Writer s;
@@ -558,7 +917,7 @@ Snapshot Snapshot::read(std::istream& in) {
     Data& d = *data;
     Reader file(bytes.data() + kHeaderBytes, bytes.data() + body_end, "snapshot");
     bool have_world = false, have_rigids = false, ended = false;
-    std::uint64_t slots = 0, bodies = 0;
+    std::uint64_t slots = 0, bodies = 0, cloth_slots = 0, paper_slots = 0;
     while (!ended) {
         if (file.remaining() == 0) file.fail("truncated: no END section");
         std::string tag(4, ' ');
@@ -576,6 +935,8 @@ Snapshot Snapshot::read(std::istream& in) {
             io(s, d.steps);
             io(s, slots);
             io(s, bodies);
+            io(s, cloth_slots);
+            io(s, paper_slots);
             try {
                 validate(d.settings);
             } catch (const InvalidInput& e) {
@@ -613,6 +974,25 @@ Snapshot Snapshot::read(std::istream& in) {
                 string = detail::StringState{};
                 string.alive = false;
             }
+        } else if (tag == "CLTH") {
+            if (!have_rigids) s.fail("out of order (expected after RIGD)");
+            if (d.cloths.size() >= cloth_slots) s.fail("more cloth sections than the world has cloth slots");
+            const std::string where = "snapshot.CLTH[" + std::to_string(d.cloths.size()) + "]";
+            const detail::ClothState cloth = readCloth(payload, d.rigids, where);
+            d.cloths.push_back({std::move(payload), cloth.alive, cloth.desc});
+            continue;  // readCloth checked that nothing is left over
+        } else if (tag == "PAPR") {
+            if (!have_rigids) s.fail("out of order (expected after RIGD)");
+            if (d.papers.size() >= paper_slots) s.fail("more paper sections than the world has paper slots");
+            d.papers.emplace_back();
+            detail::PaperSheet& sheet = d.papers.back();
+            io(s, sheet);
+            if (sheet.alive) {
+                checkPaper(sheet, d.rigids, "snapshot.PAPR[" + std::to_string(d.papers.size() - 1) + "]");
+            } else {
+                sheet = detail::PaperSheet{};
+                sheet.alive = false;
+            }
         } else if (tag == "SCOL") {
             io(s, d.previous_pairs);
             io(s, d.deep_pairs);
@@ -633,6 +1013,10 @@ Snapshot Snapshot::read(std::istream& in) {
     if (!have_world || !have_rigids) file.fail("the WRLD or RIGD section is missing");
     if (d.strings.size() != slots)
         file.fail("has " + std::to_string(d.strings.size()) + " string sections for " + std::to_string(slots) + " slots");
+    if (d.cloths.size() != cloth_slots)
+        file.fail("has " + std::to_string(d.cloths.size()) + " cloth sections for " + std::to_string(cloth_slots) + " cloth slots");
+    if (d.papers.size() != paper_slots)
+        file.fail("has " + std::to_string(d.papers.size()) + " paper sections for " + std::to_string(paper_slots) + " paper slots");
     for (const detail::SegmentContact& c : d.previous_pairs) {
         auto ok = [&](std::uint32_t string, std::uint32_t segment) {
             return string < d.strings.size() && d.strings[string].alive && segment < d.strings[string].segments();
@@ -645,8 +1029,71 @@ Snapshot Snapshot::read(std::istream& in) {
     return Snapshot(std::move(data));
 }
 
+namespace {
+
+/// The bytes of a descriptor as a snapshot writes them: two descriptors are the same when
+/// these are.
+template <class Desc>
+std::string descBytes(Desc desc) {
+    Writer w;
+    io(w, desc);
+    return w.bytes;
+}
+
+/// A world that has cloths (or sheets) takes a snapshot only when they are the snapshot's:
+/// the same slots, created from the same descriptors (the ids a user holds keep naming
+/// the same objects). A world without any takes the snapshot's. `kind` is "cloth" or
+/// "paper sheet", `tag` the section's.
+template <class Desc>
+void checkSameObjects(const std::vector<std::pair<bool, const Desc*>>& world, const std::vector<std::pair<bool, const Desc*>>& snapshot,
+                      const char* kind, const char* tag, const std::string& plural) {
+    bool any = false;
+    for (const auto& slot : world) any = any || slot.first;
+    if (!any) return;
+    const std::string where = std::string("snapshot.") + tag;
+    const std::string remedy = ": restore into a world with the snapshot's " + plural + " or none";
+    for (std::size_t i = 0; i < std::max(world.size(), snapshot.size()); ++i) {
+        const bool in_world = i < world.size() && world[i].first, in_snapshot = i < snapshot.size() && snapshot[i].first;
+        const std::string id = std::string(kind) + " " + std::to_string(i);
+        if (in_world && !in_snapshot)
+            throw SnapshotError(where, "the world has " + id + " (\"" + world[i].second->name + "\"), which the snapshot does not have" + remedy);
+        if (!in_world && in_snapshot)
+            throw SnapshotError(where, "the snapshot has " + id + " (\"" + snapshot[i].second->name + "\"), which the world does not have" + remedy);
+        if (!in_world) continue;
+        const Desc& a = *world[i].second;
+        const Desc& b = *snapshot[i].second;
+        if (a.name != b.name)
+            throw SnapshotError(where, id + " is \"" + a.name + "\" in the world and \"" + b.name + "\" in the snapshot" + remedy);
+        if (a.resolution[0] != b.resolution[0] || a.resolution[1] != b.resolution[1])
+            throw SnapshotError(where, id + " (\"" + a.name + "\") has resolution " + std::to_string(a.resolution[0]) + " x " +
+                                           std::to_string(a.resolution[1]) + " in the world and " + std::to_string(b.resolution[0]) +
+                                           " x " + std::to_string(b.resolution[1]) + " in the snapshot" + remedy);
+        if (descBytes(a) != descBytes(b))
+            throw SnapshotError(where, id + " (\"" + a.name + "\") was created from another descriptor than the snapshot's" + remedy);
+    }
+}
+
+}  // namespace
+
 void Snapshot::restore(World& world) const {
     const detail::WorldParts w = detail::WorldAccess::parts(world);
+    // Refused before anything changes: cloths and sheets that are not the snapshot's.
+    {
+        std::vector<std::pair<bool, const ClothDesc*>> mine, theirs;
+        for (const detail::ClothState& c : *w.cloths) mine.emplace_back(c.alive, &c.desc);
+        for (const Data::Cloth& c : data_->cloths) theirs.emplace_back(c.alive, &c.desc);
+        checkSameObjects(mine, theirs, "cloth", "CLTH", "cloths");
+        std::vector<std::pair<bool, const PaperDesc*>> sheets, saved;
+        for (const detail::PaperSheet& s : *w.papers) sheets.emplace_back(s.alive, &s.desc);
+        for (const detail::PaperSheet& s : data_->papers) saved.emplace_back(s.alive, &s.desc);
+        checkSameObjects(sheets, saved, "paper sheet", "PAPR", "paper sheets");
+    }
+    // Read again from their checked sections (cannot fail).
+    std::vector<detail::ClothState> cloths;
+    for (std::size_t i = 0; i < data_->cloths.size(); ++i)
+        cloths.push_back(readCloth(data_->cloths[i].payload, data_->rigids, "snapshot.CLTH[" + std::to_string(i) + "]"));
+    *w.cloths = std::move(cloths);
+    *w.papers = data_->papers;
     *w.settings = data_->settings;
     *w.strings = data_->strings;
     // The block factorisation is rebuilt by every step; it is sized here, not copied

@@ -1013,7 +1013,8 @@ const WorldSettings& World::settings() const { return impl_->settings; }
 // The parts of the state that persist from one step to the next, for snapshots.
 detail::WorldParts detail::WorldAccess::parts(World& world) {
     World::Impl& w = *world.impl_;
-    return {&w.settings, &w.strings, &w.rigids, &w.pending, &w.events, &w.previous_pairs, &w.deep_pairs, &w.time, &w.steps};
+    return {&w.settings, &w.strings, &w.cloths.cloths_, &w.papers.sheets_, &w.rigids, &w.pending,
+            &w.events, &w.previous_pairs, &w.deep_pairs, &w.time, &w.steps};
 }
 
 }  // namespace tearables

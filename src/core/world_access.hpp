@@ -1,7 +1,9 @@
 // Access to the whole state of a World for snapshots (src/core/snapshot.cpp): the parts
-// that persist from one step to the next. Sheets and cloths add theirs here.
+// that persist from one step to the next: strings, cloths, paper sheets and the world's own.
 #pragma once
 
+#include "cloth/cloth_state.hpp"
+#include "paper/sheet.hpp"
 #include "string/string_state.hpp"
 #include "tearables/world.hpp"
 
@@ -19,6 +21,8 @@ using DeepPair = std::tuple<std::uint32_t, std::uint32_t, std::uint32_t, std::ui
 struct WorldParts {
     WorldSettings* settings;
     std::vector<StringState>* strings;          ///< by slot (dead slots included: ids stay)
+    std::vector<ClothState>* cloths;            ///< by slot (ClothSystem's, dead slots included)
+    std::vector<PaperSheet>* papers;            ///< by slot (PaperSystem's, dead slots included)
     RigidTable* rigids;                         ///< by slot
     std::vector<Event>* pending;                ///< emitted between steps, reported with the next
     std::vector<Event>* events;                 ///< of the last step
