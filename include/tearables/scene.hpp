@@ -83,7 +83,7 @@ struct Paper {
 
 /// A scripted action.
 struct Driver {
-    enum class Type { Force, Ramp, Twist, Move, Release, Wind, Spawn, Velocity };
+    enum class Type { Force, Ramp, Twist, Move, Release, Wind, Spawn, Velocity, Shoot };
     Type type = Type::Force;
     std::string target;       ///< string or cloth name (force, ramp, twist, move, release)
     int particle = -1;        ///< particle index (force, ramp, move, release), or the cloth's flat vertex index
@@ -99,6 +99,12 @@ struct Driver {
     std::optional<Body> body; ///< spawn: the body (its name unique among all bodies)
     std::string body_name;    ///< velocity: the body whose linear velocity is set (value, m/s) between from and until
     int paper_vertex = -1;    ///< force, move on a paper target: the vertex (resolved); -1 = the target is a string
+    Vec3 ray_from = Vec3::Zero();  ///< shoot: where the ray starts, m
+    Vec3 ray_to = Vec3::Zero();    ///< shoot: where it ends, m (at least 1 mm from ray_from)
+    double impulse = 0.0;          ///< shoot: N s along the ray's direction, (0, 1e6]
+    /// shoot: the times of the shots, s, ascending, each >= 0 (from "times", or from "every"
+    /// seconds between from and until).
+    std::vector<double> times;
 };
 
 /// Where the pictures (`--png`) look from. Every field is optional: what is absent is
