@@ -213,14 +213,17 @@ json frame(long long step, double t, const Scene& scene, const std::vector<Strin
 }
 
 FrameState frameState(long long step, double t, const Scene& scene, const std::vector<StringId>& ids,
-                      const std::vector<ClothId>& cloth_ids, const World& core, const BulletScene& bs) {
+                      const std::vector<ClothId>& cloth_ids, const std::vector<PaperId>& paper_ids, const World& core,
+                      const BulletScene& bs) {
     FrameState f;
     f.step = step;
     f.time = t;
     for (std::size_t i = 0; i < ids.size(); ++i)
-        f.strings.push_back({scene.strings[i].desc.name, core.view(ids[i]), scene.strings[i].desc.material.tensile.rupture});
+        f.strings.push_back({scene.strings[i].desc.name, core.view(ids[i]), scene.strings[i].desc.material.tensile.rupture,
+                             scene.strings[i].desc.material.torsion.rupture});
     for (std::size_t i = 0; i < cloth_ids.size(); ++i)
         f.cloths.push_back({scene.cloths[i].desc.name, core.viewCloth(cloth_ids[i]), scene.cloths[i].desc.material.tensile.rupture});
+    for (std::size_t i = 0; i < paper_ids.size(); ++i) f.papers.push_back({scene.papers[i].desc.name, core.viewPaper(paper_ids[i])});
     for (std::size_t i = 0; i < bs.bodies.size(); ++i) {
         const btTransform& xf = bs.bodies[i]->getWorldTransform();
         const btQuaternion q = xf.getRotation();
@@ -414,7 +417,7 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         events = openOut(dir / "events.jsonl");
         trace << frame(0, 0.0, scene, ids, cloth_ids, paper_ids, ropes.core(), bs).dump() << '\n';
     }
-    if (options.on_frame) options.on_frame(frameState(0, 0.0, scene, ids, cloth_ids, ropes.core(), bs));
+    if (options.on_frame) options.on_frame(frameState(0, 0.0, scene, ids, cloth_ids, paper_ids, ropes.core(), bs));
 
     // --- run --------------------------------------------------------------------------
     std::vector<std::uint8_t> done(scene.drivers.size(), 0);
@@ -586,7 +589,7 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         const bool frame_step = step % every == 0 || step == steps;
         if (write && frame_step)
             trace << frame(step, static_cast<double>(step) * dt, scene, ids, cloth_ids, paper_ids, ropes.core(), bs).dump() << '\n';
-        if (options.on_frame && frame_step) options.on_frame(frameState(step, static_cast<double>(step) * dt, scene, ids, cloth_ids, ropes.core(), bs));
+        if (options.on_frame && frame_step) options.on_frame(frameState(step, static_cast<double>(step) * dt, scene, ids, cloth_ids, paper_ids, ropes.core(), bs));
         if (options.progress && (step % progress_every == 0 || step == steps)) drawProgress(step, steps);
     }
 

@@ -156,6 +156,7 @@ struct FrameString {
     std::string name;
     StringView view;             ///< positions, tension, broken, radius: valid during the callback only
     double rupture_stress = 0.0; ///< the material's tensile rupture stress, Pa (for colouring by load)
+    double torsion_rupture = 0.0;///< the material's torsional rupture strain (for colouring by load; 0 = not coloured by twist)
 };
 
 /// A cloth as a frame callback sees it.
@@ -165,12 +166,19 @@ struct FrameCloth {
     double rupture_stress = 0.0; ///< the yarns' tensile rupture stress, Pa (for colouring by load)
 };
 
+/// A paper sheet as a frame callback sees it.
+struct FramePaper {
+    std::string name;
+    PaperView view;              ///< positions, triangles, springs: valid during the callback only
+};
+
 /// The state of a run at a written frame (for pictures; see RunOptions::on_frame).
 struct FrameState {
     long long step = 0;
     double time = 0.0;  ///< s
     std::vector<FrameString> strings;
     std::vector<FrameCloth> cloths;
+    std::vector<FramePaper> papers;
     std::vector<FrameBody> bodies;  ///< including spawned ones, in creation order
 };
 

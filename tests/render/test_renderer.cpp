@@ -205,3 +205,54 @@ TEST(Renderer, ClothShowsAsASurfaceAndOpensWhereItTore) {
     scene::runScene(s, options);
     EXPECT_EQ(checked, 2);
 }
+
+// Paper sheets are drawn: in paper-ball after the ball has pressed (step 40), the picture
+// differs from an empty scene's, the pixel where a vertex of each sheet projects (off the
+// ball, which pokes through the centre) differs from the same frame without the sheets, and the breakable sheet carries crease
+// lines (drawn darker over it) where the elastic one has none.
+TEST(Renderer, PaperSheetsShowWithTheirCreases) {
+    const auto text = scene::builtinSceneText("paper-ball");
+    ASSERT_TRUE(text.has_value());
+    scene::Scene s = scene::parseScene(*text);
+    Renderer r(160, 90);
+    const View view = fitCamera(s, 160.0 / 90.0);
+    scene::RunOptions options;
+    options.steps = 40;
+    options.every = 40;
+    int checked = 0;
+    options.on_frame = [&](const scene::FrameState& f) {
+        if (f.step != 40) return;
+        ASSERT_EQ(f.papers.size(), 2u);
+        const Image with = paintFrame(r, s, f, view);
+        scene::FrameState bare = f;
+        bare.papers.clear();
+        const Image without = paintFrame(r, s, bare, view);
+        const Image empty = paintFrame(r, scene::Scene{}, scene::FrameState{}, view);
+        int differs_from_empty = 0, sheet_pixels = 0;
+        for (int y = 0; y < 90; ++y)
+            for (int x = 0; x < 160; ++x) {
+                differs_from_empty += difference(with.at(x, y), empty.at(x, y)) > 30;
+                sheet_pixels += difference(with.at(x, y), without.at(x, y)) > 30;
+            }
+        EXPECT_GT(differs_from_empty, 400);
+        EXPECT_GT(sheet_pixels, 300);  // two 0.2 m sheets in a 160x90 picture
+        for (const scene::FramePaper& p : f.papers) {
+            const auto& x = *p.view.positions;
+            const auto c = r.project(x[10 * 21 + 4]);  // vertex (4, 10) of 21 x 21
+            ASSERT_TRUE(c.has_value());
+            const int px = static_cast<int>((*c)[0]), py = static_cast<int>((*c)[1]);
+            EXPECT_GT(difference(with.at(px, py), without.at(px, py)), 30) << p.name << " at " << px << "," << py << ": " << int(with.at(px, py)[0]) << " " << int(with.at(px, py)[1]) << " " << int(with.at(px, py)[2]) << " vs " << int(without.at(px, py)[0]) << " " << int(without.at(px, py)[1]) << " " << int(without.at(px, py)[2]);
+        }
+        const auto lines = [&](const std::string& name) {
+            for (const scene::FramePaper& p : f.papers)
+                if (p.name == name) return paperCreaseLines(p.view).size();
+            return std::size_t{0};
+        };
+        std::printf("crease lines: %zu (breakable), %zu (elastic)\n", lines("paper"), lines("elastic"));
+        EXPECT_GT(lines("paper"), 0u);
+        EXPECT_EQ(lines("elastic"), 0u);
+        ++checked;
+    };
+    scene::runScene(s, options);
+    EXPECT_EQ(checked, 1);
+}
