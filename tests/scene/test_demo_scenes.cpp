@@ -4,15 +4,15 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <cstdio>
 #include <fstream>
 #include <functional>
-#include <numeric>
-#include <array>
 #include <map>
+#include <numeric>
 #include <string>
 #include <vector>
 
@@ -209,25 +209,24 @@ namespace {
 /// Every frame of the trace is finite: no null (NaN or infinity written by the JSON
 /// library) anywhere but in "tension", where null marks a broken segment.
 bool traceIsFinite(const fs::path& out, std::string* where) {
-    std::ifstream trace(out / "trace.jsonl");
-    std::string line;
     std::function<bool(const json&, const std::string&)> finite = [&](const json& j, const std::string& path) {
-        if (j.is_null()) return false;
-        if (j.is_number_float()) return std::isfinite(j.get<double>());
+        if (j.is_null() || (j.is_number_float() && !std::isfinite(j.get<double>()))) {
+            *where = path;
+            return false;
+        }
         if (j.is_array()) {
             for (std::size_t i = 0; i < j.size(); ++i)
-                if (!finite(j[i], path + "[" + std::to_string(i) + "]")) return *where = path, false;
-            return true;
+                if (!finite(j[i], path + "[" + std::to_string(i) + "]")) return false;
+        } else if (j.is_object()) {
+            for (const auto& [key, value] : j.items())
+                if (key != "tension" && !finite(value, path + "." + key)) return false;
         }
-        if (j.is_object())
-            for (const auto& [key, value] : j.items()) {
-                if (key == "tension") continue;
-                if (!finite(value, path + "." + key)) return *where = path + "." + key, false;
-            }
         return true;
     };
-    while (std::getline(trace, line))
-        if (!finite(json::parse(line), "")) return false;
+    std::ifstream trace(out / "trace.jsonl");
+    std::string line;
+    for (int frame = 0; std::getline(trace, line); ++frame)
+        if (!finite(json::parse(line), "frame " + std::to_string(frame))) return false;
     return true;
 }
 
