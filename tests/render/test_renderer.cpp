@@ -256,3 +256,36 @@ TEST(Renderer, PaperSheetsShowWithTheirCreases) {
     scene::runScene(s, options);
     EXPECT_EQ(checked, 1);
 }
+
+// Strings are coloured by torsional load too: at the end of torsion-nonuniform the soft
+// outer thirds (twisted to about 0.7 of the rupture strain) are drawn in a brighter
+// colour of the load map than the three times more rigid middle third (about 0.2), though
+// neither carries tension.
+TEST(Renderer, TwistedStringsAreColouredByTorsionalLoad) {
+    const auto text = scene::builtinSceneText("torsion-nonuniform");
+    ASSERT_TRUE(text.has_value());
+    scene::Scene s = scene::parseScene(*text);
+    Renderer r(320, 180);
+    const View view = fitCamera(s, 320.0 / 180.0);
+    scene::RunOptions options;
+    options.every = 1000000;  // frames at step 0 and the last
+    int checked = 0;
+    options.on_frame = [&](const scene::FrameState& f) {
+        if (f.step == 0) return;
+        ASSERT_EQ(f.strings.size(), 1u);
+        const Image picture = paintFrame(r, s, f, view);
+        const auto& x = *f.strings[0].view.positions;
+        const auto brightness = [&](std::size_t segment) {
+            const auto p = r.project(0.5 * (x[segment] + x[segment + 1]));
+            EXPECT_TRUE(p.has_value());
+            const auto c = picture.at(static_cast<int>((*p)[0]), static_cast<int>((*p)[1]));
+            return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+        };
+        const double soft = 0.5 * (brightness(4) + brightness(25)), rigid = brightness(15);
+        std::printf("torsional load colours: soft %.0f, rigid %.0f (luminance of 255)\n", soft, rigid);
+        EXPECT_GT(soft, rigid + 20.0);
+        ++checked;
+    };
+    scene::runScene(s, options);
+    EXPECT_EQ(checked, 1);
+}
