@@ -977,6 +977,7 @@ const std::vector<DriverKind>& driverKinds() {
         {"wind", Driver::Type::Wind, {"type", "value", "gust", "from", "until"}},
         {"spawn", Driver::Type::Spawn, {"type", "body", "at"}},
         {"velocity", Driver::Type::Velocity, {"type", "body", "value", "from", "until"}},
+        {"shoot", Driver::Type::Shoot, {"type", "ray", "impulse", "times", "every", "from", "until"}},
     };
     return kinds;
 }
@@ -1082,6 +1083,17 @@ Driver parseDriver(const Node& n, const std::vector<String>& strings, const std:
             claimName(body_names, d.body->name, body.path(), "body");
             break;
         }
+        case Driver::Type::Shoot: {
+            const Node ray = n.required("ray");
+            ray.checkNoUnknownFields({"from", "to"});
+            d.ray_from = ray.required("from").asVec3(Range::bullet());
+            const Node to = ray.required("to");
+            d.ray_to = to.asVec3(Range::bullet());
+            if (!((d.ray_to - d.ray_from).norm() >= 1e-3))
+                to.fail("must be at least 1 mm from ray.from (the ray needs a direction)");
+            d.impulse = n.required("impulse").asPositiveAtMost(1e6);
+            break;
+        }
     }
 
     if (kind->allows("from")) d.from = n.number("from", d.from, Range::atLeast(0.0));
@@ -1093,6 +1105,34 @@ Driver parseDriver(const Node& n, const std::vector<String>& strings, const std:
         }
     }
     if (kind->allows("at")) d.at = n.number("at", d.at, Range::atLeast(0.0));
+    if (d.type == Driver::Type::Shoot) {
+        // The shots: listed ("times"), or one every so many seconds between from and until.
+        const auto times = n.field("times");
+        const auto every = n.field("every");
+        if (times && every) every->fail("give either times or every, not both");
+        if (times) {
+            for (const char* key : {"from", "until"})
+                if (const auto f = n.field(key)) f->fail("only with every (times lists the shots)");
+            const std::vector<Node> list = times->asArray();
+            if (list.empty()) times->fail("must list at least one time");
+            if (list.size() > 100000) times->fail("at most 100000 shots");
+            for (const Node& t : list) {
+                const double v = t.asNumber(Range::closed(0.0, 1e9));
+                if (!d.times.empty() && !(v > d.times.back()))
+                    t.fail("must be after the time before it (got " + formatNumber(v) + " <= " + formatNumber(d.times.back()) + ")");
+                d.times.push_back(v);
+            }
+        } else if (every) {
+            const double period = every->asNumber(Range::leftOpen(0.0, 1e9));
+            if (!n.has("until")) throw InvalidInput(memberPath(n.path(), "until"), "missing required field (with every, the shots end at until)");
+            const double count = std::floor((d.until - d.from) / period);
+            if (!(count < 100000)) every->fail("makes more than 100000 shots between from and until");
+            for (double k = 0; k <= count; ++k)
+                if (d.from + k * period < d.until) d.times.push_back(d.from + k * period);
+        } else {
+            throw InvalidInput(memberPath(n.path(), "times"), "missing required field (or every, with from and until)");
+        }
+    }
     return d;
 }
 

@@ -1,6 +1,7 @@
 // Runs a loaded scene: builds the Bullet world, its bodies and the strings, applies the
 // drivers every step, and writes trace.jsonl, events.jsonl and summary.json.
 #include "tearables/bullet.hpp"
+#include "tearables/queries.hpp"
 #include "tearables/scene.hpp"
 
 #include <btBulletDynamicsCommon.h>
@@ -212,20 +213,69 @@ json frame(long long step, double t, const Scene& scene, const std::vector<Strin
 }
 
 FrameState frameState(long long step, double t, const Scene& scene, const std::vector<StringId>& ids,
-                      const std::vector<ClothId>& cloth_ids, const World& core, const BulletScene& bs) {
+                      const std::vector<ClothId>& cloth_ids, const std::vector<PaperId>& paper_ids, const World& core,
+                      const BulletScene& bs) {
     FrameState f;
     f.step = step;
     f.time = t;
     for (std::size_t i = 0; i < ids.size(); ++i)
-        f.strings.push_back({scene.strings[i].desc.name, core.view(ids[i]), scene.strings[i].desc.material.tensile.rupture});
+        f.strings.push_back({scene.strings[i].desc.name, core.view(ids[i]), scene.strings[i].desc.material.tensile.rupture,
+                             scene.strings[i].desc.material.torsion.rupture});
     for (std::size_t i = 0; i < cloth_ids.size(); ++i)
         f.cloths.push_back({scene.cloths[i].desc.name, core.viewCloth(cloth_ids[i]), scene.cloths[i].desc.material.tensile.rupture});
+    for (std::size_t i = 0; i < paper_ids.size(); ++i) f.papers.push_back({scene.papers[i].desc.name, core.viewPaper(paper_ids[i])});
     for (std::size_t i = 0; i < bs.bodies.size(); ++i) {
         const btTransform& xf = bs.bodies[i]->getWorldTransform();
         const btQuaternion q = xf.getRotation();
         f.bodies.push_back({bs.specs[i].name, bs.specs[i].shape, toCore(xf.getOrigin()), Quat(q.w(), q.x(), q.y(), q.z())});
     }
     return f;
+}
+
+/// What a shot of a "shoot" driver met.
+struct Shot {
+    bool hit = false;
+    std::string object;        ///< the body or string hit
+    Vec3 point = Vec3::Zero(); ///< where, m
+};
+
+/// One shot: the driver's ray is cast at the rigid bodies (Bullet's ray test) and at the
+/// strings (tearables::rayTest); the nearest of the two takes the impulse, along the ray. A
+/// dynamic body takes it at the hit point (so a shot off its centre line spins it); a
+/// string segment shares it between its two particles by where along it the ray met it,
+/// as a force over the coming step. Static and kinematic bodies stop the shot unmoved.
+/// Paper sheets and cloths are not hit.
+Shot shoot(BulletScene& bs, World& core, const Scene& scene, const std::vector<StringId>& ids, const Driver& d, double dt) {
+    const btVector3 from = toBullet(d.ray_from), to = toBullet(d.ray_to);
+    bs.world.updateAabbs();
+    btCollisionWorld::ClosestRayResultCallback body_hit(from, to);
+    bs.world.rayTest(from, to, body_hit);
+    const double body_fraction = body_hit.hasHit() ? static_cast<double>(body_hit.m_closestHitFraction) : 2.0;
+    const std::optional<RayHit> string_hit = rayTest(core, d.ray_from, d.ray_to);
+    const Vec3 impulse = d.impulse * (d.ray_to - d.ray_from).normalized();
+    Shot shot;
+    if (string_hit && string_hit->fraction <= body_fraction) {
+        for (std::size_t i = 0; i < ids.size(); ++i)
+            if (ids[i] == string_hit->string) shot.object = scene.strings[i].desc.name;
+        core.applyForce(string_hit->string, string_hit->segment, (1.0 - string_hit->along) / dt * impulse);
+        core.applyForce(string_hit->string, string_hit->segment + 1, string_hit->along / dt * impulse);
+        shot.hit = true;
+        shot.point = string_hit->point;
+        return shot;
+    }
+    if (!body_hit.hasHit()) return shot;
+    shot.hit = true;
+    shot.point = toCore(body_hit.m_hitPointWorld);
+    for (std::size_t i = 0; i < bs.bodies.size(); ++i)
+        if (bs.bodies[i].get() == body_hit.m_collisionObject) {
+            shot.object = bs.specs[i].name;
+            btRigidBody* b = bs.bodies[i].get();
+            if (b->getInvMass() > 0.0f) {
+                b->activate(true);
+                b->applyImpulse(toBullet(impulse), body_hit.m_hitPointWorld - b->getCenterOfMassPosition());
+            }
+        }
+    return shot;
 }
 
 json eventJson(const Event& e) {
@@ -367,10 +417,11 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         events = openOut(dir / "events.jsonl");
         trace << frame(0, 0.0, scene, ids, cloth_ids, paper_ids, ropes.core(), bs).dump() << '\n';
     }
-    if (options.on_frame) options.on_frame(frameState(0, 0.0, scene, ids, cloth_ids, ropes.core(), bs));
+    if (options.on_frame) options.on_frame(frameState(0, 0.0, scene, ids, cloth_ids, paper_ids, ropes.core(), bs));
 
     // --- run --------------------------------------------------------------------------
     std::vector<std::uint8_t> done(scene.drivers.size(), 0);
+    std::vector<std::size_t> shots_fired(scene.drivers.size(), 0);  // shoot drivers: shots taken so far
     std::map<std::string, long long> counts;
     double wall = 0.0, paper_seconds = 0.0;
     const long long progress_every = std::max<long long>(1, steps / 100);
@@ -494,6 +545,22 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
                 case Driver::Type::Twist:
                     if (active) core.turnEnd(string_ids.at(drv.target), drv.end, drv.rate * dt);
                     break;
+                case Driver::Type::Shoot:
+                    // Every shot whose time has come (a step may hold several).
+                    while (shots_fired[d] < drv.times.size() && t0 >= drv.times[shots_fired[d]] - 1e-9 * dt) {
+                        ++shots_fired[d];
+                        const Shot shot = shoot(bs, core, scene, ids, drv, dt);
+                        ++counts["shot"];
+                        if (!write) continue;
+                        json e = {{"step", step}, {"t", t0}, {"type", "shot"}, {"hit", shot.hit}};
+                        if (shot.hit) {
+                            e["object"] = shot.object;
+                            e["point"] = vec(shot.point);
+                        }
+                        e["impulse"] = drv.impulse;
+                        events << e.dump() << '\n';
+                    }
+                    break;
                 case Driver::Type::Velocity:
                     if (active)
                         for (std::size_t b = 0; b < bs.bodies.size(); ++b)
@@ -522,7 +589,7 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         const bool frame_step = step % every == 0 || step == steps;
         if (write && frame_step)
             trace << frame(step, static_cast<double>(step) * dt, scene, ids, cloth_ids, paper_ids, ropes.core(), bs).dump() << '\n';
-        if (options.on_frame && frame_step) options.on_frame(frameState(step, static_cast<double>(step) * dt, scene, ids, cloth_ids, ropes.core(), bs));
+        if (options.on_frame && frame_step) options.on_frame(frameState(step, static_cast<double>(step) * dt, scene, ids, cloth_ids, paper_ids, ropes.core(), bs));
         if (options.progress && (step % progress_every == 0 || step == steps)) drawProgress(step, steps);
     }
 

@@ -28,7 +28,71 @@ Rgb bodyColor(const scene::FrameBody& body, std::size_t index, bool is_static) {
     return kPalette[index % (sizeof kPalette / sizeof kPalette[0])];
 }
 
+/// Segment j's torsional strain over the rupture strain, clamped to [0, 1]: the mean over
+/// its intact joints of gamma = r |theta_{k+1} - theta_k| / l, l the joint's mean rest
+/// length (as src/string/fracture.cpp tears it). 0 without a rupture strain.
+double torsionLoad(const StringView& v, std::size_t j, double rupture) {
+    if (!(rupture > 0.0) || !v.twist || !v.rest_length || !v.broken) return 0.0;
+    const std::size_t n = v.segmentCount();
+    double sum = 0.0;
+    int count = 0;
+    for (std::size_t k : {j - 1, j}) {  // the joints (k, k+1) on either side; j - 1 wraps when j = 0
+        if (k >= n || k + 1 >= n || (*v.broken)[k] || (*v.broken)[k + 1]) continue;
+        const double l = 0.5 * ((*v.rest_length)[k] + (*v.rest_length)[k + 1]);
+        if (!(l > 0.0)) continue;
+        sum += v.radius * std::abs((*v.twist)[k + 1] - (*v.twist)[k]) / l;
+        ++count;
+    }
+    const double load = count > 0 ? sum / count / rupture : 0.0;
+    return std::isfinite(load) ? std::clamp(load, 0.0, 1.0) : 0.0;
+}
+
 }  // namespace
+
+std::vector<std::array<std::uint32_t, 2>> paperCreaseLines(const PaperView& v) {
+    std::vector<std::array<std::uint32_t, 2>> lines;
+    if (!v.positions || !v.triangles || !v.springs) return lines;
+    const std::vector<Vec3>& x = *v.positions;
+    const std::size_t n = x.size();
+    // The mesh's neighbours of each vertex (from the triangles: the springs also join
+    // vertices across edges).
+    std::vector<std::vector<std::uint32_t>> neighbours(n);
+    for (const auto& t : *v.triangles)
+        for (int c = 0; c < 3; ++c) {
+            const std::uint32_t a = t[c], b = t[(c + 1) % 3];
+            if (a >= n || b >= n) continue;
+            neighbours[a].push_back(b);
+            neighbours[b].push_back(a);
+        }
+    for (auto& list : neighbours) {
+        std::sort(list.begin(), list.end());
+        list.erase(std::unique(list.begin(), list.end()), list.end());
+    }
+    for (const PaperSpring& sp : *v.springs) {
+        if (sp.kind == PaperSpringKind::Hinge && !sp.broken) {
+            // A hinge spans a folded edge: the fold is that edge.
+            if (sp.hinge[0] < n && sp.hinge[1] < n) lines.push_back({sp.hinge[0], sp.hinge[1]});
+            continue;
+        }
+        if (sp.kind != PaperSpringKind::Auxiliary) continue;
+        // A crease: the spring a-b broke under compression and the vertex c = hinge[0] was
+        // inserted between them (src/paper/hinge.cpp). The paper folds along a line across
+        // a-b through c: its edges to the vertices that were opposite a-b. Drawn are c's
+        // edges more across a-b than along it (within 60 degrees of perpendicular), which
+        // also holds after later creases split those edges.
+        const std::uint32_t c = sp.hinge[0];
+        if (c >= n || sp.a >= n || sp.b >= n) continue;
+        const Vec3 along = x[sp.b] - x[sp.a];
+        if (!(along.norm() > 0.0)) continue;
+        const Vec3 axis = along.normalized();
+        for (std::uint32_t o : neighbours[c]) {
+            const Vec3 e = x[o] - x[c];
+            const double len = e.norm();
+            if (len > 0.0 && std::abs(axis.dot(e)) < 0.5 * len) lines.push_back({c, o});
+        }
+    }
+    return lines;
+}
 
 void Bounds::add(const Vec3& p, double grow) {
     if (!p.allFinite()) return;
@@ -50,6 +114,16 @@ Bounds sceneBounds(const scene::Scene& scene) {
         const Mat3 r = c.desc.orientation.normalized().toRotationMatrix();
         for (int k = 0; k < 4; ++k)
             b.add(c.desc.origin + r * Vec3((k & 1) ? c.desc.size[0] : 0.0, 0.0, (k & 2) ? c.desc.size[1] : 0.0), c.desc.yarn_radius);
+    }
+    for (const scene::Paper& p : scene.papers) {
+        if (!p.desc.vertices.empty()) {
+            for (const Vec3& x : p.desc.vertices) b.add(x, p.desc.thickness);
+            continue;
+        }
+        const Mat3 r = p.desc.orientation.normalized().toRotationMatrix();
+        for (int k = 0; k < 4; ++k)
+            b.add(p.desc.origin + r * Vec3(((k & 1) ? 0.5 : -0.5) * p.desc.size[0], 0.0, ((k & 2) ? 0.5 : -0.5) * p.desc.size[1]),
+                  p.desc.thickness);
     }
     for (const scene::Body& body : scene.bodies) addBody(body);
     for (const scene::Driver& d : scene.drivers)
@@ -130,7 +204,9 @@ Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::Fra
         const std::size_t n = v.segmentCount();
         radius.assign(n, v.radius);
         colors.resize(n);
-        for (std::size_t j = 0; j < n; ++j) colors[j] = tensionColor(loadFraction((*v.tension)[j], s.rupture_stress, v.radius));
+        for (std::size_t j = 0; j < n; ++j)
+            colors[j] = tensionColor(std::max(loadFraction((*v.tension)[j], s.rupture_stress, v.radius),
+                                              torsionLoad(v, j, s.torsion_rupture)));
         renderer.drawTube(*v.positions, radius, colors, *v.broken);
     }
     // Cloths: the weave's quads as two triangles each, gone where a yarn of the quad is
@@ -173,6 +249,20 @@ Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::Fra
         mesh.positions = v.positions;
         mesh.triangles = &triangles;
         mesh.vertex_colors = &vertex_colors;
+        renderer.drawTriangleMesh(mesh);
+    }
+    // Paper sheets: the current triangles (creases insert vertices and split triangles) in
+    // a warm paper colour (it stands out from the bluish sky and grid), and their creases
+    // and folds as darker lines (paperCreaseLines).
+    std::vector<std::array<std::uint32_t, 2>> lines;
+    for (const scene::FramePaper& p : frame.papers) {
+        lines = paperCreaseLines(p.view);
+        TriangleMesh mesh;
+        mesh.positions = p.view.positions;
+        mesh.triangles = p.view.triangles;
+        mesh.color = {0.98f, 0.93f, 0.78f};
+        mesh.lines = &lines;
+        mesh.line_color = {0.42f, 0.38f, 0.34f};
         renderer.drawTriangleMesh(mesh);
     }
     return renderer.finish();

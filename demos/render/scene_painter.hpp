@@ -1,6 +1,6 @@
 // Pictures of headless scenes: the default camera fitted to a scene, and one frame of a run
-// (FrameState) drawn with the Renderer. Paper sheets and cloths will add one draw call here
-// (Renderer::drawTriangleMesh) when their frames carry meshes.
+// (FrameState) drawn with the Renderer: bodies, strings as tubes, cloths and paper sheets as
+// triangle meshes (Renderer::drawTriangleMesh).
 #pragma once
 
 #include "render/renderer.hpp"
@@ -8,8 +8,8 @@
 
 namespace tearables::render {
 
-/// Axis-aligned bounds of what a scene holds at the start (string points, bodies, spawned
-/// bodies; planes excluded), m.
+/// Axis-aligned bounds of what a scene holds at the start (string points, cloths, paper
+/// sheets, bodies, spawned bodies; planes excluded), m.
 struct Bounds {
     Vec3 lo = Vec3::Constant(1e300);
     Vec3 hi = Vec3::Constant(-1e300);
@@ -23,9 +23,15 @@ Bounds sceneBounds(const scene::Scene& scene);
 /// (+z) and a little above.
 View fitCamera(const scene::Scene& scene, double aspect);
 
-/// Draws one frame: the ground (a plane body) or a reference grid, the rigid bodies, and the
+/// The lines drawn darker over a paper sheet, as pairs of vertex indices: each crease (a
+/// spring broken under compression) as the new vertex's mesh edges across the broken
+/// spring, and each hinge's folded edge.
+std::vector<std::array<std::uint32_t, 2>> paperCreaseLines(const PaperView& view);
+
+/// Draws one frame: the ground (a plane body) or a reference grid, the rigid bodies, the
 /// strings as tubes coloured by load (tension / rupture tension, colormap.hpp), broken
-/// segments left out. Returns the picture.
+/// segments left out, cloths as surfaces coloured by load and paper sheets as white
+/// surfaces with their creases and folds in dark lines. Returns the picture.
 Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view);
 
 }  // namespace tearables::render

@@ -83,7 +83,7 @@ struct Paper {
 
 /// A scripted action.
 struct Driver {
-    enum class Type { Force, Ramp, Twist, Move, Release, Wind, Spawn, Velocity };
+    enum class Type { Force, Ramp, Twist, Move, Release, Wind, Spawn, Velocity, Shoot };
     Type type = Type::Force;
     std::string target;       ///< string or cloth name (force, ramp, twist, move, release)
     int particle = -1;        ///< particle index (force, ramp, move, release), or the cloth's flat vertex index
@@ -99,6 +99,12 @@ struct Driver {
     std::optional<Body> body; ///< spawn: the body (its name unique among all bodies)
     std::string body_name;    ///< velocity: the body whose linear velocity is set (value, m/s) between from and until
     int paper_vertex = -1;    ///< force, move on a paper target: the vertex (resolved); -1 = the target is a string
+    Vec3 ray_from = Vec3::Zero();  ///< shoot: where the ray starts, m
+    Vec3 ray_to = Vec3::Zero();    ///< shoot: where it ends, m (at least 1 mm from ray_from)
+    double impulse = 0.0;          ///< shoot: N s along the ray's direction, (0, 1e6]
+    /// shoot: the times of the shots, s, ascending, each >= 0 (from "times", or from "every"
+    /// seconds between from and until).
+    std::vector<double> times;
 };
 
 /// Where the pictures (`--png`) look from. Every field is optional: what is absent is
@@ -150,6 +156,7 @@ struct FrameString {
     std::string name;
     StringView view;             ///< positions, tension, broken, radius: valid during the callback only
     double rupture_stress = 0.0; ///< the material's tensile rupture stress, Pa (for colouring by load)
+    double torsion_rupture = 0.0;///< the material's torsional rupture strain (for colouring by load; 0 = not coloured by twist)
 };
 
 /// A cloth as a frame callback sees it.
@@ -159,12 +166,19 @@ struct FrameCloth {
     double rupture_stress = 0.0; ///< the yarns' tensile rupture stress, Pa (for colouring by load)
 };
 
+/// A paper sheet as a frame callback sees it.
+struct FramePaper {
+    std::string name;
+    PaperView view;              ///< positions, triangles, springs: valid during the callback only
+};
+
 /// The state of a run at a written frame (for pictures; see RunOptions::on_frame).
 struct FrameState {
     long long step = 0;
     double time = 0.0;  ///< s
     std::vector<FrameString> strings;
     std::vector<FrameCloth> cloths;
+    std::vector<FramePaper> papers;
     std::vector<FrameBody> bodies;  ///< including spawned ones, in creation order
 };
 

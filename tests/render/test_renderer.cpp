@@ -205,3 +205,87 @@ TEST(Renderer, ClothShowsAsASurfaceAndOpensWhereItTore) {
     scene::runScene(s, options);
     EXPECT_EQ(checked, 2);
 }
+
+// Paper sheets are drawn: in paper-ball after the ball has pressed (step 40), the picture
+// differs from an empty scene's, the pixel where a vertex of each sheet projects (off the
+// ball, which pokes through the centre) differs from the same frame without the sheets, and the breakable sheet carries crease
+// lines (drawn darker over it) where the elastic one has none.
+TEST(Renderer, PaperSheetsShowWithTheirCreases) {
+    const auto text = scene::builtinSceneText("paper-ball");
+    ASSERT_TRUE(text.has_value());
+    scene::Scene s = scene::parseScene(*text);
+    Renderer r(160, 90);
+    const View view = fitCamera(s, 160.0 / 90.0);
+    scene::RunOptions options;
+    options.steps = 40;
+    options.every = 40;
+    int checked = 0;
+    options.on_frame = [&](const scene::FrameState& f) {
+        if (f.step != 40) return;
+        ASSERT_EQ(f.papers.size(), 2u);
+        const Image with = paintFrame(r, s, f, view);
+        scene::FrameState bare = f;
+        bare.papers.clear();
+        const Image without = paintFrame(r, s, bare, view);
+        const Image empty = paintFrame(r, scene::Scene{}, scene::FrameState{}, view);
+        int differs_from_empty = 0, sheet_pixels = 0;
+        for (int y = 0; y < 90; ++y)
+            for (int x = 0; x < 160; ++x) {
+                differs_from_empty += difference(with.at(x, y), empty.at(x, y)) > 30;
+                sheet_pixels += difference(with.at(x, y), without.at(x, y)) > 30;
+            }
+        EXPECT_GT(differs_from_empty, 400);
+        EXPECT_GT(sheet_pixels, 300);  // two 0.2 m sheets in a 160x90 picture
+        for (const scene::FramePaper& p : f.papers) {
+            const auto& x = *p.view.positions;
+            const auto c = r.project(x[10 * 21 + 4]);  // vertex (4, 10) of 21 x 21
+            ASSERT_TRUE(c.has_value());
+            const int px = static_cast<int>((*c)[0]), py = static_cast<int>((*c)[1]);
+            EXPECT_GT(difference(with.at(px, py), without.at(px, py)), 30) << p.name << " at " << px << "," << py << ": " << int(with.at(px, py)[0]) << " " << int(with.at(px, py)[1]) << " " << int(with.at(px, py)[2]) << " vs " << int(without.at(px, py)[0]) << " " << int(without.at(px, py)[1]) << " " << int(without.at(px, py)[2]);
+        }
+        const auto lines = [&](const std::string& name) {
+            for (const scene::FramePaper& p : f.papers)
+                if (p.name == name) return paperCreaseLines(p.view).size();
+            return std::size_t{0};
+        };
+        std::printf("crease lines: %zu (breakable), %zu (elastic)\n", lines("paper"), lines("elastic"));
+        EXPECT_GT(lines("paper"), 0u);
+        EXPECT_EQ(lines("elastic"), 0u);
+        ++checked;
+    };
+    scene::runScene(s, options);
+    EXPECT_EQ(checked, 1);
+}
+
+// Strings are coloured by torsional load too: at the end of torsion-nonuniform the soft
+// outer thirds (twisted to about 0.7 of the rupture strain) are drawn in a brighter
+// colour of the load map than the three times more rigid middle third (about 0.2), though
+// neither carries tension.
+TEST(Renderer, TwistedStringsAreColouredByTorsionalLoad) {
+    const auto text = scene::builtinSceneText("torsion-nonuniform");
+    ASSERT_TRUE(text.has_value());
+    scene::Scene s = scene::parseScene(*text);
+    Renderer r(320, 180);
+    const View view = fitCamera(s, 320.0 / 180.0);
+    scene::RunOptions options;
+    options.every = 1000000;  // frames at step 0 and the last
+    int checked = 0;
+    options.on_frame = [&](const scene::FrameState& f) {
+        if (f.step == 0) return;
+        ASSERT_EQ(f.strings.size(), 1u);
+        const Image picture = paintFrame(r, s, f, view);
+        const auto& x = *f.strings[0].view.positions;
+        const auto brightness = [&](std::size_t segment) {
+            const auto p = r.project(0.5 * (x[segment] + x[segment + 1]));
+            EXPECT_TRUE(p.has_value());
+            const auto c = picture.at(static_cast<int>((*p)[0]), static_cast<int>((*p)[1]));
+            return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+        };
+        const double soft = 0.5 * (brightness(4) + brightness(25)), rigid = brightness(15);
+        std::printf("torsional load colours: soft %.0f, rigid %.0f (luminance of 255)\n", soft, rigid);
+        EXPECT_GT(soft, rigid + 20.0);
+        ++checked;
+    };
+    scene::runScene(s, options);
+    EXPECT_EQ(checked, 1);
+}

@@ -4,12 +4,15 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <map>
+#include <numeric>
 #include <string>
 #include <vector>
 
@@ -199,4 +202,212 @@ TEST(DemoScenes, PaperVertexDrivers) {
     EXPECT_NEAR(x[0][0].get<double>(), -0.05, 1e-9);
     // The far corner, pulled up by 0.01 N (about 40 times its vertex's weight), rises too.
     EXPECT_GT(x[24][1].get<double>(), 1.0);
+}
+
+namespace {
+
+/// Every frame of the trace is finite: no null (NaN or infinity written by the JSON
+/// library) anywhere but in "tension", where null marks a broken segment.
+bool traceIsFinite(const fs::path& out, std::string* where) {
+    std::function<bool(const json&, const std::string&)> finite = [&](const json& j, const std::string& path) {
+        if (j.is_null() || (j.is_number_float() && !std::isfinite(j.get<double>()))) {
+            *where = path;
+            return false;
+        }
+        if (j.is_array()) {
+            for (std::size_t i = 0; i < j.size(); ++i)
+                if (!finite(j[i], path + "[" + std::to_string(i) + "]")) return false;
+        } else if (j.is_object()) {
+            for (const auto& [key, value] : j.items())
+                if (key != "tension" && !finite(value, path + "." + key)) return false;
+        }
+        return true;
+    };
+    std::ifstream trace(out / "trace.jsonl");
+    std::string line;
+    for (int frame = 0; std::getline(trace, line); ++frame)
+        if (!finite(json::parse(line), "frame " + std::to_string(frame))) return false;
+    return true;
+}
+
+std::vector<json> events(const fs::path& out) {
+    std::vector<json> list;
+    std::ifstream in(out / "events.jsonl");
+    std::string line;
+    while (std::getline(in, line)) list.push_back(json::parse(line));
+    return list;
+}
+
+std::vector<json> frames(const fs::path& out) {
+    std::vector<json> list;
+    std::ifstream in(out / "trace.jsonl");
+    std::string line;
+    while (std::getline(in, line)) list.push_back(json::parse(line));
+    return list;
+}
+
+using Point = std::array<double, 3>;
+std::vector<Point> points(const json& frame, const std::string& name) {
+    std::vector<Point> x;
+    for (const json& p : frame["strings"][name]["x"]) x.push_back({p[0].get<double>(), p[1].get<double>(), p[2].get<double>()});
+    return x;
+}
+
+/// The writhe of a polyline: the Gauss double integral summed exactly over pairs of
+/// non-adjacent segments (Klenin and Langowski 2000, method 1a). 0 for a planar curve.
+double writhe(const std::vector<Point>& x) {
+    const auto sub = [](const Point& a, const Point& b) { return Point{a[0] - b[0], a[1] - b[1], a[2] - b[2]}; };
+    const auto cross = [](const Point& a, const Point& b) {
+        return Point{a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+    };
+    const auto dot = [](const Point& a, const Point& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; };
+    double sum = 0.0;
+    const std::size_t n = x.size() - 1;
+    for (std::size_t i = 0; i < n; ++i)
+        for (std::size_t j = i + 2; j < n; ++j) {
+            const Point r13 = sub(x[j], x[i]), r14 = sub(x[j + 1], x[i]), r23 = sub(x[j], x[i + 1]), r24 = sub(x[j + 1], x[i + 1]);
+            Point normals[4] = {cross(r13, r14), cross(r14, r24), cross(r24, r23), cross(r23, r13)};
+            bool degenerate = false;
+            for (Point& v : normals) {
+                const double len = std::sqrt(dot(v, v));
+                if (len < 1e-14) degenerate = true;
+                else for (double& c : v) c /= len;
+            }
+            if (degenerate) continue;
+            double omega = 0.0;
+            for (int k = 0; k < 4; ++k) omega += std::asin(std::clamp(dot(normals[k], normals[(k + 1) % 4]), -1.0, 1.0));
+            const double sign = dot(cross(sub(x[j + 1], x[j]), sub(x[i + 1], x[i])), r13);
+            sum += sign > 0.0 ? omega : sign < 0.0 ? -omega : 0.0;
+        }
+    return 2.0 * sum / (4.0 * M_PI);
+}
+
+}  // namespace
+
+// Strings Fig. 11, the twisting game: shots at the side of the hanging box (impulses where a
+// ray from the "gun" meets it) spin it; the string twists, yields in torsion, and tears by
+// torsion after several hits, never by tension; the box then falls to the floor, and the
+// shots after that miss.
+TEST(DemoScenes, TwistGameShotsTearTheStringByTorsion) {
+    const fs::path out = run("twist-game");
+    std::string where;
+    EXPECT_TRUE(traceIsFinite(out, &where)) << where;
+    int hits_before_tear = 0, misses_after = 0, tears = 0;
+    double tear_time = -1.0;
+    for (const json& e : events(out)) {
+        if (e["type"] == "shot") {
+            if (tear_time < 0.0) {
+                EXPECT_TRUE(e["hit"].get<bool>()) << "a shot missed the hanging box at t = " << e["t"];
+                if (e["hit"].get<bool>()) EXPECT_EQ(e["object"], "box");
+                ++hits_before_tear;
+            } else if (!e["hit"].get<bool>()) {
+                ++misses_after;
+            }
+        }
+        if (e["type"] == "tear") {
+            ++tears;
+            EXPECT_EQ(e["cause"], "torsion");
+            EXPECT_EQ(e["object"], "string");
+            if (tear_time < 0.0) tear_time = e["t"].get<double>();
+        }
+    }
+    std::printf("twist-game: %d hits before the torsion tear at %.2f s, %d misses after\n", hits_before_tear, tear_time, misses_after);
+    EXPECT_EQ(tears, 1);
+    EXPECT_GE(hits_before_tear, 4) << "the string should take several shots";
+    EXPECT_GT(misses_after, 0) << "after the fall the shots should miss";
+    // The box turned about the string: at the last frame before the tear, the string's
+    // twist is past the yield point; at the end the box lies on the floor.
+    double twist_before = 0.0;
+    for (const json& f : frames(out)) {
+        if (f["t"].get<double>() >= tear_time) break;
+        const json& tw = f["strings"]["string"]["twist"];
+        twist_before = std::abs(tw.back().get<double>() - tw.front().get<double>());
+    }
+    // 0.5 m of 2 mm string: the yield strain 0.02 is reached at 0.02 * 0.5 / 0.002 = 5 rad.
+    EXPECT_GT(twist_before, 5.0);
+    EXPECT_LT(lastFrame(out)["bodies"]["box"]["p"][1].get<double>(), 0.2);
+}
+
+// Strings Fig. 6c: twisted eight turns while taut, the cord stays in its line; when its ends
+// are brought together it coils out of the plane it bends in (it writhes, several turns),
+// while the untwisted cord moved the same way only bends in its plane (writhe 0).
+TEST(DemoScenes, TelephoneCordCoilsWhereTheUntwistedCordOnlyBends) {
+    const fs::path out = run("telephone-cord");
+    std::string where;
+    EXPECT_TRUE(traceIsFinite(out, &where)) << where;
+    // Out of the x-z plane the cords start in.
+    const auto off_plane = [](const std::vector<Point>& x) {
+        double d = 0.0;
+        for (const Point& p : x) d = std::max(d, std::abs(p[1] - 1.0));
+        return d;
+    };
+    double taut_writhe = 0.0;  // at 3 s: twisted, not yet moved
+    for (const json& f : frames(out))
+        if (std::abs(f["t"].get<double>() - 3.0) < 1e-9) taut_writhe = writhe(points(f, "cord"));
+    const json last = lastFrame(out);
+    const std::vector<Point> cord = points(last, "cord"), plain = points(last, "plain");
+    const double cord_writhe = writhe(cord), plain_writhe = writhe(plain);
+    std::printf("telephone-cord: writhe %.3f (twisted), %.3f (plain); off the plane %.3f m (twisted), %.4f m (plain); "
+                "writhe %.3f while taut\n", cord_writhe, plain_writhe, off_plane(cord), off_plane(plain), taut_writhe);
+    EXPECT_LT(std::abs(taut_writhe), 0.2);
+    EXPECT_GT(off_plane(cord), 0.03);
+    EXPECT_LT(off_plane(plain), 0.002);
+    EXPECT_GT(std::abs(cord_writhe), 2.0);
+    EXPECT_LT(std::abs(plain_writhe), 0.01);
+}
+
+namespace {
+
+/// The twist of each joint (theta_{k+1} - theta_k) at the last frame.
+std::vector<double> jointTwist(const fs::path& out) {
+    const json last = lastFrame(out);
+    const json& tw = last["strings"]["string"]["twist"];
+    std::vector<double> d;
+    for (std::size_t k = 0; k + 1 < tw.size(); ++k) d.push_back(tw[k + 1].get<double>() - tw[k].get<double>());
+    return d;
+}
+
+}  // namespace
+
+// Strings Fig. 6d: two turns at one end of a string of uniform torsional rigidity spread
+// evenly: every joint carries the same share.
+TEST(DemoScenes, TorsionUniformSpreadsTheTwistEvenly) {
+    const fs::path out = run("torsion-uniform");
+    std::string where;
+    EXPECT_TRUE(traceIsFinite(out, &where)) << where;
+    const std::vector<double> d = jointTwist(out);
+    ASSERT_EQ(d.size(), 29u);
+    const double total = 4.0 * M_PI;
+    for (std::size_t k = 0; k < d.size(); ++k) EXPECT_NEAR(d[k], total / 29.0, 0.03 * total / 29.0) << "joint " << k;
+}
+
+// Strings Fig. 6e: with the middle third three times as rigid, the middle twists a third as
+// much per joint as the ends (springs in series: the same torque through each).
+TEST(DemoScenes, TorsionNonuniformRigidMiddleTwistsLess) {
+    const fs::path out = run("torsion-nonuniform");
+    std::string where;
+    EXPECT_TRUE(traceIsFinite(out, &where)) << where;
+    const std::vector<double> d = jointTwist(out);
+    ASSERT_EQ(d.size(), 29u);
+    // Joints 0-8 and 20-28 join soft segments, 10-18 rigid ones (9 and 19 one of each).
+    double soft = 0.0, rigid = 0.0;
+    for (int k = 0; k <= 8; ++k) soft += d[k] + d[20 + k];
+    for (int k = 10; k <= 18; ++k) rigid += d[k];
+    soft /= 18.0;
+    rigid /= 9.0;
+    std::printf("torsion-nonuniform: %.4f rad per soft joint, %.4f per rigid joint (ratio %.3f)\n", soft, rigid, rigid / soft);
+    EXPECT_NEAR(rigid / soft, 1.0 / 3.0, 0.03);
+    EXPECT_NEAR(std::accumulate(d.begin(), d.end(), 0.0), 4.0 * M_PI, 1e-3);
+}
+
+// Strings Fig. 6b: a slack string clamped at both ends and twisted at one end buckles out
+// of its line (it starts 2 mm off it; the twist's force grows that tenfold and more).
+TEST(DemoScenes, TwistLoopBucklesOutOfItsLine) {
+    const fs::path out = run("twist-loop");
+    std::string where;
+    EXPECT_TRUE(traceIsFinite(out, &where)) << where;
+    double off_line = 0.0;
+    for (const Point& p : points(lastFrame(out), "string")) off_line = std::max(off_line, std::hypot(p[1] - 1.0, p[2]));
+    std::printf("twist-loop: %.3f m off the line\n", off_line);
+    EXPECT_GT(off_line, 0.03);
 }

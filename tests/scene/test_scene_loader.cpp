@@ -603,7 +603,7 @@ const ErrorCase kErrorCases[] = {
      "strings[0].attachments[0].offset", "unknown field"},
     // --- drivers
     {"DriverUnknownType", driverScene(R"({"type": "shake", "target": "rope"})"), "drivers[0].type",
-     "unknown driver type \"shake\" (allowed: force, ramp, twist, move, release, wind, spawn, velocity)"},
+     "unknown driver type \"shake\" (allowed: force, ramp, twist, move, release, wind, spawn, velocity, shoot)"},
     {"DriverMissingType", driverScene(R"({"target": "rope"})"), "drivers[0].type", "missing required field"},
     {"DriverUnknownTarget", driverScene(R"({"type": "force", "target": "rop", "value": [0, 1, 0]})"),
      "drivers[0].target", "no string, cloth or paper named \"rop\" (strings, cloths and papers: rope)"},
@@ -640,6 +640,39 @@ const ErrorCase kErrorCases[] = {
          "drivers": [{"type": "spawn", "body": {"name": "crate", "shape": {"sphere": 1}}, "at": 1}]})",
      "drivers[0].body.name", "duplicate body name \"crate\" (also used by bodies[0])"},
     {"DriverNotObject", driverScene("3"), "drivers[0]", "expected an object, got a number"},
+    // --- shoot
+    {"ShootNeedsRay", driverScene(R"({"type": "shoot", "impulse": 1, "times": [1]})"), "drivers[0].ray",
+     "missing required field"},
+    {"ShootRayUnknownField", driverScene(R"({"type": "shoot", "ray": {"from": [0, 0, 0], "toward": [1, 0, 0]}, "impulse": 1, "times": [1]})"),
+     "drivers[0].ray.toward", "unknown field (allowed: from, to)"},
+    {"ShootRayBadPoint", driverScene(R"({"type": "shoot", "ray": {"from": [0, 0], "to": [1, 0, 0]}, "impulse": 1, "times": [1]})"),
+     "drivers[0].ray.from", "expected an array of 3 numbers"},
+    {"ShootRayTooShort", driverScene(R"({"type": "shoot", "ray": {"from": [0, 0, 0], "to": [0, 0, 1e-4]}, "impulse": 1, "times": [1]})"),
+     "drivers[0].ray.to", "must be at least 1 mm from ray.from"},
+    {"ShootImpulseZero", driverScene(R"({"type": "shoot", "ray": {"from": [0, 0, 0], "to": [1, 0, 0]}, "impulse": 0, "times": [1]})"),
+     "drivers[0].impulse", "must be greater than 0"},
+    {"ShootImpulseNaNLike", driverScene(R"({"type": "shoot", "ray": {"from": [0, 0, 0], "to": [1, 0, 0]}, "impulse": 1e300, "times": [1]})"),
+     "drivers[0].impulse", "must be in (0, "},
+    {"ShootNoTimes", driverScene(R"({"type": "shoot", "ray": {"from": [0, 0, 0], "to": [1, 0, 0]}, "impulse": 1})"),
+     "drivers[0].times", "missing required field (or every, with from and until)"},
+    {"ShootTimesEmpty", driverScene(R"({"type": "shoot", "ray": {"from": [0, 0, 0], "to": [1, 0, 0]}, "impulse": 1, "times": []})"),
+     "drivers[0].times", "at least one time"},
+    {"ShootTimesNotAscending", driverScene(R"({"type": "shoot", "ray": {"from": [0, 0, 0], "to": [1, 0, 0]}, "impulse": 1, "times": [1, 2, 2]})"),
+     "drivers[0].times[2]", "must be after the time before it (got 2 <= 2)"},
+    {"ShootTimeNegative", driverScene(R"({"type": "shoot", "ray": {"from": [0, 0, 0], "to": [1, 0, 0]}, "impulse": 1, "times": [-1]})"),
+     "drivers[0].times[0]", "must be in [0, "},
+    {"ShootTimesAndEvery", driverScene(R"({"type": "shoot", "ray": {"from": [0, 0, 0], "to": [1, 0, 0]}, "impulse": 1, "times": [1], "every": 1})"),
+     "drivers[0].every", "either times or every"},
+    {"ShootTimesWithFrom", driverScene(R"({"type": "shoot", "ray": {"from": [0, 0, 0], "to": [1, 0, 0]}, "impulse": 1, "times": [1], "from": 1})"),
+     "drivers[0].from", "only with every"},
+    {"ShootEveryNeedsUntil", driverScene(R"({"type": "shoot", "ray": {"from": [0, 0, 0], "to": [1, 0, 0]}, "impulse": 1, "every": 1})"),
+     "drivers[0].until", "with every, the shots end at until"},
+    {"ShootEveryZero", driverScene(R"({"type": "shoot", "ray": {"from": [0, 0, 0], "to": [1, 0, 0]}, "impulse": 1, "every": 0, "until": 2})"),
+     "drivers[0].every", "must be in (0, "},
+    {"ShootEveryTooMany", driverScene(R"({"type": "shoot", "ray": {"from": [0, 0, 0], "to": [1, 0, 0]}, "impulse": 1, "every": 1e-6, "until": 1})"),
+     "drivers[0].every", "more than 100000 shots"},
+    {"ShootHasNoTarget", driverScene(R"({"type": "shoot", "target": "rope", "ray": {"from": [0, 0, 0], "to": [1, 0, 0]}, "impulse": 1, "times": [1]})"),
+     "drivers[0].target", "unknown field"},
 };
 
 INSTANTIATE_TEST_SUITE_P(SceneLoader, SceneErrors, ::testing::ValuesIn(kErrorCases),
@@ -705,6 +738,22 @@ TEST(BuiltinScenes, EveryBuiltinSceneParses) {
             ADD_FAILURE() << "built-in scene " << name << ": " << e.what();
         }
     }
+}
+
+// A shoot driver's shots: listed, or every so many seconds from `from` until (not at) `until`.
+TEST(SceneLoader, ShootDriverTimes) {
+    const Scene listed = parseScene(driverScene(
+        R"({"type": "shoot", "ray": {"from": [0, 1, 2], "to": [0, 1, -2]}, "impulse": 0.5, "times": [0.25, 1]})"));
+    ASSERT_EQ(listed.drivers.size(), 1u);
+    const Driver& d = listed.drivers[0];
+    EXPECT_EQ(d.type, Driver::Type::Shoot);
+    EXPECT_EQ(d.ray_from, Vec3(0, 1, 2));
+    EXPECT_EQ(d.ray_to, Vec3(0, 1, -2));
+    EXPECT_EQ(d.impulse, 0.5);
+    EXPECT_EQ(d.times, (std::vector<double>{0.25, 1.0}));
+    const Scene periodic = parseScene(driverScene(
+        R"({"type": "shoot", "ray": {"from": [0, 1, 2], "to": [0, 1, -2]}, "impulse": 0.5, "every": 0.5, "from": 1, "until": 3})"));
+    EXPECT_EQ(periodic.drivers[0].times, (std::vector<double>{1.0, 1.5, 2.0, 2.5}));
 }
 
 TEST(BuiltinScenes, UnknownNameHasNoText) {
