@@ -545,6 +545,34 @@ void BulletWorld::debugDraw(btIDebugDraw& drawer) const {
             drawer.drawLine(a, b, btVector3(c.r, c.g, c.b));
         }
     }
+    // Cloths: one line per intact yarn edge, coloured as the strings; torn yarns are gaps.
+    for (const ClothId id : core_->cloths()) {
+        const ClothView v = core_->viewCloth(id);
+        const double rupture = core_->clothDesc(id).material.tensile.rupture;
+        const auto& x = *v.positions;
+        for (std::size_t e = 0; e < v.edgeCount(); ++e) {
+            if ((*v.broken)[e]) continue;
+            const auto [i, k] = (*v.edges)[e];
+            const Rgb c = tensionColor(loadFraction((*v.tension)[e], rupture, v.yarn_radius));
+            drawer.drawLine(toBullet(x[i]), toBullet(x[k]), btVector3(c.r, c.g, c.b));
+        }
+    }
+    // Paper sheets: every triangle edge once in the paper's colour, then the creases and
+    // folds (paperCreaseLines) in the crease colour.
+    for (const PaperId id : core_->papers()) {
+        const PaperView v = core_->viewPaper(id);
+        const auto& x = *v.positions;
+        std::vector<std::array<std::uint32_t, 2>> edges;
+        edges.reserve(3 * v.triangles->size());
+        for (const auto& t : *v.triangles)
+            for (int c = 0; c < 3; ++c) edges.push_back({std::min(t[c], t[(c + 1) % 3]), std::max(t[c], t[(c + 1) % 3])});
+        std::sort(edges.begin(), edges.end());
+        edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+        for (const auto& [i, k] : edges)
+            if (i < x.size() && k < x.size()) drawer.drawLine(toBullet(x[i]), toBullet(x[k]), paperColor());
+        for (const auto& [i, k] : paperCreaseLines(v))
+            if (i < x.size() && k < x.size()) drawer.drawLine(toBullet(x[i]), toBullet(x[k]), creaseColor());
+    }
 }
 
 void BulletWorld::attach(StringId id, int particle, const btVector3& world_point) {

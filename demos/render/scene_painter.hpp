@@ -23,11 +23,6 @@ Bounds sceneBounds(const scene::Scene& scene);
 /// (+z) and a little above.
 View fitCamera(const scene::Scene& scene, double aspect);
 
-/// The lines drawn darker over a paper sheet, as pairs of vertex indices: each crease (a
-/// spring broken under compression) as the new vertex's mesh edges across the broken
-/// spring, and each hinge's folded edge.
-std::vector<std::array<std::uint32_t, 2>> paperCreaseLines(const PaperView& view);
-
 /// Draws one frame: the ground (a plane body) or a reference grid, the rigid bodies, the
 /// strings as tubes coloured by load (tension / rupture tension, colormap.hpp), broken
 /// segments left out, cloths as surfaces coloured by load and paper sheets as white

@@ -97,14 +97,20 @@ public:
     const StageTimes& totalStageTimes() const;
     /// False once the Bullet world was destroyed (or this plugin was removed from it).
     bool attachedToBullet() const;
-    /// Draws every string through Bullet's debug drawer, for users who render with their own
-    /// engine: one line per intact segment, coloured by its load (tension over the rupture
-    /// tension of the string's material, tensionColor() in colormap.hpp: blue slack, yellow
-    /// about to tear), and a magenta sphere (drawSphere) at the middle of each broken segment.
-    /// Bullet's btDiscreteDynamicsWorld::debugDrawWorld() calls it too (through the action).
+    /// Draws every string, cloth and paper sheet through Bullet's debug drawer, for users who
+    /// render with their own engine: one line per intact string segment, coloured by its
+    /// load (tension over the rupture tension of the string's material, tensionColor() in
+    /// colormap.hpp: blue slack, yellow about to tear), and a magenta sphere (drawSphere) at
+    /// the middle of each broken segment; one line per intact cloth yarn edge coloured the
+    /// same way (torn yarns left out); each sheet's triangle edges in paperColor() and its
+    /// creases and folds (paperCreaseLines) in creaseColor(). Bullet's
+    /// btDiscreteDynamicsWorld::debugDrawWorld() calls it too (through the action).
     void debugDraw(btIDebugDraw& drawer) const;
     /// The colour of torn-segment markers in debugDraw().
     static btVector3 brokenMarkerColor() { return btVector3(1, 0, 1); }
+    /// The colours of a sheet's edges and of its creases in debugDraw().
+    static btVector3 paperColor() { return btVector3(0.85f, 0.83f, 0.76f); }
+    static btVector3 creaseColor() { return btVector3(0.35f, 0.22f, 0.10f); }
 
     /// The last error caught inside a step (the step never throws into Bullet), or "".
     const std::string& lastError() const;

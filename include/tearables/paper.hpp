@@ -139,4 +139,10 @@ struct PaperView {
     std::size_t vertexCount() const { return positions->size(); }
 };
 
+/// The lines along which a sheet is creased or folded, as pairs of vertex indices (for
+/// drawing: the --png pictures and BulletWorld::debugDraw): each crease (a spring broken
+/// under compression) as the new vertex's mesh edges across the broken spring, and each
+/// hinge's folded edge.
+std::vector<std::array<std::uint32_t, 2>> paperCreaseLines(const PaperView& view);
+
 }  // namespace tearables

@@ -134,3 +134,83 @@ TEST(DebugDraw, DebugDrawWorldDrawsStrings) {
     phys.world->setDebugDrawer(nullptr);
     EXPECT_EQ(rec.lines.size(), 12u);
 }
+
+namespace {
+
+std::size_t countColor(const RecordingDraw& rec, const btVector3& color) {
+    return static_cast<std::size_t>(
+        std::count_if(rec.lines.begin(), rec.lines.end(), [&](const RecordingDraw::Line& l) { return l.color == color; }));
+}
+
+}  // namespace
+
+// A flat sheet: each triangle edge once, in the paper's colour, and no crease lines. Pushed
+// together from two sides it creases: then the crease lines are drawn too, one per line
+// paperCreaseLines gives, and the edges are still each drawn once.
+TEST(DebugDraw, PaperEdgesOnceAndCreasesInTheirColour) {
+    using namespace tearables;
+    Physics phys(0.0);
+    BulletWorld paper(*phys.world);
+    PaperDesc d;
+    d.origin = Vec3(0, 1, 0);
+    d.size[0] = 0.1;
+    d.size[1] = 0.1;
+    d.resolution[0] = 11;
+    d.resolution[1] = 11;
+    d.seed = 3;
+    for (int k = 0; k < 11; ++k)
+        for (int i : {0, 10}) d.attachments.push_back(PaperAttachment{static_cast<std::uint32_t>(d.gridVertex(i, k)), {}, Vec3::Zero(), {}});
+    const PaperId id = paper.addPaper(d);
+    auto uniqueEdges = [&] {
+        std::vector<std::array<std::uint32_t, 2>> e;
+        for (const auto& t : *paper.core().viewPaper(id).triangles)
+            for (int c = 0; c < 3; ++c) e.push_back({std::min(t[c], t[(c + 1) % 3]), std::max(t[c], t[(c + 1) % 3])});
+        std::sort(e.begin(), e.end());
+        return static_cast<std::size_t>(std::unique(e.begin(), e.end()) - e.begin());
+    };
+    RecordingDraw flat;
+    paper.debugDraw(flat);
+    EXPECT_EQ(flat.lines.size(), 10u * 11u * 2u + 10u * 10u);  // rows, columns, diagonals
+    EXPECT_EQ(countColor(flat, BulletWorld::paperColor()), flat.lines.size());
+    // Push the x+ edge 2 cm toward the other in 0.5 s, with a slight lift to start the buckle.
+    for (int step = 0; step < 50; ++step) {
+        for (int k = 0; k < 11; ++k) {
+            const auto v = static_cast<std::uint32_t>(d.gridVertex(10, k));
+            paper.core().movePaperPin(id, v, Vec3(0.1 - 0.0004 * (step + 1), 1.0, k * 0.01));
+        }
+        paper.core().applyPaperForce(id, static_cast<std::uint32_t>(d.gridVertex(5, 5)), Vec3(0, 1e-4, 0));
+        phys.step(1, 0.01);
+    }
+    const PaperView v = paper.core().viewPaper(id);
+    ASSERT_GT(v.counters.creases, 0u) << "the pushed sheet did not crease";
+    RecordingDraw creased;
+    paper.debugDraw(creased);
+    EXPECT_EQ(countColor(creased, BulletWorld::paperColor()), uniqueEdges());
+    EXPECT_EQ(countColor(creased, BulletWorld::creaseColor()), paperCreaseLines(v).size());
+    EXPECT_GT(paperCreaseLines(v).size(), 0u);
+    EXPECT_EQ(creased.lines.size(), uniqueEdges() + paperCreaseLines(v).size());
+}
+
+// A cloth: one line per yarn edge, coloured by its load like a string's.
+TEST(DebugDraw, ClothYarnsColouredByLoad) {
+    using namespace tearables;
+    Physics phys;
+    BulletWorld ropes(*phys.world);
+    ClothDesc d;
+    d.origin = Vec3(0, 2, 0);
+    d.size = {0.2, 0.2};
+    d.resolution = {5, 4};
+    const ClothId id = ropes.addCloth(d);
+    ropes.attachCloth(id, d.vertex(0, 0), btVector3(0, 2, 0));
+    ropes.attachCloth(id, d.vertex(4, 0), btVector3(0.2f, 2, 0));
+    phys.step(20);
+    const ClothView v = ropes.core().viewCloth(id);
+    RecordingDraw rec;
+    ropes.debugDraw(rec);
+    ASSERT_EQ(rec.lines.size(), v.edgeCount());  // 4 x 4 warp + 5 x 3 weft, none torn
+    EXPECT_EQ(rec.lines.size(), 31u);
+    for (std::size_t e = 0; e < v.edgeCount(); ++e) {
+        const Rgb c = tensionColor(loadFraction((*v.tension)[e], d.material.tensile.rupture, v.yarn_radius));
+        EXPECT_EQ(rec.lines[e].color, btVector3(c.r, c.g, c.b)) << "edge " << e;
+    }
+}
