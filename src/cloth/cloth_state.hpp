@@ -93,6 +93,11 @@ struct ClothState {
     std::vector<int> dof;             ///< per vertex: first unknown, or -1 when fixed
     int unknowns = 0;
     std::vector<Eigen::Triplet<double>> triplets;
+    std::vector<std::array<int, 2>> hessian_block_at;    ///< this assembly's 3x3 blocks: first row, first column
+    std::vector<Mat3> hessian_block;                     ///< and their values
+    std::vector<std::array<int, 2>> hessian_pattern_at;  ///< the blocks the pattern of `hessian` was built from
+    std::vector<std::array<int, 3>> hessian_slot;        ///< per block: where its three columns start in hessian's values
+    std::vector<std::uint8_t> hessian_first;             ///< per block: the first one summed into its tile
     SparseMatrix hessian;
     Eigen::VectorXd gradient, step, trial_u;
     std::unique_ptr<Eigen::SimplicialLDLT<SparseMatrix>> newton_solver;  ///< (not movable itself)

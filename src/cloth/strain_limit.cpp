@@ -99,10 +99,65 @@ struct Solver {
         return e;
     }
 
+    /// Records a 3x3 block of the Hessian at (a, b) (both multiples of 3, or -1 for a fixed
+    /// vertex); assemble() puts them into the matrix.
     void block(int a, int b, const Mat3& m) {
         if (a < 0 || b < 0) return;
-        for (int r = 0; r < 3; ++r)
-            for (int k = 0; k < 3; ++k) c.triplets.emplace_back(a + r, b + k, m(r, k));
+        c.hessian_block_at.push_back({a, b});
+        c.hessian_block.push_back(m);
+    }
+
+    /// Puts the recorded blocks into c.hessian. While the blocks come in the same order at
+    /// the same places as when the pattern was built (same topology, contacts and bodies:
+    /// every step in between), each block is written straight into the compressed values,
+    /// in the order the triplets were summed (bit for bit what setFromTriplets gives);
+    /// otherwise the pattern is built anew from triplets and the places remembered.
+    void storeBlocks() {
+        const std::size_t count = c.hessian_block_at.size();
+        const bool same = c.hessian_pattern_at.size() == count && c.hessian.rows() == c.unknowns &&
+                          std::equal(c.hessian_block_at.begin(), c.hessian_block_at.end(), c.hessian_pattern_at.begin());
+        if (!same) {
+            c.triplets.clear();
+            c.triplets.reserve(9 * count);
+            for (std::size_t i = 0; i < count; ++i) {
+                const auto [a, b] = c.hessian_block_at[i];
+                for (int r = 0; r < 3; ++r)
+                    for (int k = 0; k < 3; ++k) c.triplets.emplace_back(a + r, b + k, c.hessian_block[i](r, k));
+            }
+            c.hessian.resize(c.unknowns, c.unknowns);
+            c.hessian.setFromTriplets(c.triplets.begin(), c.triplets.end());
+            c.hessian.makeCompressed();
+            // Where each block's three columns start in the values, and whether it is the
+            // first block summed there (the 3x3 tiles are aligned: a tile's entries share that).
+            const int* outer = c.hessian.outerIndexPtr();
+            const int* inner = c.hessian.innerIndexPtr();
+            std::vector<std::uint8_t> touched(static_cast<std::size_t>(c.hessian.nonZeros()), 0);
+            c.hessian_slot.resize(count);
+            c.hessian_first.resize(count);
+            for (std::size_t i = 0; i < count; ++i) {
+                const auto [a, b] = c.hessian_block_at[i];
+                for (int k = 0; k < 3; ++k) {
+                    const int* at = std::lower_bound(inner + outer[b + k], inner + outer[b + k + 1], a);
+                    c.hessian_slot[i][k] = static_cast<int>(at - inner);
+                }
+                c.hessian_first[i] = !touched[static_cast<std::size_t>(c.hessian_slot[i][0])];
+                touched[static_cast<std::size_t>(c.hessian_slot[i][0])] = 1;
+            }
+            c.hessian_pattern_at = c.hessian_block_at;
+            return;
+        }
+        double* values = c.hessian.valuePtr();
+        for (std::size_t i = 0; i < count; ++i) {
+            const Mat3& m = c.hessian_block[i];
+            const auto& slot = c.hessian_slot[i];
+            if (c.hessian_first[i]) {
+                for (int k = 0; k < 3; ++k)
+                    for (int r = 0; r < 3; ++r) values[slot[k] + r] = m(r, k);
+            } else {
+                for (int k = 0; k < 3; ++k)
+                    for (int r = 0; r < 3; ++r) values[slot[k] + r] += m(r, k);
+            }
+        }
     }
 
     /// Gradient and Hessian of a spring between a and b (one_sided: a yarn, no push).
@@ -127,7 +182,8 @@ struct Solver {
 
     void assemble() {
         c.gradient.setZero(c.unknowns);
-        c.triplets.clear();
+        c.hessian_block_at.clear();
+        c.hessian_block.clear();
         for (std::size_t p = 0; p < c.vertices(); ++p) {
             if (c.dof[p] < 0) continue;
             c.gradient.segment<3>(c.dof[p]) += c.mass[p] * inv_h2 * (c.x[p] - c.x_pred[p]);
@@ -136,8 +192,11 @@ struct Solver {
         for (std::size_t k = 0; k < c.nodes.size(); ++k) {
             const int d = c.nodes[k].dof;
             c.gradient.segment<6>(d) += inv_h2 * (c.nodes[k].mass * u[k]);
-            for (int r = 0; r < 6; ++r)
-                for (int q = 0; q < 6; ++q) c.triplets.emplace_back(d + r, d + q, inv_h2 * c.nodes[k].mass(r, q));
+            const Mat6 m = inv_h2 * c.nodes[k].mass;
+            block(d, d, m.topLeftCorner<3, 3>());
+            block(d, d + 3, m.topRightCorner<3, 3>());
+            block(d + 3, d, m.bottomLeftCorner<3, 3>());
+            block(d + 3, d + 3, m.bottomRightCorner<3, 3>());
         }
         for (std::size_t e = 0; e < c.edgeCount(); ++e)
             if (!c.broken[e]) spring(c.edges[e][0], c.edges[e][1], c.stiffness[e], c.rest_length[e], true);
@@ -161,8 +220,7 @@ struct Solver {
                     if (idx[b] >= 0) block(idx[a], idx[b], k * j.segment<3>(3 * a) * j.segment<3>(3 * b).transpose());
             }
         }
-        c.hessian.resize(c.unknowns, c.unknowns);
-        c.hessian.setFromTriplets(c.triplets.begin(), c.triplets.end());
+        storeBlocks();
     }
 
     /// Factorises the Hessian, reusing the symbolic analysis while the pattern is the same.

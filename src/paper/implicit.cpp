@@ -54,56 +54,136 @@ Vec3 heldVelocity(const PaperSheet& s, std::size_t i, const RigidTable& rigids, 
 
 }  // namespace
 
+namespace {
+
+/// The rows of the Jacobi gather: per vertex, the couplings of its live springs, in spring
+/// order (so every sum is deterministic). They depend only on the live springs' ends and
+/// the vertex count, and are rebuilt only when those changed (a crease or a tear): the
+/// check is one pass over the springs.
+void buildRows(PaperSheet& s) {
+    const std::size_t n = s.vertices();
+    std::size_t live = 0;
+    bool same = s.row_vertices == n;
+    for (const PaperSpring& sp : s.springs) {
+        if (sp.broken) continue;
+        same = same && live < s.link_ends.size() && s.link_ends[live][0] == sp.a && s.link_ends[live][1] == sp.b;
+        ++live;
+    }
+    if (same && live == s.link_ends.size()) return;
+    s.link_ends.clear();
+    for (const PaperSpring& sp : s.springs)
+        if (!sp.broken) s.link_ends.push_back({sp.a, sp.b});
+    s.vertex_link_start.assign(n + 1, 0);
+    for (const auto& [a, b] : s.link_ends) {
+        ++s.vertex_link_start[a + 1];
+        ++s.vertex_link_start[b + 1];
+    }
+    for (std::size_t i = 0; i < n; ++i) s.vertex_link_start[i + 1] += s.vertex_link_start[i];
+    const std::size_t entries = s.vertex_link_start[n];
+    s.row_coupling.assign(entries, JacobiCoupling{});
+    s.row_force.assign(entries, Vec3::Zero());
+    s.link_slot.resize(s.link_ends.size());
+    std::vector<std::uint32_t> fill(s.vertex_link_start.begin(), s.vertex_link_start.end() - 1);
+    for (std::size_t k = 0; k < s.link_ends.size(); ++k) {
+        const auto [a, b] = s.link_ends[k];
+        s.link_slot[k] = {fill[a]++, fill[b]++};
+        s.row_coupling[s.link_slot[k][0]].other = b;
+        s.row_coupling[s.link_slot[k][1]].other = a;
+    }
+    s.row_vertices = n;
+}
+
+}  // namespace
+
 void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& ctx) {
     const std::size_t n = s.vertices();
     const double h = ctx.h, h2 = h * h;
     const double damping = s.desc.damping;
+    const bool implicit = s.desc.integrator == PaperIntegrator::Implicit;
     s.rhs.resize(n);
     s.dv.resize(n);
     s.dv_next.resize(n);
     s.diag_inv.resize(n);
     s.fixed.resize(n);
-    s.block.resize(s.springs.size());
-    // Forces: gravity, the user's, springs with damping. rhs collects h f + h^2 J v.
     s.added_mass.resize(n, Mat3::Zero());
     s.added_force.resize(n, Vec3::Zero());
+    buildRows(s);
+
+    // Pass 1, per live spring: direction, force and coupling, written into the row entries
+    // of its two vertices. No spring adds to a vertex: consecutive springs that share a
+    // vertex do not wait on each other's stores, and pass 2 and the sweeps read the rows
+    // in order.
+    std::size_t k = 0;
+    for (const PaperSpring& sp : s.springs) {
+        if (sp.broken) continue;
+        const auto [slot_a, slot_b] = s.link_slot[k++];
+        JacobiCoupling& row_a = s.row_coupling[slot_a];
+        JacobiCoupling& row_b = s.row_coupling[slot_b];
+        const Vec3 e = s.x[sp.b] - s.x[sp.a];
+        const double l = e.norm();
+        if (!(l > 1e-12)) {  // no direction: no force, no coupling
+            row_a.iso = row_a.along = row_b.iso = row_b.along = 0.0;
+            row_a.dir.setZero();
+            row_b.dir.setZero();
+            s.row_force[slot_a].setZero();
+            s.row_force[slot_b].setZero();
+            continue;
+        }
+        const double inv_l = 1.0 / l;  // one division per spring, not four
+        const Vec3 d = e * inv_l;
+        const Vec3 relative = s.v[sp.b] - s.v[sp.a];
+        // springForce: elastic and damping force on a.
+        Vec3 f = h * (sp.stiffness * (l - sp.rest) + damping * sp.stiffness * d.dot(relative)) * d;
+        // K = k (d d^T + t (I - d d^T)), t = max(0, 1 - l0 / l): the block
+        // h c d d^T + h^2 K = iso I + along d d^T needs two numbers and d, not nine.
+        const double t = std::max(0.0, 1.0 - sp.rest * inv_l);
+        const double iso = h2 * sp.stiffness * t;
+        const double axial = h2 * sp.stiffness * (1.0 - t);
+        const double along = h * damping * sp.stiffness + axial;
+        // h^2 J v: row a gets -h^2 K (v_a - v_b) = h^2 K (v_b - v_a); row b the opposite.
+        if (implicit) f += iso * relative + (axial * d.dot(relative)) * d;
+        row_a.iso = row_b.iso = iso;
+        row_a.along = row_b.along = along;
+        row_a.dir = row_b.dir = d;
+        s.row_force[slot_a] = f;
+        s.row_force[slot_b] = -f;
+    }
+
+    // Pass 2, per vertex: rhs = h f + h^2 J v (gravity, the user's force, the bodies'
+    // lent weight, the springs) and W_ii = M + sum of the blocks.
+    const std::uint32_t* const start = s.vertex_link_start.data();
+    const JacobiCoupling* const row = s.row_coupling.data();
     for (std::size_t i = 0; i < n; ++i) {
         // Pins and glue to immovable bodies prescribe the velocity; a glue to a movable
         // body was turned into added mass (coupleBodies).
         s.fixed[i] = s.hold[i].kind == VertexHold::Kind::Pin ||
                      (s.hold[i].kind == VertexHold::Kind::Glue && !rigids.movable(s.hold[i].body));
-        s.rhs[i] = h * (s.mass[i] * ctx.gravity + s.force[i] + s.added_force[i]);
-        s.diag_inv[i] = s.mass[i] * Mat3::Identity() + s.added_mass[i];  // W_ii accumulated here, inverted below
-    }
-    const bool implicit = s.desc.integrator == PaperIntegrator::Implicit;
-    for (std::size_t k = 0; k < s.springs.size(); ++k) {
-        const PaperSpring& sp = s.springs[k];
-        if (sp.broken) continue;
-        const Vec3 e = s.x[sp.b] - s.x[sp.a];
-        const double l = e.norm();
-        if (!(l > 1e-12)) {
-            s.block[k].setZero();
-            continue;
+        Vec3 rhs = h * (s.mass[i] * ctx.gravity + s.force[i] + s.added_force[i]);
+        // The symmetric sum of the blocks in scalars (kept in registers; an Eigen 3x3
+        // accumulator is spilled to the stack and reloaded in every pass of the loop).
+        double iso = 0.0, xx = 0.0, yy = 0.0, zz = 0.0, xy = 0.0, xz = 0.0, yz = 0.0;
+        for (std::uint32_t j = start[i]; j < start[i + 1]; ++j) {
+            rhs += s.row_force[j];
+            const JacobiCoupling& c = row[j];
+            const Vec3 u = c.along * c.dir;
+            iso += c.iso;
+            xx += u.x() * c.dir.x();
+            yy += u.y() * c.dir.y();
+            zz += u.z() * c.dir.z();
+            xy += u.x() * c.dir.y();
+            xz += u.x() * c.dir.z();
+            yz += u.y() * c.dir.z();
         }
-        const Vec3 d = e / l;
-        const Vec3 f = springForce(sp, s.x[sp.a], s.x[sp.b], s.v[sp.a], s.v[sp.b], damping);
-        s.rhs[sp.a] += h * f;
-        s.rhs[sp.b] -= h * f;
-        if (!implicit) continue;
-        const Mat3 ddt = d * d.transpose();
-        const Mat3 K = sp.stiffness * (ddt + std::max(0.0, 1.0 - sp.rest / l) * (Mat3::Identity() - ddt));
-        const Vec3 kv = h2 * (K * (s.v[sp.a] - s.v[sp.b]));  // h^2 J v: row a gets -K (v_a - v_b)
-        s.rhs[sp.a] -= kv;
-        s.rhs[sp.b] += kv;
-        s.block[k] = h * damping * sp.stiffness * ddt + h2 * K;
-        s.diag_inv[sp.a] += s.block[k];
-        s.diag_inv[sp.b] += s.block[k];
+        s.rhs[i] = rhs;
+        Mat3 diag;  // W_ii, inverted below
+        diag << xx + iso, xy, xz, xy, yy + iso, yz, xz, yz, zz + iso;
+        if (!implicit) diag.setZero();
+        s.diag_inv[i] = diag + s.mass[i] * Mat3::Identity() + s.added_mass[i];
     }
     if (!implicit) {
         // Semi-implicit (symplectic) Euler: v += h f / m. Stable only for h < 2 / omega.
         for (std::size_t i = 0; i < n; ++i)
-            s.v[i] = s.fixed[i] ? heldVelocity(s, i, rigids, ctx)
-                                : Vec3(s.v[i] + (s.mass[i] * Mat3::Identity() + s.added_mass[i]).inverse() * s.rhs[i]);
+            s.v[i] = s.fixed[i] ? heldVelocity(s, i, rigids, ctx) : Vec3(s.v[i] + s.diag_inv[i].inverse() * s.rhs[i]);
     } else {
         for (std::size_t i = 0; i < n; ++i) {
             if (s.fixed[i]) {
@@ -113,17 +193,37 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
             s.diag_inv[i] = s.diag_inv[i].inverse().eval();
             s.dv[i] = s.diag_inv[i] * s.rhs[i];  // Eq. 6, k = 0
         }
+        // Eq. 6, weighted: per vertex, b_i - sum_j W_ij dv_j (W_ij = -block, so + block dv_j)
+        // gathered over its row in registers, then W_ii^-1 and the weight. A held vertex
+        // keeps its prescribed dv.
         for (int it = 0; it < s.desc.jacobi_iterations; ++it) {
-            for (std::size_t i = 0; i < n; ++i) s.dv_next[i] = s.fixed[i] ? s.dv[i] : s.rhs[i];
-            for (std::size_t k = 0; k < s.springs.size(); ++k) {
-                const PaperSpring& sp = s.springs[k];
-                if (sp.broken) continue;
-                // W_ab = -block: b_a - W_ab dv_b = b_a + block dv_b.
-                if (!s.fixed[sp.a]) s.dv_next[sp.a] += s.block[k] * s.dv[sp.b];
-                if (!s.fixed[sp.b]) s.dv_next[sp.b] += s.block[k] * s.dv[sp.a];
+            const Vec3* const dv = s.dv.data();
+            Vec3* const next = s.dv_next.data();
+            for (std::size_t i = 0; i < n; ++i) {
+                if (s.fixed[i]) {
+                    next[i] = dv[i];
+                    continue;
+                }
+                // Two partial sums, even and odd entries: two chains of additions instead
+                // of one (the sum's latency, not the arithmetic, bounds the loop).
+                Vec3 even = s.rhs[i], odd = Vec3::Zero();
+                std::uint32_t j = start[i];
+                const std::uint32_t end = start[i + 1];
+                for (; j + 1 < end; j += 2) {
+                    const JacobiCoupling& c0 = row[j];
+                    const JacobiCoupling& c1 = row[j + 1];
+                    const Vec3& o0 = dv[c0.other];
+                    const Vec3& o1 = dv[c1.other];
+                    even += c0.iso * o0 + (c0.along * c0.dir.dot(o0)) * c0.dir;
+                    odd += c1.iso * o1 + (c1.along * c1.dir.dot(o1)) * c1.dir;
+                }
+                if (j < end) {
+                    const JacobiCoupling& c = row[j];
+                    const Vec3& o = dv[c.other];
+                    even += c.iso * o + (c.along * c.dir.dot(o)) * c.dir;
+                }
+                next[i] = (1.0 - kJacobiWeight) * dv[i] + kJacobiWeight * (s.diag_inv[i] * (even + odd));
             }
-            for (std::size_t i = 0; i < n; ++i)
-                if (!s.fixed[i]) s.dv_next[i] = (1.0 - kJacobiWeight) * s.dv[i] + kJacobiWeight * (s.diag_inv[i] * s.dv_next[i]);
             s.dv.swap(s.dv_next);
         }
         for (std::size_t i = 0; i < n; ++i) s.v[i] += s.dv[i];

@@ -26,6 +26,16 @@ struct VertexHold {
     RigidId body;               ///< Glue
 };
 
+/// The coupling of a spring in the implicit solve, seen from one of its vertices:
+/// W_ij = -(iso I + along dir dir^T) (h c d d^T + h^2 K of implicit.cpp, with
+/// K = k (d d^T + t (I - d d^T))): 48 bytes instead of a 3x3 block and the spring.
+struct JacobiCoupling {
+    double iso = 0.0;             ///< h^2 k t, kg
+    double along = 0.0;           ///< h c k + h^2 k (1 - t), kg
+    Vec3 dir = Vec3::Zero();      ///< unit, along the spring
+    std::uint32_t other = 0;      ///< the spring's other vertex
+};
+
 /// One sheet. Vertices are structure of arrays; springs and triangles are appended only.
 struct PaperSheet {
     PaperDesc desc;
@@ -57,9 +67,15 @@ struct PaperSheet {
     double total_mass = 0.0;
     // solver scratch (sized to the mesh; grows only when the topology grows)
     std::vector<Mat3> diag_inv;   ///< per vertex, inverse of W_ii
-    std::vector<Mat3> block;      ///< per spring, h c P + h^2 K (the coupling W_ij = -block)
     std::vector<Vec3> rhs;        ///< per vertex, h f + h^2 J v
-    std::vector<Vec3> dv, dv_next;
+    std::vector<Vec3> dv, dv_next;    ///< per vertex, the Jacobi iterate (velocity change, m/s) and the next one
+    // rows of the Jacobi gather (implicit.cpp, buildRows), rebuilt when the live springs change
+    std::vector<std::array<std::uint32_t, 2>> link_ends;  ///< per live spring, in order: its vertices
+    std::vector<std::array<std::uint32_t, 2>> link_slot;  ///< per live spring: its entries in the rows of a and b
+    std::vector<std::uint32_t> vertex_link_start;  ///< per vertex + 1, first entry of its row
+    std::vector<JacobiCoupling> row_coupling;      ///< per row entry, the spring's block and the other vertex
+    std::vector<Vec3> row_force;                   ///< per row entry, h f + h^2 K (v_other - v_this) on this vertex, N s
+    std::size_t row_vertices = 0;                  ///< vertex count the rows were built for
     std::vector<std::uint8_t> fixed;  ///< per vertex, its velocity is prescribed (pinned, glued)
     std::vector<Vec3> added_force;    ///< per vertex, the weight of the mass lent to it, N
     std::vector<Mat3> added_mass;
