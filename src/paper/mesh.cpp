@@ -61,7 +61,9 @@ void setSpringName(PaperSheet& s, std::uint32_t k, int slot, std::uint32_t v) {
     if (v < s.vertex_springs.size()) link(s.vertex_springs[v], k);
 }
 
-std::uint32_t addVertex(PaperSheet& s, const Vec3& x, const Vec3& v, double mass) {
+// x and v by value: callers pass the sheet's own entries (a tear's twin starts where its
+// vertex is), which the first push_back below may move.
+std::uint32_t addVertex(PaperSheet& s, Vec3 x, Vec3 v, double mass) {
     s.vertex_triangles.emplace_back();
     s.vertex_springs.emplace_back();
     s.x.push_back(x);

@@ -171,7 +171,7 @@ std::uint32_t splitVertex(PaperSheet& s, std::uint32_t vertex, std::uint32_t acr
 
 // --- mesh.cpp ---
 /// Appends a vertex (all per-vertex arrays grow); returns its index.
-std::uint32_t addVertex(PaperSheet& s, const Vec3& x, const Vec3& v, double mass);
+std::uint32_t addVertex(PaperSheet& s, Vec3 x, Vec3 v, double mass);
 /// Appends a spring; returns its index.
 std::uint32_t addSpring(PaperSheet& s, std::uint32_t a, std::uint32_t b, double rest, double k, PaperSpringKind kind);
 /// Rebuilds the adjacency lists from the triangles and springs.
