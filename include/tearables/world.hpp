@@ -30,7 +30,7 @@ struct WorldSettings {
     bool rigid_contacts = true;
     /// Strings collide with each other and themselves (capsules per segment, exact 27-cell
     /// grid on the swept segments; the strings that touch are solved together, so they
-    /// exchange momentum and never pass through each other). Costs about 0.6 ms per step
+    /// exchange momentum and never pass through each other). Costs about 0.35 ms per step
     /// on a fast-swinging 746-segment rope (BENCHMARKS.md); turn off for ropes that never
     /// meet.
     bool string_collisions = true;
