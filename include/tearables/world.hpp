@@ -32,10 +32,16 @@ struct WorldSettings {
     bool rigid_contacts = true;
     /// Strings collide with each other and themselves (capsules per segment, exact 27-cell
     /// grid on the swept segments; the strings that touch are solved together, so they
-    /// exchange momentum and never pass through each other). Costs about 0.6 ms per step
+    /// exchange momentum and never pass through each other). Costs about 0.35 ms per step
     /// on a fast-swinging 746-segment rope (BENCHMARKS.md); turn off for ropes that never
     /// meet.
     bool string_collisions = true;
+    /// Threads that step independent strings in parallel, 0..64: 1 steps on the calling
+    /// thread only, 0 uses every core the machine reports. Results are bit-identical
+    /// whatever the count (each string's stages are sequential and run in a fixed order;
+    /// what strings share, the rigid bodies and the string-string collision, stays on the
+    /// calling thread). Not part of snapshots.
+    int threads = 1;
 };
 
 /// A rigid body as the core sees it: the host writes it before World::step and reads it

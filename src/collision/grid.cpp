@@ -461,4 +461,140 @@ std::vector<SegmentPair> bruteForcePairs(const Vec3* positions, std::size_t part
     return out;
 }
 
+namespace {
+constexpr std::uint32_t kLeaf = 4;  // segments per leaf of a ChainTree
+bool boxesOverlap(const Vec3& alo, const Vec3& ahi, const Vec3& blo, const Vec3& bhi) {
+    return alo.x() <= bhi.x() && blo.x() <= ahi.x() && alo.y() <= bhi.y() && blo.y() <= ahi.y() && alo.z() <= bhi.z() &&
+           blo.z() <= ahi.z();
+}
+}  // namespace
+
+std::uint32_t ChainTree::build(std::uint32_t first, std::uint32_t count) {
+    const auto index = static_cast<std::uint32_t>(nodes_.size());
+    nodes_.emplace_back();
+    Node node;
+    node.first = first;
+    node.count = count;
+    if (count <= kLeaf) {
+        node.lo = seg_lo_[first];
+        node.hi = seg_hi_[first];
+        for (std::uint32_t k = first + 1; k < first + count; ++k) {
+            node.lo = node.lo.cwiseMin(seg_lo_[k]);
+            node.hi = node.hi.cwiseMax(seg_hi_[k]);
+        }
+    } else {
+        const std::uint32_t half = count / 2;
+        node.left = build(first, half);
+        node.right = build(first + half, count - half);
+        node.lo = nodes_[node.left].lo.cwiseMin(nodes_[node.right].lo);
+        node.hi = nodes_[node.left].hi.cwiseMax(nodes_[node.right].hi);
+    }
+    nodes_[index] = node;
+    return index;
+}
+
+void ChainTree::test(std::uint32_t i, std::uint32_t j) {
+    const std::vector<CollisionSegment>& segs = *segs_;
+    if (segs[i].skip || segs[j].skip || excluded(segs[i], segs[j], skip_)) return;
+    if (!boxesOverlap(seg_lo_[i], seg_hi_[i], seg_lo_[j], seg_hi_[j])) return;
+    narrowPhase(x_, segs, info_.data(), margin_, std::min(i, j), std::max(i, j), *out_);
+}
+
+void ChainTree::self(std::uint32_t index) {
+    const Node& node = nodes_[index];
+    if (node.left == 0) {
+        for (std::uint32_t i = node.first; i < node.first + node.count; ++i)
+            for (std::uint32_t j = i + 1; j < node.first + node.count; ++j) test(i, j);
+        return;
+    }
+    self(node.left);
+    self(node.right);
+    cross(node.left, node.right);
+}
+
+void ChainTree::cross(std::uint32_t a, std::uint32_t b) {
+    const Node& na = nodes_[a];
+    const Node& nb = nodes_[b];
+    if (!boxesOverlap(na.lo, na.hi, nb.lo, nb.hi)) return;
+    // Neighbours along one chain closer than the skip are never pairs: ranges entirely
+    // within the skip of each other are done.
+    const CollisionSegment& sa = (*segs_)[na.first];
+    const CollisionSegment& sb = (*segs_)[nb.first];
+    if (sa.chain == sb.chain) {
+        const std::uint32_t lo_a = sa.index_in_chain, hi_a = lo_a + na.count - 1;
+        const std::uint32_t lo_b = sb.index_in_chain, hi_b = lo_b + nb.count - 1;
+        const std::uint32_t far = std::max(hi_b > lo_a ? hi_b - lo_a : lo_a - hi_b, hi_a > lo_b ? hi_a - lo_b : lo_b - hi_a);
+        if (far <= skip_) return;
+    }
+    if (na.left == 0 && nb.left == 0) {
+        for (std::uint32_t i = na.first; i < na.first + na.count; ++i)
+            for (std::uint32_t j = nb.first; j < nb.first + nb.count; ++j) test(i, j);
+        return;
+    }
+    if (nb.left == 0 || (na.left != 0 && na.count >= nb.count)) {
+        cross(na.left, b);
+        cross(na.right, b);
+    } else {
+        cross(a, nb.left);
+        cross(a, nb.right);
+    }
+}
+
+void ChainTree::findPairs(const Vec3* positions, const std::vector<CollisionSegment>& segments, double margin,
+                          std::vector<SegmentPair>& out, std::uint32_t skip_neighbours) {
+    out.clear();
+    x_ = positions;
+    segs_ = &segments;
+    out_ = &out;
+    margin_ = margin;
+    skip_ = skip_neighbours;
+    const std::size_t m = segments.size();
+    seg_lo_.resize(m);
+    seg_hi_.resize(m);
+    info_.resize(m);
+    const double inf = std::numeric_limits<double>::infinity();
+    for (std::size_t k = 0; k < m; ++k) {
+        const CollisionSegment& sg = segments[k];
+        const Vec3& a = positions[sg.a];
+        const Vec3& b = positions[sg.b];
+        info_[k].mid = 0.5 * (a + b);
+        info_[k].length2 = (b - a).squaredNorm();
+        info_[k].half_length = 0.5 * std::sqrt(info_[k].length2);
+        if (sg.skip) {
+            seg_lo_[k] = Vec3::Constant(inf);
+            seg_hi_[k] = Vec3::Constant(-inf);
+            continue;
+        }
+        const Vec3 grow = Vec3::Constant(sg.radius + 0.5 * margin);
+        seg_lo_[k] = a.cwiseMin(b) - grow;
+        seg_hi_[k] = a.cwiseMax(b) + grow;
+    }
+    // One tree per chain (runs of equal `chain`); node 0 is a dummy so that 0 means "leaf".
+    nodes_.clear();
+    nodes_.emplace_back();
+    roots_.clear();
+    for (std::size_t first = 0; first < m;) {
+        std::size_t last = first + 1;
+        while (last < m && segments[last].chain == segments[first].chain) ++last;
+        const std::uint32_t root = build(static_cast<std::uint32_t>(first), static_cast<std::uint32_t>(last - first));
+        roots_.push_back(root);
+        self(root);
+        first = last;
+    }
+    // Chains against each other: sweep the root boxes along x (sorted by their lower x,
+    // ties by position in the list: deterministic).
+    order_ = roots_;
+    std::sort(order_.begin(), order_.end(), [&](std::uint32_t l, std::uint32_t r) {
+        const double a = nodes_[l].lo.x(), b = nodes_[r].lo.x();
+        return a < b || (a == b && l < r);
+    });
+    for (std::size_t i = 0; i < order_.size(); ++i) {
+        const Node& a = nodes_[order_[i]];
+        for (std::size_t j = i + 1; j < order_.size() && nodes_[order_[j]].lo.x() <= a.hi.x(); ++j) {
+            const std::uint32_t l = std::min(order_[i], order_[j]), r = std::max(order_[i], order_[j]);
+            cross(l, r);
+        }
+    }
+}
+
 }  // namespace tearables::detail

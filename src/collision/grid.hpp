@@ -186,4 +186,44 @@ std::vector<SegmentPair> bruteForcePairs(const Vec3* positions, std::size_t part
                                          const std::vector<CollisionSegment>& segments, double margin,
                                          std::uint32_t skip_neighbours = 1);
 
+/// The same search as SegmentGrid::findPairs (every pair of overlapping capsules, the
+/// same exclusions, the same narrow phase, so the same pairs with the same closest points),
+/// through a bounding-box tree per chain instead of a grid. The grid's cells must fit the
+/// largest capsule, so one fast segment (a swept capsule grown by its travel: the tip of a
+/// swinging rope) makes every cell large and every particle meet hundreds of others; the
+/// tree's boxes follow each segment's own size. Chains are the runs of consecutive
+/// segments with the same `chain` value in the list (strings listed one after another).
+/// Per chain: a tree over its segment ranges built bottom-up in O(n) (leaves of up to
+/// kLeaf segments), self pairs by descending the tree (siblings of a curved chain touch
+/// only near their common particle), chains against each other by sweeping their root
+/// boxes along x and descending both trees where the roots overlap. Output in the order of
+/// the traversal (deterministic); no allocation once the buffers have grown.
+class ChainTree {
+public:
+    void findPairs(const Vec3* positions, const std::vector<CollisionSegment>& segments, double margin,
+                   std::vector<SegmentPair>& out, std::uint32_t skip_neighbours = 1);
+
+private:
+    struct Node {
+        Vec3 lo, hi;                 // bounds of the capsules (grown by half the margin)
+        std::uint32_t first = 0;     // segment range [first, first + count)
+        std::uint32_t count = 0;
+        std::uint32_t left = 0, right = 0;  // children (leaves: 0)
+    };
+    std::uint32_t build(std::uint32_t first, std::uint32_t count);
+    void self(std::uint32_t node);
+    void cross(std::uint32_t a, std::uint32_t b);
+    void test(std::uint32_t i, std::uint32_t j);
+
+    std::vector<Node> nodes_;
+    std::vector<Vec3> seg_lo_, seg_hi_;
+    std::vector<SegmentGrid::SegmentInfo> info_;
+    std::vector<std::uint32_t> roots_, order_;
+    const Vec3* x_ = nullptr;
+    const std::vector<CollisionSegment>* segs_ = nullptr;
+    std::vector<SegmentPair>* out_ = nullptr;
+    double margin_ = 0.0;
+    std::uint32_t skip_ = 1;
+};
+
 }  // namespace tearables::detail

@@ -6,6 +6,7 @@
 #include "collision/capsule.hpp"
 #include "collision/grid.hpp"
 #include "paper/system.hpp"
+#include "core/thread_pool.hpp"
 #include "core/world_access.hpp"
 #include "string/string_state.hpp"
 
@@ -118,6 +119,10 @@ struct World::Impl {
     StageTimes last;
     ContactProvider* contact_provider = nullptr;
     detail::SegmentGrid grid;
+    detail::ChainTree tree;
+    detail::ThreadPool pool;          // independent strings' stages (WorldSettings::threads)
+    std::vector<std::uint32_t> live_strings, own_strings;  // this step's live strings; those sharing no body
+    std::vector<std::uint8_t> bad_state;  // per live string: non-finite after the step
     std::vector<Vec3> grid_positions;
     std::vector<detail::CollisionSegment> grid_segments;
     std::vector<detail::SegmentPair> grid_pairs;
@@ -345,15 +350,11 @@ struct World::Impl {
             deep_pairs.clear();
             return;
         }
-        try {
-            const double cell = detail::requiredCellSize(grid_positions.data(), grid_positions.size(), grid_segments, 0.0);
-            grid.findPairs(grid_positions.data(), grid_positions.size(), grid_segments, cell, 0.0,
-                           detail::NeighbourSearch::TwentySeven, grid_pairs, stringContactSkip(thickest, shortest_segment),
-                           /*sorted=*/false);  // most pairs are dropped below; the kept ones are sorted
-        } catch (const InvalidInput&) {
-            deep_pairs.clear();
-            return;  // positions out of the grid's range (a string flying off): no contacts this step
-        }
+        // The swept capsules' overlaps through a box tree per string (collision/grid.hpp,
+        // ChainTree): the same pairs as the exact 27-cell grid, whose cells all grow to the
+        // fastest segment's swept capsule (a swinging rope's tip), at a fraction of its cost.
+        // Most pairs are dropped below; the kept ones are sorted.
+        tree.findPairs(grid_positions.data(), grid_segments, 0.0, grid_pairs, stringContactSkip(thickest, shortest_segment));
         for (const detail::SegmentPair& pair : grid_pairs) {
             const detail::CollisionSegment& a = grid_segments[pair.first];
             const detail::CollisionSegment& b = grid_segments[pair.second];
@@ -837,14 +838,27 @@ void World::step(double h) {
     t = StageTimes{};
     auto live = [](const StringState& s) { return s.alive && !s.frozen; };
 
+    // Independent strings run their own stages on the pool (WorldSettings::threads): each
+    // call touches only its string (and reads the bodies); whatever strings share (bodies
+    // they pull or touch, string-string contacts, events) stays on this thread, in order.
+    w.pool.setThreads(w.settings.threads);
+    w.live_strings.clear();
+    for (std::size_t i = 0; i < w.strings.size(); ++i)
+        if (live(w.strings[i])) w.live_strings.push_back(static_cast<std::uint32_t>(i));
+    auto eachLive = [&w](auto&& fn) { w.pool.forEach(w.live_strings.size(), [&](std::size_t k) { fn(w.strings[w.live_strings[k]]); }); };
+    // A string that holds a body (glue) writes to it in several stages: it stays serial.
+    auto ownsNothing = [](const StringState& s) {
+        for (const ParticleHold& hold : s.hold)
+            if (hold.kind == ParticleHold::Kind::Glue) return false;
+        return true;
+    };
+
     auto t0 = Clock::now();
-    for (StringState& s : w.strings)
-        if (live(s)) detail::shapeMatch(s);
+    eachLive([](StringState& s) { detail::shapeMatch(s); });
     auto t0b = Clock::now();
     t.shape_matching = seconds(t0, t0b);
 
-    for (StringState& s : w.strings)
-        if (live(s)) detail::predict(s, rigids, ctx);
+    eachLive([&](StringState& s) { detail::predict(s, rigids, ctx); });
     auto t1 = Clock::now();
     t.predict = seconds(t0b, t1);
 
@@ -863,20 +877,25 @@ void World::step(double h) {
 
     // Strain limiting. Strings that pull or touch a movable body are coupled through it
     // and are swept Gauss-Seidel style; the others are solved once (their solve is exact).
+    // Strings that neither hold nor touch a movable body are solved once, in parallel; the
+    // others in order on this thread (they move bodies other strings see).
     bool coupled = false;
-    for (StringState& s : w.strings) {
+    w.own_strings.clear();
+    for (std::size_t i = 0; i < w.strings.size(); ++i) {
+        StringState& s = w.strings[i];
         if (!live(s)) continue;
         detail::prepareStrainLimit(s, rigids, ctx);
         coupled = coupled || touchesMovableBody(s);
+        if (!touchesMovableBody(s) && ownsNothing(s)) w.own_strings.push_back(static_cast<std::uint32_t>(i));
     }
+    w.pool.forEach(w.own_strings.size(), [&](std::size_t k) { detail::limitStrain(w.strings[w.own_strings[k]], rigids, ctx); });
     const int sweeps = coupled ? w.settings.coupling_iterations : 1;
     for (int sweep = 0; sweep < sweeps; ++sweep)
         for (StringState& s : w.strings) {
-            if (!live(s)) continue;
+            if (!live(s) || (!touchesMovableBody(s) && ownsNothing(s))) continue;
             if (sweep == 0 || touchesMovableBody(s)) detail::limitStrain(s, rigids, ctx);
         }
-    for (StringState& s : w.strings)
-        if (live(s)) detail::clampTravel(s, ctx);
+    eachLive([&](StringState& s) { detail::clampTravel(s, ctx); });
     auto t2 = Clock::now();
     t.strain_limit = seconds(t1, t2);
     // String-string and self collision: the strings that touch are solved again, together
@@ -888,14 +907,14 @@ void World::step(double h) {
         t2 = t2c;
     }
 
+    w.pool.forEach(w.own_strings.size(), [&](std::size_t k) { detail::solveTwist(w.strings[w.own_strings[k]], rigids, ctx); });
     for (StringState& s : w.strings)
-        if (live(s)) detail::solveTwist(s, rigids, ctx);
+        if (live(s) && !(!touchesMovableBody(s) && ownsNothing(s))) detail::solveTwist(s, rigids, ctx);
     auto t2b = Clock::now();
     t.twist = seconds(t2, t2b);
     t2 = t2b;
 
-    for (StringState& s : w.strings)
-        if (live(s)) detail::estimateTension(s, ctx);
+    eachLive([&](StringState& s) { detail::estimateTension(s, ctx); });
     // Friction after the tension solve: its tangential corrections are not tension.
     for (StringState& s : w.strings)
         if (live(s) && !s.contacts.empty()) detail::applyFriction(s, rigids, ctx);
@@ -915,14 +934,18 @@ void World::step(double h) {
     auto t4 = Clock::now();
     t.material = seconds(t3, t4);
 
-    for (std::size_t i = 0; i < w.strings.size(); ++i) {
-        StringState& s = w.strings[i];
-        if (!live(s)) continue;
+    w.bad_state.assign(w.live_strings.size(), 0);
+    w.pool.forEach(w.live_strings.size(), [&](std::size_t k) {
+        StringState& s = w.strings[w.live_strings[k]];
         detail::computeTwistForces(s);
         detail::updateVelocities(s, ctx);
         bool ok = true;
         for (std::size_t p = 0; p < s.particles() && ok; ++p) ok = finite(s.x[p]) && finite(s.v[p]);
-        if (!ok) w.freeze(s, StringId{static_cast<std::uint32_t>(i)}, ctx);
+        w.bad_state[k] = !ok;
+    });
+    for (std::size_t k = 0; k < w.live_strings.size(); ++k) {
+        StringState& s = w.strings[w.live_strings[k]];
+        if (w.bad_state[k]) w.freeze(s, StringId{w.live_strings[k]}, ctx);
         std::fill(s.force.begin(), s.force.end(), Vec3::Zero());
     }
     // Cloths (src/cloth/): their own stages, after the strings, before the bodies' velocities.

@@ -139,6 +139,8 @@ void validate(const WorldSettings& s) {
         throw InvalidInput("coupling_iterations", "must be in [1, 64] (got " + std::to_string(s.coupling_iterations) + ")");
     requireRange("strain_tolerance", s.strain_tolerance, 1e-12, 0.01);
     requirePositive("max_speed", s.max_speed);
+    if (s.threads < 0 || s.threads > 64)
+        throw InvalidInput("threads", "must be in [0, 64] (0: one per core; got " + std::to_string(s.threads) + ")");
 }
 
 }  // namespace tearables

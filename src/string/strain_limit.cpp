@@ -124,16 +124,21 @@ bool fixedRow(const StringState& s, std::size_t p) {
 /// Hessians, symmetric positive definite, so no pivoting is needed.
 void factorBlockTridiagonal(StringState& s) {
     const std::size_t n = s.particles();
+    s.blk_factor.resize(n);
+    s.blk_coupled.resize(n);
     s.blk_factor[0].compute(s.blk_diag[0]);
+    s.blk_coupled[0] = 0;
     for (std::size_t i = 1; i < n; ++i) {
         const Mat3& u = s.blk_off[i - 1];  // couples i-1 and i
         Mat3 d = s.blk_diag[i];
-        if (u.isZero(0.0)) {
-            s.blk_factor_gain[i].setZero();
-        } else {
+        const bool coupled = !u.isZero(0.0);
+        s.blk_coupled[i] = coupled;
+        if (coupled) {
             const Mat3 w = s.blk_factor[i - 1].solve(u);  // D'^-1 U
             d -= u.transpose() * w;
             s.blk_factor_gain[i] = w.transpose();
+        } else {
+            s.blk_factor_gain[i].setZero();
         }
         s.blk_factor[i].compute(d);
     }
@@ -143,9 +148,9 @@ void factorBlockTridiagonal(StringState& s) {
 void solveFactored(const StringState& s, std::vector<Vec3>& rhs) {
     const std::size_t n = s.particles();
     for (std::size_t i = 1; i < n; ++i)
-        if (!s.blk_factor_gain[i].isZero(0.0)) rhs[i] -= s.blk_factor_gain[i] * rhs[i - 1];
+        if (s.blk_coupled[i]) rhs[i] -= s.blk_factor_gain[i] * rhs[i - 1];
     rhs[n - 1] = s.blk_factor[n - 1].solve(rhs[n - 1]);
-    for (std::size_t i = n - 1; i-- > 0;) rhs[i] = s.blk_factor[i].solve(rhs[i] - s.blk_off[i] * rhs[i + 1]);
+    for (std::size_t i = n - 1; i-- > 0;) rhs[i] = s.blk_factor[i].solve(Vec3(rhs[i] - s.blk_off[i] * rhs[i + 1]));
 }
 
 using Vec6 = Eigen::Matrix<double, 6, 1>;
@@ -679,8 +684,8 @@ struct ChainSolver {
         inverse.resize(n);
         coupled.resize(n);
         for (std::size_t i = 0; i < n; ++i) {
-            inverse[i] = s.blk_factor[i].solve(Mat3::Identity());
-            coupled[i] = i > 0 && !s.blk_factor_gain[i].isZero(0.0);
+            inverse[i] = s.blk_factor[i].solve(Mat3(Mat3::Identity()));
+            coupled[i] = s.blk_coupled[i];
         }
     }
     void solve(const StringState& s, std::vector<Vec3>& rhs, std::size_t first = 0) const {

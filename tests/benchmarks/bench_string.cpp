@@ -1,29 +1,110 @@
-// Google Benchmark: the core's full string step (prediction, direct strain limiting,
-// momentum tension, material response) for a rope hanging with a tip mass 10x its own,
-// at the segment counts of Strings' Table 1. Run: build/tests/benchmarks/tearables_bench
+// Google Benchmark: the core's full string step (prediction, shape matching, strain
+// limiting, string-string collision, twist, momentum tension, material response) in the
+// setting of Strings' Table 1 (issue 9): a rope of 1 cm segments hanging from one end
+// with a tip mass 10x its own, laid out horizontally so that it swings (and folds onto
+// itself near the tip), dt = 0.01 s. Per step: CPU time, and per stage (counters, in
+// microseconds per step, from World::lastStageTimes):
+//   update = prediction + velocities (the paper's "particle update"), csm, strain (the
+//   strain limit: our exact replacement of the paper's sweeps), collision (rigid and
+//   string-string), twist, tension, material.
+// Plus 10 000 and 100 000 segments in total, as one long string and as many short ones
+// (100 segments each, side by side, not touching), on 1 and 2 threads
+// (WorldSettings::threads).
+// Run: build/tests/benchmarks/tearables_bench --benchmark_filter='Table1|Segments'
 #include "tearables/world.hpp"
 
 #include <benchmark/benchmark.h>
 
+#include <vector>
+
 namespace {
 
-void BM_HangingRopeStep(benchmark::State& state) {
+constexpr double kPi = 3.14159265358979;
+constexpr double kSegment = 0.01;  // m
+constexpr double kRadius = 0.005;  // m
+constexpr double kDensity = 0.001 / (kPi * kRadius * kRadius * kSegment);  // 1 g per 1 cm segment
+
+tearables::StringDesc rope(const tearables::Vec3& start, int segments, double tip_factor) {
+    auto desc = tearables::StringDesc::straight(start, start + tearables::Vec3(kSegment * segments, 0, 0), segments);
+    desc.radius = kRadius;
+    desc.density = kDensity;
+    if (tip_factor > 0.0) desc.particle_masses = {{-1, tip_factor * 0.001 * segments}};
+    return desc;
+}
+
+/// Adds the stage times of the measured steps as counters (microseconds per step).
+struct StageCounters {
+    tearables::StageTimes sum;
+    void add(const tearables::World& world) { sum += world.lastStageTimes(); }
+    void report(benchmark::State& state) const {
+        const double steps = static_cast<double>(state.iterations());
+        auto us = [&](double seconds) { return benchmark::Counter(1e6 * seconds / steps); };
+        state.counters["update_us"] = us(sum.predict + sum.velocities);
+        state.counters["csm_us"] = us(sum.shape_matching);
+        state.counters["strain_us"] = us(sum.strain_limit);
+        state.counters["collision_us"] = us(sum.collision);
+        state.counters["twist_us"] = us(sum.twist);
+        state.counters["tension_us"] = us(sum.tension);
+        state.counters["material_us"] = us(sum.material);
+        state.counters["total_us"] = us(sum.total());
+    }
+};
+
+/// Strings' Table 1 sizes: one rope, 200 steps of settling into the swing, then measured.
+void BM_Table1Rope(benchmark::State& state) {
     const int segments = static_cast<int>(state.range(0));
     tearables::World world;
-    auto desc = tearables::StringDesc::straight({0, 0, 0}, {0.01 * segments, 0, 0}, segments);
-    desc.radius = 0.005;
-    desc.density = 0.001 / (3.14159265358979 * 0.005 * 0.005 * 0.01);  // 1 g per 1 cm segment
-    desc.particle_masses = {{-1, 10 * 0.001 * segments}};
-    const auto id = world.addString(desc);
+    const auto id = world.addString(rope({0, 0, 0}, segments, 10.0));
     world.attachToPoint(id, 0, {0, 0, 0});
-    for (int i = 0; i < 200; ++i) world.step(0.01);  // settle into the swing
+    for (int i = 0; i < 200; ++i) world.step(0.01);
+    StageCounters stages;
     for (auto _ : state) {
         world.step(0.01);
+        stages.add(world);
         benchmark::DoNotOptimize(world.view(id).tension->data());
     }
+    stages.report(state);
     state.SetItemsProcessed(state.iterations() * segments);
 }
-BENCHMARK(BM_HangingRopeStep)->Arg(100)->Arg(150)->Arg(200)->Arg(746)->Arg(10000)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_Table1Rope)->Arg(100)->Arg(150)->Arg(200)->Arg(746)->Unit(benchmark::kMicrosecond);
+
+/// Many segments in total: range(0) segments, as one string (range(1) = 0) or as strings
+/// of range(1) segments side by side 5 cm apart, each pinned at its first particle with a
+/// 10x tip mass; range(2) threads. 20 steps of settling, then measured.
+void BM_Segments(benchmark::State& state) {
+    const int total = static_cast<int>(state.range(0));
+    const int per_string = state.range(1) > 0 ? static_cast<int>(state.range(1)) : total;
+    tearables::WorldSettings settings;
+    settings.threads = static_cast<int>(state.range(2));
+    tearables::World world(settings);
+    std::vector<tearables::StringId> ids;
+    for (int i = 0; i * per_string < total; ++i) {
+        const tearables::Vec3 start(0, 0, 0.05 * i);
+        ids.push_back(world.addString(rope(start, per_string, 10.0)));
+        world.attachToPoint(ids.back(), 0, start);
+    }
+    for (int i = 0; i < 20; ++i) world.step(0.01);
+    StageCounters stages;
+    for (auto _ : state) {
+        world.step(0.01);
+        stages.add(world);
+        benchmark::DoNotOptimize(world.view(ids.back()).tension->data());
+    }
+    stages.report(state);
+    state.SetItemsProcessed(state.iterations() * total);
+    state.counters["per_segment"] =
+        benchmark::Counter(static_cast<double>(total), benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_Segments)
+    ->ArgNames({"segments", "per_string", "threads"})
+    ->Args({10000, 0, 1})
+    ->Args({10000, 100, 1})
+    ->Args({100000, 0, 1})
+    ->Args({100000, 0, 2})
+    ->Args({100000, 100, 1})
+    ->Args({100000, 100, 2})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 }  // namespace
 
