@@ -48,4 +48,15 @@ struct Physics {
     }
 };
 
+/// Kinetic energy of a body (translation and rotation), J.
+inline double kineticEnergy(const btRigidBody& body) {
+    const double mass = body.getInvMass() > 0 ? 1.0 / static_cast<double>(body.getInvMass()) : 0.0;
+    double e = 0.5 * mass * static_cast<double>(body.getLinearVelocity().length2());
+    const btVector3 w = body.getWorldTransform().getBasis().transpose() * body.getAngularVelocity();
+    const btVector3 inv = body.getInvInertiaDiagLocal();
+    for (int k = 0; k < 3; ++k)
+        if (inv[k] > 0) e += 0.5 * static_cast<double>(w[k] * w[k] / inv[k]);
+    return e;
+}
+
 }  // namespace tearables::testing

@@ -144,10 +144,7 @@ TEST(RigidCollision, FreeRopeHitByABoxConservesMomentum) {
         return p;
     };
     auto energy = [&] {  // kinetic: the box's translation and rotation, the rope's particles
-        double e = 0.5 * static_cast<double>(box.getLinearVelocity().length2());
-        const btVector3 w = box.getWorldTransform().getBasis().transpose() * box.getAngularVelocity();
-        const btVector3 inv = box.getInvInertiaDiagLocal();
-        e += 0.5 * static_cast<double>(w.x() * w.x() / inv.x() + w.y() * w.y() / inv.y() + w.z() * w.z() / inv.z());
+        double e = tearables::testing::kineticEnergy(box);
         const auto v = ropes.core().view(id);
         for (std::size_t i = 0; i < v.particleCount(); ++i) e += 0.5 * (*v.masses)[i] * (*v.velocities)[i].squaredNorm();
         return e;
