@@ -1,35 +1,19 @@
 // ClothDesc validation: check at creation, so the hot loop can assume.
+#include "core/validate.hpp"
 #include "tearables/cloth.hpp"
 
 #include <cmath>
 #include <set>
-#include <sstream>
 #include <utility>
 
 namespace tearables {
 
 namespace {
 
-std::string num(double v) {
-    std::ostringstream s;
-    s.precision(9);
-    s << v;
-    return s.str();
-}
-
-void requireFinite(const std::string& field, double v) {
-    if (!std::isfinite(v)) throw InvalidInput(field, "must be a finite number (got " + num(v) + ")");
-}
-
-void requirePositive(const std::string& field, double v) {
-    requireFinite(field, v);
-    if (!(v > 0.0)) throw InvalidInput(field, "must be greater than 0 (got " + num(v) + ")");
-}
-
-void requireRange(const std::string& field, double v, double lo, double hi) {
-    requireFinite(field, v);
-    if (v < lo || v > hi) throw InvalidInput(field, "must be in [" + num(lo) + ", " + num(hi) + "] (got " + num(v) + ")");
-}
+using detail::num;
+using detail::requireFinite;
+using detail::requirePositive;
+using detail::requireRange;
 
 int resolveAxis(int k, int count, const std::string& field) {
     if (k < -count || k >= count)
