@@ -33,26 +33,35 @@ void pushBody(RigidState& body, const Vec3& arm, const Vec3& impulse) {
     body.impulse += impulse;
 }
 
-/// A body touching the sheet inside a triangle, at the point p = sum_k w_k x_k. The same
-/// velocity-level condition as a vertex's, n . v_p >= -gap / h, on the point's velocity
-/// v_p = sum_k w_k v_k: the normal impulse j that enforces it is shared by the corners in
-/// proportion to their weights, dv_k = w_k j n / m_k, with the point's effective mass
-/// 1 / sum_k w_k^2 / m_k (a corner that is pinned or glued takes no share, as if
-/// infinitely heavy). Friction limits the point's tangential slip to mu times the normal
-/// change, shared the same way. The body gets the opposite impulse, through its centre of
-/// mass as the vertices' contacts do.
-void resolveFaceContact(PaperSheet& s, const PointContact& c, RigidTable& rigids, const PaperStep& ctx, double radius) {
+/// One contact at the point p = sum_k w_k x_k of the sheet: a vertex (one corner, weight
+/// 1) or a point inside a triangle (its three corners, barycentric weights). The vertex
+/// may approach the body by no more than its gap, n . v_p >= -gap / h, on the point's
+/// velocity v_p = sum_k w_k v_k. The change dv of v_p that enforces it (with Coulomb
+/// friction on the slip relative to the body's surface: at most mu times the normal
+/// change) is shared by the corners in proportion to w_k / m_k, with the point's
+/// effective mass 1 / sum_k w_k^2 / m_k (a pinned or glued corner takes no share, as if
+/// infinitely heavy); for a vertex that is dv itself. The body gets the opposite impulse,
+/// through its centre of mass (see releaseBodies).
+void resolvePoint(PaperSheet& s, const PointContact& c, RigidTable& rigids, const PaperStep& ctx, double radius) {
+    const std::uint32_t vertex[1] = {c.vertex};
+    const double unit[1] = {1.0};
+    const bool face = c.onFace();
+    const std::uint32_t* corner = face ? c.face.data() : vertex;
+    const double* weight = face ? c.weights.data() : unit;
+    const int corners = face ? 3 : 1;
     double w2m = 0.0;  // sum w_k^2 / m_k over the corners that can move
     Vec3 x = Vec3::Zero(), v = Vec3::Zero();
-    for (int k = 0; k < 3; ++k) {
-        const std::uint32_t i = c.face[k];
+    for (int k = 0; k < corners; ++k) {
+        const std::uint32_t i = corner[k];
         if (i >= s.vertices()) return;
-        x += c.weights[k] * s.x[i];
-        v += c.weights[k] * s.v[i];
-        if (!s.fixed[i]) w2m += c.weights[k] * c.weights[k] / s.mass[i];
+        x += weight[k] * s.x[i];
+        v += weight[k] * s.v[i];
+        if (!s.fixed[i]) w2m += weight[k] * weight[k] / s.mass[i];
     }
     if (!(w2m > 0.0)) return;
     RigidState& body = rigids.bodies[c.body.index];
+    // The host found the point where the body was when the step began; the strings and
+    // releaseBodies may have moved the body since (translation).
     const Vec3 point = c.point + (body.position - rigids.start_position[c.body.index]);
     const Vec3& n = c.normal;
     const double gap = n.dot(x - point) - radius;
@@ -67,10 +76,13 @@ void resolveFaceContact(PaperSheet& s, const PointContact& c, RigidTable& rigids
     const double slip = rel.norm();
     const double mu = std::max(s.desc.friction, c.friction);
     if (slip > 0.0) dv -= rel * std::min(1.0, mu * dvn / slip);
-    const Vec3 impulse = dv / w2m;  // on the sheet, at the point
-    for (int k = 0; k < 3; ++k) {
-        const std::uint32_t i = c.face[k];
-        if (!s.fixed[i]) s.v[i] += (c.weights[k] / s.mass[i]) * impulse;
+    Vec3 impulse = Vec3::Zero();  // on the sheet
+    for (int k = 0; k < corners; ++k) {
+        const std::uint32_t i = corner[k];
+        if (s.fixed[i]) continue;
+        const Vec3 change = dv * ((weight[k] / s.mass[i]) / w2m);
+        s.v[i] += change;
+        impulse += s.mass[i] * change;
     }
     if (rigids.movable(c.body)) pushBody(body, Vec3::Zero(), -impulse);
 }
@@ -80,39 +92,8 @@ void resolveFaceContact(PaperSheet& s, const PointContact& c, RigidTable& rigids
 void resolveContacts(PaperSheet& s, const std::vector<PointContact>& contacts, RigidTable& rigids, const PaperStep& ctx) {
     if (contacts.empty()) return;
     const double radius = 0.5 * s.desc.thickness;
-    for (int pass = 0; pass < kContactPasses; ++pass) {
-        for (const PointContact& c : contacts) {
-            if (c.onFace()) {
-                resolveFaceContact(s, c, rigids, ctx, radius);
-                continue;
-            }
-            const std::uint32_t i = c.vertex;
-            if (i >= s.vertices() || s.fixed[i]) continue;
-            RigidState& body = rigids.bodies[c.body.index];
-            const bool movable = rigids.movable(c.body);
-            // The host found the point where the body was when the step began; the
-            // strings and releaseBodies may have moved the body since (translation).
-            const Vec3 point = c.point + (body.position - rigids.start_position[c.body.index]);
-            const Vec3 arm = point - body.position;
-            const Vec3 n = c.normal;
-            const double gap = n.dot(s.x[i] - point) - radius;
-            const double target = -gap * ctx.inv_h;
-            const double vn = n.dot(s.v[i]);
-            if (vn >= target) continue;
-            const double dvn = target - vn;
-            Vec3 dv = dvn * n;
-            // Friction on the motion relative to the body's surface.
-            const Vec3 body_v = body.linear_velocity + body.angular_velocity.cross(arm);
-            Vec3 rel = s.v[i] + dv - body_v;
-            rel -= n * n.dot(rel);
-            const double slip = rel.norm();
-            const double mu = std::max(s.desc.friction, c.friction);
-            if (slip > 0.0) dv -= rel * std::min(1.0, mu * dvn / slip);
-            s.v[i] += dv;
-            // Through the centre of mass (see releaseBodies).
-            if (movable) pushBody(body, Vec3::Zero(), -s.mass[i] * dv);
-        }
-    }
+    for (int pass = 0; pass < kContactPasses; ++pass)
+        for (const PointContact& c : contacts) resolvePoint(s, c, rigids, ctx, radius);
 }
 
 namespace {
