@@ -296,9 +296,9 @@ private:
                 hi = hi.cwiseMax(start[v]).cwiseMax(pred[v]);
             }
             if (!lo.allFinite() || !hi.allFinite()) lo = hi = Vec3::Constant(1e30);  // far away: never a candidate
-            const btDbvtVolume volume = btDbvtVolume::FromMM(toBullet(Vec3(lo.array() - margin)), toBullet(Vec3(hi.array() + margin)));
+            btDbvtVolume volume = btDbvtVolume::FromMM(toBullet(Vec3(lo.array() - margin)), toBullet(Vec3(hi.array() + margin)));
             if (t.leaves[k])
-                t.tree.update(t.leaves[k], const_cast<btDbvtVolume&>(volume));
+                t.tree.update(t.leaves[k], volume);
             else
                 t.leaves[k] = t.tree.insert(volume, reinterpret_cast<void*>(static_cast<std::uintptr_t>(k)));
         }
