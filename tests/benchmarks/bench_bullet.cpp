@@ -6,6 +6,7 @@
 //  - a chain of rigid capsules joined by btPoint2PointConstraint at 10 and 50 solver
 //    iterations.
 // Run: build/tests/benchmarks/tearables_bench --benchmark_filter=Rope746
+#include "bench_rope.hpp"
 #include "tearables/bullet.hpp"
 
 #include <BulletSoftBody/btSoftBodyHelpers.h>
@@ -19,23 +20,11 @@
 
 namespace {
 
+using namespace tearables::bench;
+
 constexpr int kSegments = 746;
-constexpr double kSegmentLength = 0.01;  // m
-constexpr double kSegmentMass = 0.001;   // kg
 constexpr double kTip = 10.0 * kSegments * kSegmentMass;
 constexpr double kLength = kSegments * kSegmentLength;
-constexpr double kDt = 0.01;
-constexpr int kSettle = 200;
-
-/// A Bullet rigid-body world with gravity, as a user would make it.
-struct RigidWorld {
-    btDefaultCollisionConfiguration config;
-    btCollisionDispatcher dispatcher{&config};
-    btDbvtBroadphase broadphase;
-    btSequentialImpulseConstraintSolver solver;
-    btDiscreteDynamicsWorld world{&dispatcher, &broadphase, &solver, &config};
-    RigidWorld() { world.setGravity(btVector3(0, -9.81f, 0)); }
-};
 
 double ropeLength(const std::vector<btVector3>& x) {
     double sum = 0.0;
@@ -43,25 +32,7 @@ double ropeLength(const std::vector<btVector3>& x) {
     return sum;
 }
 
-void BM_Rope746_Tearables(benchmark::State& state) {
-    RigidWorld bullet;
-    btDiscreteDynamicsWorld& world = bullet.world;
-    tearables::BulletWorld ropes(world);
-    // Laid out horizontally: it swings down and must hold the tip through the swing.
-    auto desc = tearables::StringDesc::straight({0, 0, 0}, {kLength, 0, 0}, kSegments);
-    desc.radius = 0.004;
-    desc.density = kSegmentMass / (3.14159265358979 * desc.radius * desc.radius * kSegmentLength);
-    desc.particle_masses = {{-1, kTip}};
-    desc.tearable = false;
-    desc.bending = 0.0;
-    const auto id = ropes.addString(desc);
-    ropes.attach(id, 0, btVector3(0, 0, 0));
-    for (int i = 0; i < kSettle; ++i) world.stepSimulation(kDt, 1, kDt);
-    for (auto _ : state) world.stepSimulation(kDt, 1, kDt);
-    std::vector<btVector3> x;
-    for (const auto& p : *ropes.core().view(id).positions) x.push_back(tearables::toBullet(p));
-    state.counters["stretch"] = ropeLength(x) / kLength - 1.0;
-}
+void BM_Rope746_Tearables(benchmark::State& state) { timeTearablesRope(state, kSegments); }
 BENCHMARK(BM_Rope746_Tearables)->Unit(benchmark::kMicrosecond)->Iterations(200);
 
 void BM_Rope746_BulletSoftBody(benchmark::State& state) {

@@ -11,7 +11,7 @@
 // BM_Rope_Tearables is the same rope in tearables (core and Bullet plugin, no bodies
 // other than the tip), at the same sizes, so the ratio is read off one table.
 // Run: build/tests/benchmarks/tearables_bench --benchmark_filter='Rope_'
-#include "tearables/bullet.hpp"
+#include "bench_rope.hpp"
 
 #include <btBulletDynamicsCommon.h>
 #include <benchmark/benchmark.h>
@@ -28,10 +28,7 @@
 
 namespace {
 
-constexpr double kSegmentLength = 0.01;  // m
-constexpr double kSegmentMass = 0.001;   // kg
-constexpr double kDt = 0.01;
-constexpr int kSettle = 200;
+using namespace tearables::bench;
 
 /// Links per MJCF file: the XML reader refuses elements nested deeper than about 100, so
 /// the chain is written as files of 40 nested bodies, each including the next at its
@@ -125,31 +122,7 @@ void BM_Rope_MuJoCo(benchmark::State& state) {
 }
 BENCHMARK(BM_Rope_MuJoCo)->Arg(100)->Arg(150)->Arg(200)->Unit(benchmark::kMicrosecond)->Iterations(100);
 
-void BM_Rope_Tearables(benchmark::State& state) {
-    const int segments = static_cast<int>(state.range(0));
-    btDefaultCollisionConfiguration config;
-    btCollisionDispatcher dispatcher(&config);
-    btDbvtBroadphase broadphase;
-    btSequentialImpulseConstraintSolver solver;
-    btDiscreteDynamicsWorld world(&dispatcher, &broadphase, &solver, &config);
-    world.setGravity(btVector3(0, -9.81f, 0));
-    tearables::BulletWorld ropes(world);
-    const double length = segments * kSegmentLength;
-    auto desc = tearables::StringDesc::straight({0, 0, 0}, {length, 0, 0}, segments);
-    desc.radius = 0.004;
-    desc.density = kSegmentMass / (3.14159265358979 * desc.radius * desc.radius * kSegmentLength);
-    desc.particle_masses = {{-1, 10.0 * segments * kSegmentMass}};
-    desc.tearable = false;
-    desc.bending = 0.0;
-    const auto id = ropes.addString(desc);
-    ropes.attach(id, 0, btVector3(0, 0, 0));
-    for (int i = 0; i < kSettle; ++i) world.stepSimulation(kDt, 1, kDt);
-    for (auto _ : state) world.stepSimulation(kDt, 1, kDt);
-    const auto& x = *ropes.core().view(id).positions;
-    double sum = 0.0;
-    for (std::size_t i = 1; i < x.size(); ++i) sum += (x[i] - x[i - 1]).norm();
-    state.counters["stretch"] = sum / length - 1.0;
-}
+void BM_Rope_Tearables(benchmark::State& state) { timeTearablesRope(state, static_cast<int>(state.range(0))); }
 BENCHMARK(BM_Rope_Tearables)->Arg(100)->Arg(150)->Arg(200)->Arg(746)->Unit(benchmark::kMicrosecond)->Iterations(100);
 
 }  // namespace

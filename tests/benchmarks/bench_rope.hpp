@@ -1,0 +1,51 @@
+// The rope of the side-by-side benchmarks (bench_bullet.cpp against Bullet's ropes,
+// bench_mujoco.cpp against MuJoCo's chain): segments of 1 cm and 1 g, held at one end, a
+// tip of 10x the rope's mass, dt = 0.01 s, laid out horizontally and swinging down.
+#pragma once
+
+#include "tearables/bullet.hpp"
+
+#include <btBulletDynamicsCommon.h>
+#include <benchmark/benchmark.h>
+
+namespace tearables::bench {
+
+constexpr double kSegmentLength = 0.01;  // m
+constexpr double kSegmentMass = 0.001;   // kg
+constexpr double kDt = 0.01;             // s
+constexpr int kSettle = 200;             // steps before measuring
+
+/// A Bullet rigid-body world with gravity, as a user would make it.
+struct RigidWorld {
+    btDefaultCollisionConfiguration config;
+    btCollisionDispatcher dispatcher{&config};
+    btDbvtBroadphase broadphase;
+    btSequentialImpulseConstraintSolver solver;
+    btDiscreteDynamicsWorld world{&dispatcher, &broadphase, &solver, &config};
+    RigidWorld() { world.setGravity(btVector3(0, -9.81f, 0)); }
+};
+
+/// The rope in tearables (the Bullet plugin), timed per step after kSettle steps; the
+/// counter "stretch" is its length over its rest length, minus one, at the end.
+inline void timeTearablesRope(benchmark::State& state, int segments) {
+    RigidWorld bullet;
+    btDiscreteDynamicsWorld& world = bullet.world;
+    BulletWorld ropes(world);
+    const double length = segments * kSegmentLength;
+    auto desc = StringDesc::straight({0, 0, 0}, {length, 0, 0}, segments);
+    desc.radius = 0.004;
+    desc.density = kSegmentMass / (3.14159265358979 * desc.radius * desc.radius * kSegmentLength);
+    desc.particle_masses = {{-1, 10.0 * segments * kSegmentMass}};
+    desc.tearable = false;
+    desc.bending = 0.0;
+    const auto id = ropes.addString(desc);
+    ropes.attach(id, 0, btVector3(0, 0, 0));
+    for (int i = 0; i < kSettle; ++i) world.stepSimulation(kDt, 1, kDt);
+    for (auto _ : state) world.stepSimulation(kDt, 1, kDt);
+    const auto& x = *ropes.core().view(id).positions;
+    double sum = 0.0;
+    for (std::size_t i = 1; i < x.size(); ++i) sum += (x[i] - x[i - 1]).norm();
+    state.counters["stretch"] = sum / length - 1.0;
+}
+
+}  // namespace tearables::bench
