@@ -4,6 +4,7 @@
 #include <btBulletDynamicsCommon.h>
 
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace tearables::testing {
@@ -57,6 +58,42 @@ inline double kineticEnergy(const btRigidBody& body) {
     for (int k = 0; k < 3; ++k)
         if (inv[k] > 0) e += 0.5 * static_cast<double>(w[k] * w[k] / inv[k]);
     return e;
+}
+
+/// Bullet's state of a body that a user restores along with the snapshot.
+struct BodyState {
+    btTransform xf, interpolation;
+    btVector3 v, w, interpolation_v, interpolation_w;
+    int activation;
+    btScalar deactivation;
+    explicit BodyState(const btRigidBody& b)
+        : xf(b.getWorldTransform()), interpolation(b.getInterpolationWorldTransform()), v(b.getLinearVelocity()),
+          w(b.getAngularVelocity()), interpolation_v(b.getInterpolationLinearVelocity()),
+          interpolation_w(b.getInterpolationAngularVelocity()), activation(b.getActivationState()),
+          deactivation(b.getDeactivationTime()) {}
+    void applyTo(btRigidBody& b) const {
+        b.setWorldTransform(xf);
+        b.setCenterOfMassTransform(xf);
+        b.setInterpolationWorldTransform(interpolation);
+        b.setLinearVelocity(v);
+        b.setAngularVelocity(w);
+        b.setInterpolationLinearVelocity(interpolation_v);
+        b.setInterpolationAngularVelocity(interpolation_w);
+        b.forceActivationState(activation);
+        b.setDeactivationTime(deactivation);
+    }
+};
+
+/// Appends the bits of a body's pose and velocities to `out` (bit-identity checks).
+inline void appendBodyBits(std::string& out, const btRigidBody& b) {
+    const btTransform& xf = b.getWorldTransform();
+    auto add = [&](const btVector3& v) { out.append(reinterpret_cast<const char*>(&v), sizeof v); };
+    add(xf.getOrigin());
+    add(xf.getBasis().getRow(0));
+    add(xf.getBasis().getRow(1));
+    add(xf.getBasis().getRow(2));
+    add(b.getLinearVelocity());
+    add(b.getAngularVelocity());
 }
 
 }  // namespace tearables::testing

@@ -374,41 +374,12 @@ struct BulletScene {
     }
     std::string state() const {
         std::string out = fingerprint(ropes->core());
-        const btTransform& xf = board->getWorldTransform();
-        auto add = [&](const btVector3& v) { out.append(reinterpret_cast<const char*>(&v), sizeof v); };
-        add(xf.getOrigin());
-        add(xf.getBasis().getRow(0));
-        add(xf.getBasis().getRow(1));
-        add(xf.getBasis().getRow(2));
-        add(board->getLinearVelocity());
-        add(board->getAngularVelocity());
+        tearables::testing::appendBodyBits(out, *board);
         return out;
     }
 };
 
-/// Bullet's state of a body that a user restores along with the snapshot.
-struct BodyState {
-    btTransform xf, interpolation;
-    btVector3 v, w, interpolation_v, interpolation_w;
-    int activation;
-    btScalar deactivation;
-    explicit BodyState(const btRigidBody& b)
-        : xf(b.getWorldTransform()), interpolation(b.getInterpolationWorldTransform()), v(b.getLinearVelocity()),
-          w(b.getAngularVelocity()), interpolation_v(b.getInterpolationLinearVelocity()),
-          interpolation_w(b.getInterpolationAngularVelocity()), activation(b.getActivationState()),
-          deactivation(b.getDeactivationTime()) {}
-    void applyTo(btRigidBody& b) const {
-        b.setWorldTransform(xf);
-        b.setCenterOfMassTransform(xf);
-        b.setInterpolationWorldTransform(interpolation);
-        b.setLinearVelocity(v);
-        b.setAngularVelocity(w);
-        b.setInterpolationLinearVelocity(interpolation_v);
-        b.setInterpolationAngularVelocity(interpolation_w);
-        b.forceActivationState(activation);
-        b.setDeactivationTime(deactivation);
-    }
-};
+using tearables::testing::BodyState;
 
 TEST(Snapshot, BulletRunContinuesBitIdenticallyAfterRestore) {
     constexpr int kBefore = 30, kAfter = 90;

@@ -593,42 +593,13 @@ struct BulletMeshScene {
     std::string state() const {
         std::string out = fingerprint(meshes->core());
         for (const btRigidBody* b : {weight, ball, paperweight}) {
-            const btTransform& xf = b->getWorldTransform();
-            auto add = [&](const btVector3& v) { out.append(reinterpret_cast<const char*>(&v), sizeof v); };
-            add(xf.getOrigin());
-            add(xf.getBasis().getRow(0));
-            add(xf.getBasis().getRow(1));
-            add(xf.getBasis().getRow(2));
-            add(b->getLinearVelocity());
-            add(b->getAngularVelocity());
+            tearables::testing::appendBodyBits(out, *b);
         }
         return out;
     }
 };
 
-/// Bullet's state of a body that a user restores along with the snapshot.
-struct BodyState {
-    btTransform xf, interpolation;
-    btVector3 v, w, interpolation_v, interpolation_w;
-    int activation;
-    btScalar deactivation;
-    explicit BodyState(const btRigidBody& b)
-        : xf(b.getWorldTransform()), interpolation(b.getInterpolationWorldTransform()), v(b.getLinearVelocity()),
-          w(b.getAngularVelocity()), interpolation_v(b.getInterpolationLinearVelocity()),
-          interpolation_w(b.getInterpolationAngularVelocity()), activation(b.getActivationState()),
-          deactivation(b.getDeactivationTime()) {}
-    void applyTo(btRigidBody& b) const {
-        b.setWorldTransform(xf);
-        b.setCenterOfMassTransform(xf);
-        b.setInterpolationWorldTransform(interpolation);
-        b.setLinearVelocity(v);
-        b.setAngularVelocity(w);
-        b.setInterpolationLinearVelocity(interpolation_v);
-        b.setInterpolationAngularVelocity(interpolation_w);
-        b.forceActivationState(activation);
-        b.setDeactivationTime(deactivation);
-    }
-};
+using tearables::testing::BodyState;
 
 TEST(SnapshotMeshes, BulletClothAndPaperContinueBitIdenticallyAfterRestore) {
     constexpr int kBefore = 12, kAfter = 148;
