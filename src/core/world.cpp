@@ -915,9 +915,6 @@ void World::step(double h) {
     t2 = t2b;
 
     eachLive([&](StringState& s) { detail::estimateTension(s, ctx); });
-    // Friction after the tension solve: its tangential corrections are not tension.
-    for (StringState& s : w.strings)
-        if (live(s) && !s.contacts.empty()) detail::applyFriction(s, rigids, ctx);
     auto t3 = Clock::now();
     t.tension = seconds(t2, t3);
     // What overlap the joint solve left is projected away after the tension stage (so it
