@@ -358,13 +358,6 @@ struct World::Impl {
         for (const detail::SegmentPair& pair : grid_pairs) {
             const detail::CollisionSegment& a = grid_segments[pair.first];
             const detail::CollisionSegment& b = grid_segments[pair.second];
-            // A string pressed by a movable body is left to its own solve this step, where
-            // the body is an unknown: the joint solve holds bodies still, so the change it
-            // made to such a contact's force was momentum lost to the body, and particles
-            // it pushed into the held body were shot out the next step (a rope wrapping a
-            // falling box gained half its kinetic energy in one step). A limitation until
-            // bodies join the joint solve: such a string does not collide with strings.
-            if (touchesMovableBody(a.chain) || touchesMovableBody(b.chain)) continue;
             detail::SegmentContact c;
             c.string = a.chain;
             c.segment = a.index_in_chain;
@@ -410,12 +403,6 @@ struct World::Impl {
                   [&](const detail::SegmentContact& l, const detail::SegmentContact& r) { return key(l) < key(r); });
         std::sort(deep_next.begin(), deep_next.end());
         deep_pairs.swap(deep_next);
-    }
-
-    bool touchesMovableBody(std::uint32_t string) const {
-        for (const detail::SegmentContact& c : strings[string].contacts)
-            if (c.node >= 0) return true;
-        return false;
     }
 
     /// After every string's own strain limit, before the tension stage: finds the pairs

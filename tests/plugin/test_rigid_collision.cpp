@@ -4,6 +4,7 @@
 #include "tearables/bullet.hpp"
 
 #include "bullet_fixture.hpp"
+#include "collision/capsule.hpp"
 
 #include <btBulletDynamicsCommon.h>
 #include <gtest/gtest.h>
@@ -258,6 +259,44 @@ TEST(RigidCollision, RopeOverASphereSlidesAsAPulleyAndHoldsByCapstanFriction) {
     EXPECT_NEAR(run(0.0, 30), expected, 0.15 * expected);
     EXPECT_LT(std::abs(run(0.3, 100)), 0.01);
     EXPECT_GT(run(0.15, 100), 0.3);
+}
+
+// Strings pressed by a movable body still collide with each other: a crate dropped on
+// two clamped ropes crossing 2 cm apart (one above the other) presses the upper onto the
+// lower; their axes never come closer than the sum of their radii, less 5%, and the
+// crate is caught (stopped above both; afterwards it may tip off the crossing).
+TEST(RigidCollision, CrateOnCrossingRopesKeepsThemApart) {
+    Physics phys;
+    btRigidBody& crate = phys.add(std::make_unique<btBoxShape>(btVector3(0.1f, 0.1f, 0.1f)), 2.0, btVector3(0, 1.5f, 0));
+    BulletWorld ropes(*phys.world, withContacts());
+    const double radius = 0.005;
+    StringDesc upper = rope({-0.6, 1.02, 0}, {0.6, 1.02, 0}, 40, radius);
+    StringDesc lower = rope({0, 1.0, -0.6}, {0, 1.0, 0.6}, 40, radius);
+    upper.tearable = lower.tearable = false;
+    const StringId a = ropes.addString(upper);
+    const StringId b = ropes.addString(lower);
+    ropes.attach(a, 0, btVector3(-0.6f, 1.02f, 0));
+    ropes.attach(a, -1, btVector3(0.6f, 1.02f, 0));
+    ropes.attach(b, 0, btVector3(0, 1.0f, -0.6f));
+    ropes.attach(b, -1, btVector3(0, 1.0f, 0.6f));
+    double closest = 1e9;
+    bool pressed = false, stopped = false;
+    for (int i = 0; i < 150; ++i) {
+        phys.step(1);
+        if (pressed && !stopped) {
+            stopped = crate.getLinearVelocity().y() >= 0.0f;
+            EXPECT_GT(crate.getCenterOfMassPosition().y() - 0.1, lowest(ropes, b) - radius) << i;
+        }
+        const auto& xa = *ropes.core().view(a).positions;
+        const auto& xb = *ropes.core().view(b).positions;
+        for (std::size_t j = 0; j + 1 < xa.size(); ++j)
+            for (std::size_t k = 0; k + 1 < xb.size(); ++k)
+                closest = std::min(closest, tearables::detail::closestPointsOfSegments(xa[j], xa[j + 1], xb[k], xb[k + 1]).distance);
+        for (const auto& c : ropes.core().lastContacts()) pressed = pressed || c.string == a;
+    }
+    EXPECT_TRUE(pressed);
+    EXPECT_TRUE(stopped);
+    EXPECT_GT(closest, 2.0 * radius * 0.95);
 }
 
 // A winch: a rope glued to a kinematic drum (a Bullet cylinder the test turns at 2 rad/s)
