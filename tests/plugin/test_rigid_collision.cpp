@@ -349,11 +349,10 @@ TEST(RigidCollision, EveryShapeFamilyStopsAFallingRope) {
 
 // A winch: a rope glued to a kinematic drum (a Bullet cylinder the test turns at 2 rad/s)
 // winds onto it: the weight at its end rises by what the drum's turn wound on,
-// (R + r) * angle, within 10%, and the rope never passes through the drum. Known weakness
-// (issue 4): where the hanging part leaves the turning drum its axis dips up to 4.5 mm
-// inside the drum's surface for a few steps (the contacts are the body's surface planes,
-// found at the start of the step, and the Newton solve does not converge there); the
-// test bounds it by the rope's diameter.
+// (R + r) * angle, within 10%, and the rope's axis never enters the drum. Known weakness
+// (issue 4): where the hanging part leaves the turning drum the rope overlaps the drum by
+// up to 4.2 mm of its 5 mm radius for a few steps (its axis stays 0.8 mm outside; before
+// the contact solve was made convex, 2026-12-01, the axis dipped 4.5 mm inside).
 TEST(RigidCollision, RopeWindsOntoARotatingKinematicDrum) {
     Physics phys;
     const double drum = 0.05, radius = 0.005, omega = 2.0, h = 0.01;
@@ -384,6 +383,6 @@ TEST(RigidCollision, RopeWindsOntoARotatingKinematicDrum) {
             }
     }
     const double rise = (*ropes.core().view(id).positions).back().y() - tip_before;
-    EXPECT_NEAR(rise, x * angle, 0.1 * x * angle);  // measured: 0.169 m for 0.165 m
-    EXPECT_GT(worst, drum - 2.0 * radius);          // measured: 4.5 mm inside the drum's surface
+    EXPECT_NEAR(rise, x * angle, 0.1 * x * angle);  // measured: 0.179 m for 0.165 m
+    EXPECT_GT(worst, drum);                         // measured: 0.8 mm outside the drum's surface
 }
