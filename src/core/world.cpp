@@ -876,12 +876,18 @@ void World::step(double h) {
         if (!touchesMovableBody(s) && ownsNothing(s)) w.own_strings.push_back(static_cast<std::uint32_t>(i));
     }
     w.pool.forEach(w.own_strings.size(), [&](std::size_t k) { detail::limitStrain(w.strings[w.own_strings[k]], rigids, ctx); });
+    // The sweeps end early once a sweep finds every string at its solution already (its
+    // first Newton step within the strain tolerance): the bodies no longer move.
     const int sweeps = coupled ? w.settings.coupling_iterations : 1;
-    for (int sweep = 0; sweep < sweeps; ++sweep)
+    for (int sweep = 0; sweep < sweeps; ++sweep) {
+        double moved = 0.0;
         for (StringState& s : w.strings) {
             if (!live(s) || (!touchesMovableBody(s) && ownsNothing(s))) continue;
-            if (sweep == 0 || touchesMovableBody(s)) detail::limitStrain(s, rigids, ctx);
+            if (sweep == 0 || touchesMovableBody(s))
+                moved = std::max(moved, detail::limitStrain(s, rigids, ctx) / s.shortest_rest);
         }
+        if (sweep > 0 && moved < w.settings.strain_tolerance) break;
+    }
     eachLive([&](StringState& s) { detail::clampTravel(s, ctx); });
     auto t2 = Clock::now();
     t.strain_limit = seconds(t1, t2);

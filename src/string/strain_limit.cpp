@@ -478,8 +478,9 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
         s.prev_stretch[j] = (s.x_prev[j + 1] - s.x_prev[j]).norm() - s.rest_length[j];
 }
 
-void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
+double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     const std::size_t n = s.particles();
+    double first_move = -1.0;  // the first iteration's largest move
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
     const double tol = ctx.settings->strain_tolerance;
     const std::size_t nodes = s.body_nodes.size();
@@ -688,6 +689,7 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
                 applyBodyImpulse(b, s.x[p] - b.position, impulse);
             }
         }
+        if (first_move < 0.0) first_move = worst;
         if (stalled || worst < tol * s.shortest_rest) {
             converged = true;
             break;
@@ -699,6 +701,7 @@ void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     }
     for (SegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
     finishChain(s, rigids, ctx);
+    return std::max(first_move, 0.0);
 }
 
 // String-string and self contacts (World::Impl::coupleStrings): the strings that touch

@@ -265,7 +265,10 @@ struct RigidTable {
 // Stage kernels, one file each.
 void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx);
 void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& ctx);
-void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx);
+/// Returns the largest move (m) of its first Newton iteration: how far the string was
+/// from its solution when called (World::step stops the sweeps over strings that share
+/// bodies when every string is already there).
+double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx);
 void estimateTension(StringState& s, const StepContext& ctx);
 void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::vector<Event>& events);
 void updateVelocities(StringState& s, const StepContext& ctx);
