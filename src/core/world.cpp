@@ -130,6 +130,7 @@ struct World::Impl {
     // sorted by string and segment), the last step's touching ones (warm start), and the
     // scratch of the clusters.
     std::vector<detail::SegmentContact> string_pairs, previous_pairs, cluster_contacts;
+    detail::ClusterScratch cluster_scratch;  // solveStringCluster's, kept so that a running step does not allocate
     std::vector<StringState*> cluster_strings;
     std::vector<std::size_t> cluster_index;
     std::vector<std::uint32_t> cluster_root, cluster_local;
@@ -447,7 +448,7 @@ struct World::Impl {
                 cluster_index.push_back(i);
             }
             if (cluster_contacts.empty()) continue;
-            detail::solveStringCluster(cluster_strings, cluster_contacts, rigids, ctx);
+            detail::solveStringCluster(cluster_strings, cluster_contacts, rigids, ctx, cluster_scratch);
             for (std::size_t i = 0; i < cluster_contacts.size(); ++i) {
                 detail::SegmentContact& c = string_pairs[cluster_index[i]];
                 c.force = cluster_contacts[i].force;

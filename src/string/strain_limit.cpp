@@ -485,10 +485,17 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     const double tol = ctx.settings->strain_tolerance;
     const std::size_t nodes = s.body_nodes.size();
 
-    // Body unknowns (contacts with movable bodies), reused across iterations.
-    std::vector<Mat6> node_diag(nodes);
-    std::vector<Vec6> node_rhs(nodes);
-    std::vector<std::vector<std::pair<std::size_t, Mat36>>> coupling(nodes);
+    // Body unknowns (contacts with movable bodies): scratch kept in the string (grown to
+    // the most nodes seen, never shrunk, so that a running step does not allocate).
+    StringState::NodeScratch& scratch = s.node_scratch;
+    if (scratch.diag.size() < nodes) {
+        scratch.diag.resize(nodes);
+        scratch.rhs.resize(nodes);
+        scratch.coupling.resize(nodes);
+    }
+    auto& node_diag = scratch.diag;
+    auto& node_rhs = scratch.rhs;
+    auto& coupling = scratch.coupling;
 
     // Contacts with rigid bodies: g >= 0 on linearised planes (linearisePlanes), a stiff
     // one-sided penalty k_c min(0, g)^2 / 2, with x(s) = (1-s) x_j + s x_{j+1}. A movable
@@ -596,9 +603,11 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         // Schur complement on the bodies' unknowns: (D - C^T A^-1 C) du = r_b - C^T y,
         // then dx = y - A^-1 C du. Each body costs six more O(n) solves.
         const std::size_t dim = 6 * nodes;
-        Eigen::MatrixXd schur = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(dim), static_cast<Eigen::Index>(dim));
-        Eigen::VectorXd rs(static_cast<Eigen::Index>(dim));
-        s.node_columns.resize(dim);
+        Eigen::MatrixXd& schur = scratch.schur;
+        Eigen::VectorXd& rs = scratch.rs;
+        schur.setZero(static_cast<Eigen::Index>(dim), static_cast<Eigen::Index>(dim));
+        rs.resize(static_cast<Eigen::Index>(dim));
+        if (s.node_columns.size() < dim) s.node_columns.resize(dim);
         for (std::size_t b = 0; b < nodes; ++b) {
             schur.block<6, 6>(static_cast<Eigen::Index>(6 * b), static_cast<Eigen::Index>(6 * b)) = node_diag[b];
             rs.segment<6>(static_cast<Eigen::Index>(6 * b)) = node_rhs[b];
@@ -615,7 +624,9 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
                 for (const auto& [p, blk] : coupling[b])
                     schur.block<6, 1>(static_cast<Eigen::Index>(6 * b), static_cast<Eigen::Index>(c)) -=
                         blk.transpose() * s.node_columns[c][p];
-        const Eigen::VectorXd du = schur.ldlt().solve(rs);
+        scratch.ldlt.compute(schur);
+        Eigen::VectorXd& du = scratch.du;
+        du = scratch.ldlt.solve(rs);
         for (std::size_t c = 0; c < dim; ++c) {
             const double f = du[static_cast<Eigen::Index>(c)];
             if (f != 0.0)
@@ -840,6 +851,10 @@ struct ChainSolver {
     }
 };
 
+}  // namespace
+
+namespace cluster {
+
 /// One entry of a contact direction's gradient u: coefficient of a particle's motion.
 struct UEntry {
     std::uint32_t string;
@@ -847,10 +862,45 @@ struct UEntry {
     Vec3 coef;
 };
 
-}  // namespace
+/// A rank-1 term of the joint Hessian (a contact's normal, or a friction tangent).
+struct Direction {
+    UEntry u[4];
+    int entries = 0;
+    double weight = 0.0;             // its Hessian weight (k_c or the friction's)
+    std::size_t column[2] = {0, 0};  // offsets of Z in `pool` for its strings
+    std::uint32_t string[2] = {0, 0};
+    int strings = 0;
+};
+
+}  // namespace cluster
+
+/// What solveStringCluster needs besides the strings, kept between calls so that a
+/// running step does not allocate (vectors only grow).
+struct ClusterScratch::Impl {
+    std::vector<double> stiffest;
+    std::vector<char> shadowed, was_shadowed;
+    std::vector<std::array<std::uint32_t, 4>> keys;
+    std::vector<std::size_t> order;
+    std::vector<double> friction_weight, previous_weight;
+    std::vector<cluster::Direction> dirs;
+    std::vector<Vec3> pool, column;
+    std::vector<ChainSolver> solvers;
+    std::vector<std::vector<Vec3>> y;
+    Eigen::MatrixXd sys;
+    Eigen::VectorXd rhs, z;
+    Eigen::LDLT<Eigen::MatrixXd> ldlt;
+};
+
+ClusterScratch::ClusterScratch() : impl(std::make_unique<Impl>()) {}
+ClusterScratch::~ClusterScratch() = default;
+ClusterScratch::ClusterScratch(ClusterScratch&&) noexcept = default;
+ClusterScratch& ClusterScratch::operator=(ClusterScratch&&) noexcept = default;
 
 void solveStringCluster(const std::vector<StringState*>& strings, std::vector<SegmentContact>& contacts,
-                        RigidTable& rigids, const StepContext& ctx) {
+                        RigidTable& rigids, const StepContext& ctx, ClusterScratch& work) {
+    using cluster::Direction;
+    using cluster::UEntry;
+    ClusterScratch::Impl& sc = *work.impl;
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
     const std::size_t count = strings.size();
     // The rigid contacts' planes where the bodies are now (other strings' solves may have
@@ -867,7 +917,8 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
 
     // Penalty of a contact: the stiffest spring or particle inertia of either side
     // (kStringContactStiffness).
-    std::vector<double> stiffest(count);
+    std::vector<double>& stiffest = sc.stiffest;
+    stiffest.assign(count, 0.0);
     for (std::size_t i = 0; i < count; ++i) {
         const StringState& s = *strings[i];
         double heaviest = 0.0;
@@ -891,8 +942,10 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
     // segment that has a contact with the same other segment, is implied by that one (the
     // shared particle lies on both): it is shadowed, so that the four pairs of two
     // strings crossing at particles do not push four times and toggle against each other.
-    std::vector<char> shadowed(contacts.size(), 0);
-    std::vector<std::array<std::uint32_t, 4>> keys(contacts.size());
+    std::vector<char>& shadowed = sc.shadowed;
+    shadowed.assign(contacts.size(), 0);
+    std::vector<std::array<std::uint32_t, 4>>& keys = sc.keys;
+    keys.resize(contacts.size());
     auto keyOf = [](std::uint32_t sa, std::uint32_t ja, std::uint32_t sb, std::uint32_t jb) {
         std::array<std::uint32_t, 4> k{sa, ja, sb, jb};
         if (std::make_pair(sb, jb) < std::make_pair(sa, ja)) k = {sb, jb, sa, ja};
@@ -902,7 +955,8 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
         const SegmentContact& c = contacts[i];
         keys[i] = keyOf(c.string, c.segment, c.partner, c.partner_segment);
     }
-    std::vector<std::size_t> order(contacts.size());
+    std::vector<std::size_t>& order = sc.order;
+    order.resize(contacts.size());
     for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
     std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return keys[a] < keys[b]; });
     auto exists = [&](std::uint32_t sa, std::int64_t ja, std::uint32_t sb, std::int64_t jb) {
@@ -944,7 +998,8 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
     auto frictional = [&](const SegmentContact& c) { return c.friction > 0.0 && c.force > 0.0 && !skipped(c); };
     // Friction of a pass: w/2 |u_t|^2 with w = mu F / max(|u_t|, eps) taken at the start
     // of the pass (below), a smooth quadratic, so Newton converges as without it.
-    std::vector<double> friction_weight(contacts.size(), 0.0);
+    std::vector<double>& friction_weight = sc.friction_weight;
+    friction_weight.assign(contacts.size(), 0.0);
     auto frictionEnergy = [&](std::size_t i, double alpha) {
         return 0.5 * friction_weight[i] * slipAt(contacts[i], alpha).squaredNorm();
     };
@@ -1016,18 +1071,15 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
     for (std::size_t i = 0; i < contacts.size(); ++i) touching = touching || contacts[i].active || friction_weight[i] > 0.0;
     if (!touching) return;
     // Scratch: per string the Newton step y and the responses Z of the directions.
-    struct Direction {
-        UEntry u[4];
-        int entries = 0;
-        double weight = 0.0;                    // its Hessian weight (k_c or the friction's)
-        std::size_t column[2] = {0, 0};         // offsets of Z in `pool` for its strings
-        std::uint32_t string[2] = {0, 0};
-        int strings = 0;
-    };
-    std::vector<Direction> dirs;
-    std::vector<Vec3> pool, scratch;
-    std::vector<ChainSolver> solvers(count);
-    std::vector<std::vector<Vec3>> y(count);
+    std::vector<Direction>& dirs = sc.dirs;
+    std::vector<Vec3>& pool = sc.pool;
+    std::vector<Vec3>& scratch = sc.column;
+    if (sc.solvers.size() < count) {
+        sc.solvers.resize(count);
+        sc.y.resize(count);
+    }
+    std::vector<ChainSolver>& solvers = sc.solvers;
+    std::vector<std::vector<Vec3>>& y = sc.y;
     auto zAt = [&](const Direction& d, std::uint32_t string, std::size_t p) -> Vec3 {
         for (int i = 0; i < d.strings; ++i)
             if (d.string[i] == string) return pool[d.column[i] + p];
@@ -1135,8 +1187,10 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
                 for (std::size_t i = 0; i < count; ++i) strings[i]->blk_rhs = y[i];
                 const auto dim = static_cast<Eigen::Index>(dirs.size());
                 if (dim == 0) return;
-                Eigen::MatrixXd sys(dim, dim);
-                Eigen::VectorXd rhs(dim);
+                Eigen::MatrixXd& sys = sc.sys;
+                Eigen::VectorXd& rhs = sc.rhs;
+                sys.resize(dim, dim);
+                rhs.resize(dim);
                 for (Eigen::Index r = 0; r < dim; ++r) {
                     const Direction& dr = dirs[static_cast<std::size_t>(r)];
                     double uy = 0.0;
@@ -1150,8 +1204,10 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
                     }
                     sys(r, r) += 1.0 / dr.weight;
                 }
-                sys = 0.5 * (sys + sys.transpose()).eval();
-                const Eigen::VectorXd z = sys.ldlt().solve(rhs);
+                // Symmetric to rounding; LDLT reads the lower triangle only.
+                sc.ldlt.compute(sys);
+                Eigen::VectorXd& z = sc.z;
+                z = sc.ldlt.solve(rhs);
                 if (!z.allFinite()) return;
                 for (Eigen::Index r = 0; r < dim; ++r) {
                     const Direction& d = dirs[static_cast<std::size_t>(r)];
@@ -1226,13 +1282,15 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
             linearise(c, false);
             if (!shadowed[i]) moved = std::max({moved, std::abs(c.s - s0), std::abs(c.partner_s - t0), (c.normal - n0).norm()});
         }
-        const std::vector<char> was_shadowed = shadowed;
+        std::vector<char>& was_shadowed = sc.was_shadowed;
+        was_shadowed = shadowed;
         shadow();
         changed = was_shadowed != shadowed;
         for (SegmentContact& c : contacts) c.active = !skipped(c) && gapAt(c, 0.0) < 0.0;
         // The friction weights follow the new forces and slips: the fixed point of the
         // passes is Coulomb's law (mu F while sliding, a stiff spring below eps).
-        std::vector<double> previous = friction_weight;
+        std::vector<double>& previous = sc.previous_weight;
+        previous = friction_weight;
         weighFriction();
         for (std::size_t i = 0; i < contacts.size(); ++i) {
             const double a = previous[i], b = friction_weight[i];

@@ -9,6 +9,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <random>
 #include <vector>
 
@@ -65,8 +66,17 @@ struct StepContext;
 /// Solves the strain limit of several strings at once, coupled by their string-string
 /// contacts (strain_limit.cpp): one Newton method on the sum of the strings' energies
 /// and the contact penalties. `contacts` index into `strings`.
+/// `work` is its scratch, kept by the caller so that a running step does not allocate.
+struct ClusterScratch {
+    ClusterScratch();
+    ~ClusterScratch();
+    ClusterScratch(ClusterScratch&&) noexcept;
+    ClusterScratch& operator=(ClusterScratch&&) noexcept;
+    struct Impl;
+    std::unique_ptr<Impl> impl;
+};
 void solveStringCluster(const std::vector<StringState*>& strings, std::vector<SegmentContact>& contacts,
-                        RigidTable& rigids, const StepContext& ctx);
+                        RigidTable& rigids, const StepContext& ctx, ClusterScratch& work);
 
 /// A movable body touched by a string's contacts: 6 unknowns (translation, rotation) in
 /// the string's Newton solve.
@@ -216,8 +226,18 @@ struct StringState {
     std::vector<std::uint8_t> colliding;  ///< per particle: in a string-string contact last step (3x heavier in CSM)
     std::vector<BodyNode> body_nodes;
     std::vector<Eigen::Matrix<double, 6, 1>> node_step;  ///< per body node: this iteration's Newton step
-    std::vector<std::vector<Vec3>> node_columns;  ///< A^-1 C, 6 columns per body node (n each)
-    std::vector<Eigen::Matrix<double, 3, 6>> node_coupling;  ///< scratch, per particle per node
+    std::vector<std::vector<Vec3>> node_columns;  ///< A^-1 C, 6 columns per body node (n each; grown, never shrunk)
+    /// Scratch of the body unknowns' Schur complement (limitStrain), kept between steps so
+    /// that a running step does not allocate: per node its 6x6 block, right-hand side and
+    /// coupling rows (particle, 3x6 block); the dense Schur system and its factorisation.
+    struct NodeScratch {
+        std::vector<Eigen::Matrix<double, 6, 6>> diag;
+        std::vector<Eigen::Matrix<double, 6, 1>> rhs;
+        std::vector<std::vector<std::pair<std::size_t, Eigen::Matrix<double, 3, 6>>>> coupling;
+        Eigen::MatrixXd schur;
+        Eigen::VectorXd rs, du;
+        Eigen::LDLT<Eigen::MatrixXd> ldlt;
+    } node_scratch;
     std::vector<double> prev_stretch;     ///< segment stretch at the start of the step, m
 
     // --- chain shape matching (Strings Sec. 3) -----------------------------------------
