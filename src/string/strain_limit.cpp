@@ -204,6 +204,29 @@ Mat36 rigidSlipBodyJacobian(const SegmentContact& c, const Mat3& tangent) {
     return j;
 }
 
+/// Rigid contact c's friction on the string's own rows, w/2 |T rel|^2: gradient w T rel
+/// and Hessian w T at the segment's ends that move (`fa`, `fb`). Returns T and T rel.
+struct FrictionTerm {
+    Mat3 tangent;
+    Vec3 slip;
+};
+FrictionTerm addFrictionRows(StringState& s, const SegmentContact& c, bool fa, bool fb) {
+    const std::size_t j = c.segment;
+    const double w = c.friction_weight, wa = 1.0 - c.s, wb = c.s;
+    const FrictionTerm f{Mat3::Identity() - c.plane_normal * c.plane_normal.transpose(),
+                         rigidSlip(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1])};
+    if (fa) {
+        s.blk_diag[j] += (w * wa * wa) * f.tangent;
+        s.blk_rhs[j] -= (w * wa) * f.slip;
+    }
+    if (fb) {
+        s.blk_diag[j + 1] += (w * wb * wb) * f.tangent;
+        s.blk_rhs[j + 1] -= (w * wb) * f.slip;
+    }
+    if (fa && fb) s.blk_off[j] += (w * wa * wb) * f.tangent;
+    return f;
+}
+
 /// The friction weights of a pass, from each contact's penalty force and slip now.
 /// Returns the largest relative change of a weight.
 double weighRigidFriction(StringState& s) {
@@ -573,23 +596,13 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         for (const SegmentContact& c : s.contacts) {
             const std::size_t j = c.segment;
             if (!(c.friction_weight > 0.0) || s.broken[j]) continue;
-            const double w = c.friction_weight;
-            const Mat3 tangent = Mat3::Identity() - c.plane_normal * c.plane_normal.transpose();
-            const Vec3 slip = rigidSlip(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]);
-            const double wa = 1.0 - c.s, wb = c.s;
             const bool fa = !fixedRow(s, j), fb = !fixedRow(s, j + 1);
-            if (fa) {
-                s.blk_diag[j] += (w * wa * wa) * tangent;
-                s.blk_rhs[j] -= (w * wa) * slip;
-            }
-            if (fb) {
-                s.blk_diag[j + 1] += (w * wb * wb) * tangent;
-                s.blk_rhs[j + 1] -= (w * wb) * slip;
-            }
-            if (fa && fb) s.blk_off[j] += (w * wa * wb) * tangent;
+            const FrictionTerm f = addFrictionRows(s, c, fa, fb);
             if (c.node < 0) continue;
             const std::size_t b = static_cast<std::size_t>(c.node);
-            const Mat36 jb = rigidSlipBodyJacobian(c, tangent);
+            const double w = c.friction_weight, wa = 1.0 - c.s, wb = c.s;
+            const Vec3& slip = f.slip;
+            const Mat36 jb = rigidSlipBodyJacobian(c, f.tangent);
             node_diag[b] += w * jb.transpose() * jb;
             node_rhs[b] -= w * jb.transpose() * slip;
             if (fa) coupling[b].emplace_back(j, (w * wa) * jb);
@@ -809,20 +822,7 @@ void assembleRigidContacts(StringState& s) {
     for (const SegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         if (!(c.friction_weight > 0.0) || s.broken[j]) continue;
-        const double w = c.friction_weight;
-        const Mat3 tangent = Mat3::Identity() - c.plane_normal * c.plane_normal.transpose();
-        const Vec3 slip = rigidSlip(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]);
-        const double wa = 1.0 - c.s, wb = c.s;
-        const bool fa = freeParticle(s, j), fb = freeParticle(s, j + 1);
-        if (fa) {
-            s.blk_diag[j] += (w * wa * wa) * tangent;
-            s.blk_rhs[j] -= (w * wa) * slip;
-        }
-        if (fb) {
-            s.blk_diag[j + 1] += (w * wb * wb) * tangent;
-            s.blk_rhs[j + 1] -= (w * wb) * slip;
-        }
-        if (fa && fb) s.blk_off[j] += (w * wa * wb) * tangent;
+        addFrictionRows(s, c, freeParticle(s, j), freeParticle(s, j + 1));
     }
 }
 
