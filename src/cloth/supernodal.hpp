@@ -142,6 +142,7 @@ public:
             scratch = std::max(scratch, height * height);
         }
         update_.resize(scratch);
+        solve_scratch_.assign(n, 0.0);
         where_.assign(n, 0);
         link_.assign(supernodes, -1);
         head_.assign(supernodes, -1);
@@ -214,34 +215,43 @@ public:
         return true;
     }
 
-    /// x <- A^-1 x with the factors (plain loops: most panels are narrow, where the
-    /// dispatch of Eigen's dense kernels costs more than their arithmetic).
+    /// x <- A^-1 x with the factors. Per panel, the rows below its diagonal block are
+    /// gathered (or scattered) once, and the dense parts are plain loops over contiguous
+    /// columns with independent partial sums (most panels are narrow: the dispatch of
+    /// Eigen's dense kernels would cost more than their arithmetic).
     void solveInPlace(Eigen::VectorXd& x) const {
         const int supernodes = static_cast<int>(first_.size()) - 1;
         double* const v = x.data();
+        double* const below = solve_scratch_.data();
         for (int s = 0; s < supernodes; ++s) {  // L y = b
             const int f = first_[s], w = first_[s + 1] - f;
             const int* rows = rows_.data() + rows_start_[s];
-            const int height = rows_start_[s + 1] - rows_start_[s];
+            const int height = rows_start_[s + 1] - rows_start_[s], tail = height - w;
             const double* panel = values_.data() + value_start_[s];
+            std::fill(below, below + tail, 0.0);
             for (int j = 0; j < w; ++j) {
                 const double* column = panel + static_cast<std::ptrdiff_t>(j) * height;
                 const double y = v[f + j] /= column[j];
                 for (int r = j + 1; r < w; ++r) v[f + r] -= column[r] * y;
-                for (int r = w; r < height; ++r) v[rows[r]] -= column[r] * y;
+                for (int r = 0; r < tail; ++r) below[r] += column[w + r] * y;
             }
+            for (int r = 0; r < tail; ++r) v[rows[w + r]] -= below[r];
         }
         for (int s = supernodes - 1; s >= 0; --s) {  // L^T x = y
             const int f = first_[s], w = first_[s + 1] - f;
             const int* rows = rows_.data() + rows_start_[s];
-            const int height = rows_start_[s + 1] - rows_start_[s];
+            const int height = rows_start_[s + 1] - rows_start_[s], tail = height - w;
             const double* panel = values_.data() + value_start_[s];
+            for (int r = 0; r < tail; ++r) below[r] = v[rows[w + r]];
             for (int j = w - 1; j >= 0; --j) {
                 const double* column = panel + static_cast<std::ptrdiff_t>(j) * height;
-                double sum = v[f + j];
-                for (int r = j + 1; r < w; ++r) sum -= column[r] * v[f + r];
-                for (int r = w; r < height; ++r) sum -= column[r] * v[rows[r]];
-                v[f + j] = sum / column[j];
+                double sum[4] = {v[f + j], 0.0, 0.0, 0.0};
+                int r = 0;
+                for (; r + 4 <= tail; r += 4)
+                    for (int k = 0; k < 4; ++k) sum[k] -= column[w + r + k] * below[r + k];
+                for (; r < tail; ++r) sum[0] -= column[w + r] * below[r];
+                for (int q = j + 1; q < w; ++q) sum[1] -= column[q] * v[f + q];
+                v[f + j] = ((sum[0] + sum[1]) + (sum[2] + sum[3])) / column[j];
             }
         }
     }
@@ -297,6 +307,7 @@ private:
     std::vector<double> values_;      ///< the panels of L, column-major
     std::vector<std::ptrdiff_t> map_; ///< per entry of A: its place in values_, or -1 (other triangle)
     std::vector<double> update_;      ///< scratch of one update product
+    mutable std::vector<double> solve_scratch_;  ///< a panel's rows below its diagonal block (solveInPlace)
     std::vector<int> where_;          ///< per row: its position in the current panel
     std::vector<int> link_, head_, cursor_;  ///< left-looking: descendants waiting per supernode
 };
