@@ -22,7 +22,7 @@ using SparseMatrix = Eigen::SparseMatrix<double>;
 /// The fallback of both cloth solves when the supernodal LL^T finds a pivot that is not
 /// positive (supernodal.hpp): a sparse LDL^T. The unknowns are numbered in a
 /// nested-dissection order of the weave (gridDissection) before assembly, so both
-/// factorisations keep that order (no AMD).
+/// factorisations keep that order (no ordering of their own).
 using ClothLDLT = Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::NaturalOrdering<int>>;
 
 /// A soft internal spring (shear diagonal or bending across two edges): an internal force
@@ -163,8 +163,8 @@ void softSpringForces(const ClothState& c, std::vector<Vec3>& out);
 /// the line (last). For a weave: vertices with width 2 (bending springs reach two cells),
 /// edges at doubled midpoint coordinates with width 1 on odd lines (the warp edges crossing
 /// between two vertex columns separate the edges on either side: no vertex is on both).
-/// On a grid this gives the least fill a sparse Cholesky can have, up to a constant (AMD
-/// gives more; BENCHMARKS.md).
+/// On a grid this gives the least fill a sparse Cholesky can have, up to a constant (on
+/// the cloth's yarns AMD gives 23% more; BENCHMARKS.md).
 std::vector<std::uint32_t> gridDissection(const std::vector<std::array<int, 2>>& at, int width, int modulus, int phase);
 /// The nested-dissection orders of a cloth's vertices and edges (built once per weave;
 /// a cloth that is not a full nu x nv grid gets the natural order).

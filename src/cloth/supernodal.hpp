@@ -5,8 +5,11 @@
 // On a weave numbered in nested-dissection order (gridDissection) the columns of L come in
 // runs with the same structure below the diagonal (supernodes: the separators, and the 3
 // unknowns of a vertex); a supernode's columns are stored as one dense column-major panel,
-// and every update from a descendant is one dense product (Eigen's GEMM) scattered into
-// the panel, the panel's diagonal block a dense LLT and the rest a dense triangular solve:
+// and every update from a descendant is one dense product scattered into the panel (our
+// own kernel, updateProduct: Eigen's GEMM runs SSE2 in this build and its dispatch costs
+// more than the arithmetic of the many narrow panels; the AVX2 variant is chosen at run
+// time and gives the same bits), the panel's diagonal block a dense LLT and the rest a
+// dense triangular solve (Eigen's):
 // the standard left-looking supernodal method (Ng and Peyton 1993; Davis, "Direct Methods
 // for Sparse Linear Systems", 2006, ch. 4 for the elimination tree and the row patterns).
 //
@@ -22,9 +25,92 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <vector>
 
 namespace tearables::detail {
+
+namespace supernodal {
+
+typedef double Lanes4 __attribute__((vector_size(32)));
+
+/// c (r x r1, column-major) = a b^T with a = the r x w block at `a` and b its first r1
+/// rows (column-major, leading dimension `lda`). Every entry is the sum over the w
+/// columns in column order, one multiply and one add at a time (no FMA), whatever the
+/// kernel: the AVX2 one (four rows at once) and the portable one give the same bits.
+template <bool kWide>
+__attribute__((always_inline)) inline void updateProductBody(const double* a, int lda, int w, int r, int r1, double* c) {
+    int i = 0;
+    if constexpr (kWide) {
+        for (; i + 4 <= r; i += 4) {
+            int j = 0;
+            for (; j + 4 <= r1; j += 4) {  // a 4 x 4 tile in four registers
+                Lanes4 c0 = {0, 0, 0, 0}, c1 = c0, c2 = c0, c3 = c0;
+                for (int k = 0; k < w; ++k) {
+                    const double* column = a + static_cast<std::ptrdiff_t>(k) * lda;
+                    Lanes4 x;
+                    std::memcpy(&x, column + i, sizeof x);
+                    c0 += x * column[j];
+                    c1 += x * column[j + 1];
+                    c2 += x * column[j + 2];
+                    c3 += x * column[j + 3];
+                }
+                std::memcpy(c + static_cast<std::ptrdiff_t>(j) * r + i, &c0, sizeof c0);
+                std::memcpy(c + static_cast<std::ptrdiff_t>(j + 1) * r + i, &c1, sizeof c1);
+                std::memcpy(c + static_cast<std::ptrdiff_t>(j + 2) * r + i, &c2, sizeof c2);
+                std::memcpy(c + static_cast<std::ptrdiff_t>(j + 3) * r + i, &c3, sizeof c3);
+            }
+            for (; j < r1; ++j) {
+                Lanes4 acc = {0, 0, 0, 0};
+                for (int k = 0; k < w; ++k) {
+                    const double* column = a + static_cast<std::ptrdiff_t>(k) * lda;
+                    Lanes4 x;
+                    std::memcpy(&x, column + i, sizeof x);
+                    acc += x * column[j];
+                }
+                std::memcpy(c + static_cast<std::ptrdiff_t>(j) * r + i, &acc, sizeof acc);
+            }
+        }
+    }
+    for (; i < r; ++i)
+        for (int j = 0; j < r1; ++j) {
+            double acc = 0.0;
+            for (int k = 0; k < w; ++k) {
+                const double* column = a + static_cast<std::ptrdiff_t>(k) * lda;
+                acc += column[i] * column[j];
+            }
+            c[static_cast<std::ptrdiff_t>(j) * r + i] = acc;
+        }
+}
+
+inline void updateProductPortable(const double* a, int lda, int w, int r, int r1, double* c) {
+    updateProductBody<false>(a, lda, w, r, r1, c);
+}
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+__attribute__((target("avx2"))) inline void updateProductAvx2(const double* a, int lda, int w, int r, int r1, double* c) {
+    updateProductBody<true>(a, lda, w, r, r1, c);
+}
+inline bool haveAvx2() {
+    static const bool have = __builtin_cpu_supports("avx2");
+    return have;
+}
+#else
+inline void updateProductAvx2(const double* a, int lda, int w, int r, int r1, double* c) {
+    updateProductBody<false>(a, lda, w, r, r1, c);
+}
+inline bool haveAvx2() { return false; }
+#endif
+
+}  // namespace supernodal
+
+/// See supernodal::updateProductBody.
+inline void updateProduct(const double* a, int lda, int w, int r, int r1, double* c) {
+    if (supernodal::haveAvx2())
+        supernodal::updateProductAvx2(a, lda, w, r, r1, c);
+    else
+        supernodal::updateProductPortable(a, lda, w, r, r1, c);
+}
 
 class SupernodalLLT {
 public:
@@ -184,7 +270,7 @@ public:
                 const int r = dheight - p1, r1 = p2 - p1;
                 ConstPanel dpanel(values_.data() + value_start_[d], dheight, dw);
                 Eigen::Map<Eigen::MatrixXd> c(update_.data(), r, r1);
-                c.noalias() = dpanel.middleRows(p1, r) * dpanel.middleRows(p1, r1).transpose();
+                updateProduct(dpanel.data() + p1, dheight, dw, r, r1, c.data());
                 for (int jj = 0; jj < r1; ++jj) {
                     double* column = panel.data() + static_cast<std::ptrdiff_t>(drows[p1 + jj] - f) * height;
                     const double* from = c.data() + static_cast<std::ptrdiff_t>(jj) * r;

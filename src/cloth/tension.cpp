@@ -42,10 +42,12 @@
 //    the row-space bias by lambda' / (lambda' + sigma^2); the null-space part stays at the
 //    prior's. The iteration converges to  T_LS(min norm) + P_null T_spring.
 //
-// Scaling: the factorisation of a q-yarn mesh costs about O(q^1.5) with nested-dissection
-// like fill (AMD on a grid); 100 x 100 vertices (19800 yarns) takes a few milliseconds
-// (BENCHMARKS.md). Beyond that, a preconditioned conjugate gradient warm-started from the
-// last step would scale linearly per iteration.
+// Scaling: the factorisation of a q-yarn mesh costs about O(q^1.5) with the yarns in
+// nested-dissection order (clothEdgeOrder); 100 x 100 vertices (19800 yarns) take a few
+// milliseconds (BENCHMARKS.md). Beyond that, a preconditioned conjugate gradient
+// warm-started from the last step would scale linearly per iteration (but see
+// BENCHMARKS.md: a Krylov-accelerated refinement changes which tensions the truncated
+// iteration reports).
 #include "cloth/cloth_state.hpp"
 
 #include <Eigen/OrderingMethods>
@@ -253,11 +255,13 @@ void solveTensionLeastSquares(ClothState& c) {
         if (!c.has_row[p]) continue;
         const auto& inc = c.vertex_edges[p];
         const Mat3& proj = c.projector[p];
-        const Vec3 b = proj * c.row_rhs[p];
+        const bool pressed = proj != Mat3::Identity();  // most vertices touch nothing: P = I
+        const Vec3 b = pressed ? Vec3(proj * c.row_rhs[p]) : c.row_rhs[p];
         b_norm2 += b.squaredNorm();
         const auto& idx = c.vertex_value_index[p];
         projected.resize(inc.size());  // s_ie P e_e of the yarns at p, once each
-        for (std::size_t a = 0; a < inc.size(); ++a) projected[a] = side(c, p, inc[a]) * (proj * c.dir[inc[a]]);
+        for (std::size_t a = 0; a < inc.size(); ++a)
+            projected[a] = side(c, p, inc[a]) * (pressed ? Vec3(proj * c.dir[inc[a]]) : c.dir[inc[a]]);
         for (std::size_t a = 0; a < inc.size(); ++a) {
             const int ca = c.unknown[inc[a]];
             if (ca < 0) continue;
@@ -313,9 +317,10 @@ void solveTensionLeastSquares(ClothState& c) {
     for (std::size_t p = 0; p < c.vertices(); ++p) {
         if (!c.has_row[p]) continue;
         const Mat3& proj = c.projector[p];
-        Vec3 r = proj * c.row_rhs[p];
+        const bool pressed = proj != Mat3::Identity();
+        Vec3 r = pressed ? Vec3(proj * c.row_rhs[p]) : c.row_rhs[p];
         for (std::uint32_t e : c.vertex_edges[p])
-            if (!c.broken[e]) r -= c.tension[e] * side(c, p, e) * (proj * c.dir[e]);
+            if (!c.broken[e]) r -= c.tension[e] * side(c, p, e) * (pressed ? Vec3(proj * c.dir[e]) : c.dir[e]);
         r2 += r.squaredNorm();
     }
     c.tension_residual = b_norm2 > 0.0 ? std::sqrt(r2 / b_norm2) : 0.0;
@@ -334,10 +339,12 @@ void softSpringForces(const ClothState& c, std::vector<Vec3>& out) {
 }
 
 void solveClothTension(ClothState& c, const StepContext& ctx) {
+    // Directions, and the prior and warm start: the stiff springs' forces at x''.
     for (std::size_t e = 0; e < c.edgeCount(); ++e) {
         const Vec3 d = c.x[c.edges[e][1]] - c.x[c.edges[e][0]];
         const double len = d.norm();
         if (len > 1e-15) c.dir[e] = d / len;
+        if (!c.broken[e]) c.tension[e] = c.stiffness[e] * std::max(0.0, len - c.rest_length[e]);
     }
     pressProjector(c);
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
@@ -346,12 +353,6 @@ void solveClothTension(ClothState& c, const StepContext& ctx) {
     for (std::size_t p = 0; p < c.vertices(); ++p) {
         c.has_row[p] = c.hold[p].kind == ParticleHold::Kind::Free ? 1 : 0;
         c.row_rhs[p] = c.mass[p] * inv_h2 * (c.x[p] - c.x_pred[p]) - c.row_rhs[p];
-    }
-    // The prior and warm start: the stiff springs' forces at x''.
-    for (std::size_t e = 0; e < c.edgeCount(); ++e) {
-        if (c.broken[e]) continue;
-        const double stretch = (c.x[c.edges[e][1]] - c.x[c.edges[e][0]]).norm() - c.rest_length[e];
-        c.tension[e] = c.stiffness[e] * std::max(0.0, stretch);
     }
     solveTensionLeastSquares(c);
 }
