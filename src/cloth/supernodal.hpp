@@ -285,6 +285,21 @@ public:
                 d = next_d;
             }
             // The panel: dense Cholesky of its diagonal block, then L21 = A21 L11^-T.
+            if (w == 1) {  // most panels of the tension's matrix: what Eigen's kernels do, without their dispatch
+                double* column = panel.data();
+                if (!(column[0] > 0.0)) return false;
+                column[0] = std::sqrt(column[0]);
+                if (!std::isfinite(column[0])) return false;
+                const double inverse = 1.0 / column[0];  // as Eigen's triangular solve: a multiply by the reciprocal
+                for (int r = 1; r < height; ++r) column[r] *= inverse;
+                if (height > 1) {
+                    cursor_[s] = 1;
+                    const int t = snode_of_[rows[1]];
+                    link_[s] = head_[t];
+                    head_[t] = s;
+                }
+                continue;
+            }
             auto diagonal = panel.topRows(w);
             if (Eigen::internal::llt_inplace<double, Eigen::Lower>::blocked(diagonal) >= 0) return false;
             for (int j = 0; j < w; ++j)
@@ -314,6 +329,11 @@ public:
             const int* rows = rows_.data() + rows_start_[s];
             const int height = rows_start_[s + 1] - rows_start_[s], tail = height - w;
             const double* panel = values_.data() + value_start_[s];
+            if (w == 1) {  // the same arithmetic without the scratch (0 + c y = c y)
+                const double y = v[f] /= panel[0];
+                for (int r = 1; r < height; ++r) v[rows[r]] -= panel[r] * y;
+                continue;
+            }
             std::fill(below, below + tail, 0.0);
             for (int j = 0; j < w; ++j) {
                 const double* column = panel + static_cast<std::ptrdiff_t>(j) * height;
