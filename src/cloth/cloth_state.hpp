@@ -2,6 +2,7 @@
 // small system that World::Impl owns and calls from World::step.
 #pragma once
 
+#include "cloth/supernodal.hpp"
 #include "string/string_state.hpp"
 #include "tearables/cloth.hpp"
 #include "tearables/world.hpp"
@@ -18,6 +19,11 @@
 namespace tearables::detail {
 
 using SparseMatrix = Eigen::SparseMatrix<double>;
+/// The fallback of both cloth solves when the supernodal LL^T finds a pivot that is not
+/// positive (supernodal.hpp): a sparse LDL^T. The unknowns are numbered in a
+/// nested-dissection order of the weave (gridDissection) before assembly, so both
+/// factorisations keep that order (no ordering of their own).
+using ClothLDLT = Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::NaturalOrdering<int>>;
 
 /// A soft internal spring (shear diagonal or bending across two edges): an internal force
 /// F_in of the tension solve, never strain limited.
@@ -100,10 +106,13 @@ struct ClothState {
     std::vector<std::uint8_t> hessian_first;             ///< per block: the first one summed into its tile
     SparseMatrix hessian;
     Eigen::VectorXd gradient, step, trial_u;
-    std::unique_ptr<Eigen::SimplicialLDLT<SparseMatrix>> newton_solver;  ///< (not movable itself)
+    SupernodalLLT newton_llt;                  ///< the Hessian's factors (the pattern's analysis is kept)
+    bool newton_factored_llt = false;          ///< this iteration's factors are newton_llt's (else newton_solver's)
+    std::unique_ptr<ClothLDLT> newton_solver;  ///< fallback (not movable itself)
     std::vector<int> newton_pattern_outer, newton_pattern_inner;
     bool newton_analysed = false;
     std::vector<Vec3> x_trial;
+    std::vector<std::uint32_t> vertex_order;  ///< nested-dissection order of the vertices (the Newton unknowns'), built once
 
     // --- tension solve (Yarn Sec. 3.2) ----------------------------------------------------
     std::vector<Mat3> projector;      ///< per vertex: I, minus the normals of the bodies pressing it
@@ -112,9 +121,11 @@ struct ClothState {
     std::vector<Vec3> dir;            ///< per edge: unit direction
     std::vector<int> unknown;         ///< per edge: column of T, or -1 (broken)
     std::vector<std::uint32_t> columns; ///< column -> edge
+    std::vector<std::uint32_t> edge_order;  ///< nested-dissection order of the edges (the columns'), built once
     SparseMatrix normal_matrix;       ///< A^T A + lambda' I (pattern fixed per topology)
     std::vector<std::vector<int>> vertex_value_index;  ///< per vertex, per pair of incident edges: index into normal_matrix's values
-    std::unique_ptr<Eigen::SimplicialLDLT<SparseMatrix>> tension_solver;
+    SupernodalLLT tension_llt;                 ///< factors of normal_matrix (the pattern's analysis is kept)
+    std::unique_ptr<ClothLDLT> tension_solver; ///< fallback
     Eigen::VectorXd rhs, solution, refine;
     std::uint64_t topology = 1;       ///< bumped when a yarn tears (the solvers' patterns change)
     std::uint64_t tension_topology = 0;
@@ -145,6 +156,20 @@ void applyClothFriction(ClothState& c, RigidTable& rigids, const StepContext& ct
 void respondClothMaterial(ClothState& c, const StepContext& ctx, std::vector<Event>& events);
 /// Soft spring forces at the current positions, accumulated into `out` (per vertex, N).
 void softSpringForces(const ClothState& c, std::vector<Vec3>& out);
+
+/// Nested-dissection order (George 1973) of items at integer grid coordinates `at`: the
+/// items of a box are split by a line of the box's longer axis, coordinates [X, X + width)
+/// with X = `phase` modulo `modulus`, into the two sides (ordered first, recursively) and
+/// the line (last). For a weave: vertices with width 2 (bending springs reach two cells),
+/// edges at doubled midpoint coordinates with width 1 on odd lines (the warp edges crossing
+/// between two vertex columns separate the edges on either side: no vertex is on both).
+/// On a grid this gives the least fill a sparse Cholesky can have, up to a constant (on
+/// the cloth's yarns AMD gives 23% more; BENCHMARKS.md).
+std::vector<std::uint32_t> gridDissection(const std::vector<std::array<int, 2>>& at, int width, int modulus, int phase);
+/// The nested-dissection orders of a cloth's vertices and edges (built once per weave;
+/// a cloth that is not a full nu x nv grid gets the natural order).
+const std::vector<std::uint32_t>& clothVertexOrder(ClothState& c);
+const std::vector<std::uint32_t>& clothEdgeOrder(ClothState& c);
 
 /// The least-squares tension kernel on its own: rows of the free vertices (has_row,
 /// projector, row_rhs), edge directions `dir`; solves min |A T - b|^2 + lambda |T - T_0|^2

@@ -11,10 +11,11 @@
 // Sec. 3.3 is met implicitly, never a step late). At fibre moduli this is inextensible
 // to within sigma / E. A slack yarn pushes nothing (max(0, .)): yarns buckle freely.
 // Newton's method with the geometric stiffness of stretched springs (projected to be
-// positive semi-definite for compressed soft springs), a sparse LDL^T factorisation
-// (Eigen's SimplicialLDLT with AMD ordering; the symbolic analysis is reused while the
-// pattern stays the same: same topology, same contacts) and a backtracking line search
-// on the energy. The strings' block-tridiagonal solve does not apply to a mesh; a
+// positive semi-definite for compressed soft springs), a sparse Cholesky factorisation
+// (supernodal.hpp, the unknowns numbered in a nested-dissection order of the weave; the
+// symbolic analysis is reused while the pattern stays the same: same topology, same
+// contacts; Eigen's SimplicialLDLT if a pivot is not positive) and a backtracking line
+// search on the energy. The strings' block-tridiagonal solve does not apply to a mesh; a
 // direct sparse solve keeps the same exactness at any stiffness ratio, where an
 // iterative (Jacobi / Gauss-Seidel / PBD) projection would need many sweeps.
 //
@@ -231,14 +232,17 @@ struct Solver {
                           static_cast<int>(c.newton_pattern_inner.size()) == nnz &&
                           std::equal(c.newton_pattern_outer.begin(), c.newton_pattern_outer.end(), c.hessian.outerIndexPtr()) &&
                           std::equal(c.newton_pattern_inner.begin(), c.newton_pattern_inner.end(), c.hessian.innerIndexPtr());
-        if (!c.newton_solver) c.newton_solver = std::make_unique<Eigen::SimplicialLDLT<SparseMatrix>>();
         if (!same) {
-            c.newton_solver->analyzePattern(c.hessian);
+            c.newton_llt.analyze(c.hessian);
             c.newton_pattern_outer.assign(c.hessian.outerIndexPtr(), c.hessian.outerIndexPtr() + outer + 1);
             c.newton_pattern_inner.assign(c.hessian.innerIndexPtr(), c.hessian.innerIndexPtr() + nnz);
             c.newton_analysed = true;
         }
-        c.newton_solver->factorize(c.hessian);
+        c.newton_factored_llt = c.newton_llt.factorize(c.hessian);
+        if (c.newton_factored_llt) return true;
+        // Not positive definite in round-off: LDL^T.
+        if (!c.newton_solver) c.newton_solver = std::make_unique<ClothLDLT>();
+        c.newton_solver->compute(c.hessian);
         return c.newton_solver->info() == Eigen::Success;
     }
 
@@ -251,7 +255,12 @@ struct Solver {
         for (int it = 0; it < max_iterations; ++it) {
             assemble();
             if (!factor()) break;
-            c.step = c.newton_solver->solve(-c.gradient);
+            if (c.newton_factored_llt) {
+                c.step = -c.gradient;
+                c.newton_llt.solveInPlace(c.step);
+            } else {
+                c.step = c.newton_solver->solve(-c.gradient);
+            }
             if (!c.step.allFinite()) break;
             const double slope = c.gradient.dot(c.step);
             if (!(slope < 0.0)) break;  // no descent left: converged to round-off
@@ -295,8 +304,9 @@ void limitClothStrain(ClothState& c, RigidTable& rigids, const StepContext& ctx)
     // Unknowns: free vertices and vertices glued to movable bodies, then the body nodes.
     c.nodes.clear();
     c.penalty.clear();
+    // Numbered in nested-dissection order (gridDissection): the factorisation keeps it.
     int next = 0;
-    for (std::size_t p = 0; p < c.vertices(); ++p) {
+    for (const std::uint32_t p : clothVertexOrder(c)) {
         const bool moves = c.hold[p].kind == ParticleHold::Kind::Free || movableGlue(c, rigids, p);
         c.dof[p] = moves ? next : -1;
         if (moves) next += 3;

@@ -18,8 +18,8 @@
 // diagonal of A^T A (dimensionless here, about 2) and assemble the normal equations
 // (A^T A + lambda' I) T = A^T b directly per vertex (each vertex couples the yarns that
 // meet there: 7 non-zeros per column on a grid), with a pattern fixed per topology, so
-// the sparse LDL^T (Eigen's SimplicialLDLT, AMD ordering) analyses once and only
-// factorises each step.
+// the sparse Cholesky (supernodal.hpp, the yarns numbered in nested-dissection order)
+// analyses once and only factorises each step.
 //
 // Choices where Yarn is vague:
 //  - Self-stress. Momentum balance cannot see a stress state that is in equilibrium by
@@ -42,11 +42,15 @@
 //    the row-space bias by lambda' / (lambda' + sigma^2); the null-space part stays at the
 //    prior's. The iteration converges to  T_LS(min norm) + P_null T_spring.
 //
-// Scaling: the factorisation of a q-yarn mesh costs about O(q^1.5) with nested-dissection
-// like fill (AMD on a grid); 100 x 100 vertices (19800 yarns) takes a few milliseconds
-// (BENCHMARKS.md). Beyond that, a preconditioned conjugate gradient warm-started from the
-// last step would scale linearly per iteration.
+// Scaling: the factorisation of a q-yarn mesh costs about O(q^1.5) with the yarns in
+// nested-dissection order (clothEdgeOrder); 100 x 100 vertices (19800 yarns) take a few
+// milliseconds (BENCHMARKS.md). Beyond that, a preconditioned conjugate gradient
+// warm-started from the last step would scale linearly per iteration (but see
+// BENCHMARKS.md: a Krylov-accelerated refinement changes which tensions the truncated
+// iteration reports).
 #include "cloth/cloth_state.hpp"
+
+#include <Eigen/OrderingMethods>
 
 #include <algorithm>
 #include <cmath>
@@ -57,6 +61,44 @@ namespace {
 
 constexpr int kMaxRefinements = 12;
 constexpr double kRefinementTolerance = 1e-12;
+
+/// Boxes of at most this many items are not split further (their order hardly matters).
+constexpr std::size_t kDissectionLeaf = 8;
+
+struct Dissection {
+    const std::vector<std::array<int, 2>>& at;
+    int width, modulus, phase;
+    std::vector<std::uint32_t>& out;
+
+    void leaf(std::vector<std::uint32_t>& items) {
+        std::sort(items.begin(), items.end());
+        out.insert(out.end(), items.begin(), items.end());
+    }
+
+    void run(std::vector<std::uint32_t> items) {
+        if (items.size() <= kDissectionLeaf) return leaf(items);
+        int lo[2] = {at[items[0]][0], at[items[0]][1]}, hi[2] = {lo[0], lo[1]};
+        for (std::uint32_t i : items)
+            for (int a = 0; a < 2; ++a) {
+                lo[a] = std::min(lo[a], at[i][a]);
+                hi[a] = std::max(hi[a], at[i][a]);
+            }
+        const int axis = hi[0] - lo[0] >= hi[1] - lo[1] ? 0 : 1;
+        int line = lo[axis] + (hi[axis] - lo[axis] + 1 - width) / 2;  // the middle
+        while (((line - phase) % modulus + modulus) % modulus != 0) ++line;
+        std::vector<std::uint32_t> before, after, separator;
+        for (std::uint32_t i : items) {
+            const int x = at[i][axis];
+            (x < line ? before : x >= line + width ? after : separator).push_back(i);
+        }
+        if (before.size() == items.size() || after.size() == items.size()) return leaf(items);  // no split
+        items.clear();
+        items.shrink_to_fit();
+        run(std::move(before));
+        run(std::move(after));
+        leaf(separator);
+    }
+};
 
 /// P = I - sum n n^T over an orthonormal basis of the normals pressing the vertex.
 void pressProjector(ClothState& c) {
@@ -72,14 +114,13 @@ void pressProjector(ClothState& c) {
     }
 }
 
-/// Builds the pattern of A^T A + lambda' I (lower triangle) for the current topology and
+/// Builds the pattern of A^T A + lambda' I (lower triangle, columns in nested-dissection order) for the current topology and
 /// remembers, per vertex and pair of its yarns, where the product goes.
 void buildPattern(ClothState& c) {
-    const std::size_t m = c.edgeCount();
     c.columns.clear();
-    for (std::size_t e = 0; e < m; ++e) {
+    for (const std::uint32_t e : clothEdgeOrder(c)) {  // columns in nested-dissection order
         c.unknown[e] = c.broken[e] ? -1 : static_cast<int>(c.columns.size());
-        if (!c.broken[e]) c.columns.push_back(static_cast<std::uint32_t>(e));
+        if (!c.broken[e]) c.columns.push_back(e);
     }
     const int q = static_cast<int>(c.columns.size());
     std::vector<Eigen::Triplet<double>> triplets;
@@ -110,8 +151,7 @@ void buildPattern(ClothState& c) {
                 idx[a * inc.size() + b] = static_cast<int>(&c.normal_matrix.coeffRef(std::max(ca, cb), std::min(ca, cb)) - base);
             }
     }
-    if (!c.tension_solver) c.tension_solver = std::make_unique<Eigen::SimplicialLDLT<SparseMatrix>>();
-    c.tension_solver->analyzePattern(c.normal_matrix);
+    c.tension_llt.analyze(c.normal_matrix);
     c.rhs.resize(q);
     c.solution.resize(q);
     c.refine.resize(q);
@@ -123,6 +163,83 @@ double side(const ClothState& c, std::size_t p, std::uint32_t e) { return c.edge
 
 }  // namespace
 
+std::vector<std::uint32_t> gridDissection(const std::vector<std::array<int, 2>>& at, int width, int modulus, int phase) {
+    std::vector<std::uint32_t> out, all(at.size());
+    out.reserve(at.size());
+    for (std::size_t i = 0; i < at.size(); ++i) all[i] = static_cast<std::uint32_t>(i);
+    Dissection{at, width, modulus, phase, out}.run(std::move(all));
+    return out;
+}
+
+namespace {
+
+bool fullGrid(const ClothState& c) {
+    return c.nu > 0 && c.nv > 0 && c.vertices() == static_cast<std::size_t>(c.nu) * static_cast<std::size_t>(c.nv);
+}
+
+std::vector<std::uint32_t> naturalOrder(std::size_t n) {
+    std::vector<std::uint32_t> order(n);
+    for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<std::uint32_t>(i);
+    return order;
+}
+
+}  // namespace
+
+namespace {
+
+/// The lower triangle of the vertex graph (yarns and soft springs) in `order`, as a pattern.
+SparseMatrix vertexGraph(const ClothState& c, const std::vector<std::uint32_t>& order) {
+    std::vector<int> position(c.vertices());
+    for (std::size_t k = 0; k < order.size(); ++k) position[order[k]] = static_cast<int>(k);
+    std::vector<Eigen::Triplet<double>> triplets;
+    for (std::size_t p = 0; p < c.vertices(); ++p) triplets.emplace_back(static_cast<int>(p), static_cast<int>(p), 1.0);
+    auto link = [&](std::uint32_t a, std::uint32_t b) {
+        const int i = position[a], j = position[b];
+        triplets.emplace_back(std::max(i, j), std::min(i, j), 1.0);
+    };
+    for (const auto& [a, b] : c.edges) link(a, b);
+    for (const SoftSpring& s : c.springs) link(s.a, s.b);
+    SparseMatrix g(static_cast<Eigen::Index>(c.vertices()), static_cast<Eigen::Index>(c.vertices()));
+    g.setFromTriplets(triplets.begin(), triplets.end());
+    g.makeCompressed();
+    return g;
+}
+
+}  // namespace
+
+const std::vector<std::uint32_t>& clothVertexOrder(ClothState& c) {
+    if (c.vertex_order.size() == c.vertices()) return c.vertex_order;
+    const std::vector<std::uint32_t> natural = naturalOrder(c.vertices());
+    // The cheaper of two fill-reducing orders of the vertex graph (each vertex's 3
+    // unknowns stay together): nested dissection (best on large weaves) or AMD (Eigen's
+    // AMDOrdering; better on small ones, where the two-column separators cost more).
+    Eigen::AMDOrdering<int> amd;
+    Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> inverse;
+    amd(SparseMatrix(vertexGraph(c, natural).selfadjointView<Eigen::Lower>()), inverse);
+    std::vector<std::uint32_t> best(inverse.indices().data(), inverse.indices().data() + inverse.size());
+    if (fullGrid(c)) {
+        std::vector<std::array<int, 2>> at(c.vertices());
+        for (std::size_t p = 0; p < at.size(); ++p) at[p] = {static_cast<int>(p % c.nu), static_cast<int>(p / c.nu)};
+        std::vector<std::uint32_t> dissection = gridDissection(at, 2, 1, 0);
+        SupernodalLLT cost_amd, cost_nd;
+        cost_amd.analyze(vertexGraph(c, best));
+        cost_nd.analyze(vertexGraph(c, dissection));
+        if (cost_nd.flops() < cost_amd.flops()) best.swap(dissection);
+    }
+    return c.vertex_order = std::move(best);
+}
+
+const std::vector<std::uint32_t>& clothEdgeOrder(ClothState& c) {
+    if (c.edge_order.size() == c.edgeCount()) return c.edge_order;
+    if (!fullGrid(c)) return c.edge_order = naturalOrder(c.edgeCount());
+    std::vector<std::array<int, 2>> at(c.edgeCount());  // doubled midpoints: warp (2i + 1, 2j), weft (2i, 2j + 1)
+    for (std::size_t e = 0; e < at.size(); ++e) {
+        const auto [a, b] = c.edges[e];
+        at[e] = {static_cast<int>(a % c.nu + b % c.nu), static_cast<int>(a / c.nu + b / c.nu)};
+    }
+    return c.edge_order = gridDissection(at, 1, 2, 1);
+}
+
 void solveTensionLeastSquares(ClothState& c) {
     if (c.tension_topology != c.topology || c.unknown.size() != c.edgeCount()) buildPattern(c);
     const int q = static_cast<int>(c.columns.size());
@@ -133,24 +250,27 @@ void solveTensionLeastSquares(ClothState& c) {
     std::fill(values, values + c.normal_matrix.nonZeros(), 0.0);
     c.rhs.setZero();
     double b_norm2 = 0.0;
+    std::vector<Vec3> projected;
     for (std::size_t p = 0; p < c.vertices(); ++p) {
         if (!c.has_row[p]) continue;
         const auto& inc = c.vertex_edges[p];
         const Mat3& proj = c.projector[p];
-        const Vec3 b = proj * c.row_rhs[p];
+        const bool pressed = proj != Mat3::Identity();  // most vertices touch nothing: P = I
+        const Vec3 b = pressed ? Vec3(proj * c.row_rhs[p]) : c.row_rhs[p];
         b_norm2 += b.squaredNorm();
         const auto& idx = c.vertex_value_index[p];
+        projected.resize(inc.size());  // s_ie P e_e of the yarns at p, once each
+        for (std::size_t a = 0; a < inc.size(); ++a)
+            projected[a] = side(c, p, inc[a]) * (pressed ? Vec3(proj * c.dir[inc[a]]) : c.dir[inc[a]]);
         for (std::size_t a = 0; a < inc.size(); ++a) {
-            const std::uint32_t ea = inc[a];
-            const int ca = c.unknown[ea];
+            const int ca = c.unknown[inc[a]];
             if (ca < 0) continue;
-            const Vec3 pa = side(c, p, ea) * (proj * c.dir[ea]);
+            const Vec3& pa = projected[a];
             c.rhs[ca] += pa.dot(b);
             for (std::size_t k = 0; k <= a; ++k) {
                 const int at = idx[a * inc.size() + k];
                 if (at < 0) continue;
-                const std::uint32_t eb = inc[k];
-                values[at] += pa.dot(side(c, p, eb) * (proj * c.dir[eb]));  // P symmetric and idempotent
+                values[at] += pa.dot(projected[k]);  // P symmetric and idempotent
             }
         }
     }
@@ -164,16 +284,32 @@ void solveTensionLeastSquares(ClothState& c) {
         double& d = c.normal_matrix.coeffRef(k, k);
         d = d > 0.0 ? d + reg : 1.0;
     }
-    c.tension_solver->factorize(c.normal_matrix);
-    if (c.tension_solver->info() != Eigen::Success) return;
+    const bool llt = c.tension_llt.factorize(c.normal_matrix);
+    if (!llt) {  // not positive definite in round-off: LDL^T
+        if (!c.tension_solver) c.tension_solver = std::make_unique<ClothLDLT>();
+        c.tension_solver->compute(c.normal_matrix);
+        if (c.tension_solver->info() != Eigen::Success) return;
+    }
     for (int k = 0; k < q; ++k) c.solution[k] = std::isfinite(c.tension[c.columns[k]]) ? c.tension[c.columns[k]] : 0.0;
+    // Each refinement shrinks the change by about the same ratio rho (linear convergence):
+    // the changes still to come sum to about change * rho / (1 - rho). Stop when that is
+    // below the tolerance, rather than when the change itself is (one back-substitution
+    // fewer, to the same accuracy).
+    double last_change = 0.0;
     for (int it = 0; it < kMaxRefinements; ++it) {
         c.refine = c.rhs + reg * c.solution;
-        c.refine = c.tension_solver->solve(c.refine);
+        if (llt)
+            c.tension_llt.solveInPlace(c.refine);
+        else
+            c.refine = c.tension_solver->solve(c.refine);
         const double change = (c.refine - c.solution).lpNorm<Eigen::Infinity>();
         c.solution.swap(c.refine);
         c.tension_iterations = it + 1;
-        if (change <= kRefinementTolerance * std::max(c.solution.lpNorm<Eigen::Infinity>(), 1e-300)) break;
+        const double tolerance = kRefinementTolerance * std::max(c.solution.lpNorm<Eigen::Infinity>(), 1e-300);
+        if (change <= tolerance) break;
+        const double ratio = it > 0 && last_change > 0.0 ? change / last_change : 1.0;
+        if (ratio < 0.5 && change * ratio / (1.0 - ratio) <= tolerance) break;
+        last_change = change;
     }
     for (std::size_t e = 0; e < c.edgeCount(); ++e) c.tension[e] = c.unknown[e] >= 0 ? c.solution[c.unknown[e]] : 0.0;
     // Residual |A T - b| / |b| of what was solved (zero for a consistent system).
@@ -181,9 +317,10 @@ void solveTensionLeastSquares(ClothState& c) {
     for (std::size_t p = 0; p < c.vertices(); ++p) {
         if (!c.has_row[p]) continue;
         const Mat3& proj = c.projector[p];
-        Vec3 r = proj * c.row_rhs[p];
+        const bool pressed = proj != Mat3::Identity();
+        Vec3 r = pressed ? Vec3(proj * c.row_rhs[p]) : c.row_rhs[p];
         for (std::uint32_t e : c.vertex_edges[p])
-            if (!c.broken[e]) r -= c.tension[e] * side(c, p, e) * (proj * c.dir[e]);
+            if (!c.broken[e]) r -= c.tension[e] * side(c, p, e) * (pressed ? Vec3(proj * c.dir[e]) : c.dir[e]);
         r2 += r.squaredNorm();
     }
     c.tension_residual = b_norm2 > 0.0 ? std::sqrt(r2 / b_norm2) : 0.0;
@@ -202,10 +339,12 @@ void softSpringForces(const ClothState& c, std::vector<Vec3>& out) {
 }
 
 void solveClothTension(ClothState& c, const StepContext& ctx) {
+    // Directions, and the prior and warm start: the stiff springs' forces at x''.
     for (std::size_t e = 0; e < c.edgeCount(); ++e) {
         const Vec3 d = c.x[c.edges[e][1]] - c.x[c.edges[e][0]];
         const double len = d.norm();
         if (len > 1e-15) c.dir[e] = d / len;
+        if (!c.broken[e]) c.tension[e] = c.stiffness[e] * std::max(0.0, len - c.rest_length[e]);
     }
     pressProjector(c);
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
@@ -214,12 +353,6 @@ void solveClothTension(ClothState& c, const StepContext& ctx) {
     for (std::size_t p = 0; p < c.vertices(); ++p) {
         c.has_row[p] = c.hold[p].kind == ParticleHold::Kind::Free ? 1 : 0;
         c.row_rhs[p] = c.mass[p] * inv_h2 * (c.x[p] - c.x_pred[p]) - c.row_rhs[p];
-    }
-    // The prior and warm start: the stiff springs' forces at x''.
-    for (std::size_t e = 0; e < c.edgeCount(); ++e) {
-        if (c.broken[e]) continue;
-        const double stretch = (c.x[c.edges[e][1]] - c.x[c.edges[e][0]]).norm() - c.rest_length[e];
-        c.tension[e] = c.stiffness[e] * std::max(0.0, stretch);
     }
     solveTensionLeastSquares(c);
 }

@@ -21,6 +21,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 namespace tearables::detail {
 
@@ -56,8 +57,22 @@ Vec3 heldVelocity(const PaperSheet& s, std::size_t i, const RigidTable& rigids, 
 
 namespace {
 
+/// Two doubles in one SIMD register (GCC's and Clang's vector extension: SSE2 on x86-64,
+/// NEON on AArch64, scalar code elsewhere); +, - and * act on both lanes.
+typedef double Lanes __attribute__((vector_size(16)));
+/// Four doubles: one AVX register where the sweep is compiled for AVX2 (jacobiPassAvx2).
+typedef double Lanes4 __attribute__((vector_size(32)));
+
+/// Lanes `lane` and `lane + 1` of a block's array.
+inline Lanes load2(const double (&quad)[4], unsigned lane) {
+    Lanes v;
+    std::memcpy(&v, quad + lane, sizeof v);
+    return v;
+}
+
 /// The rows of the Jacobi gather: per vertex, the couplings of its live springs, in spring
-/// order (so every sum is deterministic). They depend only on the live springs' ends and
+/// order (so every sum is deterministic), padded with a zero entry to an even length (the
+/// sweep sums even and odd entries apart, two or four entries at a time). They depend only on the live springs' ends and
 /// the vertex count, and are rebuilt only when those changed (a crease or a tear): the
 /// check is one pass over the springs.
 void buildRows(PaperSheet& s) {
@@ -78,19 +93,161 @@ void buildRows(PaperSheet& s) {
         ++s.vertex_link_start[a + 1];
         ++s.vertex_link_start[b + 1];
     }
-    for (std::size_t i = 0; i < n; ++i) s.vertex_link_start[i + 1] += s.vertex_link_start[i];
+    for (std::size_t i = 0; i < n; ++i) s.vertex_link_start[i + 1] += s.vertex_link_start[i] + (s.vertex_link_start[i + 1] & 1u);
     const std::size_t entries = s.vertex_link_start[n];
-    s.row_coupling.assign(entries, JacobiCoupling{});
+    s.row_quads.assign((entries + 3) / 4, JacobiQuad{});
     s.row_force.assign(entries, Vec3::Zero());
     s.link_slot.resize(s.link_ends.size());
+    s.link_length.resize(s.link_ends.size());
     std::vector<std::uint32_t> fill(s.vertex_link_start.begin(), s.vertex_link_start.end() - 1);
+    for (std::size_t i = 0; i < n; ++i)  // pads: a zero coupling to the vertex itself
+        for (std::uint32_t j = s.vertex_link_start[i]; j < s.vertex_link_start[i + 1]; ++j)
+            s.row_quads[j >> 2].other[j & 3] = static_cast<std::uint32_t>(i);
     for (std::size_t k = 0; k < s.link_ends.size(); ++k) {
         const auto [a, b] = s.link_ends[k];
         s.link_slot[k] = {fill[a]++, fill[b]++};
-        s.row_coupling[s.link_slot[k][0]].other = b;
-        s.row_coupling[s.link_slot[k][1]].other = a;
+        s.row_quads[s.link_slot[k][0] >> 2].other[s.link_slot[k][0] & 3] = b;
+        s.row_quads[s.link_slot[k][1] >> 2].other[s.link_slot[k][1] & 3] = a;
     }
+    s.row_reach = 1;
+    for (const auto& [a, b] : s.link_ends) s.row_reach = std::max<std::size_t>(s.row_reach, a > b ? a - b : b - a);
     s.row_vertices = n;
+}
+
+/// Writes a coupling into row entry `slot`.
+void setCoupling(PaperSheet& s, std::uint32_t slot, double iso, double along, const Vec3& d) {
+    JacobiQuad& quad = s.row_quads[slot >> 2];
+    const unsigned lane = slot & 3u;
+    quad.iso[lane] = iso;
+    quad.along[lane] = along;
+    quad.dir_x[lane] = d.x();
+    quad.dir_y[lane] = d.y();
+    quad.dir_z[lane] = d.z();
+}
+
+/// Iterations per pass of jacobiSweeps over the rows (measured at 64 x 64: 2 about 4%
+/// faster than 1; 4 no better; 8 slower at 128 x 128, whose rows in flight leave the L2).
+constexpr int kPipelineDepth = 2;
+
+/// One vertex of one weighted Jacobi iteration (Eq. 6): b_i - sum_j W_ij dv_j
+/// (W_ij = -block, so + block dv_j) gathered over its row in registers, then W_ii^-1 and
+/// the weight; a held vertex keeps its prescribed dv. The row's entries are summed in two
+/// chains, even and odd entries (two lanes of one register: the sum's latency, not the
+/// arithmetic, bounded a single chain), each in row order: with `kWide`, the terms of
+/// four entries are computed at once (AVX) and added pair by pair, the same additions in
+/// the same order, so both kernels give the same bits (and those of the scalar sweeps
+/// before them).
+template <bool kWide>
+__attribute__((always_inline)) inline void jacobiVertex(const PaperSheet& s, std::size_t i, const Vec3* dv, Vec3* next) {
+    if (s.fixed[i]) {
+        next[i] = dv[i];
+        return;
+    }
+    const JacobiQuad* const quads = s.row_quads.data();
+    const Vec3& b = s.rhs[i];
+    Lanes sum_x = {b.x(), 0.0}, sum_y = {b.y(), 0.0}, sum_z = {b.z(), 0.0};
+    std::uint32_t j = s.vertex_link_start[i];
+    const std::uint32_t end = s.vertex_link_start[i + 1];
+    auto pair = [&](std::uint32_t at) {  // entries at, at + 1 (at even)
+        const JacobiQuad& c = quads[at >> 2];
+        const unsigned lane = at & 3u;
+        const Vec3& o0 = dv[c.other[lane]];
+        const Vec3& o1 = dv[c.other[lane + 1]];
+        const Lanes ox = {o0.x(), o1.x()}, oy = {o0.y(), o1.y()}, oz = {o0.z(), o1.z()};
+        const Lanes dx = load2(c.dir_x, lane), dy = load2(c.dir_y, lane), dz = load2(c.dir_z, lane);
+        const Lanes along = load2(c.along, lane) * (dx * ox + dy * oy + dz * oz);
+        const Lanes iso = load2(c.iso, lane);
+        sum_x += iso * ox + along * dx;
+        sum_y += iso * oy + along * dy;
+        sum_z += iso * oz + along * dz;
+    };
+    if constexpr (kWide) {
+        if ((j & 3u) != 0 && j < end) {  // the row starts in the middle of a block
+            pair(j);
+            j += 2;
+        }
+        for (; j + 4 <= end; j += 4) {
+            const JacobiQuad& c = quads[j >> 2];
+            const Vec3& o0 = dv[c.other[0]];
+            const Vec3& o1 = dv[c.other[1]];
+            const Vec3& o2 = dv[c.other[2]];
+            const Vec3& o3 = dv[c.other[3]];
+            const Lanes4 ox = {o0.x(), o1.x(), o2.x(), o3.x()}, oy = {o0.y(), o1.y(), o2.y(), o3.y()},
+                         oz = {o0.z(), o1.z(), o2.z(), o3.z()};
+            Lanes4 dx, dy, dz, along, iso;
+            std::memcpy(&dx, c.dir_x, sizeof dx);
+            std::memcpy(&dy, c.dir_y, sizeof dy);
+            std::memcpy(&dz, c.dir_z, sizeof dz);
+            std::memcpy(&along, c.along, sizeof along);
+            std::memcpy(&iso, c.iso, sizeof iso);
+            along *= dx * ox + dy * oy + dz * oz;
+            const Lanes4 tx = iso * ox + along * dx, ty = iso * oy + along * dy, tz = iso * oz + along * dz;
+            sum_x += Lanes{tx[0], tx[1]};
+            sum_y += Lanes{ty[0], ty[1]};
+            sum_z += Lanes{tz[0], tz[1]};
+            sum_x += Lanes{tx[2], tx[3]};
+            sum_y += Lanes{ty[2], ty[3]};
+            sum_z += Lanes{tz[2], tz[3]};
+        }
+    }
+    for (; j < end; j += 2) pair(j);
+    const Vec3 even(sum_x[0], sum_y[0], sum_z[0]), odd(sum_x[1], sum_y[1], sum_z[1]);
+    next[i] = (1.0 - kJacobiWeight) * dv[i] + kJacobiWeight * (s.diag_inv[i] * (even + odd));
+}
+
+/// Up to kPipelineDepth iterations, first + 1 ..., in one pass over the rows (jacobiSweeps).
+template <bool kWide>
+__attribute__((always_inline)) inline void jacobiPassBody(PaperSheet& s, int first, int depth) {
+    const std::size_t n = s.vertices();
+    Vec3* buffer[2] = {s.dv.data(), s.dv_next.data()};
+    const std::size_t lag = std::max<std::size_t>(s.row_reach, 1);
+    const std::size_t steps = n + static_cast<std::size_t>(depth - 1) * lag;
+    for (std::size_t t = 0; t < steps; ++t)
+        for (int k = 0; k < depth; ++k) {  // iteration first + k + 1, at vertex t - k lag
+            const std::size_t behind = static_cast<std::size_t>(k) * lag;
+            if (t < behind) break;
+            const std::size_t i = t - behind;
+            if (i >= n) continue;
+            const int it = first + k;  // reads iterate it, writes it + 1
+            jacobiVertex<kWide>(s, i, buffer[it & 1], buffer[(it + 1) & 1]);
+        }
+}
+
+void jacobiPass(PaperSheet& s, int first, int depth) { jacobiPassBody<false>(s, first, depth); }
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+/// The same pass compiled for AVX2 (the build targets plain x86-64: chosen at run time).
+__attribute__((target("avx2"))) void jacobiPassAvx2(PaperSheet& s, int first, int depth) { jacobiPassBody<true>(s, first, depth); }
+bool haveAvx2() {
+    static const bool have = __builtin_cpu_supports("avx2");
+    return have;
+}
+#else
+void jacobiPassAvx2(PaperSheet& s, int first, int depth) { jacobiPassBody<true>(s, first, depth); }
+bool haveAvx2() { return false; }
+#endif
+
+/// Eq. 6, weighted, jacobi_iterations times: iteration k reads iterate k - 1 (s.dv /
+/// s.dv_next, alternately) and writes iterate k.
+///
+/// Pipelined (temporal blocking): a vertex's row reaches at most `reach` = s.row_reach
+/// indices away, so iteration k can run at vertex i as soon as iteration k - 1 has passed
+/// i + reach. Up to kPipelineDepth iterations run in one pass over the rows, each `reach`
+/// vertices behind the one before, in the order of increasing k at every position: the
+/// rows a vertex needs are read again while they are still in the cache (the rows of a
+/// 64 x 64 sheet are 2 MB, the ones in flight ~100 kB). Two buffers suffice:
+/// when iteration k overwrites iterate k - 2 at vertex i, iteration k - 1 has passed
+/// i + reach and needs no vertex <= i any more. The arithmetic is that of plain sweeps,
+/// in the same order: the same bits.
+void jacobiSweeps(PaperSheet& s) {
+    for (int done = 0; done < s.desc.jacobi_iterations; done += kPipelineDepth) {
+        const int depth = std::min(kPipelineDepth, s.desc.jacobi_iterations - done);
+        if (haveAvx2())
+            jacobiPassAvx2(s, done, depth);
+        else
+            jacobiPass(s, done, depth);
+    }
+    if (s.desc.jacobi_iterations & 1) s.dv.swap(s.dv_next);  // the last iterate into s.dv
 }
 
 }  // namespace
@@ -116,15 +273,13 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
     std::size_t k = 0;
     for (const PaperSpring& sp : s.springs) {
         if (sp.broken) continue;
-        const auto [slot_a, slot_b] = s.link_slot[k++];
-        JacobiCoupling& row_a = s.row_coupling[slot_a];
-        JacobiCoupling& row_b = s.row_coupling[slot_b];
+        const auto [slot_a, slot_b] = s.link_slot[k];
         const Vec3 e = s.x[sp.b] - s.x[sp.a];
         const double l = e.norm();
+        s.link_length[k++] = l;
         if (!(l > 1e-12)) {  // no direction: no force, no coupling
-            row_a.iso = row_a.along = row_b.iso = row_b.along = 0.0;
-            row_a.dir.setZero();
-            row_b.dir.setZero();
+            setCoupling(s, slot_a, 0.0, 0.0, Vec3::Zero());
+            setCoupling(s, slot_b, 0.0, 0.0, Vec3::Zero());
             s.row_force[slot_a].setZero();
             s.row_force[slot_b].setZero();
             continue;
@@ -136,15 +291,17 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
         Vec3 f = h * (sp.stiffness * (l - sp.rest) + damping * sp.stiffness * d.dot(relative)) * d;
         // K = k (d d^T + t (I - d d^T)), t = max(0, 1 - l0 / l): the block
         // h c d d^T + h^2 K = iso I + along d d^T needs two numbers and d, not nine.
-        const double t = std::max(0.0, 1.0 - sp.rest * inv_l);
+        // max(0, 1 - l0 / l) without a branch (it was one, taken at random as springs
+        // swing between stretched and compressed): x + |x| is 2x or 0 exactly.
+        const double stretch = 1.0 - sp.rest * inv_l;
+        const double t = 0.5 * (stretch + std::abs(stretch));
         const double iso = h2 * sp.stiffness * t;
         const double axial = h2 * sp.stiffness * (1.0 - t);
         const double along = h * damping * sp.stiffness + axial;
         // h^2 J v: row a gets -h^2 K (v_a - v_b) = h^2 K (v_b - v_a); row b the opposite.
         if (implicit) f += iso * relative + (axial * d.dot(relative)) * d;
-        row_a.iso = row_b.iso = iso;
-        row_a.along = row_b.along = along;
-        row_a.dir = row_b.dir = d;
+        setCoupling(s, slot_a, iso, along, d);
+        setCoupling(s, slot_b, iso, along, d);
         s.row_force[slot_a] = f;
         s.row_force[slot_b] = -f;
     }
@@ -152,7 +309,7 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
     // Pass 2, per vertex: rhs = h f + h^2 J v (gravity, the user's force, the bodies'
     // lent weight, the springs) and W_ii = M + sum of the blocks.
     const std::uint32_t* const start = s.vertex_link_start.data();
-    const JacobiCoupling* const row = s.row_coupling.data();
+    const JacobiQuad* const quads = s.row_quads.data();
     for (std::size_t i = 0; i < n; ++i) {
         // Pins and glue to immovable bodies prescribe the velocity; a glue to a movable
         // body was turned into added mass (coupleBodies).
@@ -162,17 +319,19 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
         // The symmetric sum of the blocks in scalars (kept in registers; an Eigen 3x3
         // accumulator is spilled to the stack and reloaded in every pass of the loop).
         double iso = 0.0, xx = 0.0, yy = 0.0, zz = 0.0, xy = 0.0, xz = 0.0, yz = 0.0;
-        for (std::uint32_t j = start[i]; j < start[i + 1]; ++j) {
+        for (std::uint32_t j = start[i]; j < start[i + 1]; ++j) {  // a pad adds zeros
             rhs += s.row_force[j];
-            const JacobiCoupling& c = row[j];
-            const Vec3 u = c.along * c.dir;
-            iso += c.iso;
-            xx += u.x() * c.dir.x();
-            yy += u.y() * c.dir.y();
-            zz += u.z() * c.dir.z();
-            xy += u.x() * c.dir.y();
-            xz += u.x() * c.dir.z();
-            yz += u.y() * c.dir.z();
+            const JacobiQuad& c = quads[j >> 2];
+            const unsigned lane = j & 3u;
+            const Vec3 dir(c.dir_x[lane], c.dir_y[lane], c.dir_z[lane]);
+            const Vec3 u = c.along[lane] * dir;
+            iso += c.iso[lane];
+            xx += u.x() * dir.x();
+            yy += u.y() * dir.y();
+            zz += u.z() * dir.z();
+            xy += u.x() * dir.y();
+            xz += u.x() * dir.z();
+            yz += u.y() * dir.z();
         }
         s.rhs[i] = rhs;
         Mat3 diag;  // W_ii, inverted below
@@ -193,39 +352,8 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
             s.diag_inv[i] = s.diag_inv[i].inverse().eval();
             s.dv[i] = s.diag_inv[i] * s.rhs[i];  // Eq. 6, k = 0
         }
-        // Eq. 6, weighted: per vertex, b_i - sum_j W_ij dv_j (W_ij = -block, so + block dv_j)
-        // gathered over its row in registers, then W_ii^-1 and the weight. A held vertex
-        // keeps its prescribed dv.
-        for (int it = 0; it < s.desc.jacobi_iterations; ++it) {
-            const Vec3* const dv = s.dv.data();
-            Vec3* const next = s.dv_next.data();
-            for (std::size_t i = 0; i < n; ++i) {
-                if (s.fixed[i]) {
-                    next[i] = dv[i];
-                    continue;
-                }
-                // Two partial sums, even and odd entries: two chains of additions instead
-                // of one (the sum's latency, not the arithmetic, bounds the loop).
-                Vec3 even = s.rhs[i], odd = Vec3::Zero();
-                std::uint32_t j = start[i];
-                const std::uint32_t end = start[i + 1];
-                for (; j + 1 < end; j += 2) {
-                    const JacobiCoupling& c0 = row[j];
-                    const JacobiCoupling& c1 = row[j + 1];
-                    const Vec3& o0 = dv[c0.other];
-                    const Vec3& o1 = dv[c1.other];
-                    even += c0.iso * o0 + (c0.along * c0.dir.dot(o0)) * c0.dir;
-                    odd += c1.iso * o1 + (c1.along * c1.dir.dot(o1)) * c1.dir;
-                }
-                if (j < end) {
-                    const JacobiCoupling& c = row[j];
-                    const Vec3& o = dv[c.other];
-                    even += c.iso * o + (c.along * c.dir.dot(o)) * c.dir;
-                }
-                next[i] = (1.0 - kJacobiWeight) * dv[i] + kJacobiWeight * (s.diag_inv[i] * (even + odd));
-            }
-            s.dv.swap(s.dv_next);
-        }
+        // Eq. 6, weighted, jacobi_iterations times (jacobiSweeps).
+        jacobiSweeps(s);
         for (std::size_t i = 0; i < n; ++i) s.v[i] += s.dv[i];
     }
     for (std::size_t i = 0; i < n; ++i) {

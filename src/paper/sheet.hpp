@@ -26,14 +26,18 @@ struct VertexHold {
     RigidId body;               ///< Glue
 };
 
-/// The coupling of a spring in the implicit solve, seen from one of its vertices:
-/// W_ij = -(iso I + along dir dir^T) (h c d d^T + h^2 K of implicit.cpp, with
-/// K = k (d d^T + t (I - d d^T))): 48 bytes instead of a 3x3 block and the spring.
-struct JacobiCoupling {
-    double iso = 0.0;             ///< h^2 k t, kg
-    double along = 0.0;           ///< h c k + h^2 k (1 - t), kg
-    Vec3 dir = Vec3::Zero();      ///< unit, along the spring
-    std::uint32_t other = 0;      ///< the spring's other vertex
+/// The couplings of springs in the implicit solve, seen from one of their vertices, four
+/// row entries side by side (lanes 0-3, row entry j in lane j % 4 of block j / 4;
+/// structure of arrays inside the block, so the Jacobi sweep works on two or four entries
+/// at once): W_ij = -(iso I + along dir dir^T) (h c d d^T + h^2 K of implicit.cpp, with
+/// K = k (d d^T + t (I - d d^T))): 44 bytes per entry instead of a 3x3 block and the spring.
+struct JacobiQuad {
+    double iso[4] = {0.0, 0.0, 0.0, 0.0};    ///< h^2 k t, kg
+    double along[4] = {0.0, 0.0, 0.0, 0.0};  ///< h c k + h^2 k (1 - t), kg
+    double dir_x[4] = {0.0, 0.0, 0.0, 0.0};  ///< unit, along the spring
+    double dir_y[4] = {0.0, 0.0, 0.0, 0.0};
+    double dir_z[4] = {0.0, 0.0, 0.0, 0.0};
+    std::uint32_t other[4] = {0, 0, 0, 0};   ///< the spring's other vertex
 };
 
 /// One sheet. Vertices are structure of arrays; springs and triangles are appended only.
@@ -72,10 +76,12 @@ struct PaperSheet {
     // rows of the Jacobi gather (implicit.cpp, buildRows), rebuilt when the live springs change
     std::vector<std::array<std::uint32_t, 2>> link_ends;  ///< per live spring, in order: its vertices
     std::vector<std::array<std::uint32_t, 2>> link_slot;  ///< per live spring: its entries in the rows of a and b
-    std::vector<std::uint32_t> vertex_link_start;  ///< per vertex + 1, first entry of its row
-    std::vector<JacobiCoupling> row_coupling;      ///< per row entry, the spring's block and the other vertex
+    std::vector<std::uint32_t> vertex_link_start;  ///< per vertex + 1, first entry of its row (even: rows are padded to pairs)
+    std::vector<JacobiQuad> row_quads;             ///< per four row entries, the springs' blocks and other vertices (a pad: zero)
     std::vector<Vec3> row_force;                   ///< per row entry, h f + h^2 K (v_other - v_this) on this vertex, N s
+    std::vector<double> link_length;               ///< per live spring, its length at the step's start, m (the tension reuses it)
     std::size_t row_vertices = 0;                  ///< vertex count the rows were built for
+    std::size_t row_reach = 0;                     ///< largest |other - this| over the row entries (the sweeps' pipeline lag)
     std::vector<std::uint8_t> fixed;  ///< per vertex, its velocity is prescribed (pinned, glued)
     std::vector<Vec3> added_force;    ///< per vertex, the weight of the mass lent to it, N
     std::vector<Mat3> added_mass;

@@ -35,10 +35,19 @@ constexpr double kCgTolerance = 1e-8;
 void estimateTension(PaperSheet& s, const std::vector<PointContact>& contacts, const PaperStep& ctx) {
     const std::size_t m = s.springs.size();
     s.tension.assign(m, 0.0);
+    // The lengths are the solve's (solveVelocities keeps them per live spring; the
+    // positions have not moved since), computed anew only without one.
+    std::size_t live = 0;
+    for (const PaperSpring& sp : s.springs) live += sp.broken ? 0 : 1;
+    const bool lengths = s.link_length.size() == live;
+    live = 0;
     for (std::size_t k = 0; k < m; ++k) {
         const PaperSpring& sp = s.springs[k];
-        if (sp.broken || sp.kind != PaperSpringKind::Structural) continue;
-        s.tension[k] = sp.stiffness * ((s.x[sp.b] - s.x[sp.a]).norm() - sp.rest);
+        if (sp.broken) continue;
+        const double length = lengths ? s.link_length[live] : (s.x[sp.b] - s.x[sp.a]).norm();
+        ++live;
+        if (sp.kind != PaperSpringKind::Structural) continue;
+        s.tension[k] = sp.stiffness * (length - sp.rest);
     }
     if (s.desc.tension != PaperTension::Momentum) return;
 
