@@ -84,9 +84,9 @@ struct PaperSheet {
     std::size_t row_reach = 0;                     ///< largest |other - this| over the row entries (the sweeps' pipeline lag)
     std::vector<std::uint8_t> fixed;  ///< per vertex, its velocity is prescribed (pinned, glued)
     std::vector<Vec3> added_force;    ///< per vertex, the weight of the mass lent to it, N
-    std::vector<Mat3> added_mass;
+    std::vector<Mat3> added_mass;     ///< per vertex, movable bodies' mass lent to it this step (contact normal, glue), kg
     std::vector<Vec3> v_start;        ///< per vertex, velocity at the step start (momentum balance)
-    std::vector<double> tension;      ///< per spring, N (structural; 0 otherwise)     ///< per vertex, movable bodies' mass lent to it this step (contact normal, glue), kg
+    std::vector<double> tension;      ///< per spring, N (structural; 0 otherwise)
 
     std::size_t vertices() const { return x.size(); }
 };
