@@ -503,7 +503,9 @@ void ChainTree::test(std::uint32_t i, std::uint32_t j, std::vector<SegmentPair>&
     const std::vector<CollisionSegment>& segs = *segs_;
     if (segs[i].skip || segs[j].skip || excluded(segs[i], segs[j], skip_)) return;
     if (!boxesOverlap(seg_lo_[i], seg_hi_[i], seg_lo_[j], seg_hi_[j])) return;
+    const std::size_t before = out.size();
     narrowPhase(x_, segs, info_.data(), margin_, std::min(i, j), std::max(i, j), out);
+    if (keep_ && out.size() > before && !keep_(keep_context_, out.back())) out.pop_back();
 }
 
 void ChainTree::self(std::uint32_t index, std::vector<SegmentPair>& out) const {
@@ -547,8 +549,11 @@ void ChainTree::cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>
 }
 
 void ChainTree::findPairs(const Vec3* positions, const std::vector<CollisionSegment>& segments, double margin,
-                          std::vector<SegmentPair>& out, std::uint32_t skip_neighbours, ThreadPool* pool) {
+                          std::vector<SegmentPair>& out, std::uint32_t skip_neighbours, ThreadPool* pool, Filter keep,
+                          const void* context) {
     out.clear();
+    keep_ = keep;
+    keep_context_ = context;
     x_ = positions;
     segs_ = &segments;
     margin_ = margin;
@@ -631,13 +636,20 @@ void ChainTree::findPairs(const Vec3* positions, const std::vector<CollisionSegm
         const double a = nodes_[l].lo[axis], b = nodes_[r].lo[axis];
         return a < b || (a == b && l < r);
     });
+    // The pairs of roots the sweep meets, in its order; each pair's descent on the pool
+    // into a buffer of its own, appended in that order.
+    root_pairs_.clear();
     for (std::size_t i = 0; i < order_.size(); ++i) {
         const Node& a = nodes_[order_[i]];
-        for (std::size_t j = i + 1; j < order_.size() && nodes_[order_[j]].lo[axis] <= a.hi[axis]; ++j) {
-            const std::uint32_t l = std::min(order_[i], order_[j]), r = std::max(order_[i], order_[j]);
-            cross(l, r, out);
-        }
+        for (std::size_t j = i + 1; j < order_.size() && nodes_[order_[j]].lo[axis] <= a.hi[axis]; ++j)
+            root_pairs_.emplace_back(std::min(order_[i], order_[j]), std::max(order_[i], order_[j]));
     }
+    if (root_out_.size() < root_pairs_.size()) root_out_.resize(root_pairs_.size());
+    each(root_pairs_.size(), [&](std::size_t k) {
+        root_out_[k].clear();
+        cross(root_pairs_[k].first, root_pairs_[k].second, root_out_[k]);
+    });
+    for (std::size_t k = 0; k < root_pairs_.size(); ++k) out.insert(out.end(), root_out_[k].begin(), root_out_[k].end());
 }
 
 }  // namespace tearables::detail

@@ -68,6 +68,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "tearables/types.hpp"
@@ -205,8 +206,13 @@ public:
     /// With a `pool`, the segments' boxes and each chain's tree and self pairs are done on
     /// it (chains are independent; each chain's pairs are collected in a buffer of its own
     /// and appended in chain order, so the output is the same for any thread count).
+    /// With a `keep` filter, only the pairs for which keep(context, pair) is true are
+    /// output (it is called as the pairs are found, from the pool's threads: it must only
+    /// read), so that a caller dropping most pairs never stores them.
+    using Filter = bool (*)(const void* context, const SegmentPair& pair);
     void findPairs(const Vec3* positions, const std::vector<CollisionSegment>& segments, double margin,
-                   std::vector<SegmentPair>& out, std::uint32_t skip_neighbours = 1, ThreadPool* pool = nullptr);
+                   std::vector<SegmentPair>& out, std::uint32_t skip_neighbours = 1, ThreadPool* pool = nullptr,
+                   Filter keep = nullptr, const void* context = nullptr);
 
 private:
     struct Node {
@@ -226,9 +232,13 @@ private:
     std::vector<std::uint32_t> roots_, order_;
     std::vector<std::uint32_t> chain_first_, chain_count_, chain_node_;  // per chain: segments, first node
     std::vector<std::vector<SegmentPair>> chain_out_;                    // per chain: its self pairs
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> root_pairs_;   // roots the sweep pairs up
+    std::vector<std::vector<SegmentPair>> root_out_;                     // per root pair: its pairs
     const Vec3* x_ = nullptr;
     const std::vector<CollisionSegment>* segs_ = nullptr;
     double margin_ = 0.0;
+    Filter keep_ = nullptr;
+    const void* keep_context_ = nullptr;
     std::uint32_t skip_ = 1;
 };
 

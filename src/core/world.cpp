@@ -395,7 +395,15 @@ struct World::Impl {
         // fastest segment's swept capsule (a swinging rope's tip), at a fraction of its cost.
         // Most pairs are dropped (judgePair, on the pool in chunks; the verdicts are then
         // collected in the pairs' order); the kept ones are sorted.
-        tree.findPairs(grid_positions.data(), grid_segments, 0.0, grid_pairs, stringContactSkip(thickest, shortest_segment), &pool);
+        // The tree asks judgePair about each pair as it finds it and keeps only those that
+        // are not dropped (a swinging rope's swept search finds thousands, nearly all of them
+        // dropped: stored, they were most of the search's memory traffic).
+        auto keep = [](const void* self, const detail::SegmentPair& pair) {
+            detail::SegmentContact scratch;
+            return static_cast<const Impl*>(self)->judgePair(pair, scratch) != kPairDropped;
+        };
+        tree.findPairs(grid_positions.data(), grid_segments, 0.0, grid_pairs, stringContactSkip(thickest, shortest_segment), &pool,
+                       keep, this);
         pair_verdict.resize(grid_pairs.size());
         pair_contact.resize(grid_pairs.size());
         const std::size_t chunks = std::min<std::size_t>(grid_pairs.size(), 64);
