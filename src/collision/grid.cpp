@@ -503,6 +503,7 @@ void ChainTree::test(std::uint32_t i, std::uint32_t j, std::vector<SegmentPair>&
     const std::vector<CollisionSegment>& segs = *segs_;
     if (segs[i].skip || segs[j].skip || excluded(segs[i], segs[j], skip_)) return;
     if (!boxesOverlap(seg_lo_[i], seg_hi_[i], seg_lo_[j], seg_hi_[j])) return;
+    if (reject_ && reject_(keep_context_, std::min(i, j), std::max(i, j))) return;
     const std::size_t before = out.size();
     narrowPhase(x_, segs, info_.data(), margin_, std::min(i, j), std::max(i, j), out);
     if (keep_ && out.size() > before && !keep_(keep_context_, out.back())) out.pop_back();
@@ -550,9 +551,10 @@ void ChainTree::cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>
 
 void ChainTree::findPairs(const Vec3* positions, const std::vector<CollisionSegment>& segments, double margin,
                           std::vector<SegmentPair>& out, std::uint32_t skip_neighbours, ThreadPool* pool, Filter keep,
-                          const void* context) {
+                          const void* context, Reject reject) {
     out.clear();
     keep_ = keep;
+    reject_ = reject;
     keep_context_ = context;
     x_ = positions;
     segs_ = &segments;

@@ -209,10 +209,14 @@ public:
     /// With a `keep` filter, only the pairs for which keep(context, pair) is true are
     /// output (it is called as the pairs are found, from the pool's threads: it must only
     /// read), so that a caller dropping most pairs never stores them.
+    /// With a `reject` test as well, a candidate pair (segments i < j) for which
+    /// reject(context, i, j) is true is dropped before its closest points are computed (the
+    /// caller's proof that `keep` would drop it).
     using Filter = bool (*)(const void* context, const SegmentPair& pair);
+    using Reject = bool (*)(const void* context, std::uint32_t i, std::uint32_t j);
     void findPairs(const Vec3* positions, const std::vector<CollisionSegment>& segments, double margin,
                    std::vector<SegmentPair>& out, std::uint32_t skip_neighbours = 1, ThreadPool* pool = nullptr,
-                   Filter keep = nullptr, const void* context = nullptr);
+                   Filter keep = nullptr, const void* context = nullptr, Reject reject = nullptr);
 
 private:
     struct Node {
@@ -238,6 +242,7 @@ private:
     const std::vector<CollisionSegment>* segs_ = nullptr;
     double margin_ = 0.0;
     Filter keep_ = nullptr;
+    Reject reject_ = nullptr;
     const void* keep_context_ = nullptr;
     std::uint32_t skip_ = 1;
 };

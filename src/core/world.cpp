@@ -402,8 +402,11 @@ struct World::Impl {
             detail::SegmentContact scratch;
             return static_cast<const Impl*>(self)->judgePair(pair, scratch) != kPairDropped;
         };
+        auto reject = [](const void* self, std::uint32_t i, std::uint32_t j) {
+            return static_cast<const Impl*>(self)->surelyDropped(i, j);
+        };
         tree.findPairs(grid_positions.data(), grid_segments, 0.0, grid_pairs, stringContactSkip(thickest, shortest_segment), &pool,
-                       keep, this);
+                       keep, this, reject);
         pair_verdict.resize(grid_pairs.size());
         pair_contact.resize(grid_pairs.size());
         const std::size_t chunks = std::min<std::size_t>(grid_pairs.size(), 64);
@@ -497,6 +500,47 @@ struct World::Impl {
         c.gap = gap;
         c.friction = kStringFriction;
         return kPairContact;
+    }
+
+    /// Relative travel of the ends of segment j of string a and segment k of string b over
+    /// the step: the largest |(x - x_prev) of an end of one - that of an end of the other|.
+    double relativeTravel(const StringState& sa, std::size_t j, const StringState& sb, std::size_t k) const {
+        double relative = 0.0;
+        for (std::size_t i = j; i <= j + 1; ++i)
+            for (std::size_t q = k; q <= k + 1; ++q)
+                relative = std::max(relative, ((sa.x[i] - sa.x_prev[i]) - (sb.x[q] - sb.x_prev[q])).squaredNorm());
+        return std::sqrt(relative);
+    }
+
+    /// True when judgePair would drop the pair of segments i < j (of grid_segments) for
+    /// sure, decided before their closest points at the start of the step: when at the
+    /// start they are separated along some unit u (here the direction between their
+    /// midpoints) by sep > the relative travel r of their ends, then for every point a of
+    /// one and b of the other, now, (a - b).n0 >= d0 - r > 0 (n0, d0: the start closest
+    /// points' direction and distance; d0 >= sep, and the motion of a - b is a convex
+    /// combination of the ends' relative motions), so the pair is on its starting side, not
+    /// deep, and its axes are now at least sep - r apart. Dropped when that is beyond
+    /// judgePair's distance, with a margin for rounding: judgePair would drop it too.
+    bool surelyDropped(std::uint32_t i, std::uint32_t j) const {
+        const detail::CollisionSegment& a = grid_segments[i];
+        const detail::CollisionSegment& b = grid_segments[j];
+        const Vec3& a0 = grid_positions[a.a];
+        const Vec3& a1 = grid_positions[a.b];
+        const Vec3& b0 = grid_positions[b.a];
+        const Vec3& b1 = grid_positions[b.b];
+        Vec3 u = (a0 + a1) - (b0 + b1);
+        const double length = u.norm();
+        if (!(length > 0.0)) return false;
+        u /= length;
+        const double separation = std::min(u.dot(a0), u.dot(a1)) - std::max(u.dot(b0), u.dot(b1));
+        if (!(separation > 0.0)) return false;
+        const StringState& sa = strings[a.chain];
+        const StringState& sb = strings[b.chain];
+        const double gap = sa.radius[a.index_in_chain] + sb.radius[b.index_in_chain];
+        const double relative = relativeTravel(sa, a.index_in_chain, sb, b.index_in_chain);
+        const double apart = (1.0 + kStringNear) * gap + 2.0 * relative;
+        const double rounding = 1e-15 * (a0.cwiseAbs().sum() + b0.cwiseAbs().sum() + 1.0);
+        return separation - relative > apart * (1.0 + 1e-6) + rounding;
     }
 
     bool touchesMovableBody(std::uint32_t string) const {
