@@ -503,7 +503,14 @@ void ChainTree::test(std::uint32_t i, std::uint32_t j, std::vector<SegmentPair>&
     const std::vector<CollisionSegment>& segs = *segs_;
     if (segs[i].skip || segs[j].skip || excluded(segs[i], segs[j], skip_)) return;
     if (!boxesOverlap(seg_lo_[i], seg_hi_[i], seg_lo_[j], seg_hi_[j])) return;
-    if (reject_ && reject_(keep_context_, std::min(i, j), std::max(i, j))) return;
+    if (reject_) {
+        // The narrow phase's own first rejection (the same bounding spheres), then the
+        // caller's: what either drops is never output.
+        const double reach = segs[i].radius + segs[j].radius + margin_;
+        const double sphere = info_[i].half_length + info_[j].half_length + reach;
+        if ((info_[i].mid - info_[j].mid).squaredNorm() > sphere * sphere * kSlack) return;
+        if (reject_(keep_context_, std::min(i, j), std::max(i, j))) return;
+    }
     const std::size_t before = out.size();
     narrowPhase(x_, segs, info_.data(), margin_, std::min(i, j), std::max(i, j), out);
     if (keep_ && out.size() > before && !keep_(keep_context_, out.back())) out.pop_back();

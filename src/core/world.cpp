@@ -126,6 +126,7 @@ struct World::Impl {
     std::vector<std::uint8_t> bad_state;  // per live string: non-finite after the step
     std::vector<std::vector<Event>> string_events;  // per live string: its material events of this step
     std::vector<Vec3> grid_positions;
+    std::vector<Vec3> grid_travel;  // per particle of grid_positions: x - x_prev after the strings' own solves
     std::vector<detail::CollisionSegment> grid_segments;
     std::vector<detail::SegmentPair> grid_pairs;
     // findStringPairs' scratch: per live string where its particles and segments start in
@@ -348,11 +349,13 @@ struct World::Impl {
             segment_count += s.segments();
         }
         grid_positions.resize(particle_count);
+        grid_travel.resize(particle_count);
         grid_segments.resize(segment_count);
         pool.forEach(pair_strings.size(), [&](std::size_t k) {
             PairString& ps = pair_strings[k];
             const StringState& s = strings[ps.string];
             Vec3* positions = grid_positions.data() + ps.particle_base;
+            Vec3* moved = grid_travel.data() + ps.particle_base;
             detail::CollisionSegment* segments = grid_segments.data() + ps.segment_base;
             const auto base = static_cast<std::uint32_t>(ps.particle_base);
             // How far a particle travelled this step, to its prediction or in its string's
@@ -360,6 +363,7 @@ struct World::Impl {
             double previous = 0.0;
             for (std::size_t p = 0; p < s.particles(); ++p) {
                 positions[p] = s.x_prev[p];  // pairs from the start of the step (swept)
+                moved[p] = s.x[p] - s.x_prev[p];
                 const double travel = std::max((s.x[p] - s.x_prev[p]).norm(), (s.x_pred[p] - s.x_prev[p]).norm());
                 if (p > 0) {
                     const std::size_t j = p - 1;
@@ -502,16 +506,6 @@ struct World::Impl {
         return kPairContact;
     }
 
-    /// Relative travel of the ends of segment j of string a and segment k of string b over
-    /// the step: the largest |(x - x_prev) of an end of one - that of an end of the other|.
-    double relativeTravel(const StringState& sa, std::size_t j, const StringState& sb, std::size_t k) const {
-        double relative = 0.0;
-        for (std::size_t i = j; i <= j + 1; ++i)
-            for (std::size_t q = k; q <= k + 1; ++q)
-                relative = std::max(relative, ((sa.x[i] - sa.x_prev[i]) - (sb.x[q] - sb.x_prev[q])).squaredNorm());
-        return std::sqrt(relative);
-    }
-
     /// True when judgePair would drop the pair of segments i < j (of grid_segments) for
     /// sure, decided before their closest points at the start of the step: when at the
     /// start they are separated along some unit u (here the direction between their
@@ -534,10 +528,13 @@ struct World::Impl {
         u /= length;
         const double separation = std::min(u.dot(a0), u.dot(a1)) - std::max(u.dot(b0), u.dot(b1));
         if (!(separation > 0.0)) return false;
-        const StringState& sa = strings[a.chain];
-        const StringState& sb = strings[b.chain];
-        const double gap = sa.radius[a.index_in_chain] + sb.radius[b.index_in_chain];
-        const double relative = relativeTravel(sa, a.index_in_chain, sb, b.index_in_chain);
+        const double gap = strings[a.chain].radius[a.index_in_chain] + strings[b.chain].radius[b.index_in_chain];
+        // The relative travel as judgePair computes it, from the set-up's x - x_prev (the
+        // same values, so the same result).
+        double relative = 0.0;
+        for (std::uint32_t pa : {a.a, a.b})
+            for (std::uint32_t pb : {b.a, b.b}) relative = std::max(relative, (grid_travel[pa] - grid_travel[pb]).squaredNorm());
+        relative = std::sqrt(relative);
         const double apart = (1.0 + kStringNear) * gap + 2.0 * relative;
         const double rounding = 1e-15 * (a0.cwiseAbs().sum() + b0.cwiseAbs().sum() + 1.0);
         return separation - relative > apart * (1.0 + 1e-6) + rounding;
