@@ -87,30 +87,6 @@ inline void addShifted(CsmMoments& acc, const CsmMoments& s, const Vec3& d, cons
 }  // namespace
 
 Mat3 csmRotation(const Mat3& a) {
-    // Rank 1 without the SVD (every region of a string with a straight rest shape: its
-    // rest offsets x0 - c0 are all along one line, so A = (sum m (x - c) s) v^T). The
-    // cofactors of A (the cross products of its columns) have the Frobenius norm
-    // sqrt(s1^2 s2^2 + s1^2 s3^2 + s2^2 s3^2), between s1 s2 and sqrt(3) s1 s2, and
-    // |A|_F^2 is between s1^2 and 3 s1^2, so q = |cof A|_F / |A|_F^2 bounds the ratio:
-    // q / sqrt(3) <= s2 / s1 <= 3 q. Where 3 q is below half the rank-1 tolerance (with a
-    // margin for rounding, which is ~1e-16 of either), the SVD would find s2 <= 1e-12 s1
-    // too and take the same branch; u_1 and v_1 of a rank-1 A are then its largest column
-    // normalised and A^T u_1 normalised (a consistent sign pair: A v_1 = s1 u_1, s1 > 0),
-    // accurate to s2 / s1 (rounding for a straight rest shape). Everything else (and
-    // A = 0 or non-finite A) goes through the SVD below, unchanged.
-    {
-        const Vec3 c0 = a.col(0), c1 = a.col(1), c2 = a.col(2);
-        const double n0 = c0.squaredNorm(), n1 = c1.squaredNorm(), n2 = c2.squaredNorm();
-        const double f = n0 + n1 + n2;  // |A|_F^2
-        const double cof = c1.cross(c2).squaredNorm() + c2.cross(c0).squaredNorm() + c0.cross(c1).squaredNorm();
-        constexpr double kFast = kRankOneTolerance / 6.0;  // 3 q <= tolerance / 2
-        if (f > 1e-150 && f < 1e150 && cof <= (kFast * f) * (kFast * f)) {
-            const Vec3& big = n0 >= n1 ? (n0 >= n2 ? c0 : c2) : (n1 >= n2 ? c1 : c2);
-            const Vec3 u = big.normalized();
-            const Vec3 v = (a.transpose() * u).normalized();
-            return Quat::FromTwoVectors(v, u).toRotationMatrix();
-        }
-    }
     const Eigen::JacobiSVD<Mat3, Eigen::NoQRPreconditioner> svd(a, Eigen::ComputeFullU | Eigen::ComputeFullV);
     const Vec3& sigma = svd.singularValues();
     if (!(sigma(0) > 0.0)) return Mat3::Identity();  // A = 0 (a single point), or NaN input
