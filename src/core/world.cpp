@@ -139,7 +139,7 @@ struct World::Impl {
         bool finite;
     };
     std::vector<PairString> pair_strings;
-    std::vector<std::uint8_t> pair_verdict, pressed;  // per pair; per string slot: touches a movable body
+    std::vector<std::uint8_t> pair_verdict;  // per pair
     std::vector<detail::SegmentContact> pair_contact;
     // String-string collision (coupleStrings): this step's pairs (global string indices,
     // sorted by string and segment), the last step's touching ones (warm start), and the
@@ -149,6 +149,7 @@ struct World::Impl {
         std::vector<StringState*> strings;
         std::vector<detail::SegmentContact> contacts;
         std::vector<std::size_t> index;
+        detail::ClusterScratch scratch;  // solveStringCluster's, kept so that a running step does not allocate
     };
     std::vector<Cluster> clusters;  // reused; the first `count` of a step are in use
     std::vector<std::uint32_t> cluster_root, cluster_local, pair_root;
@@ -338,13 +339,11 @@ struct World::Impl {
         // The segments of the live strings, string after string, each string's run filled
         // on the pool (where it starts is known beforehand).
         pair_strings.clear();
-        pressed.assign(strings.size(), 0);
         std::size_t particle_count = 0, segment_count = 0;
         for (std::size_t i = 0; i < strings.size(); ++i) {
             const StringState& s = strings[i];
             if (!s.alive || s.frozen) continue;
             pair_strings.push_back({static_cast<std::uint32_t>(i), particle_count, segment_count, 0.0, true});
-            pressed[i] = touchesMovableBody(static_cast<std::uint32_t>(i));
             particle_count += s.particles();
             segment_count += s.segments();
         }
@@ -438,13 +437,6 @@ struct World::Impl {
     std::uint8_t judgePair(const detail::SegmentPair& pair, detail::SegmentContact& c) const {
         const detail::CollisionSegment& a = grid_segments[pair.first];
         const detail::CollisionSegment& b = grid_segments[pair.second];
-        // A string pressed by a movable body is left to its own solve this step, where
-        // the body is an unknown: the joint solve holds bodies still, so the change it
-        // made to such a contact's force was momentum lost to the body, and particles
-        // it pushed into the held body were shot out the next step (a rope wrapping a
-        // falling box gained half its kinetic energy in one step). A limitation until
-        // bodies join the joint solve: such a string does not collide with strings.
-        if (pressed[a.chain] || pressed[b.chain]) return kPairDropped;
         // Only the key and the gap until the pair is kept (most are not).
         c.string = a.chain;
         c.segment = a.index_in_chain;
@@ -540,12 +532,6 @@ struct World::Impl {
         return separation - relative > apart * (1.0 + 1e-6) + rounding;
     }
 
-    bool touchesMovableBody(std::uint32_t string) const {
-        for (const detail::SegmentContact& c : strings[string].contacts)
-            if (c.node >= 0) return true;
-        return false;
-    }
-
     /// After every string's own strain limit, before the tension stage: finds the pairs
     /// and solves each cluster of touching strings jointly (see above).
     void coupleStrings(const StepContext& ctx) {
@@ -608,7 +594,7 @@ struct World::Impl {
         // on the pool; each writes only its own strings and its own pairs.
         pool.forEach(count, [&](std::size_t q) {
             Cluster& cl = clusters[q];
-            detail::solveStringCluster(cl.strings, cl.contacts, rigids, ctx);
+            detail::solveStringCluster(cl.strings, cl.contacts, rigids, ctx, cl.scratch);
             for (std::size_t i = 0; i < cl.contacts.size(); ++i) {
                 detail::SegmentContact& c = string_pairs[cl.index[i]];
                 c.force = cl.contacts[i].force;
@@ -1048,13 +1034,19 @@ void World::step(double h) {
         }
     }
     w.pool.forEach(w.own_strings.size(), [&](std::size_t k) { detail::limitStrain(w.strings[w.own_strings[k]], rigids, ctx); });
+    // The sweeps end early once a sweep finds every string at its solution already (its
+    // first Newton step within the strain tolerance): the bodies no longer move.
     const int sweeps = coupled ? w.settings.coupling_iterations : 1;
-    for (int sweep = 0; sweep < sweeps; ++sweep)
+    for (int sweep = 0; sweep < sweeps; ++sweep) {
+        double moved = 0.0;
         for (std::size_t i = 0; i < w.strings.size(); ++i) {
             StringState& s = w.strings[i];
             if (!live(s) || w.string_own[i]) continue;
-            if (sweep == 0 || touchesMovableBody(s)) detail::limitStrain(s, rigids, ctx);
+            if (sweep == 0 || touchesMovableBody(s))
+                moved = std::max(moved, detail::limitStrain(s, rigids, ctx) / s.shortest_rest);
         }
+        if (sweep > 0 && moved < w.settings.strain_tolerance) break;
+    }
     eachLive([&](StringState& s) { detail::clampTravel(s, ctx); });
     auto t2 = Clock::now();
     t.strain_limit = seconds(t1, t2);
@@ -1075,9 +1067,6 @@ void World::step(double h) {
     t2 = t2b;
 
     eachLive([&](StringState& s) { detail::estimateTension(s, ctx); });
-    // Friction after the tension solve: its tangential corrections are not tension.
-    for (StringState& s : w.strings)
-        if (live(s) && !s.contacts.empty()) detail::applyFriction(s, rigids, ctx);
     auto t3 = Clock::now();
     t.tension = seconds(t2, t3);
     // What overlap the joint solve left is projected away after the tension stage (so it

@@ -9,6 +9,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <random>
 #include <vector>
 
@@ -48,6 +49,14 @@ struct SegmentContact {
     Vec3 start_normal = Vec3::UnitX();  ///< the normal at the start of the step
     double start_distance = 0.0; ///< the axes' distance at the start of the step, m
     double force = 0.0;          ///< normal force of the last solve, N (friction bound, warm start)
+    // The rigid contact's plane, linearised where the solve starts (strain_limit.cpp,
+    // rigidGap): its point and normal in the world, and d(gap)/d(rotation) of the body.
+    Vec3 plane_point = Vec3::Zero();
+    Vec3 plane_normal = Vec3::UnitY();
+    Vec3 plane_turn = Vec3::Zero();
+    Vec3 plane_arm = Vec3::Zero();    ///< plane_point minus the body's centre
+    Vec3 start_point = Vec3::Zero();  ///< the body's contact point where the step started
+    double friction_weight = 0.0;     ///< rigid friction's lagged weight mu F / max(slip, eps), N/m
 };
 
 struct StringState;
@@ -57,14 +66,29 @@ struct StepContext;
 /// Solves the strain limit of several strings at once, coupled by their string-string
 /// contacts (strain_limit.cpp): one Newton method on the sum of the strings' energies
 /// and the contact penalties. `contacts` index into `strings`.
+/// `work` is its scratch, kept by the caller so that a running step does not allocate.
+struct ClusterScratch {
+    ClusterScratch();
+    ~ClusterScratch();
+    ClusterScratch(ClusterScratch&&) noexcept;
+    ClusterScratch& operator=(ClusterScratch&&) noexcept;
+    struct Impl;
+    std::unique_ptr<Impl> impl;
+};
 void solveStringCluster(const std::vector<StringState*>& strings, std::vector<SegmentContact>& contacts,
-                        RigidTable& rigids, const StepContext& ctx);
+                        RigidTable& rigids, const StepContext& ctx, ClusterScratch& work);
 
 /// A movable body touched by a string's contacts: 6 unknowns (translation, rotation) in
 /// the string's Newton solve.
 struct BodyNode {
     RigidId body;
     Eigen::Matrix<double, 6, 1> impulse = Eigen::Matrix<double, 6, 1>::Zero();  ///< this string's, x h (kg m, kg m^2)
+    /// This string's displacement of the body this step (translation, rotation vector),
+    /// its generalised mass where the step started, and the displacement at which the
+    /// contact planes were last linearised (strain_limit.cpp).
+    Eigen::Matrix<double, 6, 1> displacement = Eigen::Matrix<double, 6, 1>::Zero();
+    Eigen::Matrix<double, 6, 6> mass = Eigen::Matrix<double, 6, 6>::Identity();
+    Eigen::Matrix<double, 6, 1> linearised_at = Eigen::Matrix<double, 6, 1>::Zero();
     BodyNode() = default;
     explicit BodyNode(RigidId b) : body(b) {}
 };
@@ -199,12 +223,22 @@ struct StringState {
     // --- rigid contacts (collision stage) -------------------------------------------------
     std::vector<SegmentContact> contacts;
     std::vector<double> spring_force;     ///< per segment: k c of the last Newton iteration, N
-    std::vector<Mat3> row_projector;
-    std::vector<std::uint8_t> colliding;  ///< per particle: in a string-string contact last step (3x heavier in CSM)      ///< per particle: I, or I minus the normals of the bodies pressing it
+    std::vector<Mat3> row_projector;      ///< per particle: I, or I minus the normals of the bodies pressing it
+    std::vector<std::uint8_t> colliding;  ///< per particle: in a string-string contact last step (3x heavier in CSM)
     std::vector<BodyNode> body_nodes;
     std::vector<Eigen::Matrix<double, 6, 1>> node_step;  ///< per body node: this iteration's Newton step
-    std::vector<std::vector<Vec3>> node_columns;  ///< A^-1 C, 6 columns per body node (n each)
-    std::vector<Eigen::Matrix<double, 3, 6>> node_coupling;  ///< scratch, per particle per node
+    std::vector<std::vector<Vec3>> node_columns;  ///< A^-1 C, 6 columns per body node (n each; grown, never shrunk)
+    /// Scratch of the body unknowns' Schur complement (limitStrain), kept between steps so
+    /// that a running step does not allocate: per node its 6x6 block, right-hand side and
+    /// coupling rows (particle, 3x6 block); the dense Schur system and its factorisation.
+    struct NodeScratch {
+        std::vector<Eigen::Matrix<double, 6, 6>> diag;
+        std::vector<Eigen::Matrix<double, 6, 1>> rhs;
+        std::vector<std::vector<std::pair<std::size_t, Eigen::Matrix<double, 3, 6>>>> coupling;
+        Eigen::MatrixXd schur;
+        Eigen::VectorXd rs, du;
+        Eigen::LDLT<Eigen::MatrixXd> ldlt;
+    } node_scratch;
     std::vector<double> prev_stretch;     ///< segment stretch at the start of the step, m
 
     // --- chain shape matching (Strings Sec. 3) -----------------------------------------
@@ -252,9 +286,10 @@ struct RigidTable {
 // Stage kernels, one file each.
 void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx);
 void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& ctx);
-void limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx);
-/// Returns true when it moved a particle.
-bool applyFriction(StringState& s, RigidTable& rigids, const StepContext& ctx);
+/// Returns the largest move (m) of its first Newton iteration: how far the string was
+/// from its solution when called (World::step stops the sweeps over strings that share
+/// bodies when every string is already there).
+double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx);
 void estimateTension(StringState& s, const StepContext& ctx);
 void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::vector<Event>& events);
 void updateVelocities(StringState& s, const StepContext& ctx);

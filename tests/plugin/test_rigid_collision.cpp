@@ -4,12 +4,14 @@
 #include "tearables/bullet.hpp"
 
 #include "bullet_fixture.hpp"
+#include "collision/capsule.hpp"
 
 #include <btBulletDynamicsCommon.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <memory>
+#include <vector>
 
 namespace {
 
@@ -212,13 +214,145 @@ TEST(RigidCollision, FastCrateDoesNotTunnelThroughARope) {
     if (c.y() < (*ropes.core().view(id).positions)[20].y()) EXPECT_GT(std::abs(c.z()), half);
 }
 
+// Friction with a body (in the contact solve): a rope over a fixed sphere (its great
+// circle, the same as a cylinder's), the ends hanging 0.2 m and 0.4 m down its sides.
+// - Frictionless, the long end runs down as the equation of motion of a rope over a
+//   smooth pulley says: x'' = g (dL + 2x) / L, so x(t) = dL/2 (cosh(sqrt(2g/L) t) - 1)
+//   (dL = 0.2 m the difference of the hanging lengths, L the rope's length).
+// - With friction (Euler-Eytelwein) it holds while the tension ratio at the two sides
+//   (the hanging weights', 2) is within e^(mu pi): held at mu = 0.3 (e^(0.3 pi) = 2.6),
+//   sliding at mu = 0.15 (1.6).
+// (A cylinder: Bullet's GJK gives capsule-cylinder normals a few milliradians off the
+// radial direction, along the axis too; a rope laid on a cylinder then creeps along it.)
+TEST(RigidCollision, RopeOverASphereSlidesAsAPulleyAndHoldsByCapstanFriction) {
+    const double r = 0.1 + 0.005;
+    std::vector<Vec3> points;
+    for (int i = 0; i <= 20; ++i) points.push_back({-r, 1.0 - 0.2 + 0.01 * i, 0});
+    for (int i = 1; i < 32; ++i) {
+        const double a = 3.14159265358979 * (1.0 - i / 32.0);
+        points.push_back({r * std::cos(a), 1.0 + r * std::sin(a), 0});
+    }
+    for (int i = 0; i <= 40; ++i) points.push_back({r, 1.0 - 0.01 * i, 0});
+    double length = 0.0;
+    for (std::size_t i = 1; i < points.size(); ++i) length += (points[i] - points[i - 1]).norm();
+    // How far the long end ran down in `steps` steps.
+    auto run = [&](double mu, int steps) {
+        Physics phys;
+        btRigidBody& ball = phys.add(std::make_unique<btSphereShape>(0.1f), 0.0, btVector3(0, 1.0f, 0));
+        ball.setFriction(static_cast<btScalar>(mu));
+        BulletWorld ropes(*phys.world, withContacts());
+        StringDesc d;
+        d.points = points;
+        d.material.variation = 0.0;
+        d.radius = 0.005;
+        d.bending = 0.0;
+        d.tearable = false;
+        const StringId id = ropes.addString(d);
+        const double start = ropes.core().view(id).positions->back().y();
+        for (int i = 0; i < steps; ++i) phys.step(1);
+        return start - ropes.core().view(id).positions->back().y();
+    };
+    const double t = 0.3;
+    const double expected = 0.1 * (std::cosh(std::sqrt(2.0 * 9.81 / length) * t) - 1.0);
+    // Measured 2026-12-01: 0.102 m against 0.111 m (the implicit step's numerical damping);
+    // held, the long end crept 4.4 mm in 1 s; at mu = 0.15 it ran 0.96 m.
+    EXPECT_NEAR(run(0.0, 30), expected, 0.15 * expected);
+    EXPECT_LT(std::abs(run(0.3, 100)), 0.01);
+    EXPECT_GT(run(0.15, 100), 0.3);
+}
+
+// Strings pressed by a movable body still collide with each other: a crate dropped on
+// two clamped ropes crossing 2 cm apart (one above the other) presses the upper onto the
+// lower; their axes never come closer than the sum of their radii, less 5%, and the
+// crate is caught (stopped above both; afterwards it may tip off the crossing).
+TEST(RigidCollision, CrateOnCrossingRopesKeepsThemApart) {
+    Physics phys;
+    btRigidBody& crate = phys.add(std::make_unique<btBoxShape>(btVector3(0.1f, 0.1f, 0.1f)), 2.0, btVector3(0, 1.5f, 0));
+    BulletWorld ropes(*phys.world, withContacts());
+    const double radius = 0.005;
+    StringDesc upper = rope({-0.6, 1.02, 0}, {0.6, 1.02, 0}, 40, radius);
+    StringDesc lower = rope({0, 1.0, -0.6}, {0, 1.0, 0.6}, 40, radius);
+    upper.tearable = lower.tearable = false;
+    const StringId a = ropes.addString(upper);
+    const StringId b = ropes.addString(lower);
+    ropes.attach(a, 0, btVector3(-0.6f, 1.02f, 0));
+    ropes.attach(a, -1, btVector3(0.6f, 1.02f, 0));
+    ropes.attach(b, 0, btVector3(0, 1.0f, -0.6f));
+    ropes.attach(b, -1, btVector3(0, 1.0f, 0.6f));
+    double closest = 1e9;
+    bool pressed = false, stopped = false;
+    for (int i = 0; i < 150; ++i) {
+        phys.step(1);
+        if (pressed && !stopped) {
+            stopped = crate.getLinearVelocity().y() >= 0.0f;
+            EXPECT_GT(crate.getCenterOfMassPosition().y() - 0.1, lowest(ropes, b) - radius) << i;
+        }
+        const auto& xa = *ropes.core().view(a).positions;
+        const auto& xb = *ropes.core().view(b).positions;
+        for (std::size_t j = 0; j + 1 < xa.size(); ++j)
+            for (std::size_t k = 0; k + 1 < xb.size(); ++k)
+                closest = std::min(closest, tearables::detail::closestPointsOfSegments(xa[j], xa[j + 1], xb[k], xb[k + 1]).distance);
+        for (const auto& c : ropes.core().lastContacts()) pressed = pressed || c.string == a;
+    }
+    EXPECT_TRUE(pressed);
+    EXPECT_TRUE(stopped);
+    EXPECT_GT(closest, 2.0 * radius * 0.95);
+}
+
+// Every family of Bullet shape stops a rope (Bullet's own narrow phase on a capsule per
+// segment): a static plane, a triangle mesh, a compound of two boxes, a convex hull, a
+// sphere, a capsule and a cylinder lying across the rope's fall. A rope dropped from
+// 10 cm onto each comes to rest on its top: the middle particle one radius above it
+// (within 3 mm), and the particles over the top (within 12 mm of the middle, where a
+// round top of 0.1 m radius falls by 0.7 mm) never more than 1.5 mm below it. A convex
+// hull's surface is its margin (Bullet's default 0.04 m) outside its points, as for
+// Bullet's own bodies.
+TEST(RigidCollision, EveryShapeFamilyStopsAFallingRope) {
+    const double radius = 0.005, top = 0.5;
+    auto restOn = [&](const char* name, std::unique_ptr<btCollisionShape> shape, const btVector3& at, double margin = 0.0) {
+        const double surface = top + margin;
+        Physics phys;
+        phys.add(std::move(shape), 0.0, at);
+        BulletWorld ropes(*phys.world, withContacts());
+        StringDesc d = rope({-0.15, surface + 0.1, 0}, {0.15, surface + 0.1, 0}, 30, radius);
+        d.damping = 1.0;
+        const StringId id = ropes.addString(d);
+        double deepest = 1e9;
+        for (int i = 0; i < 150; ++i) {
+            phys.step(1);
+            for (const Vec3& p : *ropes.core().view(id).positions)
+                if (std::abs(p.x()) < 0.012) deepest = std::min(deepest, p.y() - surface);
+        }
+        const auto& x = *ropes.core().view(id).positions;
+        EXPECT_NEAR(x[15].y(), surface + radius, 0.003) << name;
+        EXPECT_GT(deepest, -0.0015) << name;
+    };
+    restOn("plane", std::make_unique<btStaticPlaneShape>(btVector3(0, 1, 0), static_cast<btScalar>(top)), btVector3(0, 0, 0));
+    auto mesh = std::make_unique<btTriangleMesh>();
+    mesh->addTriangle(btVector3(-1, 0, -1), btVector3(1, 0, -1), btVector3(1, 0, 1));
+    mesh->addTriangle(btVector3(-1, 0, -1), btVector3(1, 0, 1), btVector3(-1, 0, 1));
+    restOn("mesh", std::make_unique<btBvhTriangleMeshShape>(mesh.get(), true), btVector3(0, static_cast<btScalar>(top), 0));
+    auto compound = std::make_unique<btCompoundShape>();
+    btBoxShape half_table(btVector3(0.1f, 0.05f, 0.2f));
+    compound->addChildShape(btTransform(btQuaternion::getIdentity(), btVector3(-0.1f, 0, 0)), &half_table);
+    compound->addChildShape(btTransform(btQuaternion::getIdentity(), btVector3(0.1f, 0, 0)), &half_table);
+    restOn("compound", std::move(compound), btVector3(0, static_cast<btScalar>(top - 0.05), 0));
+    auto hull = std::make_unique<btConvexHullShape>();
+    for (int i = 0; i < 8; ++i)
+        hull->addPoint(btVector3(i & 1 ? 0.2f : -0.2f, i & 2 ? 0.0f : -0.2f, i & 4 ? 0.2f : -0.2f));
+    const double hull_margin = hull->getMargin();
+    restOn("hull", std::move(hull), btVector3(0, static_cast<btScalar>(top), 0), hull_margin);
+    restOn("sphere", std::make_unique<btSphereShape>(0.2f), btVector3(0, static_cast<btScalar>(top - 0.2), 0));
+    restOn("capsule", std::make_unique<btCapsuleShapeZ>(0.1f, 0.4f), btVector3(0, static_cast<btScalar>(top - 0.1), 0));
+    restOn("cylinder", std::make_unique<btCylinderShapeZ>(btVector3(0.1f, 0.1f, 0.2f)), btVector3(0, static_cast<btScalar>(top - 0.1), 0));
+}
+
 // A winch: a rope glued to a kinematic drum (a Bullet cylinder the test turns at 2 rad/s)
 // winds onto it: the weight at its end rises by what the drum's turn wound on,
-// (R + r) * angle, within 10%, and the rope never passes through the drum. Known weakness
-// (issue 4): where the hanging part leaves the turning drum its axis dips up to 4.5 mm
-// inside the drum's surface for a few steps (the contacts are the body's surface planes,
-// found at the start of the step, and the Newton solve does not converge there); the
-// test bounds it by the rope's diameter.
+// (R + r) * angle, within 10%, and the rope's axis never enters the drum. Known weakness
+// (issue 4): where the hanging part leaves the turning drum the rope overlaps the drum by
+// up to 4.2 mm of its 5 mm radius for a few steps (its axis stays 0.8 mm outside; before
+// the contact solve was made convex, 2026-12-01, the axis dipped 4.5 mm inside).
 TEST(RigidCollision, RopeWindsOntoARotatingKinematicDrum) {
     Physics phys;
     const double drum = 0.05, radius = 0.005, omega = 2.0, h = 0.01;
@@ -249,6 +383,6 @@ TEST(RigidCollision, RopeWindsOntoARotatingKinematicDrum) {
             }
     }
     const double rise = (*ropes.core().view(id).positions).back().y() - tip_before;
-    EXPECT_NEAR(rise, x * angle, 0.1 * x * angle);  // measured: 0.169 m for 0.165 m
-    EXPECT_GT(worst, drum - 2.0 * radius);          // measured: 4.5 mm inside the drum's surface
+    EXPECT_NEAR(rise, x * angle, 0.1 * x * angle);  // measured: 0.179 m for 0.165 m
+    EXPECT_GT(worst, drum);                         // measured: 0.8 mm outside the drum's surface
 }
