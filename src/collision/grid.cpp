@@ -7,6 +7,7 @@
 #include <string>
 
 #include "collision/capsule.hpp"
+#include "core/thread_pool.hpp"
 
 namespace tearables::detail {
 
@@ -467,11 +468,16 @@ bool boxesOverlap(const Vec3& alo, const Vec3& ahi, const Vec3& blo, const Vec3&
     return alo.x() <= bhi.x() && blo.x() <= ahi.x() && alo.y() <= bhi.y() && blo.y() <= ahi.y() && alo.z() <= bhi.z() &&
            blo.z() <= ahi.z();
 }
+
+/// Nodes of the tree that build() makes over `count` segments.
+std::uint32_t treeNodes(std::uint32_t count) {
+    return count <= kLeaf ? 1 : 1 + treeNodes(count / 2) + treeNodes(count - count / 2);
+}
+
 }  // namespace
 
-std::uint32_t ChainTree::build(std::uint32_t first, std::uint32_t count) {
-    const auto index = static_cast<std::uint32_t>(nodes_.size());
-    nodes_.emplace_back();
+std::uint32_t ChainTree::build(std::uint32_t first, std::uint32_t count, std::uint32_t& next) {
+    const std::uint32_t index = next++;  // pre-order, as nodes are numbered by treeNodes
     Node node;
     node.first = first;
     node.count = count;
@@ -484,8 +490,8 @@ std::uint32_t ChainTree::build(std::uint32_t first, std::uint32_t count) {
         }
     } else {
         const std::uint32_t half = count / 2;
-        node.left = build(first, half);
-        node.right = build(first + half, count - half);
+        node.left = build(first, half, next);
+        node.right = build(first + half, count - half, next);
         node.lo = nodes_[node.left].lo.cwiseMin(nodes_[node.right].lo);
         node.hi = nodes_[node.left].hi.cwiseMax(nodes_[node.right].hi);
     }
@@ -493,26 +499,36 @@ std::uint32_t ChainTree::build(std::uint32_t first, std::uint32_t count) {
     return index;
 }
 
-void ChainTree::test(std::uint32_t i, std::uint32_t j) {
+void ChainTree::test(std::uint32_t i, std::uint32_t j, std::vector<SegmentPair>& out) const {
     const std::vector<CollisionSegment>& segs = *segs_;
     if (segs[i].skip || segs[j].skip || excluded(segs[i], segs[j], skip_)) return;
     if (!boxesOverlap(seg_lo_[i], seg_hi_[i], seg_lo_[j], seg_hi_[j])) return;
-    narrowPhase(x_, segs, info_.data(), margin_, std::min(i, j), std::max(i, j), *out_);
+    if (reject_) {
+        // The narrow phase's own first rejection (the same bounding spheres), then the
+        // caller's: what either drops is never output.
+        const double reach = segs[i].radius + segs[j].radius + margin_;
+        const double sphere = info_[i].half_length + info_[j].half_length + reach;
+        if ((info_[i].mid - info_[j].mid).squaredNorm() > sphere * sphere * kSlack) return;
+        if (reject_(keep_context_, std::min(i, j), std::max(i, j))) return;
+    }
+    const std::size_t before = out.size();
+    narrowPhase(x_, segs, info_.data(), margin_, std::min(i, j), std::max(i, j), out);
+    if (keep_ && out.size() > before && !keep_(keep_context_, out.back())) out.pop_back();
 }
 
-void ChainTree::self(std::uint32_t index) {
+void ChainTree::self(std::uint32_t index, std::vector<SegmentPair>& out) const {
     const Node& node = nodes_[index];
     if (node.left == 0) {
         for (std::uint32_t i = node.first; i < node.first + node.count; ++i)
-            for (std::uint32_t j = i + 1; j < node.first + node.count; ++j) test(i, j);
+            for (std::uint32_t j = i + 1; j < node.first + node.count; ++j) test(i, j, out);
         return;
     }
-    self(node.left);
-    self(node.right);
-    cross(node.left, node.right);
+    self(node.left, out);
+    self(node.right, out);
+    cross(node.left, node.right, out);
 }
 
-void ChainTree::cross(std::uint32_t a, std::uint32_t b) {
+void ChainTree::cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>& out) const {
     const Node& na = nodes_[a];
     const Node& nb = nodes_[b];
     if (!boxesOverlap(na.lo, na.hi, nb.lo, nb.hi)) return;
@@ -528,73 +544,121 @@ void ChainTree::cross(std::uint32_t a, std::uint32_t b) {
     }
     if (na.left == 0 && nb.left == 0) {
         for (std::uint32_t i = na.first; i < na.first + na.count; ++i)
-            for (std::uint32_t j = nb.first; j < nb.first + nb.count; ++j) test(i, j);
+            for (std::uint32_t j = nb.first; j < nb.first + nb.count; ++j) test(i, j, out);
         return;
     }
     if (nb.left == 0 || (na.left != 0 && na.count >= nb.count)) {
-        cross(na.left, b);
-        cross(na.right, b);
+        cross(na.left, b, out);
+        cross(na.right, b, out);
     } else {
-        cross(a, nb.left);
-        cross(a, nb.right);
+        cross(a, nb.left, out);
+        cross(a, nb.right, out);
     }
 }
 
 void ChainTree::findPairs(const Vec3* positions, const std::vector<CollisionSegment>& segments, double margin,
-                          std::vector<SegmentPair>& out, std::uint32_t skip_neighbours) {
+                          std::vector<SegmentPair>& out, std::uint32_t skip_neighbours, ThreadPool* pool, Filter keep,
+                          const void* context, Reject reject) {
     out.clear();
+    keep_ = keep;
+    reject_ = reject;
+    keep_context_ = context;
     x_ = positions;
     segs_ = &segments;
-    out_ = &out;
     margin_ = margin;
     skip_ = skip_neighbours;
+    auto each = [pool](std::size_t count, auto&& fn) {
+        if (pool) pool->forEach(count, fn);
+        else
+            for (std::size_t i = 0; i < count; ++i) fn(i);
+    };
     const std::size_t m = segments.size();
     seg_lo_.resize(m);
     seg_hi_.resize(m);
     info_.resize(m);
     const double inf = std::numeric_limits<double>::infinity();
-    for (std::size_t k = 0; k < m; ++k) {
-        const CollisionSegment& sg = segments[k];
-        const Vec3& a = positions[sg.a];
-        const Vec3& b = positions[sg.b];
-        info_[k].mid = 0.5 * (a + b);
-        info_[k].length2 = (b - a).squaredNorm();
-        info_[k].half_length = 0.5 * std::sqrt(info_[k].length2);
-        if (sg.skip) {
-            seg_lo_[k] = Vec3::Constant(inf);
-            seg_hi_[k] = Vec3::Constant(-inf);
-            continue;
+    const std::size_t chunks = std::min<std::size_t>(m, 64);
+    each(chunks, [&](std::size_t chunk) {
+        for (std::size_t k = m * chunk / chunks; k < m * (chunk + 1) / chunks; ++k) {
+            const CollisionSegment& sg = segments[k];
+            const Vec3& a = positions[sg.a];
+            const Vec3& b = positions[sg.b];
+            info_[k].mid = 0.5 * (a + b);
+            info_[k].length2 = (b - a).squaredNorm();
+            info_[k].half_length = 0.5 * std::sqrt(info_[k].length2);
+            if (sg.skip) {
+                seg_lo_[k] = Vec3::Constant(inf);
+                seg_hi_[k] = Vec3::Constant(-inf);
+                continue;
+            }
+            const Vec3 grow = Vec3::Constant(sg.radius + 0.5 * margin);
+            seg_lo_[k] = a.cwiseMin(b) - grow;
+            seg_hi_[k] = a.cwiseMax(b) + grow;
         }
-        const Vec3 grow = Vec3::Constant(sg.radius + 0.5 * margin);
-        seg_lo_[k] = a.cwiseMin(b) - grow;
-        seg_hi_[k] = a.cwiseMax(b) + grow;
-    }
+    });
     // One tree per chain (runs of equal `chain`); node 0 is a dummy so that 0 means "leaf".
-    nodes_.clear();
-    nodes_.emplace_back();
-    roots_.clear();
+    // Each chain's nodes are a range of their own, numbered beforehand.
+    chain_first_.clear();
+    chain_count_.clear();
+    chain_node_.clear();
+    std::uint32_t nodes = 1;
     for (std::size_t first = 0; first < m;) {
         std::size_t last = first + 1;
         while (last < m && segments[last].chain == segments[first].chain) ++last;
-        const std::uint32_t root = build(static_cast<std::uint32_t>(first), static_cast<std::uint32_t>(last - first));
-        roots_.push_back(root);
-        self(root);
+        chain_first_.push_back(static_cast<std::uint32_t>(first));
+        chain_count_.push_back(static_cast<std::uint32_t>(last - first));
+        chain_node_.push_back(nodes);
+        nodes += treeNodes(static_cast<std::uint32_t>(last - first));
         first = last;
     }
-    // Chains against each other: sweep the root boxes along x (sorted by their lower x,
-    // ties by position in the list: deterministic).
+    nodes_.resize(nodes);
+    nodes_[0] = Node{};
+    const std::size_t chains = chain_first_.size();
+    if (chain_out_.size() < chains) chain_out_.resize(chains);
+    roots_.resize(chains);
+    each(chains, [&](std::size_t c) {
+        std::uint32_t next = chain_node_[c];
+        roots_[c] = build(chain_first_[c], chain_count_[c], next);
+        chain_out_[c].clear();
+        self(roots_[c], chain_out_[c]);
+    });
+    for (std::size_t c = 0; c < chains; ++c) out.insert(out.end(), chain_out_[c].begin(), chain_out_[c].end());
+    // Chains against each other: sweep the root boxes along the axis on which their
+    // centres spread most (strings side by side all overlap along their own length: swept
+    // along it, every root met every other), sorted by their lower bound on it, ties by
+    // position in the list: deterministic. The pairs are the same on any axis; only the
+    // order of the output changes.
+    int axis = 0;
+    if (roots_.size() > 2) {
+        Vec3 mean = Vec3::Zero(), square = Vec3::Zero();
+        for (std::uint32_t r : roots_) {
+            const Vec3 c = 0.5 * (nodes_[r].lo + nodes_[r].hi);
+            mean += c;
+            square += c.cwiseProduct(c);
+        }
+        const double k = static_cast<double>(roots_.size());
+        const Vec3 spread = square / k - (mean / k).cwiseProduct(mean / k);
+        if (spread.allFinite()) spread.maxCoeff(&axis);
+    }
     order_ = roots_;
     std::sort(order_.begin(), order_.end(), [&](std::uint32_t l, std::uint32_t r) {
-        const double a = nodes_[l].lo.x(), b = nodes_[r].lo.x();
+        const double a = nodes_[l].lo[axis], b = nodes_[r].lo[axis];
         return a < b || (a == b && l < r);
     });
+    // The pairs of roots the sweep meets, in its order; each pair's descent on the pool
+    // into a buffer of its own, appended in that order.
+    root_pairs_.clear();
     for (std::size_t i = 0; i < order_.size(); ++i) {
         const Node& a = nodes_[order_[i]];
-        for (std::size_t j = i + 1; j < order_.size() && nodes_[order_[j]].lo.x() <= a.hi.x(); ++j) {
-            const std::uint32_t l = std::min(order_[i], order_[j]), r = std::max(order_[i], order_[j]);
-            cross(l, r);
-        }
+        for (std::size_t j = i + 1; j < order_.size() && nodes_[order_[j]].lo[axis] <= a.hi[axis]; ++j)
+            root_pairs_.emplace_back(std::min(order_[i], order_[j]), std::max(order_[i], order_[j]));
     }
+    if (root_out_.size() < root_pairs_.size()) root_out_.resize(root_pairs_.size());
+    each(root_pairs_.size(), [&](std::size_t k) {
+        root_out_[k].clear();
+        cross(root_pairs_[k].first, root_pairs_[k].second, root_out_[k]);
+    });
+    for (std::size_t k = 0; k < root_pairs_.size(); ++k) out.insert(out.end(), root_out_[k].begin(), root_out_[k].end());
 }
 
 }  // namespace tearables::detail

@@ -68,6 +68,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "tearables/types.hpp"
@@ -198,31 +199,51 @@ std::vector<SegmentPair> bruteForcePairs(const Vec3* positions, std::size_t part
 /// only near their common particle), chains against each other by sweeping their root
 /// boxes along x and descending both trees where the roots overlap. Output in the order of
 /// the traversal (deterministic); no allocation once the buffers have grown.
+class ThreadPool;
+
 class ChainTree {
 public:
+    /// With a `pool`, the segments' boxes and each chain's tree and self pairs are done on
+    /// it (chains are independent; each chain's pairs are collected in a buffer of its own
+    /// and appended in chain order, so the output is the same for any thread count).
+    /// With a `keep` filter, only the pairs for which keep(context, pair) is true are
+    /// output (it is called as the pairs are found, from the pool's threads: it must only
+    /// read), so that a caller dropping most pairs never stores them.
+    /// With a `reject` test as well, a candidate pair (segments i < j) for which
+    /// reject(context, i, j) is true is dropped before its closest points are computed (the
+    /// caller's proof that `keep` would drop it).
+    using Filter = bool (*)(const void* context, const SegmentPair& pair);
+    using Reject = bool (*)(const void* context, std::uint32_t i, std::uint32_t j);
     void findPairs(const Vec3* positions, const std::vector<CollisionSegment>& segments, double margin,
-                   std::vector<SegmentPair>& out, std::uint32_t skip_neighbours = 1);
+                   std::vector<SegmentPair>& out, std::uint32_t skip_neighbours = 1, ThreadPool* pool = nullptr,
+                   Filter keep = nullptr, const void* context = nullptr, Reject reject = nullptr);
 
 private:
     struct Node {
-        Vec3 lo, hi;                 // bounds of the capsules (grown by half the margin)
+        Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();  // bounds of the capsules (grown by half the margin)
         std::uint32_t first = 0;     // segment range [first, first + count)
         std::uint32_t count = 0;
         std::uint32_t left = 0, right = 0;  // children (leaves: 0)
     };
-    std::uint32_t build(std::uint32_t first, std::uint32_t count);
-    void self(std::uint32_t node);
-    void cross(std::uint32_t a, std::uint32_t b);
-    void test(std::uint32_t i, std::uint32_t j);
+    std::uint32_t build(std::uint32_t first, std::uint32_t count, std::uint32_t& next);
+    void self(std::uint32_t node, std::vector<SegmentPair>& out) const;
+    void cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>& out) const;
+    void test(std::uint32_t i, std::uint32_t j, std::vector<SegmentPair>& out) const;
 
     std::vector<Node> nodes_;
     std::vector<Vec3> seg_lo_, seg_hi_;
     std::vector<SegmentGrid::SegmentInfo> info_;
     std::vector<std::uint32_t> roots_, order_;
+    std::vector<std::uint32_t> chain_first_, chain_count_, chain_node_;  // per chain: segments, first node
+    std::vector<std::vector<SegmentPair>> chain_out_;                    // per chain: its self pairs
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> root_pairs_;   // roots the sweep pairs up
+    std::vector<std::vector<SegmentPair>> root_out_;                     // per root pair: its pairs
     const Vec3* x_ = nullptr;
     const std::vector<CollisionSegment>* segs_ = nullptr;
-    std::vector<SegmentPair>* out_ = nullptr;
     double margin_ = 0.0;
+    Filter keep_ = nullptr;
+    Reject reject_ = nullptr;
+    const void* keep_context_ = nullptr;
     std::uint32_t skip_ = 1;
 };
 

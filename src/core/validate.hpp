@@ -1,5 +1,8 @@
 // Checks shared by the descriptors' validation (src/string/desc.cpp, src/cloth/desc.cpp):
-// each throws InvalidInput naming the field and the value it got.
+// each throws InvalidInput naming the field and the value it got. The field's name is a
+// string_view, made a std::string only when it is thrown: World::step checks its settings
+// every step, and a name past the small-string buffer ("strain_tolerance") was a heap
+// allocation per step (issue 9).
 #pragma once
 
 #include "tearables/types.hpp"
@@ -7,6 +10,7 @@
 #include <cmath>
 #include <sstream>
 #include <string>
+#include <string_view>
 
 namespace tearables::detail {
 
@@ -18,18 +22,18 @@ inline std::string num(double v) {
     return s.str();
 }
 
-inline void requireFinite(const std::string& field, double v) {
-    if (!std::isfinite(v)) throw InvalidInput(field, "must be a finite number (got " + num(v) + ")");
+inline void requireFinite(std::string_view field, double v) {
+    if (!std::isfinite(v)) throw InvalidInput(std::string(field), "must be a finite number (got " + num(v) + ")");
 }
 
-inline void requirePositive(const std::string& field, double v) {
+inline void requirePositive(std::string_view field, double v) {
     requireFinite(field, v);
-    if (!(v > 0.0)) throw InvalidInput(field, "must be greater than 0 (got " + num(v) + ")");
+    if (!(v > 0.0)) throw InvalidInput(std::string(field), "must be greater than 0 (got " + num(v) + ")");
 }
 
-inline void requireRange(const std::string& field, double v, double lo, double hi) {
+inline void requireRange(std::string_view field, double v, double lo, double hi) {
     requireFinite(field, v);
-    if (v < lo || v > hi) throw InvalidInput(field, "must be in [" + num(lo) + ", " + num(hi) + "] (got " + num(v) + ")");
+    if (v < lo || v > hi) throw InvalidInput(std::string(field), "must be in [" + num(lo) + ", " + num(hi) + "] (got " + num(v) + ")");
 }
 
 }  // namespace tearables::detail

@@ -122,18 +122,38 @@ struct World::Impl {
     detail::ChainTree tree;
     detail::ThreadPool pool;          // independent strings' stages (WorldSettings::threads)
     std::vector<std::uint32_t> live_strings, own_strings;  // this step's live strings; those sharing no body
+    std::vector<std::uint8_t> string_own;  // per string slot: in own_strings this step
     std::vector<std::uint8_t> bad_state;  // per live string: non-finite after the step
+    std::vector<std::vector<Event>> string_events;  // per live string: its material events of this step
     std::vector<Vec3> grid_positions;
+    std::vector<Vec3> grid_travel;  // per particle of grid_positions: x - x_prev after the strings' own solves
     std::vector<detail::CollisionSegment> grid_segments;
     std::vector<detail::SegmentPair> grid_pairs;
+    // findStringPairs' scratch: per live string where its particles and segments start in
+    // grid_positions / grid_segments (and its thickest radius, finite radii); per pair of
+    // the swept search its verdict and contact.
+    struct PairString {
+        std::uint32_t string;
+        std::size_t particle_base, segment_base;
+        double thickest;
+        bool finite;
+    };
+    std::vector<PairString> pair_strings;
+    std::vector<std::uint8_t> pair_verdict;  // per pair
+    std::vector<detail::SegmentContact> pair_contact;
     // String-string collision (coupleStrings): this step's pairs (global string indices,
     // sorted by string and segment), the last step's touching ones (warm start), and the
     // scratch of the clusters.
-    std::vector<detail::SegmentContact> string_pairs, previous_pairs, cluster_contacts;
-    detail::ClusterScratch cluster_scratch;  // solveStringCluster's, kept so that a running step does not allocate
-    std::vector<StringState*> cluster_strings;
-    std::vector<std::size_t> cluster_index;
-    std::vector<std::uint32_t> cluster_root, cluster_local;
+    std::vector<detail::SegmentContact> string_pairs, previous_pairs;
+    struct Cluster {  // strings that touch, their pairs (cluster-local string numbers) and the pairs' indices
+        std::vector<StringState*> strings;
+        std::vector<detail::SegmentContact> contacts;
+        std::vector<std::size_t> index;
+        detail::ClusterScratch scratch;  // solveStringCluster's, kept so that a running step does not allocate
+    };
+    std::vector<Cluster> clusters;  // reused; the first `count` of a step are in use
+    std::vector<std::uint32_t> cluster_root, cluster_local, pair_root;
+    std::vector<std::size_t> cluster_first, cluster_fill, cluster_order;
     // Pairs that started a step deeper than kStringDeepStart (sorted) and have not come
     // apart since: no contacts until they have.
     using PairKey = std::tuple<std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t>;
@@ -316,36 +336,58 @@ struct World::Impl {
     void findStringPairs() {
         string_pairs.clear();
         deep_next.clear();
-        grid_positions.clear();
-        grid_segments.clear();
-        double thickest = 0.0, shortest_segment = 1e300;
-        bool finite_state = true;
+        // The segments of the live strings, string after string, each string's run filled
+        // on the pool (where it starts is known beforehand).
+        pair_strings.clear();
+        std::size_t particle_count = 0, segment_count = 0;
         for (std::size_t i = 0; i < strings.size(); ++i) {
             const StringState& s = strings[i];
             if (!s.alive || s.frozen) continue;
-            const auto base = static_cast<std::uint32_t>(grid_positions.size());
-            for (std::size_t p = 0; p < s.particles(); ++p)
-                grid_positions.push_back(s.x_prev[p]);  // pairs from the start of the step (swept)
+            pair_strings.push_back({static_cast<std::uint32_t>(i), particle_count, segment_count, 0.0, true});
+            particle_count += s.particles();
+            segment_count += s.segments();
+        }
+        grid_positions.resize(particle_count);
+        grid_travel.resize(particle_count);
+        grid_segments.resize(segment_count);
+        pool.forEach(pair_strings.size(), [&](std::size_t k) {
+            PairString& ps = pair_strings[k];
+            const StringState& s = strings[ps.string];
+            Vec3* positions = grid_positions.data() + ps.particle_base;
+            Vec3* moved = grid_travel.data() + ps.particle_base;
+            detail::CollisionSegment* segments = grid_segments.data() + ps.segment_base;
+            const auto base = static_cast<std::uint32_t>(ps.particle_base);
             // How far a particle travelled this step, to its prediction or in its string's
-            // own solve.
-            auto travel = [&](std::size_t p) {
-                return std::max((s.x[p] - s.x_prev[p]).norm(), (s.x_pred[p] - s.x_prev[p]).norm());
-            };
-            shortest_segment = std::min(shortest_segment, s.shortest_rest);
-            for (std::size_t j = 0; j < s.segments(); ++j) {
-                detail::CollisionSegment seg;
-                seg.a = base + static_cast<std::uint32_t>(j);
-                seg.b = seg.a + 1;
-                seg.chain = static_cast<std::uint32_t>(i);
-                seg.index_in_chain = static_cast<std::uint32_t>(j);
-                // The capsule at the start of the step, swept: grown by the travel of its
-                // ends, and by kStringReach of its radius for what the joint solve changes.
-                seg.radius = s.radius[j] * (1.0 + kStringReach) + std::max(travel(j), travel(j + 1));
-                seg.skip = s.broken[j] != 0;
-                finite_state = finite_state && std::isfinite(seg.radius);
-                thickest = std::max(thickest, s.radius[j]);
-                grid_segments.push_back(seg);
+            // own solve (once per particle; both its segments use it).
+            double previous = 0.0;
+            for (std::size_t p = 0; p < s.particles(); ++p) {
+                positions[p] = s.x_prev[p];  // pairs from the start of the step (swept)
+                moved[p] = s.x[p] - s.x_prev[p];
+                const double travel = std::max((s.x[p] - s.x_prev[p]).norm(), (s.x_pred[p] - s.x_prev[p]).norm());
+                if (p > 0) {
+                    const std::size_t j = p - 1;
+                    detail::CollisionSegment& seg = segments[j];
+                    seg.a = base + static_cast<std::uint32_t>(j);
+                    seg.b = seg.a + 1;
+                    seg.chain = ps.string;
+                    seg.index_in_chain = static_cast<std::uint32_t>(j);
+                    // The capsule at the start of the step, swept: grown by the travel of
+                    // its ends, and by kStringReach of its radius for what the joint solve
+                    // changes.
+                    seg.radius = s.radius[j] * (1.0 + kStringReach) + std::max(previous, travel);
+                    seg.skip = s.broken[j] != 0;
+                    ps.finite = ps.finite && std::isfinite(seg.radius);
+                    ps.thickest = std::max(ps.thickest, s.radius[j]);
+                }
+                previous = travel;
             }
+        });
+        double thickest = 0.0, shortest_segment = 1e300;
+        bool finite_state = true;
+        for (const PairString& ps : pair_strings) {
+            thickest = std::max(thickest, ps.thickest);
+            shortest_segment = std::min(shortest_segment, strings[ps.string].shortest_rest);
+            finite_state = finite_state && ps.finite;
         }
         if (grid_segments.size() < 2 || !finite_state) {
             deep_pairs.clear();
@@ -354,48 +396,31 @@ struct World::Impl {
         // The swept capsules' overlaps through a box tree per string (collision/grid.hpp,
         // ChainTree): the same pairs as the exact 27-cell grid, whose cells all grow to the
         // fastest segment's swept capsule (a swinging rope's tip), at a fraction of its cost.
-        // Most pairs are dropped below; the kept ones are sorted.
-        tree.findPairs(grid_positions.data(), grid_segments, 0.0, grid_pairs, stringContactSkip(thickest, shortest_segment));
-        for (const detail::SegmentPair& pair : grid_pairs) {
-            const detail::CollisionSegment& a = grid_segments[pair.first];
-            const detail::CollisionSegment& b = grid_segments[pair.second];
-            detail::SegmentContact c;
-            c.string = a.chain;
-            c.segment = a.index_in_chain;
-            c.partner = b.chain;
-            c.partner_segment = b.index_in_chain;
-            c.s = pair.s;
-            c.partner_s = pair.t;
-            c.start_normal = pair.normal;
-            c.start_distance = pair.distance;
-            c.normal = pair.normal;
-            c.gap = strings[c.string].radius[c.segment] + strings[c.partner].radius[c.partner_segment];
-            // Deep at the start, or still coming apart from being deep: no contact (see
-            // kStringDeepStart), and remembered for the next step.
-            const auto key = std::make_tuple(c.string, c.segment, c.partner, c.partner_segment);
-            const bool was_deep = std::binary_search(deep_pairs.begin(), deep_pairs.end(), key);
-            if (pair.distance < (was_deep ? 1.0 : kStringDeepStart) * c.gap) {
-                deep_next.push_back(key);
-                continue;
-            }
-            // Apart after the strings' own solves, by more than kStringNear of the
-            // thickness and on the side they started on: no contact this step (most pairs
-            // of the swept search, e.g. every third segment of a straight rope).
-            const StringState& sa = strings[c.string];
-            const StringState& sb = strings[c.partner];
-            const detail::SegmentClosest now = detail::closestPointsOfSegments(
-                sa.x[c.segment], sa.x[c.segment + 1], sb.x[c.partner_segment], sb.x[c.partner_segment + 1]);
-            // Relative travel of the pair's ends over the step: the axes' distance at any
-            // time of the step differs from the end's by at most this.
-            double relative = 0.0;
-            for (std::size_t i = c.segment; i <= c.segment + 1u; ++i)
-                for (std::size_t k = c.partner_segment; k <= c.partner_segment + 1u; ++k)
-                    relative = std::max(relative, ((sa.x[i] - sa.x_prev[i]) - (sb.x[k] - sb.x_prev[k])).squaredNorm());
-            relative = std::sqrt(relative);
-            if (now.distance > (1.0 + kStringNear) * c.gap + 2.0 * relative && (now.p - now.q).dot(pair.normal) > 0.0)
-                continue;
-            c.friction = kStringFriction;
-            string_pairs.push_back(c);
+        // Most pairs are dropped (judgePair, on the pool in chunks; the verdicts are then
+        // collected in the pairs' order); the kept ones are sorted.
+        // The tree asks judgePair about each pair as it finds it and keeps only those that
+        // are not dropped (a swinging rope's swept search finds thousands, nearly all of them
+        // dropped: stored, they were most of the search's memory traffic).
+        auto keep = [](const void* self, const detail::SegmentPair& pair) {
+            detail::SegmentContact scratch;
+            return static_cast<const Impl*>(self)->judgePair(pair, scratch) != kPairDropped;
+        };
+        auto reject = [](const void* self, std::uint32_t i, std::uint32_t j) {
+            return static_cast<const Impl*>(self)->surelyDropped(i, j);
+        };
+        tree.findPairs(grid_positions.data(), grid_segments, 0.0, grid_pairs, stringContactSkip(thickest, shortest_segment), &pool,
+                       keep, this, reject);
+        pair_verdict.resize(grid_pairs.size());
+        pair_contact.resize(grid_pairs.size());
+        const std::size_t chunks = std::min<std::size_t>(grid_pairs.size(), 64);
+        pool.forEach(chunks, [&](std::size_t chunk) {
+            const std::size_t lo = grid_pairs.size() * chunk / chunks, hi = grid_pairs.size() * (chunk + 1) / chunks;
+            for (std::size_t i = lo; i < hi; ++i) pair_verdict[i] = judgePair(grid_pairs[i], pair_contact[i]);
+        });
+        for (std::size_t i = 0; i < grid_pairs.size(); ++i) {
+            const detail::SegmentContact& c = pair_contact[i];
+            if (pair_verdict[i] == kPairDeep) deep_next.push_back(std::make_tuple(c.string, c.segment, c.partner, c.partner_segment));
+            if (pair_verdict[i] == kPairContact) string_pairs.push_back(c);
         }
         // By key (string, segment, partner, partner segment): the warm start merges with
         // the last step's pairs, and the deep pairs are binary-searched.
@@ -404,6 +429,107 @@ struct World::Impl {
                   [&](const detail::SegmentContact& l, const detail::SegmentContact& r) { return key(l) < key(r); });
         std::sort(deep_next.begin(), deep_next.end());
         deep_pairs.swap(deep_next);
+    }
+
+    /// What findStringPairs makes of a pair of the swept search: no contact, a pair that
+    /// is (still) deep (c's key is remembered), or a contact (c). Reads only.
+    static constexpr std::uint8_t kPairDropped = 0, kPairDeep = 1, kPairContact = 2;
+    std::uint8_t judgePair(const detail::SegmentPair& pair, detail::SegmentContact& c) const {
+        const detail::CollisionSegment& a = grid_segments[pair.first];
+        const detail::CollisionSegment& b = grid_segments[pair.second];
+        // Only the key and the gap until the pair is kept (most are not).
+        c.string = a.chain;
+        c.segment = a.index_in_chain;
+        c.partner = b.chain;
+        c.partner_segment = b.index_in_chain;
+        c.gap = strings[c.string].radius[c.segment] + strings[c.partner].radius[c.partner_segment];
+        // Deep at the start, or still coming apart from being deep: no contact (see
+        // kStringDeepStart), and remembered for the next step.
+        const auto key = std::make_tuple(c.string, c.segment, c.partner, c.partner_segment);
+        const bool was_deep = std::binary_search(deep_pairs.begin(), deep_pairs.end(), key);
+        if (pair.distance < (was_deep ? 1.0 : kStringDeepStart) * c.gap) {
+            return kPairDeep;
+        }
+        // Apart after the strings' own solves, by more than kStringNear of the
+        // thickness and on the side they started on: no contact this step (most pairs
+        // of the swept search, e.g. every third segment of a straight rope).
+        const StringState& sa = strings[c.string];
+        const StringState& sb = strings[c.partner];
+        // Relative travel of the pair's ends over the step: the axes' distance at any
+        // time of the step differs from the end's by at most this.
+        double relative = 0.0;
+        for (std::size_t i = c.segment; i <= c.segment + 1u; ++i)
+            for (std::size_t k = c.partner_segment; k <= c.partner_segment + 1u; ++k)
+                relative = std::max(relative, ((sa.x[i] - sa.x_prev[i]) - (sb.x[k] - sb.x_prev[k])).squaredNorm());
+        relative = std::sqrt(relative);
+        const double apart = (1.0 + kStringNear) * c.gap + 2.0 * relative;
+        // Most pairs of the swept search are dropped here without their closest points:
+        // when the segments are separated along the start normal n by more than
+        // `apart` (every point of this side beyond every point of the other), the
+        // closest points p, q have (p - q).n >= that > 0 and |p - q| >= (p - q).n, so
+        // the test below would drop the pair too. A margin of 1e-6 and of the
+        // positions' rounding keeps that true in floating point.
+        {
+            const Vec3& a0 = sa.x[c.segment];
+            const Vec3& a1 = sa.x[c.segment + 1];
+            const Vec3& b0 = sb.x[c.partner_segment];
+            const Vec3& b1 = sb.x[c.partner_segment + 1];
+            const Vec3& n = pair.normal;
+            const double separation = std::min(n.dot(a0), n.dot(a1)) - std::max(n.dot(b0), n.dot(b1));
+            const double rounding = 1e-15 * (a0.cwiseAbs().sum() + b0.cwiseAbs().sum() + 1.0);
+            if (separation > apart * (1.0 + 1e-6) + rounding) return kPairDropped;
+        }
+        const detail::SegmentClosest now = detail::closestPointsOfSegments(
+            sa.x[c.segment], sa.x[c.segment + 1], sb.x[c.partner_segment], sb.x[c.partner_segment + 1]);
+        if (now.distance > apart && (now.p - now.q).dot(pair.normal) > 0.0) return kPairDropped;
+        const double gap = c.gap;
+        c = detail::SegmentContact{};
+        c.string = a.chain;
+        c.segment = a.index_in_chain;
+        c.partner = b.chain;
+        c.partner_segment = b.index_in_chain;
+        c.s = pair.s;
+        c.partner_s = pair.t;
+        c.start_normal = pair.normal;
+        c.start_distance = pair.distance;
+        c.normal = pair.normal;
+        c.gap = gap;
+        c.friction = kStringFriction;
+        return kPairContact;
+    }
+
+    /// True when judgePair would drop the pair of segments i < j (of grid_segments) for
+    /// sure, decided before their closest points at the start of the step: when at the
+    /// start they are separated along some unit u (here the direction between their
+    /// midpoints) by sep > the relative travel r of their ends, then for every point a of
+    /// one and b of the other, now, (a - b).n0 >= d0 - r > 0 (n0, d0: the start closest
+    /// points' direction and distance; d0 >= sep, and the motion of a - b is a convex
+    /// combination of the ends' relative motions), so the pair is on its starting side, not
+    /// deep, and its axes are now at least sep - r apart. Dropped when that is beyond
+    /// judgePair's distance, with a margin for rounding: judgePair would drop it too.
+    bool surelyDropped(std::uint32_t i, std::uint32_t j) const {
+        const detail::CollisionSegment& a = grid_segments[i];
+        const detail::CollisionSegment& b = grid_segments[j];
+        const Vec3& a0 = grid_positions[a.a];
+        const Vec3& a1 = grid_positions[a.b];
+        const Vec3& b0 = grid_positions[b.a];
+        const Vec3& b1 = grid_positions[b.b];
+        Vec3 u = (a0 + a1) - (b0 + b1);
+        const double length = u.norm();
+        if (!(length > 0.0)) return false;
+        u /= length;
+        const double separation = std::min(u.dot(a0), u.dot(a1)) - std::max(u.dot(b0), u.dot(b1));
+        if (!(separation > 0.0)) return false;
+        const double gap = strings[a.chain].radius[a.index_in_chain] + strings[b.chain].radius[b.index_in_chain];
+        // The relative travel as judgePair computes it, from the set-up's x - x_prev (the
+        // same values, so the same result).
+        double relative = 0.0;
+        for (std::uint32_t pa : {a.a, a.b})
+            for (std::uint32_t pb : {b.a, b.b}) relative = std::max(relative, (grid_travel[pa] - grid_travel[pb]).squaredNorm());
+        relative = std::sqrt(relative);
+        const double apart = (1.0 + kStringNear) * gap + 2.0 * relative;
+        const double rounding = 1e-15 * (a0.cwiseAbs().sum() + b0.cwiseAbs().sum() + 1.0);
+        return separation - relative > apart * (1.0 + 1e-6) + rounding;
     }
 
     /// After every string's own strain limit, before the tension stage: finds the pairs
@@ -427,34 +553,54 @@ struct World::Impl {
             return i;
         };
         for (const detail::SegmentContact& c : string_pairs) cluster_root[root(c.string)] = root(c.partner);
+        // The pairs grouped by cluster (clusters in the order of their root slot, pairs in
+        // their order within each: a counting sort by root), each cluster's strings in the
+        // order its pairs name them first.
+        cluster_first.assign(strings.size() + 1, 0);
+        pair_root.resize(string_pairs.size());
+        for (std::size_t i = 0; i < string_pairs.size(); ++i) {
+            pair_root[i] = root(string_pairs[i].string);
+            ++cluster_first[pair_root[i] + 1];
+        }
+        for (std::size_t r = 0; r < strings.size(); ++r) cluster_first[r + 1] += cluster_first[r];
+        cluster_order.resize(string_pairs.size());
+        cluster_fill.assign(cluster_first.begin(), cluster_first.end() - 1);
+        for (std::size_t i = 0; i < string_pairs.size(); ++i) cluster_order[cluster_fill[pair_root[i]]++] = i;
         cluster_local.assign(strings.size(), ~std::uint32_t{0});
+        std::size_t count = 0;
         for (std::size_t r = 0; r < strings.size(); ++r) {
-            if (root(static_cast<std::uint32_t>(r)) != r) continue;
-            cluster_strings.clear();
-            cluster_contacts.clear();
-            cluster_index.clear();
-            for (std::size_t i = 0; i < string_pairs.size(); ++i) {
+            if (cluster_first[r] == cluster_first[r + 1]) continue;
+            if (clusters.size() <= count) clusters.emplace_back();
+            Cluster& cl = clusters[count++];
+            cl.strings.clear();
+            cl.contacts.clear();
+            cl.index.clear();
+            for (std::size_t q = cluster_first[r]; q < cluster_first[r + 1]; ++q) {
+                const std::size_t i = cluster_order[q];
                 const detail::SegmentContact& c = string_pairs[i];
-                if (root(c.string) != r) continue;
                 for (std::uint32_t sidx : {c.string, c.partner})
                     if (cluster_local[sidx] == ~std::uint32_t{0}) {
-                        cluster_local[sidx] = static_cast<std::uint32_t>(cluster_strings.size());
-                        cluster_strings.push_back(&strings[sidx]);
+                        cluster_local[sidx] = static_cast<std::uint32_t>(cl.strings.size());
+                        cl.strings.push_back(&strings[sidx]);
                     }
                 detail::SegmentContact local = c;
                 local.string = cluster_local[c.string];
                 local.partner = cluster_local[c.partner];
-                cluster_contacts.push_back(local);
-                cluster_index.push_back(i);
-            }
-            if (cluster_contacts.empty()) continue;
-            detail::solveStringCluster(cluster_strings, cluster_contacts, rigids, ctx, cluster_scratch);
-            for (std::size_t i = 0; i < cluster_contacts.size(); ++i) {
-                detail::SegmentContact& c = string_pairs[cluster_index[i]];
-                c.force = cluster_contacts[i].force;
-                c.normal = cluster_contacts[i].normal;
+                cl.contacts.push_back(local);
+                cl.index.push_back(i);
             }
         }
+        // Clusters share no string (and the joint solve moves no body), so they are solved
+        // on the pool; each writes only its own strings and its own pairs.
+        pool.forEach(count, [&](std::size_t q) {
+            Cluster& cl = clusters[q];
+            detail::solveStringCluster(cl.strings, cl.contacts, rigids, ctx, cl.scratch);
+            for (std::size_t i = 0; i < cl.contacts.size(); ++i) {
+                detail::SegmentContact& c = string_pairs[cl.index[i]];
+                c.force = cl.contacts[i].force;
+                c.normal = cl.contacts[i].normal;
+            }
+        });
     }
 
     /// After the tension stage: a mass-weighted projection of whatever overlap the joint
@@ -851,12 +997,13 @@ void World::step(double h) {
     t.predict = seconds(t0b, t1);
 
     // Collision with rigid bodies: the host's narrow phase on the predicted positions.
-    for (StringState& s : w.strings) {
+    w.pool.forEach(w.strings.size(), [&w](std::size_t i) {
+        StringState& s = w.strings[i];
         s.contacts.clear();
         s.body_nodes.clear();
         std::fill(s.row_projector.begin(), s.row_projector.end(), Mat3::Identity());
         std::fill(s.colliding.begin(), s.colliding.end(), 0);
-    }
+    });
     w.contacts.clear();
     if (w.contact_provider && w.settings.rigid_contacts) w.collectContacts(ctx);
     auto t1c = Clock::now();
@@ -867,14 +1014,24 @@ void World::step(double h) {
     // and are swept Gauss-Seidel style; the others are solved once (their solve is exact).
     // Strings that neither hold nor touch a movable body are solved once, in parallel; the
     // others in order on this thread (they move bodies other strings see).
+    // prepareStrainLimit touches bodies only for particles glued to them: strings that
+    // hold none are prepared in parallel, the others in order on this thread.
+    eachLive([&](StringState& s) {
+        if (ownsNothing(s)) detail::prepareStrainLimit(s, rigids, ctx);
+    });
     bool coupled = false;
     w.own_strings.clear();
+    w.string_own.assign(w.strings.size(), 0);
     for (std::size_t i = 0; i < w.strings.size(); ++i) {
         StringState& s = w.strings[i];
         if (!live(s)) continue;
-        detail::prepareStrainLimit(s, rigids, ctx);
+        const bool owns_nothing = ownsNothing(s);
+        if (!owns_nothing) detail::prepareStrainLimit(s, rigids, ctx);
         coupled = coupled || touchesMovableBody(s);
-        if (!touchesMovableBody(s) && ownsNothing(s)) w.own_strings.push_back(static_cast<std::uint32_t>(i));
+        if (!touchesMovableBody(s) && owns_nothing) {
+            w.own_strings.push_back(static_cast<std::uint32_t>(i));
+            w.string_own[i] = 1;
+        }
     }
     w.pool.forEach(w.own_strings.size(), [&](std::size_t k) { detail::limitStrain(w.strings[w.own_strings[k]], rigids, ctx); });
     // The sweeps end early once a sweep finds every string at its solution already (its
@@ -882,8 +1039,9 @@ void World::step(double h) {
     const int sweeps = coupled ? w.settings.coupling_iterations : 1;
     for (int sweep = 0; sweep < sweeps; ++sweep) {
         double moved = 0.0;
-        for (StringState& s : w.strings) {
-            if (!live(s) || (!touchesMovableBody(s) && ownsNothing(s))) continue;
+        for (std::size_t i = 0; i < w.strings.size(); ++i) {
+            StringState& s = w.strings[i];
+            if (!live(s) || w.string_own[i]) continue;
             if (sweep == 0 || touchesMovableBody(s))
                 moved = std::max(moved, detail::limitStrain(s, rigids, ctx) / s.shortest_rest);
         }
@@ -902,8 +1060,8 @@ void World::step(double h) {
     }
 
     w.pool.forEach(w.own_strings.size(), [&](std::size_t k) { detail::solveTwist(w.strings[w.own_strings[k]], rigids, ctx); });
-    for (StringState& s : w.strings)
-        if (live(s) && !(!touchesMovableBody(s) && ownsNothing(s))) detail::solveTwist(s, rigids, ctx);
+    for (std::size_t i = 0; i < w.strings.size(); ++i)
+        if (live(w.strings[i]) && !w.string_own[i]) detail::solveTwist(w.strings[i], rigids, ctx);
     auto t2b = Clock::now();
     t.twist = seconds(t2, t2b);
     t2 = t2b;
@@ -920,8 +1078,15 @@ void World::step(double h) {
         t3 = t3c;
     }
 
-    for (std::size_t i = 0; i < w.strings.size(); ++i)
-        if (live(w.strings[i])) detail::respondMaterial(w.strings[i], StringId{static_cast<std::uint32_t>(i)}, ctx, w.events);
+    // Each string's response is its own; its events are collected per string and appended
+    // in string order (the order of a serial loop).
+    if (w.string_events.size() < w.live_strings.size()) w.string_events.resize(w.live_strings.size());
+    w.pool.forEach(w.live_strings.size(), [&](std::size_t k) {
+        w.string_events[k].clear();
+        detail::respondMaterial(w.strings[w.live_strings[k]], StringId{w.live_strings[k]}, ctx, w.string_events[k]);
+    });
+    for (std::size_t k = 0; k < w.live_strings.size(); ++k)
+        w.events.insert(w.events.end(), w.string_events[k].begin(), w.string_events[k].end());
     auto t4 = Clock::now();
     t.material = seconds(t3, t4);
 
@@ -933,12 +1098,10 @@ void World::step(double h) {
         bool ok = true;
         for (std::size_t p = 0; p < s.particles() && ok; ++p) ok = finite(s.x[p]) && finite(s.v[p]);
         w.bad_state[k] = !ok;
-    });
-    for (std::size_t k = 0; k < w.live_strings.size(); ++k) {
-        StringState& s = w.strings[w.live_strings[k]];
-        if (w.bad_state[k]) w.freeze(s, StringId{w.live_strings[k]}, ctx);
         std::fill(s.force.begin(), s.force.end(), Vec3::Zero());
-    }
+    });
+    for (std::size_t k = 0; k < w.live_strings.size(); ++k)
+        if (w.bad_state[k]) w.freeze(w.strings[w.live_strings[k]], StringId{w.live_strings[k]}, ctx);
     // Cloths (src/cloth/): their own stages, after the strings, before the bodies' velocities.
     StageTimes cloth_times;
     if (!w.cloths.empty())

@@ -254,6 +254,14 @@ bool fixedRow(const StringState& s, std::size_t p) {
 /// Factorises the symmetric block-tridiagonal system (3x3 blocks blk_diag, blk_off):
 /// block Thomas algorithm, O(n). The blocks are mass/h^2 plus spring and contact
 /// Hessians, symmetric positive definite, so no pivoting is needed.
+///
+/// The recursion is one dependency chain along the string, bounded by the divider (the
+/// pivots' square roots and divisions). Bit for bit as before (the rigid-contact tests
+/// react to the last bit: a solve multiplying by reciprocals instead of dividing let the
+/// fast crate through the rope, and an explicit D'^-1 lost the stiff direction of a
+/// contact block), so only work that gives the same bits was removed: the solve with U
+/// uses the pivot's stored reciprocals (Cholesky3::solve), and only the lower triangle of
+/// U^T W is formed.
 void factorBlockTridiagonal(StringState& s) {
     const std::size_t n = s.particles();
     s.blk_factor.resize(n);
@@ -267,7 +275,10 @@ void factorBlockTridiagonal(StringState& s) {
         s.blk_coupled[i] = coupled;
         if (coupled) {
             const Mat3 w = s.blk_factor[i - 1].solve(u);  // D'^-1 U
-            d -= u.transpose() * w;
+            // d -= U^T W, lower triangle only (the Cholesky reads no more); each entry
+            // the same dot product, so the same bits.
+            for (int c = 0; c < 3; ++c)
+                for (int r = c; r < 3; ++r) d(r, c) -= u.col(r).dot(w.col(c));
             s.blk_factor_gain[i] = w.transpose();
         } else {
             s.blk_factor_gain[i].setZero();
@@ -415,8 +426,18 @@ void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         const double k = 1.0 / s.compliance[j];
         s.spring_force[j] = k * c;
         const Vec3& e = s.dir[j];
-        const Mat3 eet = e * e.transpose();
-        const Mat3 hess = k * ((1.0 + rate_gain) * eet + (c / len) * (Mat3::Identity() - eet));
+        // hess = k ((1 + tau/h) e e^T + C/l (I - e e^T)), entry by entry with the same
+        // operations as the matrix expression (so the same bits), the six distinct ones
+        // only (e_i e_j = e_j e_i exactly).
+        const double g = 1.0 + rate_gain, q = c / len;
+        const double e00 = e.x() * e.x(), e11 = e.y() * e.y(), e22 = e.z() * e.z();
+        const double e10 = e.y() * e.x(), e20 = e.z() * e.x(), e21 = e.z() * e.y();
+        const double h10 = k * (g * e10 + q * (0.0 - e10)), h20 = k * (g * e20 + q * (0.0 - e20));
+        const double h21 = k * (g * e21 + q * (0.0 - e21));
+        Mat3 hess;
+        hess << k * (g * e00 + q * (1.0 - e00)), h10, h20,  //
+            h10, k * (g * e11 + q * (1.0 - e11)), h21,      //
+            h20, h21, k * (g * e22 + q * (1.0 - e22));
         const Vec3 force = k * c * e;  // pulls j toward j+1
         const bool fa = !fixedRow(s, j), fb = !fixedRow(s, j + 1);
         if (fa) {

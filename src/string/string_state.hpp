@@ -145,8 +145,9 @@ struct Cholesky3 {
     }
     Mat3 solve(const Mat3& b) const {
         // Eigen's solver for several right-hand sides multiplies by the reciprocal of
-        // the diagonal instead, and sums differently (checked bit for bit).
-        const double r0 = 1.0 / l00, r1 = 1.0 / l11, r2 = 1.0 / l22;
+        // the diagonal instead, and sums differently (checked bit for bit). The
+        // reciprocals are the stored ones (the same divisions, done once).
+        const double r0 = i00, r1 = i11, r2 = i22;
         Mat3 x;
         for (int c = 0; c < 3; ++c) {
             const double y0 = b(0, c) * r0;
