@@ -249,7 +249,11 @@ TEST(StepAllocations, SwingingRopesStepWithoutAllocating) {
 // grow, or a dense LDL^T of our own on the top-left dim x dim block). Tried 2026-12-01: a
 // Cholesky in place (Eigen::LLT<Ref<MatrixXd>> over a grown buffer) fails on this system
 // at times (it is not positive definite to rounding in StringCollision's draped ropes,
-// which then fell through): it needs a pivoted LDL^T like Eigen's.
+// which then fell through). A pivoted LDL^T of our own (Eigen's algorithm, unblocked, on
+// buffers that only grow) made this test pass, but its different rounding tipped the
+// balanced arch of StringCollision.RopeDroppedAsAnArchHangsOnTheClampedRope off the rope
+// (it slid off, 22 m down, without ever penetrating): that test sits on a knife's edge
+// and has to be made robust (or string friction made to hold the arch) first.
 TEST(StepAllocations, DISABLED_RopeDrapedOverAnotherStepsWithoutAllocating) {
     prepare();
     if (IsSkipped()) return;
