@@ -238,6 +238,11 @@ struct StringState {
         Eigen::MatrixXd schur;
         Eigen::VectorXd rs, du;
         Eigen::LDLT<Eigen::MatrixXd> ldlt;
+        NodeScratch() = default;
+        // A copy starts empty: it is scratch, and an Eigen::LDLT that has not factorised
+        // yet holds an uninitialised status that copying it would read (UBSan).
+        NodeScratch(const NodeScratch&) {}
+        NodeScratch& operator=(const NodeScratch&) { return *this; }
     } node_scratch;
     std::vector<double> prev_stretch;     ///< segment stretch at the start of the step, m
 
