@@ -4,6 +4,7 @@
 // refused with a clear error and leave the world as it was.
 #include "tearables/bullet.hpp"
 #include "tearables/snapshot.hpp"
+#include "sphere_contacts.hpp"
 #include "tearables/world.hpp"
 
 #include "../plugin/bullet_fixture.hpp"
@@ -31,47 +32,14 @@ using tearables::World;
 
 // --- a core scene: no Bullet, a static sphere the strings hit ----------------------------------
 
-/// Contacts of string segments with a static sphere (the core's host interface, as the
-/// Bullet plugin implements it): speculative, from the start positions.
-class SphereContacts : public ContactProvider {
-public:
-    SphereContacts(RigidId body, Vec3 centre, double radius) : body_(body), centre_(centre), radius_(radius) {}
-    void findContacts(const CollisionQuery& q, std::vector<RigidContact>& out) override {
-        for (std::size_t i = 0; i < q.strings.size(); ++i) {
-            const auto& start = *q.start[i];
-            const auto& pred = *q.predicted[i];
-            for (std::size_t j = 0; j + 1 < start.size(); ++j) {
-                if ((*q.broken[i])[j]) continue;
-                const Vec3 a = start[j], ab = start[j + 1] - start[j];
-                const double s = std::clamp((centre_ - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
-                const Vec3 d = a + s * ab - centre_;
-                const double travel = std::max((pred[j] - start[j]).norm(), (pred[j + 1] - start[j + 1]).norm());
-                if (d.norm() > radius_ + (*q.radius[i])[j] + travel + 0.005 || d.norm() < 1e-9) continue;
-                RigidContact c;
-                c.string = q.strings[i];
-                c.segment = static_cast<std::uint32_t>(j);
-                c.s = s;
-                c.normal = d.normalized();
-                c.point = centre_ + radius_ * c.normal;
-                c.body = body_;
-                c.friction = 0.3;
-                out.push_back(c);
-            }
-        }
-    }
-
-private:
-    RigidId body_;
-    Vec3 centre_;
-    double radius_;
-};
+using tearables::testing::SphereContacts;  // the core's host interface, as the Bullet plugin implements it
 
 /// Tearing (a ramped pull on a weak rope with random variation), twist (a clamped end
 /// turned every step until the rope tears by torsion), rigid collision (a rope falling
 /// on a static sphere), a dynamic body glued to a rope, string-string collision on.
 struct CoreScene {
     World world;
-    SphereContacts contacts{RigidId{0}, Vec3(2.0, 0.5, 0.0), 0.2};
+    SphereContacts contacts{RigidId{0}, Vec3(2.0, 0.5, 0.0), 0.2, 0.3};
     StringId weak, twisted, draped, net, holder;
 
     explicit CoreScene(bool build = true) {

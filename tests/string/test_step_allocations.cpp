@@ -8,6 +8,7 @@
 // allocate through the same functions). With TEARABLES_ALLOC_BACKTRACE=1 in the
 // environment, every counted allocation prints its call stack to stderr (symbols through
 // backtrace_symbols_fd, which does not allocate), to find where the remaining ones are.
+#include "sphere_contacts.hpp"
 #include "tearables/world.hpp"
 
 #include <gtest/gtest.h>
@@ -271,47 +272,6 @@ TEST(StepAllocations, DISABLED_RopeDrapedOverAnotherStepsWithoutAllocating) {
                               << " steps with string contacts (run with TEARABLES_ALLOC_BACKTRACE=1 to see where)";
 }
 
-namespace {
-
-/// Contacts of string segments with one sphere, a rigid body of the world (the core's
-/// host interface, as the Bullet plugin implements it): speculative, from the start
-/// positions, at the body's pose now. Writes into `out` only (whose storage the world
-/// keeps), so it allocates nothing itself.
-class SphereContacts : public tearables::ContactProvider {
-public:
-    SphereContacts(tearables::RigidId body, double radius, const World& world) : body_(body), radius_(radius), world_(world) {}
-    void findContacts(const tearables::CollisionQuery& q, std::vector<tearables::RigidContact>& out) override {
-        const Vec3 centre = world_.rigid(body_).position;
-        for (std::size_t i = 0; i < q.strings.size(); ++i) {
-            const auto& start = *q.start[i];
-            const auto& pred = *q.predicted[i];
-            for (std::size_t j = 0; j + 1 < start.size(); ++j) {
-                const Vec3 a = start[j], ab = start[j + 1] - start[j];
-                const double s = std::clamp((centre - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
-                const Vec3 d = a + s * ab - centre;
-                const double travel = std::max((pred[j] - start[j]).norm(), (pred[j + 1] - start[j + 1]).norm());
-                if (d.norm() > radius_ + (*q.radius[i])[j] + travel + 0.005 || d.norm() < 1e-9) continue;
-                tearables::RigidContact c;
-                c.string = q.strings[i];
-                c.segment = static_cast<std::uint32_t>(j);
-                c.s = s;
-                c.normal = d.normalized();
-                c.point = centre + radius_ * c.normal;
-                c.body = body_;
-                c.friction = 0.4;
-                out.push_back(c);
-            }
-        }
-    }
-
-private:
-    tearables::RigidId body_;
-    double radius_;
-    const World& world_;
-};
-
-}  // namespace
-
 // Rigid contacts: a rope draped over a movable ball (1 kg: the body's six unknowns in the
 // rope's solve, the Schur complement on them, friction passes); the contacts last through
 // the counted steps. The ball is moved by the rope only (no host integrates it here). Not
@@ -327,7 +287,7 @@ TEST(StepAllocations, RopeDrapedOverAMovableBallStepsWithoutAllocating) {
     ball.inverse_mass = 1.0;
     ball.inverse_inertia_local = tearables::Mat3::Identity() * (1.0 / (0.4 * 0.2 * 0.2));
     const tearables::RigidId id = world.addRigid(ball);
-    SphereContacts contacts(id, 0.2, world);
+    tearables::testing::SphereContacts contacts(id, world, 0.2, 0.4);
     world.setContactProvider(&contacts);
     const StringId a = world.addString(rope({-0.3, 0.01, 0}, {0.3, 0.01, 0}, 40, 0.001));
     const long allocations = countedSteps(world);
