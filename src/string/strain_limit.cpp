@@ -43,8 +43,9 @@ namespace {
 constexpr double kTautSlack = 1e-4;
 /// Contact penalty over the stiffest spring, particle and body inertia it competes with.
 constexpr double kContactStiffnessFactor = 100.0;
-/// Active-set passes of the contact solve, and the iteration budget of a pass with
-/// contacts relative to WorldSettings::strain_iterations.
+/// Passes of the contact solves (rigid friction's weights; the joint string solve's
+/// closest points and friction), and the iteration budget of a pass with contacts
+/// relative to WorldSettings::strain_iterations.
 constexpr int kContactPasses = 4;
 constexpr int kContactIterationFactor = 4;
 /// A segment within this fraction of its radius of a body counts as touching it.
@@ -145,14 +146,21 @@ void linearisePlanes(StringState& s, const RigidTable& rigids) {
     for (BodyNode& node : s.body_nodes) node.linearised_at = node.displacement;
 }
 
+/// How far contact c's movable body has moved since its planes were linearised, plus
+/// `extra` (a trial step) when given.
+Vec6 bodyMotion(const StringState& s, const SegmentContact& c, const Vec6* extra) {
+    const BodyNode& node = s.body_nodes[static_cast<std::size_t>(c.node)];
+    Vec6 u = node.displacement - node.linearised_at;
+    if (extra) u += *extra;
+    return u;
+}
+
 /// The gap of contact c (linearised by linearisePlanes) at string point xs: >= 0 when the
 /// string is clear of the plane. `extra`: a further displacement of the body (a trial step).
 double rigidGap(const StringState& s, const SegmentContact& c, const Vec3& xs, const Vec6* extra = nullptr) {
     double g = c.plane_normal.dot(xs - c.plane_point) - c.gap;
     if (c.node >= 0) {
-        const BodyNode& node = s.body_nodes[static_cast<std::size_t>(c.node)];
-        Vec6 u = node.displacement - node.linearised_at;
-        if (extra) u += *extra;
+        const Vec6 u = bodyMotion(s, c, extra);
         g += c.plane_turn.dot(u.tail<3>()) - c.plane_normal.dot(u.head<3>());
     }
     return g;
@@ -187,9 +195,7 @@ Vec3 rigidSlip(const StringState& s, const SegmentContact& c, const Vec3& xs, co
     const Vec3 xs0 = (1.0 - c.s) * s.x_prev[j] + c.s * s.x_prev[j + 1];
     Vec3 body_point = c.plane_point;
     if (c.node >= 0) {
-        const BodyNode& node = s.body_nodes[static_cast<std::size_t>(c.node)];
-        Vec6 u = node.displacement - node.linearised_at;
-        if (extra) u += *extra;
+        const Vec6 u = bodyMotion(s, c, extra);
         body_point += u.head<3>() + u.tail<3>().cross(c.plane_arm);
     }
     const Vec3 rel = (xs - xs0) - (body_point - c.start_point);
@@ -202,6 +208,26 @@ Mat36 rigidSlipBodyJacobian(const SegmentContact& c, const Mat3& tangent) {
     j.leftCols<3>() = -tangent;
     j.rightCols<3>() = tangent * cross(c.plane_arm);
     return j;
+}
+
+/// Rigid contact c's penalty k_c g^2 / 2 on the string's own rows (g: its gap, or 0 where
+/// it only joins the Hessian): gradient k_c g u and Hessian k_c u u^T with u = dg/dx, at
+/// the segment's ends that move (`fa`, `fb`).
+void addPenaltyRows(StringState& s, const SegmentContact& c, double g, bool fa, bool fb) {
+    const std::size_t j = c.segment;
+    const Vec3& nrm = c.plane_normal;
+    const double kc = c.stiffness;
+    const Mat3 nnt = nrm * nrm.transpose();
+    const double wa = 1.0 - c.s, wb = c.s;
+    if (fa) {
+        s.blk_diag[j] += kc * wa * wa * nnt;
+        s.blk_rhs[j] -= kc * g * wa * nrm;
+    }
+    if (fb) {
+        s.blk_diag[j + 1] += kc * wb * wb * nnt;
+        s.blk_rhs[j + 1] -= kc * g * wb * nrm;
+    }
+    if (fa && fb) s.blk_off[j] += kc * wa * wb * nnt;
 }
 
 /// Rigid contact c's friction on the string's own rows, w/2 |T rel|^2: gradient w T rel
@@ -243,6 +269,14 @@ double weighRigidFriction(StringState& s) {
         c.friction_weight = w;
     }
     return change;
+}
+
+/// The stiffest spring or particle inertia (m / h^2) of a string, N/m: what its contact
+/// penalties are scaled from.
+double stiffestTerm(const StringState& s, double inv_h2) {
+    double heaviest = 0.0;
+    for (double mass : s.mass) heaviest = std::max(heaviest, mass);
+    return std::max({1.0 / *std::min_element(s.compliance.begin(), s.compliance.end()), heaviest * inv_h2, 1e-12});
 }
 
 /// True when particle p does not move in the solve (pinned, or glued to an immovable body).
@@ -551,14 +585,13 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     // equalities in active-set passes instead, the contacts a pass ignored were found
     // centimetres deep at the next pass, and the passes ran out unconverged).
     linearisePlanes(s, rigids);
-    double heaviest = 0.0;
-    for (double mass : s.mass) heaviest = std::max(heaviest, mass);
+    const double stiffest = stiffestTerm(s, inv_h2);
     for (SegmentContact& c : s.contacts) {
         // Stiff enough to dominate the rope's springs, the particles' and the body's
         // inertia: under a load F it gives way by F / k_c only. Fixed for the step, so
         // that the line search below sees one energy.
         if (c.stiffness > 0.0) continue;
-        double kc = std::max({1.0 / *std::min_element(s.compliance.begin(), s.compliance.end()), heaviest * inv_h2, 1e-12});
+        double kc = stiffest;
         if (c.node >= 0) kc = std::max(kc, inv_h2 / rigids.bodies[c.body.index].inverse_mass);
         c.stiffness = kc * kContactStiffnessFactor;
     }
@@ -591,18 +624,9 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
             const Vec3& nrm = c.plane_normal;
             const double g = std::min(0.0, gapNow(c));  // the gradient only where it penetrates
             const double kc = c.stiffness;
-            const Mat3 nnt = nrm * nrm.transpose();
             const double wa = 1.0 - c.s, wb = c.s;
             const bool fa = !fixedRow(s, j), fb = !fixedRow(s, j + 1);
-            if (fa) {
-                s.blk_diag[j] += kc * wa * wa * nnt;
-                s.blk_rhs[j] -= kc * g * wa * nrm;
-            }
-            if (fb) {
-                s.blk_diag[j + 1] += kc * wb * wb * nnt;
-                s.blk_rhs[j + 1] -= kc * g * wb * nrm;
-            }
-            if (fa && fb) s.blk_off[j] += kc * wa * wb * nnt;
+            addPenaltyRows(s, c, g, fa, fb);
             if (c.node < 0) continue;
             const std::size_t b = static_cast<std::size_t>(c.node);
             const Vec6 au = rigidGapBodyGradient(c);
@@ -820,24 +844,9 @@ bool freeParticle(const StringState& s, std::size_t p) { return s.hold[p].kind =
 void assembleRigidContacts(StringState& s) {
     for (SegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
-        const Vec3& nrm = c.plane_normal;
-        const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
-        const double g = rigidGap(s, c, xs);
+        const double g = rigidGap(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]);
         c.active = !s.broken[j] && c.stiffness > 0.0 && g < 0.0;
-        if (!c.active) continue;
-        const double kc = c.stiffness;
-        const Mat3 nnt = nrm * nrm.transpose();
-        const double wa = 1.0 - c.s, wb = c.s;
-        const bool fa = freeParticle(s, j), fb = freeParticle(s, j + 1);
-        if (fa) {
-            s.blk_diag[j] += kc * wa * wa * nnt;
-            s.blk_rhs[j] -= kc * g * wa * nrm;
-        }
-        if (fb) {
-            s.blk_diag[j + 1] += kc * wb * wb * nnt;
-            s.blk_rhs[j + 1] -= kc * g * wb * nrm;
-        }
-        if (fa && fb) s.blk_off[j] += kc * wa * wb * nnt;
+        if (c.active) addPenaltyRows(s, c, g, freeParticle(s, j), freeParticle(s, j + 1));
     }
     // Their friction, with the weights of the string's own solve (the bodies held).
     for (const SegmentContact& c : s.contacts) {
@@ -942,9 +951,7 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
     stiffest.assign(count, 0.0);
     for (std::size_t i = 0; i < count; ++i) {
         const StringState& s = *strings[i];
-        double heaviest = 0.0;
-        for (double mass : s.mass) heaviest = std::max(heaviest, mass);
-        stiffest[i] = std::max({1.0 / *std::min_element(s.compliance.begin(), s.compliance.end()), heaviest * inv_h2, 1e-12});
+        stiffest[i] = stiffestTerm(s, inv_h2);
     }
     for (SegmentContact& c : contacts)
         c.stiffness = kStringContactStiffness * std::max(stiffest[c.string], stiffest[c.partner]);
