@@ -1098,9 +1098,13 @@ void Snapshot::restore(World& world) const {
     *w.strings = data_->strings;
     // The block factorisation is rebuilt by every step; it is sized here, not copied
     // (a default-constructed Eigen::LLT has an uninitialised status that UBSan flags
-    // when copied: found by the sanitizer build).
+    // when copied: found by the sanitizer build). So is the chain solve's tension
+    // estimate (scratch, filled from spring_force at every solve).
     for (detail::StringState& s : *w.strings)
-        if (s.alive) s.blk_factor.resize(s.particles());
+        if (s.alive) {
+            s.blk_factor.resize(s.particles());
+            s.geometric_tension.assign(s.segments(), 0.0);
+        }
     *w.rigids = data_->rigids;
     *w.pending = data_->pending;
     w.events->clear();

@@ -755,6 +755,7 @@ StringId World::addString(const StringDesc& desc) {
     s.row_projector.assign(n, Mat3::Identity());
     s.colliding.assign(n, 0);
     s.spring_force.assign(m, 0.0);
+    s.geometric_tension.assign(m, 0.0);
     s.prev_stretch.assign(m, 0.0);
     s.rest_direction.resize(m);
     for (std::size_t j = 0; j < m; ++j) s.rest_direction[j] = (desc.points[j + 1] - desc.points[j]) / s.rest_length[j];

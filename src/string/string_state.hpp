@@ -223,6 +223,7 @@ struct StringState {
     // --- rigid contacts (collision stage) -------------------------------------------------
     std::vector<SegmentContact> contacts;
     std::vector<double> spring_force;     ///< per segment: k c of the last Newton iteration, N
+    std::vector<double> geometric_tension;  ///< per segment: the tension estimate of the chain Hessian's geometric term, N (scratch)
     std::vector<Mat3> row_projector;      ///< per particle: I, or I minus the normals of the bodies pressing it
     std::vector<std::uint8_t> colliding;  ///< per particle: in a string-string contact last step (3x heavier in CSM)
     std::vector<BodyNode> body_nodes;
