@@ -70,11 +70,15 @@ TEST(StepKernels, ChainTreeFindsTheBruteForcePairs) {
 // without (every swept pair then goes to surelyDropped / judgePair one by one): every step
 // the search keeps the same pairs (the same segments, closest points and normals, in the
 // same order) and the strings end in the same state, bit for bit. Returns the node pairs
-// the pruning dropped over all steps (so that a test can check it was exercised).
+// the pruning dropped over all steps (so that a test can check it was exercised). The
+// pruned world runs on `threads` (its search's chains and chain pairs on the pool), the
+// other on one.
 std::size_t expectSamePairsWithNodePruning(const std::vector<tearables::StringDesc>& descs,
                                            const std::vector<std::vector<std::pair<int, Vec3>>>& pins, int steps,
-                                           std::size_t* kept_pairs) {
-    tearables::World pruned, plain;
+                                           std::size_t* kept_pairs, int threads = 1) {
+    tearables::WorldSettings settings;
+    settings.threads = threads;
+    tearables::World pruned(settings), plain;
     detail::WorldAccess::setStringNodePruning(plain, false);
     std::vector<tearables::StringId> ids;
     for (std::size_t k = 0; k < descs.size(); ++k) {
@@ -140,13 +144,14 @@ TEST(StepKernels, NodePruningKeepsEveryPairOfASwingingRope) {
 }
 
 // Ropes falling onto each other: a free rope dropped across one clamped at both ends (they
-// touch, press and slide off), a third one hanging from a pin and swinging through both.
+// touch, press and slide off), a third one hanging from a pin and swinging through both;
+// the pruned world on two threads.
 TEST(StepKernels, NodePruningKeepsEveryPairOfRopesFallingOnEachOther) {
     std::size_t kept = 0;
     const std::size_t rejects = expectSamePairsWithNodePruning(
         {ropeDesc(Vec3(-0.5, 0, 0), Vec3(0.5, 0, 0), 40, 0.0), ropeDesc(Vec3(0, 0.05, -0.5), Vec3(0, 0.05, 0.5), 40, 0.0),
          ropeDesc(Vec3(0.2, 0.4, 0.1), Vec3(-0.6, 0.4, 0.1), 80, 3.0)},
-        {{{0, Vec3(-0.5, 0, 0)}, {-1, Vec3(0.5, 0, 0)}}, {}, {{0, Vec3(0.2, 0.4, 0.1)}}}, 250, &kept);
+        {{{0, Vec3(-0.5, 0, 0)}, {-1, Vec3(0.5, 0, 0)}}, {}, {{0, Vec3(0.2, 0.4, 0.1)}}}, 250, &kept, 2);
     EXPECT_GT(kept, 100u);    // they touched
     EXPECT_GT(rejects, 100u); // and the pruning was exercised
 }
