@@ -211,7 +211,11 @@ public:
     /// read), so that a caller dropping most pairs never stores them.
     /// With a `reject` test as well, a candidate pair (segments i < j) for which
     /// reject(context, i, j) is true is dropped before its closest points are computed (the
-    /// caller's proof that `keep` would drop it).
+    /// caller's proof that `keep` would drop it). With a `sweep` (travel per particle,
+    /// thickness per segment, a NodeReject test), every node also bounds its segments'
+    /// axes, travel and thickness, and a pair of nodes whose boxes overlap is skipped whole
+    /// when sweep->reject says so (for a swinging rope: segments whose swept capsules
+    /// overlap but whose relative travel is small beside their separation).
     using Filter = bool (*)(const void* context, const SegmentPair& pair);
     using Reject = bool (*)(const void* context, std::uint32_t i, std::uint32_t j);
 
