@@ -488,12 +488,43 @@ std::uint32_t ChainTree::build(std::uint32_t first, std::uint32_t count, std::ui
             node.lo = node.lo.cwiseMin(seg_lo_[k]);
             node.hi = node.hi.cwiseMax(seg_hi_[k]);
         }
+        if (sweep_.reject) {
+            // The bounds over every segment of the leaf, skipped ones too (a bound is all
+            // the caller's proof needs; a skipped segment is never paired anyway).
+            const std::vector<CollisionSegment>& segs = *segs_;
+            NodeBounds b;
+            const Vec3& x0 = x_[segs[first].a];
+            const Vec3& t0 = sweep_.travel[segs[first].a];
+            b.lo = b.hi = x0;
+            b.travel_lo = b.travel_hi = t0;
+            b.thickness = sweep_.thickness[first];
+            for (std::uint32_t k = first; k < first + count; ++k) {
+                for (const std::uint32_t p : {segs[k].a, segs[k].b}) {
+                    b.lo = b.lo.cwiseMin(x_[p]);
+                    b.hi = b.hi.cwiseMax(x_[p]);
+                    b.travel_lo = b.travel_lo.cwiseMin(sweep_.travel[p]);
+                    b.travel_hi = b.travel_hi.cwiseMax(sweep_.travel[p]);
+                }
+                b.thickness = std::max(b.thickness, sweep_.thickness[k]);
+            }
+            bounds_[index] = b;
+        }
     } else {
         const std::uint32_t half = count / 2;
         node.left = build(first, half, next);
         node.right = build(first + half, count - half, next);
         node.lo = nodes_[node.left].lo.cwiseMin(nodes_[node.right].lo);
         node.hi = nodes_[node.left].hi.cwiseMax(nodes_[node.right].hi);
+        if (sweep_.reject) {
+            const NodeBounds& l = bounds_[node.left];
+            const NodeBounds& r = bounds_[node.right];
+            NodeBounds& b = bounds_[index];
+            b.lo = l.lo.cwiseMin(r.lo);
+            b.hi = l.hi.cwiseMax(r.hi);
+            b.travel_lo = l.travel_lo.cwiseMin(r.travel_lo);
+            b.travel_hi = l.travel_hi.cwiseMax(r.travel_hi);
+            b.thickness = std::max(l.thickness, r.thickness);
+        }
     }
     nodes_[index] = node;
     return index;
@@ -516,19 +547,19 @@ void ChainTree::test(std::uint32_t i, std::uint32_t j, std::vector<SegmentPair>&
     if (keep_ && out.size() > before && !keep_(keep_context_, out.back())) out.pop_back();
 }
 
-void ChainTree::self(std::uint32_t index, std::vector<SegmentPair>& out) const {
+void ChainTree::self(std::uint32_t index, std::vector<SegmentPair>& out, std::size_t& rejects) const {
     const Node& node = nodes_[index];
     if (node.left == 0) {
         for (std::uint32_t i = node.first; i < node.first + node.count; ++i)
             for (std::uint32_t j = i + 1; j < node.first + node.count; ++j) test(i, j, out);
         return;
     }
-    self(node.left, out);
-    self(node.right, out);
-    cross(node.left, node.right, out);
+    self(node.left, out, rejects);
+    self(node.right, out, rejects);
+    cross(node.left, node.right, out, rejects);
 }
 
-void ChainTree::cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>& out) const {
+void ChainTree::cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>& out, std::size_t& rejects) const {
     const Node& na = nodes_[a];
     const Node& nb = nodes_[b];
     if (!boxesOverlap(na.lo, na.hi, nb.lo, nb.hi)) return;
@@ -542,26 +573,33 @@ void ChainTree::cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>
         const std::uint32_t far = std::max(hi_b > lo_a ? hi_b - lo_a : lo_a - hi_b, hi_a > lo_b ? hi_a - lo_b : lo_b - hi_a);
         if (far <= skip_) return;
     }
+    // The caller's proof that it drops every pair below these two nodes (a rope swinging
+    // as a whole: its segments' swept boxes overlap, their relative travel is small).
+    if (sweep_.reject && sweep_.reject(keep_context_, bounds_[a], bounds_[b])) {
+        ++rejects;
+        return;
+    }
     if (na.left == 0 && nb.left == 0) {
         for (std::uint32_t i = na.first; i < na.first + na.count; ++i)
             for (std::uint32_t j = nb.first; j < nb.first + nb.count; ++j) test(i, j, out);
         return;
     }
     if (nb.left == 0 || (na.left != 0 && na.count >= nb.count)) {
-        cross(na.left, b, out);
-        cross(na.right, b, out);
+        cross(na.left, b, out, rejects);
+        cross(na.right, b, out, rejects);
     } else {
-        cross(a, nb.left, out);
-        cross(a, nb.right, out);
+        cross(a, nb.left, out, rejects);
+        cross(a, nb.right, out, rejects);
     }
 }
 
 void ChainTree::findPairs(const Vec3* positions, const std::vector<CollisionSegment>& segments, double margin,
                           std::vector<SegmentPair>& out, std::uint32_t skip_neighbours, ThreadPool* pool, Filter keep,
-                          const void* context, Reject reject) {
+                          const void* context, Reject reject, const Sweep* sweep) {
     out.clear();
     keep_ = keep;
     reject_ = reject;
+    sweep_ = sweep && sweep->reject && sweep->travel && sweep->thickness ? *sweep : Sweep{};
     keep_context_ = context;
     x_ = positions;
     segs_ = &segments;
@@ -613,14 +651,17 @@ void ChainTree::findPairs(const Vec3* positions, const std::vector<CollisionSegm
     }
     nodes_.resize(nodes);
     nodes_[0] = Node{};
+    if (sweep_.reject) bounds_.resize(nodes);
     const std::size_t chains = chain_first_.size();
     if (chain_out_.size() < chains) chain_out_.resize(chains);
     roots_.resize(chains);
+    chain_rejects_.resize(chains);
     each(chains, [&](std::size_t c) {
         std::uint32_t next = chain_node_[c];
         roots_[c] = build(chain_first_[c], chain_count_[c], next);
         chain_out_[c].clear();
-        self(roots_[c], chain_out_[c]);
+        chain_rejects_[c] = 0;
+        self(roots_[c], chain_out_[c], chain_rejects_[c]);
     });
     for (std::size_t c = 0; c < chains; ++c) out.insert(out.end(), chain_out_[c].begin(), chain_out_[c].end());
     // Chains against each other: sweep the root boxes along the axis on which their
@@ -654,11 +695,20 @@ void ChainTree::findPairs(const Vec3* positions, const std::vector<CollisionSegm
             root_pairs_.emplace_back(std::min(order_[i], order_[j]), std::max(order_[i], order_[j]));
     }
     if (root_out_.size() < root_pairs_.size()) root_out_.resize(root_pairs_.size());
+    root_rejects_.resize(root_pairs_.size());
     each(root_pairs_.size(), [&](std::size_t k) {
         root_out_[k].clear();
-        cross(root_pairs_[k].first, root_pairs_[k].second, root_out_[k]);
+        root_rejects_[k] = 0;
+        cross(root_pairs_[k].first, root_pairs_[k].second, root_out_[k], root_rejects_[k]);
     });
     for (std::size_t k = 0; k < root_pairs_.size(); ++k) out.insert(out.end(), root_out_[k].begin(), root_out_[k].end());
+}
+
+std::size_t ChainTree::lastNodeRejects() const {
+    std::size_t n = 0;
+    for (std::size_t c = 0; c < roots_.size(); ++c) n += chain_rejects_[c];
+    for (std::size_t k = 0; k < root_pairs_.size(); ++k) n += root_rejects_[k];
+    return n;
 }
 
 }  // namespace tearables::detail

@@ -211,12 +211,40 @@ public:
     /// read), so that a caller dropping most pairs never stores them.
     /// With a `reject` test as well, a candidate pair (segments i < j) for which
     /// reject(context, i, j) is true is dropped before its closest points are computed (the
-    /// caller's proof that `keep` would drop it).
+    /// caller's proof that `keep` would drop it). With a `sweep` (travel per particle,
+    /// thickness per segment, a NodeReject test), every node also bounds its segments'
+    /// axes, travel and thickness, and a pair of nodes whose boxes overlap is skipped whole
+    /// when sweep->reject says so (for a swinging rope: segments whose swept capsules
+    /// overlap but whose relative travel is small beside their separation).
     using Filter = bool (*)(const void* context, const SegmentPair& pair);
     using Reject = bool (*)(const void* context, std::uint32_t i, std::uint32_t j);
+
+    /// What a node of the tree holds, for a caller that drops whole node pairs (Sweep):
+    /// bounds over the node's segments of their end particles' positions (the capsules'
+    /// axes, not grown by any radius), of those particles' `travel` vectors, and the
+    /// largest `thickness` of its segments (skipped segments included: a bound).
+    struct NodeBounds {
+        Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();                ///< axes' end positions
+        Vec3 travel_lo = Vec3::Zero(), travel_hi = Vec3::Zero();  ///< end particles' travel
+        double thickness = 0.0;                                   ///< largest per-segment value
+    };
+    /// reject(context, a, b) true: the caller's proof that its `reject`/`keep` would drop
+    /// every pair of a segment under node a with one under node b. The tree then skips the
+    /// node pair whole: the output is exactly what it is without it (given that proof).
+    using NodeReject = bool (*)(const void* context, const NodeBounds& a, const NodeBounds& b);
+    struct Sweep {
+        const Vec3* travel = nullptr;     ///< per particle (indexed like positions)
+        const double* thickness = nullptr;///< per segment
+        NodeReject reject = nullptr;
+    };
+
     void findPairs(const Vec3* positions, const std::vector<CollisionSegment>& segments, double margin,
                    std::vector<SegmentPair>& out, std::uint32_t skip_neighbours = 1, ThreadPool* pool = nullptr,
-                   Filter keep = nullptr, const void* context = nullptr, Reject reject = nullptr);
+                   Filter keep = nullptr, const void* context = nullptr, Reject reject = nullptr,
+                   const Sweep* sweep = nullptr);
+
+    /// Node pairs the last findPairs skipped through Sweep::reject (for tests, benchmarks).
+    std::size_t lastNodeRejects() const;
 
 private:
     struct Node {
@@ -226,11 +254,12 @@ private:
         std::uint32_t left = 0, right = 0;  // children (leaves: 0)
     };
     std::uint32_t build(std::uint32_t first, std::uint32_t count, std::uint32_t& next);
-    void self(std::uint32_t node, std::vector<SegmentPair>& out) const;
-    void cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>& out) const;
+    void self(std::uint32_t node, std::vector<SegmentPair>& out, std::size_t& rejects) const;
+    void cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>& out, std::size_t& rejects) const;
     void test(std::uint32_t i, std::uint32_t j, std::vector<SegmentPair>& out) const;
 
     std::vector<Node> nodes_;
+    std::vector<NodeBounds> bounds_;  // per node, with a Sweep only
     std::vector<Vec3> seg_lo_, seg_hi_;
     std::vector<SegmentGrid::SegmentInfo> info_;
     std::vector<std::uint32_t> roots_, order_;
@@ -243,7 +272,9 @@ private:
     double margin_ = 0.0;
     Filter keep_ = nullptr;
     Reject reject_ = nullptr;
+    Sweep sweep_;
     const void* keep_context_ = nullptr;
+    std::vector<std::size_t> chain_rejects_, root_rejects_;  // node rejects per chain / root pair
     std::uint32_t skip_ = 1;
 };
 

@@ -127,6 +127,9 @@ struct World::Impl {
     std::vector<std::vector<Event>> string_events;  // per live string: its material events of this step
     std::vector<Vec3> grid_positions;
     std::vector<Vec3> grid_travel;  // per particle of grid_positions: x - x_prev after the strings' own solves
+    std::vector<double> grid_thickness;  // per segment of grid_segments: its string's radius there
+    double grid_rounding = 0.0;  // nodesSurelyDropped's rounding margin (from the largest |x|_1)
+    bool node_pruning = true;    // nodesSurelyDropped in the search (off: tests compare)
     std::vector<detail::CollisionSegment> grid_segments;
     std::vector<detail::SegmentPair> grid_pairs;
     // findStringPairs' scratch: per live string where its particles and segments start in
@@ -136,6 +139,7 @@ struct World::Impl {
         std::uint32_t string;
         std::size_t particle_base, segment_base;
         double thickest;
+        double extent;  // largest |x|_1 and |x_prev|_1 of its particles
         bool finite;
     };
     std::vector<PairString> pair_strings;
@@ -343,12 +347,13 @@ struct World::Impl {
         for (std::size_t i = 0; i < strings.size(); ++i) {
             const StringState& s = strings[i];
             if (!s.alive || s.frozen) continue;
-            pair_strings.push_back({static_cast<std::uint32_t>(i), particle_count, segment_count, 0.0, true});
+            pair_strings.push_back({static_cast<std::uint32_t>(i), particle_count, segment_count, 0.0, 0.0, true});
             particle_count += s.particles();
             segment_count += s.segments();
         }
         grid_positions.resize(particle_count);
         grid_travel.resize(particle_count);
+        grid_thickness.resize(segment_count);
         grid_segments.resize(segment_count);
         pool.forEach(pair_strings.size(), [&](std::size_t k) {
             PairString& ps = pair_strings[k];
@@ -356,6 +361,7 @@ struct World::Impl {
             Vec3* positions = grid_positions.data() + ps.particle_base;
             Vec3* moved = grid_travel.data() + ps.particle_base;
             detail::CollisionSegment* segments = grid_segments.data() + ps.segment_base;
+            double* thickness = grid_thickness.data() + ps.segment_base;
             const auto base = static_cast<std::uint32_t>(ps.particle_base);
             // How far a particle travelled this step, to its prediction or in its string's
             // own solve (once per particle; both its segments use it).
@@ -363,7 +369,11 @@ struct World::Impl {
             for (std::size_t p = 0; p < s.particles(); ++p) {
                 positions[p] = s.x_prev[p];  // pairs from the start of the step (swept)
                 moved[p] = s.x[p] - s.x_prev[p];
-                const double travel = std::max((s.x[p] - s.x_prev[p]).norm(), (s.x_pred[p] - s.x_prev[p]).norm());
+                ps.extent = std::max(ps.extent, std::max(s.x[p].cwiseAbs().sum(), s.x_prev[p].cwiseAbs().sum()));
+                // (sqrt is monotone and correctly rounded: the larger of the two norms, bit
+                // for bit, with one square root.)
+                const double travel =
+                    std::sqrt(std::max((s.x[p] - s.x_prev[p]).squaredNorm(), (s.x_pred[p] - s.x_prev[p]).squaredNorm()));
                 if (p > 0) {
                     const std::size_t j = p - 1;
                     detail::CollisionSegment& seg = segments[j];
@@ -376,16 +386,18 @@ struct World::Impl {
                     // changes.
                     seg.radius = s.radius[j] * (1.0 + kStringReach) + std::max(previous, travel);
                     seg.skip = s.broken[j] != 0;
+                    thickness[j] = s.radius[j];
                     ps.finite = ps.finite && std::isfinite(seg.radius);
                     ps.thickest = std::max(ps.thickest, s.radius[j]);
                 }
                 previous = travel;
             }
         });
-        double thickest = 0.0, shortest_segment = 1e300;
+        double thickest = 0.0, shortest_segment = 1e300, extent = 0.0;
         bool finite_state = true;
         for (const PairString& ps : pair_strings) {
             thickest = std::max(thickest, ps.thickest);
+            extent = std::max(extent, ps.extent);
             shortest_segment = std::min(shortest_segment, strings[ps.string].shortest_rest);
             finite_state = finite_state && ps.finite;
         }
@@ -408,8 +420,16 @@ struct World::Impl {
         auto reject = [](const void* self, std::uint32_t i, std::uint32_t j) {
             return static_cast<const Impl*>(self)->surelyDropped(i, j);
         };
+        // Whole node pairs of the tree dropped at once (nodesSurelyDropped): a rope swinging
+        // as a whole has its swept boxes overlap far along it, their relative travel small.
+        auto reject_nodes = [](const void* self, const detail::ChainTree::NodeBounds& a,
+                               const detail::ChainTree::NodeBounds& b) {
+            return static_cast<const Impl*>(self)->nodesSurelyDropped(a, b);
+        };
+        grid_rounding = 1e-15 * (2.0 * extent + 1.0);
+        const detail::ChainTree::Sweep sweep{grid_travel.data(), grid_thickness.data(), reject_nodes};
         tree.findPairs(grid_positions.data(), grid_segments, 0.0, grid_pairs, stringContactSkip(thickest, shortest_segment), &pool,
-                       keep, this, reject);
+                       keep, this, reject, node_pruning ? &sweep : nullptr);
         pair_verdict.resize(grid_pairs.size());
         pair_contact.resize(grid_pairs.size());
         const std::size_t chunks = std::min<std::size_t>(grid_pairs.size(), 64);
@@ -507,6 +527,16 @@ struct World::Impl {
     /// combination of the ends' relative motions), so the pair is on its starting side, not
     /// deep, and its axes are now at least sep - r apart. Dropped when that is beyond
     /// judgePair's distance, with a margin for rounding: judgePair would drop it too.
+    ///
+    /// In the arithmetic (most of a swinging rope's candidates, ~3 a segment, meet this
+    /// test): with w = (a0 + a1) - (b0 + b1) (twice the midpoints' difference), L = |w|,
+    /// the separation along u = w / L is (L^2 - |w.(a1 - a0)| - |w.(b1 - b0)|) / (2 L);
+    /// the test sep - r > k r + c (k = 1 + 2 (1 + 1e-6), c = (1 + kStringNear) gap (1 + 1e-6)
+    /// + rounding) is multiplied by 2 L and squared (both sides positive) so that it needs
+    /// one square root (for L) and none for r (r^2 is the max of the squared relative
+    /// travels, computed as judgePair does; a relative 1e-12 on it for the square root's
+    /// rounding). The errors of the rearranged expression are of the order of
+    /// 1e-16 |x|, far below the rounding term (grid_rounding >= judgePair's own).
     bool surelyDropped(std::uint32_t i, std::uint32_t j) const {
         const detail::CollisionSegment& a = grid_segments[i];
         const detail::CollisionSegment& b = grid_segments[j];
@@ -514,22 +544,41 @@ struct World::Impl {
         const Vec3& a1 = grid_positions[a.b];
         const Vec3& b0 = grid_positions[b.a];
         const Vec3& b1 = grid_positions[b.b];
-        Vec3 u = (a0 + a1) - (b0 + b1);
-        const double length = u.norm();
-        if (!(length > 0.0)) return false;
-        u /= length;
-        const double separation = std::min(u.dot(a0), u.dot(a1)) - std::max(u.dot(b0), u.dot(b1));
-        if (!(separation > 0.0)) return false;
-        const double gap = strings[a.chain].radius[a.index_in_chain] + strings[b.chain].radius[b.index_in_chain];
-        // The relative travel as judgePair computes it, from the set-up's x - x_prev (the
-        // same values, so the same result).
-        double relative = 0.0;
+        const Vec3 w = (a0 + a1) - (b0 + b1);
+        const double length2 = w.squaredNorm();
+        const double length = std::sqrt(length2);
+        const double c = (1.0 + kStringNear) * (grid_thickness[i] + grid_thickness[j]) * (1.0 + 1e-6) + grid_rounding;
+        // 2 L (sep - c), when the pair is separated along u by more than c.
+        const double room = length2 - std::abs(w.dot(a1 - a0)) - std::abs(w.dot(b1 - b0)) - 2.0 * c * length;
+        if (!(room > 0.0)) return false;
+        // The relative travel (squared) as judgePair computes it, from the set-up's
+        // x - x_prev (the same values).
+        double relative2 = 0.0;
         for (std::uint32_t pa : {a.a, a.b})
-            for (std::uint32_t pb : {b.a, b.b}) relative = std::max(relative, (grid_travel[pa] - grid_travel[pb]).squaredNorm());
-        relative = std::sqrt(relative);
-        const double apart = (1.0 + kStringNear) * gap + 2.0 * relative;
-        const double rounding = 1e-15 * (a0.cwiseAbs().sum() + b0.cwiseAbs().sum() + 1.0);
-        return separation - relative > apart * (1.0 + 1e-6) + rounding;
+            for (std::uint32_t pb : {b.a, b.b}) relative2 = std::max(relative2, (grid_travel[pa] - grid_travel[pb]).squaredNorm());
+        constexpr double k = 1.0 + 2.0 * (1.0 + 1e-6);
+        return room * room > 4.0 * length2 * (k * k * (1.0 + 1e-12)) * relative2;
+    }
+
+    /// True when judgePair would drop every pair of a segment under tree node a with one
+    /// under node b, by surelyDropped's argument for all of them at once: the nodes' start
+    /// boxes (of the axes' ends, grid_positions) are separated along a coordinate axis u
+    /// by sep, which bounds every pair's separation along u from below; the travel boxes
+    /// bound every end pair's relative travel: |t_a - t_b| <= |max(ta_hi - tb_lo,
+    /// tb_hi - ta_lo)| (per coordinate), >= each pair's `relative`; the thicknesses bound
+    /// each pair's gap. So when sep - R > (1 + kStringNear) (g_a + g_b) + 2 R, every pair
+    /// meets surelyDropped's condition with its own (smaller) gap and travel, on u. The
+    /// relative margins: 1e-12 on R for the order of the sums in judgePair's norms (a few
+    /// ulps), 1e-6 and grid_rounding (from the largest |x|_1 of the strings' particles,
+    /// start or now, >= judgePair's) as in surelyDropped.
+    bool nodesSurelyDropped(const detail::ChainTree::NodeBounds& a, const detail::ChainTree::NodeBounds& b) const {
+        const Vec3 s = (b.lo - a.hi).cwiseMax(a.lo - b.hi);
+        const double separation = std::max(s.x(), std::max(s.y(), s.z()));
+        if (!(separation > 0.0)) return false;
+        const Vec3 d = (a.travel_hi - b.travel_lo).cwiseMax(b.travel_hi - a.travel_lo);
+        const double relative = std::sqrt(d.x() * d.x() + d.y() * d.y() + d.z() * d.z()) * (1.0 + 1e-12);
+        const double apart = (1.0 + kStringNear) * (a.thickness + b.thickness) + 2.0 * relative;
+        return separation - relative > apart * (1.0 + 1e-6) + grid_rounding;
     }
 
     /// After every string's own strain limit, before the tension stage: finds the pairs
@@ -1193,6 +1242,11 @@ detail::WorldParts detail::WorldAccess::parts(World& world) {
     World::Impl& w = *world.impl_;
     return {&w.settings, &w.strings, &w.cloths.cloths_, &w.papers.sheets_, &w.rigids, &w.pending,
             &w.events, &w.previous_pairs, &w.deep_pairs, &w.time, &w.steps};
+}
+void detail::WorldAccess::setStringNodePruning(World& world, bool on) { world.impl_->node_pruning = on; }
+std::size_t detail::WorldAccess::lastStringNodeRejects(const World& world) { return world.impl_->tree.lastNodeRejects(); }
+const std::vector<detail::SegmentPair>& detail::WorldAccess::lastStringSearchPairs(const World& world) {
+    return world.impl_->grid_pairs;
 }
 
 }  // namespace tearables

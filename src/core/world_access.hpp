@@ -4,6 +4,7 @@
 
 #include "cloth/cloth_state.hpp"
 #include "paper/sheet.hpp"
+#include "collision/grid.hpp"
 #include "string/string_state.hpp"
 #include "tearables/world.hpp"
 
@@ -34,6 +35,13 @@ struct WorldParts {
 
 struct WorldAccess {
     static WorldParts parts(World& world);
+
+    // The string-string search, for tests: whether whole node pairs of the tree are dropped
+    // (ChainTree::Sweep; on by default), how many the last step dropped, and the pairs of
+    // the last step's swept search that were not dropped (contacts and deep pairs).
+    static void setStringNodePruning(World& world, bool on);
+    static std::size_t lastStringNodeRejects(const World& world);
+    static const std::vector<SegmentPair>& lastStringSearchPairs(const World& world);
 };
 
 }  // namespace tearables::detail
