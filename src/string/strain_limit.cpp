@@ -353,6 +353,60 @@ void solveFactored(const StringState& s, std::vector<Vec3>& rhs) {
 }
 
 
+/// The inverse of a symmetric positive definite 3x3 matrix (its lower triangle is read),
+/// from its root-free Cholesky factorisation A = L D L^T: A^-1 = L^-T D^-1 L^-1, three
+/// divisions. As accurate as the Cholesky solve (an adjugate inverse, one division, lost
+/// ~k h^2 / m of the digits in the Schur complements of a stiff light cord, and a twisted
+/// cord coiled differently).
+inline Mat3 inverseSymmetric(const Mat3& a) {
+    const double r0 = 1.0 / a(0, 0);
+    const double l10 = a(1, 0) * r0, l20 = a(2, 0) * r0;
+    const double r1 = 1.0 / (a(1, 1) - l10 * a(1, 0));
+    const double b21 = a(2, 1) - l20 * a(1, 0);
+    const double l21 = b21 * r1;
+    const double r2 = 1.0 / (a(2, 2) - l20 * a(2, 0) - l21 * b21);
+    const double m20 = l10 * l21 - l20;  // row 2 of L^-1: (m20, -l21, 1)
+    const double i20 = r2 * m20, i21 = -r2 * l21;
+    const double i10 = -r1 * l10 + i21 * m20;
+    Mat3 inv;
+    inv << r0 + r1 * l10 * l10 + i20 * m20, i10, i20,  //
+        i10, r1 + i21 * -l21, i21,                       //
+        i20, i21, r2;
+    return inv;
+}
+
+/// Solves the chain's system (blk_diag, blk_off, blk_rhs) in place, for a chain without
+/// contacts or body unknowns: the block Thomas algorithm with each pivot inverted
+/// explicitly, in one forward sweep (factor, forward substitution and y_i = D_i^-1 r_i
+/// together; W_i = D_i^-1 U_i into blk_factor_gain[i]) and one backward sweep
+/// x_i = y_i - W_i x_{i+1}. The dependency chain along the rope is one 3x3 inverse
+/// (a division) and two small products per particle, where the Cholesky pivots of
+/// factorBlockTridiagonal chain three square roots and three divisions and the solve two
+/// triangular sweeps more. The pivots are inertia m/h^2 plus springs: conditioned ~k h^2 / m
+/// (1e6 for Strings' rope), so the explicit inverse is good to ~1e-10 relative, which the
+/// Newton iteration (exact gradient) does not notice. Contacts' blocks are 1e8 stiffer in
+/// one direction, where the explicit inverse lost that direction: they keep the Cholesky.
+void solveChain(StringState& s) {
+    const std::size_t n = s.particles();
+    s.blk_coupled.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        Mat3 d = s.blk_diag[i];
+        Vec3 r = s.blk_rhs[i];
+        if (i > 0 && s.blk_coupled[i - 1]) {
+            const Mat3& u = s.blk_off[i - 1];  // symmetric (minus a spring's Hessian)
+            d.noalias() -= u * s.blk_factor_gain[i - 1];
+            r.noalias() -= u * s.blk_rhs[i - 1];
+        }
+        const Mat3 inv = inverseSymmetric(d);
+        s.blk_rhs[i] = inv * r;
+        const bool coupled = i + 1 < n && !s.blk_off[i].isZero(0.0);
+        s.blk_coupled[i] = coupled;
+        if (coupled) s.blk_factor_gain[i].noalias() = inv * s.blk_off[i];
+    }
+    for (std::size_t i = n - 1; i-- > 0;)
+        if (s.blk_coupled[i]) s.blk_rhs[i].noalias() -= s.blk_factor_gain[i] * s.blk_rhs[i + 1];
+}
+
 /// Generalised mass of a body (translation, rotation about its centre), world frame.
 Mat6 bodyMass(const RigidState& b) {
     Mat6 m = Mat6::Zero();
@@ -699,6 +753,10 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
             if (fb) coupling[b].emplace_back(j + 1, (w * wb) * jb);
         }
 
+        if (estimate_tension) {  // no contacts, no body unknowns
+            solveChain(s);
+            return;
+        }
         factorBlockTridiagonal(s);
         solveFactored(s, s.blk_rhs);  // y = A^-1 r
         for (std::size_t b = 0; b < nodes; ++b) s.node_step[b].setZero();
