@@ -269,12 +269,25 @@ public:
                 while (p2 < dheight && drows[p2] < f + w) ++p2;
                 const int r = dheight - p1, r1 = p2 - p1;
                 ConstPanel dpanel(values_.data() + value_start_[d], dheight, dw);
-                Eigen::Map<Eigen::MatrixXd> c(update_.data(), r, r1);
-                updateProduct(dpanel.data() + p1, dheight, dw, r, r1, c.data());
-                for (int jj = 0; jj < r1; ++jj) {
-                    double* column = panel.data() + static_cast<std::ptrdiff_t>(drows[p1 + jj] - f) * height;
-                    const double* from = c.data() + static_cast<std::ptrdiff_t>(jj) * r;
-                    for (int ii = jj; ii < r; ++ii) column[where_[drows[p1 + ii]]] -= from[ii];
+                if (dw == 1) {
+                    // A one-column descendant (most of the tension's): every entry of its
+                    // product is a single multiply, subtracted in place without the scratch
+                    // (the kernel gives 0 + a_i a_j: the same bits, up to the sign of a zero).
+                    const double* from = dpanel.data() + p1;
+                    const int* at = drows + p1;
+                    for (int jj = 0; jj < r1; ++jj) {
+                        double* column = panel.data() + static_cast<std::ptrdiff_t>(at[jj] - f) * height;
+                        const double aj = from[jj];
+                        for (int ii = jj; ii < r; ++ii) column[where_[at[ii]]] -= from[ii] * aj;
+                    }
+                } else {
+                    Eigen::Map<Eigen::MatrixXd> c(update_.data(), r, r1);
+                    updateProduct(dpanel.data() + p1, dheight, dw, r, r1, c.data());
+                    for (int jj = 0; jj < r1; ++jj) {
+                        double* column = panel.data() + static_cast<std::ptrdiff_t>(drows[p1 + jj] - f) * height;
+                        const double* from = c.data() + static_cast<std::ptrdiff_t>(jj) * r;
+                        for (int ii = jj; ii < r; ++ii) column[where_[drows[p1 + ii]]] -= from[ii];
+                    }
                 }
                 cursor_[d] = p2;
                 if (p2 < dheight) {

@@ -155,6 +155,9 @@ void buildPattern(ClothState& c) {
     c.rhs.resize(q);
     c.solution.resize(q);
     c.refine.resize(q);
+    std::size_t degree = 0;  // the most yarns at a vertex
+    for (const auto& inc : c.vertex_edges) degree = std::max(degree, inc.size());
+    c.tension_projected.resize(degree);
     c.tension_topology = c.topology;
 }
 
@@ -250,7 +253,7 @@ void solveTensionLeastSquares(ClothState& c) {
     std::fill(values, values + c.normal_matrix.nonZeros(), 0.0);
     c.rhs.setZero();
     double b_norm2 = 0.0;
-    std::vector<Vec3> projected;
+    std::vector<Vec3>& projected = c.tension_projected;  // sized in buildPattern: no allocation here
     for (std::size_t p = 0; p < c.vertices(); ++p) {
         if (!c.has_row[p]) continue;
         const auto& inc = c.vertex_edges[p];
@@ -259,7 +262,7 @@ void solveTensionLeastSquares(ClothState& c) {
         const Vec3 b = pressed ? Vec3(proj * c.row_rhs[p]) : c.row_rhs[p];
         b_norm2 += b.squaredNorm();
         const auto& idx = c.vertex_value_index[p];
-        projected.resize(inc.size());  // s_ie P e_e of the yarns at p, once each
+        // projected[a]: s_ie P e_e of the yarns at p, once each
         for (std::size_t a = 0; a < inc.size(); ++a)
             projected[a] = side(c, p, inc[a]) * (pressed ? Vec3(proj * c.dir[inc[a]]) : c.dir[inc[a]]);
         for (std::size_t a = 0; a < inc.size(); ++a) {
@@ -275,13 +278,14 @@ void solveTensionLeastSquares(ClothState& c) {
         }
     }
     double mean_diag = 0.0;
-    for (int k = 0; k < q; ++k) mean_diag += c.normal_matrix.coeff(k, k);
+    const int* outer = c.normal_matrix.outerIndexPtr();  // a column's first entry is its diagonal (lower triangle, rows sorted)
+    for (int k = 0; k < q; ++k) mean_diag += values[outer[k]];
     mean_diag /= q;
     // Tikhonov lambda relative to the mean diagonal; a column no row sees (a yarn between
     // two pins) is held at zero by a unit diagonal.
     const double reg = std::max(c.desc.lambda * (mean_diag > 0.0 ? mean_diag : 1.0), 1e-14);
     for (int k = 0; k < q; ++k) {
-        double& d = c.normal_matrix.coeffRef(k, k);
+        double& d = values[outer[k]];
         d = d > 0.0 ? d + reg : 1.0;
     }
     const bool llt = c.tension_llt.factorize(c.normal_matrix);
@@ -302,10 +306,14 @@ void solveTensionLeastSquares(ClothState& c) {
             c.tension_llt.solveInPlace(c.refine);
         else
             c.refine = c.tension_solver->solve(c.refine);
-        const double change = (c.refine - c.solution).lpNorm<Eigen::Infinity>();
+        double change = 0.0, norm = 0.0;  // |T_new - T|_inf and |T_new|_inf in one pass
+        for (int k = 0; k < q; ++k) {
+            change = std::max(change, std::abs(c.refine[k] - c.solution[k]));
+            norm = std::max(norm, std::abs(c.refine[k]));
+        }
         c.solution.swap(c.refine);
         c.tension_iterations = it + 1;
-        const double tolerance = kRefinementTolerance * std::max(c.solution.lpNorm<Eigen::Infinity>(), 1e-300);
+        const double tolerance = kRefinementTolerance * std::max(norm, 1e-300);
         if (change <= tolerance) break;
         const double ratio = it > 0 && last_change > 0.0 ? change / last_change : 1.0;
         if (ratio < 0.5 && change * ratio / (1.0 - ratio) <= tolerance) break;
