@@ -53,12 +53,12 @@
 // sure of. Both are stateless (no warm start: results do not depend on call order) and
 // agree with the SVD's R to rounding times the problem's own condition number
 // sigma_1 / (sigma_2 + det-signed sigma_3) (tested against JacobiSVD on random, reflected,
-// planar, nearly planar and nearly rank-1 matrices). First A is scaled by a power of two
-// (exact) so that its largest entry is in [1, 2), and its cofactor matrix cof A = det(A)
-// A^-T (columns a_1 x a_2, a_2 x a_0, a_0 x a_1) is formed; q = |cof A|_F / |A|_F^2
-// brackets the rank test, q / sqrt(3) <= sigma_2 / sigma_1 <= 3 q.
+// planar, nearly planar and nearly rank-1 matrices). The cofactor matrix cof A = det(A)
+// A^-T (columns a_1 x a_2, a_2 x a_0, a_0 x a_1) gives q = |cof A|_F / |A|_F^2, which
+// brackets the rank test: q / sqrt(3) <= sigma_2 / sigma_1 <= 3 q. (A with |A|_F^2 outside
+// [1e-100, 1e100] is first scaled by a power of two, so that |A|^4 cannot overflow.)
 //   - q <= 1e-12 / 6 (surely rank 1; every region of a straight rest shape): u_1 and v_1 by
-//     a power step, u = A's longest column, v_1 = A^T u / |.|, u_1 = A v_1 / |.| (the pair
+//     power steps from A's longest column u, v_1 = A^T u / |.|, u_1 = A v_1 / |.| (the pair
 //     has consistent signs), and R = the smallest rotation taking v_1 to u_1 as above.
 //   - q >= 1e-6 (sigma_2 / sigma_1 >= 5.7e-7): Higham's scaled Newton iteration for the
 //     polar factor, X <- (z X + X^-T / z) / 2, z = (|X^-1|_F / |X|_F)^(1/2), X^-T =
@@ -127,7 +127,7 @@ inline Mat3 cofactor(const Mat3& a) {
 }
 
 /// The reference: R from a 3x3 JacobiSVD (unconditionally convergent and accurate).
-Mat3 svdRotation(const Mat3& a) {
+EIGEN_DONT_INLINE Mat3 svdRotation(const Mat3& a) {
     const Eigen::JacobiSVD<Mat3, Eigen::NoQRPreconditioner> svd(a, Eigen::ComputeFullU | Eigen::ComputeFullV);
     const Vec3& sigma = svd.singularValues();
     if (!(sigma(0) > 0.0)) return Mat3::Identity();
@@ -142,23 +142,48 @@ Mat3 svdRotation(const Mat3& a) {
     return u * v.transpose();
 }
 
-/// A of rank 1 (sigma_2 <= 5e-13 sigma_1), scaled, != 0: the smallest rotation taking v_1
-/// to u_1. The longest column is sigma_1 u_1 v_1j with |v_1j| >= 1/sqrt(3); the two power
-/// steps after it leave an error of (sigma_2/sigma_1)^2 in the pair, below rounding.
+/// A of rank 1 (sigma_2 <= 5e-13 sigma_1), |A|_F^2 in [1e-100, 1e100]: the smallest
+/// rotation taking v_1 to u_1. The longest column is sigma_1 u_1 v_1j with |v_1j| >=
+/// 1/sqrt(3); the two power steps after it leave an error of (sigma_2/sigma_1)^2 in the
+/// pair, below rounding. With c = v.u, k = v x u: R = c I + [k]x + k k^T / (1 + c) (the
+/// half-way quaternion's matrix: two square roots and two divisions, where Eigen's
+/// FromTwoVectors and the normalisations took fifteen divisions), 1 + c = |u + v|^2 / 2
+/// without cancellation. Near a half turn (1 + c < 1e-6) the axis is ill-defined and
+/// Eigen's FromTwoVectors picks one.
 Mat3 rankOneRotation(const Mat3& a) {
-    Eigen::Index j = 0;
-    a.colwise().squaredNorm().maxCoeff(&j);
-    const Vec3 v = (a.transpose() * a.col(j)).normalized();
-    const Vec3 u = (a * v).normalized();
-    // normalized(): FromTwoVectors' quaternion loses unit length as u_1 nears -v_1 (its
-    // w = sqrt((1 + u.v) / 2)), and toRotationMatrix assumes a unit quaternion.
-    return Quat::FromTwoVectors(v, u).normalized().toRotationMatrix();
+    const double n0 = a.col(0).squaredNorm(), n1 = a.col(1).squaredNorm(), n2 = a.col(2).squaredNorm();
+    const int j = n0 >= n1 ? (n0 >= n2 ? 0 : 2) : (n1 >= n2 ? 1 : 2);
+    const Vec3 p = a.transpose() * a.col(j);  // along v_1
+    const Vec3 q = a * p;                     // along u_1
+    const double pp = p.squaredNorm(), qq = q.squaredNorm();
+    const double sp = std::sqrt(pp), sq = std::sqrt(qq);
+    const double inv = 1.0 / (sp * sq);  // ~ sigma_1^-5: in range for |A|_F^2 in [1e-100, 1e100]
+    const Vec3 v = p * (sq * inv);
+    const Vec3 u = q * (sp * inv);
+    const double hh = (u + v).squaredNorm();  // 2 (1 + c)
+    if (!(hh > 2e-6)) return Quat::FromTwoVectors(v, u).normalized().toRotationMatrix();
+    const double kx = v.y() * u.z() - v.z() * u.y();
+    const double ky = v.z() * u.x() - v.x() * u.z();
+    const double kz = v.x() * u.y() - v.y() * u.x();
+    // The unnormalised quaternion (w, k), w = 1 + c: R = I + (2 / (w^2 + |k|^2)) (w [k]x +
+    // [k]x^2), orthogonal to rounding even where u and v are unit only to rounding.
+    const double w = 0.5 * hh;
+    const double kk = kx * kx + ky * ky + kz * kz;
+    const double g = 2.0 / (w * w + kk);
+    const double c = 1.0 - g * kk, sw = g * w;
+    const double gx = g * kx, gy = g * ky, gz = g * kz;
+    Mat3 r;
+    r << c + gx * kx, gx * ky - sw * kz, gx * kz + sw * ky,  //
+        gy * kx + sw * kz, c + gy * ky, gy * kz - sw * kx,   //
+        gz * kx - sw * ky, gz * ky + sw * kx, c + gz * kz;
+    return r;
 }
 
-/// Scaled Newton iteration for R (see the header comment); a (scaled), its cofactors c,
-/// n2 = |a|_F^2, c2 = |c|_F^2. False when it does not converge or, for reflected a, when the
-/// result is not the maximiser of tr(R^T a): the caller then takes the SVD.
-bool newtonRotation(const Mat3& a, const Mat3& c, double n2, double c2, Mat3& r) {
+/// Scaled Newton iteration for R (see the header comment); a with |a|_F^2 in [1e-100,
+/// 1e100], its cofactors c, n2 = |a|_F^2, c2 = |c|_F^2. False when it does not converge or,
+/// for reflected a, when the result is not the maximiser of tr(R^T a): the caller then
+/// takes the SVD.
+EIGEN_DONT_INLINE bool newtonRotation(const Mat3& a, const Mat3& c, double n2, double c2, Mat3& r) {
     const double det = a.col(0).dot(c.col(0));
     // s ~ sigma_1: |A|_F >= sigma_1 (all that B needs when det A >= 0). For det A < 0, B's
     // smallest values are sigma_2 - sigma_3 sigma_1/s and sigma_2 sigma_1/s - sigma_3, so s
@@ -201,20 +226,34 @@ bool newtonRotation(const Mat3& a, const Mat3& c, double n2, double c2, Mat3& r)
     return false;
 }
 
-}  // namespace
-
-Mat3 csmRotation(const Mat3& a_in) {
-    if (!a_in.allFinite()) return Mat3::Identity();
-    const double largest = a_in.cwiseAbs().maxCoeff();
-    if (!(largest > 0.0)) return Mat3::Identity();  // A = 0 (a single point)
-    const Mat3 a = std::ldexp(1.0, -std::ilogb(largest)) * a_in;  // exact; entries <= 2
+/// csmRotation of an A whose |A|_F^2 = n2 is in [1e-100, 1e100]: cof A, |A|^4 and the
+/// Newton iteration's det^2 neither overflow nor underflow.
+inline Mat3 rotationInRange(const Mat3& a, double n2) {
     const Mat3 c = cofactor(a);
-    const double n2 = a.squaredNorm(), c2 = c.squaredNorm();
+    const double c2 = c.squaredNorm();
     constexpr double kSurelyRankOne = kRankOneTolerance / 6.0;
     if (c2 <= kSurelyRankOne * kSurelyRankOne * n2 * n2) return rankOneRotation(a);
     Mat3 r;
     if (c2 >= kNewtonMinQ * kNewtonMinQ * n2 * n2 && newtonRotation(a, c, n2, c2, r)) return r;
     return svdRotation(a);
+}
+
+/// A = 0, non-finite, or |A|_F^2 outside [1e-100, 1e100]: scaled by a power of two (exact)
+/// so that its largest entry is in [1, 2).
+EIGEN_DONT_INLINE Mat3 rotationOutOfRange(const Mat3& a_in) {
+    if (!a_in.allFinite()) return Mat3::Identity();
+    const double largest = a_in.cwiseAbs().maxCoeff();
+    if (!(largest > 0.0)) return Mat3::Identity();  // A = 0 (a single point)
+    const Mat3 a = std::ldexp(1.0, -std::ilogb(largest)) * a_in;
+    return rotationInRange(a, a.squaredNorm());
+}
+
+}  // namespace
+
+Mat3 csmRotation(const Mat3& a) {
+    const double n2 = a.squaredNorm();  // NaN or infinite for non-finite A
+    if (n2 >= 1e-100 && n2 <= 1e100) return rotationInRange(a, n2);
+    return rotationOutOfRange(a);
 }
 
 void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass, std::size_t first,
