@@ -132,9 +132,9 @@ TEST(StringCollision, FreeRopeDroppedAcrossClampedRopeNeverPenetrates) {
 // the rope like a towel over a line: without friction that is unstable (the longer arm
 // pulls the rope over), and string-on-string friction is too weak to hold it reliably
 // (README, known limits). Whether it stayed was a coin toss decided by rounding: with
-// main's code at the time, of 14 starts shifted by 1e-12 .. 1e-3 m, 8 slid off and fell,
+// main's code at the time, of 13 starts shifted by 1e-12 .. 1e-3 m, 8 slid off and fell,
 // and rounding-only changes to shape matching tipped the unshifted one. With bending 0.5
-// all 14 hang, the same to 0.5 mm.
+// all of them hang.
 TEST(StringCollision, RopeDroppedAsAnArchHangsOnTheClampedRope) {
     World world(collisions());
     const StringId clamped = world.addString(rope(line({-0.5, 0, 0}, {0.5, 0, 0}, 40)));
