@@ -48,7 +48,7 @@
 // keeps its plane instead of a spin picked by round-off. A straight rest shape makes every
 // region rank 1; its goals only depend on R v_1 = u_1.
 //
-// How R is computed. A 3x3 JacobiSVD per region was a sixth of a rope's step, and most
+// How R is computed. A 3x3 JacobiSVD per region was a tenth of a rope's step, and most
 // regions are easy, so the SVD is kept only for the cases the two cheap paths below are not
 // sure of. Both are stateless (no warm start: results do not depend on call order) and
 // agree with the SVD's R to rounding times the problem's own condition number
@@ -73,11 +73,13 @@
 //     A the converged R is checked to be the maximiser (tr(S) I - S >= 0 with S = R^T A
 //     symmetric), since a determinant of the wrong sign there would converge to another
 //     stationary rotation.
-//   - Otherwise (1e-12/6 < q < 1e-6: nearly rank 1 near the rank test's threshold, or a
-//     Newton iteration that does not converge in 12 steps or fails its check), JacobiSVD.
+//   - Otherwise (1e-12/6 < q < 1e-6: nearly rank 1, where cofactors lose their digits or
+//     the rank test is close, or a Newton iteration that does not converge in 12 steps or
+//     fails its check), JacobiSVD.
 // A = 0 or non-finite A gives identity.
-// These paths are not bit for bit the SVD: R changes in the last bits (results of scenes
-// with strings change by rounding only).
+// These paths are not bit for bit the SVD: R changes in the last bits, and so do the
+// results of every scene with strings (where a scene is chaotic, more: see BENCHMARKS.md,
+// issue 9, the CSM stage, for the tests that rounding used to decide).
 #include "string/shape_matching.hpp"
 
 #include <Eigen/SVD>
