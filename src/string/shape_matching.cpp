@@ -60,7 +60,7 @@
 //   - q <= 1e-12 / 6 (surely rank 1; every region of a straight rest shape): u_1 and v_1 by
 //     power steps from A's longest column u, v_1 = A^T u / |.|, u_1 = A v_1 / |.| (the pair
 //     has consistent signs), and R = the smallest rotation taking v_1 to u_1 as above.
-//   - q >= 1e-6 (sigma_2 / sigma_1 >= 5.7e-7): Higham's scaled Newton iteration for the
+//   - q >= 1e-7 (sigma_2 / sigma_1 >= 5.7e-8): Higham's scaled Newton iteration for the
 //     polar factor, X <- (z X + X^-T / z) / 2, z = (|X^-1|_F / |X|_F)^(1/2), X^-T =
 //     cof X / det X, started from B = A + cof(A) / s with s ~ sigma_1. In the SVD with
 //     rotations U, V and signed s_3 = det-sign sigma_3, cof A = U diag(s2 s3, s1 s3, s1 s2)
@@ -69,11 +69,12 @@
 //     and for reflected A if s is close enough to sigma_1: there s is refined from |A|_F by
 //     Newton on A^T A's characteristic cubic), so the iteration converges to exactly the
 //     R above, in 4-6 steps (its smallest value is sigma_2 + s3 ~ the problem's
-//     conditioning). q >= 1e-6 keeps B's cofactors and determinant accurate. For reflected
-//     A the converged R is checked to be the maximiser (tr(S) I - S >= 0 with S = R^T A
-//     symmetric), since a determinant of the wrong sign there would converge to another
-//     stationary rotation.
-//   - Otherwise (1e-12/6 < q < 1e-6: nearly rank 1, where cofactors lose their digits or
+//     conditioning). q >= 1e-7 keeps B's cofactors and determinant accurate enough (det B
+//     to about 1e-16 / q^2 relative: a percent; the iteration only needs its sign and
+//     size). For reflected A the converged R is checked to be the maximiser (tr(S) I - S >=
+//     0 with S = R^T A symmetric), since a determinant of the wrong sign there would
+//     converge to another stationary rotation.
+//   - Otherwise (1e-12/6 < q < 1e-7: nearly rank 1, where cofactors lose their digits or
 //     the rank test is close, or a Newton iteration that does not converge in 12 steps or
 //     fails its check), JacobiSVD.
 // A = 0 or non-finite A gives identity.
@@ -117,7 +118,7 @@ inline void addShifted(CsmMoments& acc, const CsmMoments& s, const Vec3& d, cons
 }
 
 /// q = |cof A|_F / |A|_F^2 at or above which the Newton iteration is used (see above).
-constexpr double kNewtonMinQ = 1e-6;
+constexpr double kNewtonMinQ = 1e-7;
 
 /// cof A = det(A) A^-T, defined for every A (columns a_1 x a_2, a_2 x a_0, a_0 x a_1).
 inline Mat3 cofactor(const Mat3& a) {
