@@ -838,6 +838,11 @@ StringId World::addString(const StringDesc& desc) {
             return StringId{static_cast<std::uint32_t>(i)};
         }
     impl_->strings.push_back(std::move(s));
+    // The step's per-string index lists get their room here, not in a step: own_strings is
+    // empty while every string touches a movable body, and grew (allocated) in the step in
+    // which one stopped touching it (StepAllocations' rope leaving a ball).
+    impl_->live_strings.reserve(impl_->strings.size());
+    impl_->own_strings.reserve(impl_->strings.size());
     return StringId{static_cast<std::uint32_t>(impl_->strings.size() - 1)};
 }
 

@@ -37,23 +37,56 @@
 // (about that centre) loses only a couple of digits. Goals are blended as
 // x_i + mean_k [R_k (x0_i - c0_k) + (c_k - x_i)], again with local differences only.
 //
-// Rotation. csmRotation takes the rotational part of A from a 3x3 JacobiSVD, A = U S V^T,
-// R = U diag(1, 1, det(U V^T)) V^T (the reflection fix flips the singular vector of the
-// smallest singular value). JacobiSVD is unconditionally convergent and accurate, needs no
-// state (no warm start, so results do not depend on call order), and handles planar
-// regions (rank 2) and sign-indefinite A. When A has rank <= 1 (sigma_2 <= 1e-12 sigma_1:
-// all particles of the region collinear, now or at rest: a straight chain being stretched
-// or a straight rest shape), every rotation taking the rest direction v_1 to the current
-// one u_1 is optimal and the rotation about the line is undetermined; we then take the
-// smallest such rotation (about v_1 x u_1), the one closest to identity, so a curved rest
-// shape pulled straight keeps its plane instead of a spin picked by round-off. A straight
-// rest shape makes every region rank 1; its goals only depend on R v_1 = u_1, which both
-// branches give exactly.
+// Rotation. csmRotation returns the rotation R maximising tr(R^T A): with A = U S V^T (an
+// SVD, S >= 0), R = U diag(1, 1, det(U V^T)) V^T (a reflection is fixed by flipping the
+// singular vector of the smallest singular value). It handles planar regions (rank 2) and
+// sign-indefinite A. When A has rank <= 1 (sigma_2 <= 1e-12 sigma_1: all particles of the
+// region collinear, now or at rest: a straight chain being stretched or a straight rest
+// shape), every rotation taking the rest direction v_1 to the current one u_1 is optimal
+// and the rotation about the line is undetermined; we then take the smallest such rotation
+// (about v_1 x u_1), the one closest to identity, so a curved rest shape pulled straight
+// keeps its plane instead of a spin picked by round-off. A straight rest shape makes every
+// region rank 1; its goals only depend on R v_1 = u_1.
+//
+// How R is computed. A 3x3 JacobiSVD per region was a tenth of a rope's step, and most
+// regions are easy, so the SVD is kept only for the cases the two cheap paths below are not
+// sure of. Both are stateless (no warm start: results do not depend on call order) and
+// agree with the SVD's R to rounding times the problem's own condition number
+// sigma_1 / (sigma_2 + det-signed sigma_3) (tested against JacobiSVD on random, reflected,
+// planar, nearly planar and nearly rank-1 matrices). The cofactor matrix cof A = det(A)
+// A^-T (columns a_1 x a_2, a_2 x a_0, a_0 x a_1) gives q = |cof A|_F / |A|_F^2, which
+// brackets the rank test: q / sqrt(3) <= sigma_2 / sigma_1 <= 3 q. (A with |A|_F^2 outside
+// [1e-100, 1e100] is first scaled by a power of two, so that |A|^4 cannot overflow.)
+//   - q <= 1e-12 / 6 (surely rank 1; every region of a straight rest shape): u_1 and v_1 by
+//     power steps from A's longest column u, v_1 = A^T u / |.|, u_1 = A v_1 / |.| (the pair
+//     has consistent signs), and R = the smallest rotation taking v_1 to u_1 as above.
+//   - q >= 1e-7 (sigma_2 / sigma_1 >= 5.7e-8): Higham's scaled Newton iteration for the
+//     polar factor, X <- (z X + X^-T / z) / 2, z = (|X^-1|_F / |X|_F)^(1/2), X^-T =
+//     cof X / det X, started from B = A + cof(A) / s with s ~ sigma_1. In the SVD with
+//     rotations U, V and signed s_3 = det-sign sigma_3, cof A = U diag(s2 s3, s1 s3, s1 s2)
+//     V^T, so B = U diag(s1 + s2 s3/s, s2 + s1 s3/s, s3 + s1 s2/s) V^T: the same singular
+//     vectors, all signed values positive (also for planar A, where A^-T does not exist,
+//     and for reflected A if s is close enough to sigma_1: there s is refined from |A|_F by
+//     Newton on A^T A's characteristic cubic), so the iteration converges to exactly the
+//     R above, in 4-6 steps (its smallest value is sigma_2 + s3 ~ the problem's
+//     conditioning). q >= 1e-7 keeps B's cofactors and determinant accurate enough (det B
+//     to about 1e-16 / q^2 relative: a percent; the iteration only needs its sign and
+//     size). For reflected A the converged R is checked to be the maximiser (tr(S) I - S >=
+//     0 with S = R^T A symmetric), since a determinant of the wrong sign there would
+//     converge to another stationary rotation.
+//   - Otherwise (1e-12/6 < q < 1e-7: nearly rank 1, where cofactors lose their digits or
+//     the rank test is close, or a Newton iteration that does not converge in 12 steps or
+//     fails its check), JacobiSVD.
+// A = 0 or non-finite A gives identity.
+// These paths are not bit for bit the SVD: R changes in the last bits, and so do the
+// results of every scene with strings (where a scene is chaotic, more: see BENCHMARKS.md,
+// issue 9, the CSM stage, for the tests that rounding used to decide).
 #include "string/shape_matching.hpp"
 
 #include <Eigen/SVD>
 
 #include <algorithm>
+#include <cmath>
 
 namespace tearables::detail {
 
@@ -84,21 +117,146 @@ inline void addShifted(CsmMoments& acc, const CsmMoments& s, const Vec3& d, cons
     acc.mxx0.noalias() += d * s.mx0.transpose();
 }
 
-}  // namespace
+/// q = |cof A|_F / |A|_F^2 at or above which the Newton iteration is used (see above).
+constexpr double kNewtonMinQ = 1e-7;
 
-Mat3 csmRotation(const Mat3& a) {
+/// cof A = det(A) A^-T, defined for every A (columns a_1 x a_2, a_2 x a_0, a_0 x a_1).
+inline Mat3 cofactor(const Mat3& a) {
+    Mat3 c;
+    c.col(0) = a.col(1).cross(a.col(2));
+    c.col(1) = a.col(2).cross(a.col(0));
+    c.col(2) = a.col(0).cross(a.col(1));
+    return c;
+}
+
+/// The reference: R from a 3x3 JacobiSVD (unconditionally convergent and accurate).
+EIGEN_DONT_INLINE Mat3 svdRotation(const Mat3& a) {
     const Eigen::JacobiSVD<Mat3, Eigen::NoQRPreconditioner> svd(a, Eigen::ComputeFullU | Eigen::ComputeFullV);
     const Vec3& sigma = svd.singularValues();
-    if (!(sigma(0) > 0.0)) return Mat3::Identity();  // A = 0 (a single point), or NaN input
+    if (!(sigma(0) > 0.0)) return Mat3::Identity();
     if (sigma(1) <= kRankOneTolerance * sigma(0)) {
         // Rank 1: A ~ sigma_1 u_1 v_1^T. The smallest rotation taking v_1 to u_1 (sign
         // pairs of u_1, v_1 are consistent, so the pair is well defined).
-        return Quat::FromTwoVectors(svd.matrixV().col(0), svd.matrixU().col(0)).toRotationMatrix();
+        return Quat::FromTwoVectors(svd.matrixV().col(0), svd.matrixU().col(0)).normalized().toRotationMatrix();
     }
     Mat3 u = svd.matrixU();
     const Mat3& v = svd.matrixV();
     if (u.determinant() * v.determinant() < 0.0) u.col(2) = -u.col(2);
     return u * v.transpose();
+}
+
+/// A of rank 1 (sigma_2 <= 5e-13 sigma_1), |A|_F^2 in [1e-100, 1e100]: the smallest
+/// rotation taking v_1 to u_1. The longest column is sigma_1 u_1 v_1j with |v_1j| >=
+/// 1/sqrt(3); the two power steps after it leave an error of (sigma_2/sigma_1)^2 in the
+/// pair, below rounding. With c = v.u, k = v x u: R = c I + [k]x + k k^T / (1 + c) (the
+/// half-way quaternion's matrix: two square roots and two divisions, where Eigen's
+/// FromTwoVectors and the normalisations took fifteen divisions), 1 + c = |u + v|^2 / 2
+/// without cancellation. Near a half turn (1 + c < 1e-6) the axis is ill-defined and
+/// Eigen's FromTwoVectors picks one.
+Mat3 rankOneRotation(const Mat3& a) {
+    const double n0 = a.col(0).squaredNorm(), n1 = a.col(1).squaredNorm(), n2 = a.col(2).squaredNorm();
+    const int j = n0 >= n1 ? (n0 >= n2 ? 0 : 2) : (n1 >= n2 ? 1 : 2);
+    const Vec3 p = a.transpose() * a.col(j);  // along v_1
+    const Vec3 q = a * p;                     // along u_1
+    const double pp = p.squaredNorm(), qq = q.squaredNorm();
+    const double sp = std::sqrt(pp), sq = std::sqrt(qq);
+    const double inv = 1.0 / (sp * sq);  // ~ sigma_1^-5: in range for |A|_F^2 in [1e-100, 1e100]
+    const Vec3 v = p * (sq * inv);
+    const Vec3 u = q * (sp * inv);
+    const double hh = (u + v).squaredNorm();  // 2 (1 + c)
+    if (!(hh > 2e-6)) return Quat::FromTwoVectors(v, u).normalized().toRotationMatrix();
+    const double kx = v.y() * u.z() - v.z() * u.y();
+    const double ky = v.z() * u.x() - v.x() * u.z();
+    const double kz = v.x() * u.y() - v.y() * u.x();
+    // The unnormalised quaternion (w, k), w = 1 + c: R = I + (2 / (w^2 + |k|^2)) (w [k]x +
+    // [k]x^2), orthogonal to rounding even where u and v are unit only to rounding.
+    const double w = 0.5 * hh;
+    const double kk = kx * kx + ky * ky + kz * kz;
+    const double g = 2.0 / (w * w + kk);
+    const double c = 1.0 - g * kk, sw = g * w;
+    const double gx = g * kx, gy = g * ky, gz = g * kz;
+    Mat3 r;
+    r << c + gx * kx, gx * ky - sw * kz, gx * kz + sw * ky,  //
+        gy * kx + sw * kz, c + gy * ky, gy * kz - sw * kx,   //
+        gz * kx - sw * ky, gz * ky + sw * kx, c + gz * kz;
+    return r;
+}
+
+/// Scaled Newton iteration for R (see the header comment); a with |a|_F^2 in [1e-100,
+/// 1e100], its cofactors c, n2 = |a|_F^2, c2 = |c|_F^2. False when it does not converge or,
+/// for reflected a, when the result is not the maximiser of tr(R^T a): the caller then
+/// takes the SVD.
+EIGEN_DONT_INLINE bool newtonRotation(const Mat3& a, const Mat3& c, double n2, double c2, Mat3& r) {
+    const double det = a.col(0).dot(c.col(0));
+    // s ~ sigma_1: |A|_F >= sigma_1 (all that B needs when det A >= 0). For det A < 0, B's
+    // smallest values are sigma_2 - sigma_3 sigma_1/s and sigma_2 sigma_1/s - sigma_3, so s
+    // must not exceed sigma_1 by more than sigma_2/sigma_3: Newton on the characteristic
+    // polynomial of A^T A, p(l) = l^3 - |A|^2 l^2 + |cof A|^2 l - det^2, from l = |A|_F^2
+    // (above the largest root, where p is convex) decreases monotonically to sigma_1^2.
+    double s1sq = n2;
+    if (det < 0.0) {
+        for (int it = 0; it < 8; ++it) {
+            const double p = ((s1sq - n2) * s1sq + c2) * s1sq - det * det;
+            const double dp = (3.0 * s1sq - 2.0 * n2) * s1sq + c2;
+            const double step = p / dp;
+            s1sq -= step;
+            if (!(step > 1e-6 * s1sq)) break;
+        }
+    }
+    Mat3 x = a + c / std::sqrt(s1sq);
+    for (int k = 0; k < 12; ++k) {
+        const Mat3 cx = cofactor(x);
+        const double d = x.col(0).dot(cx.col(0));
+        if (!(d > 0.0)) return false;
+        const double zeta = std::sqrt(std::sqrt(cx.squaredNorm() / x.squaredNorm()) / d);
+        const Mat3 next = 0.5 * (zeta * x + cx / (zeta * d));
+        // Quadratic convergence: |X_k - R| ~ |X_k+1 - X_k| = delta, |X_k+1 - R| ~ delta^2 / 2.
+        const double delta2 = (next - x).squaredNorm();
+        x = next;
+        if (delta2 > 1e-16) continue;
+        if (det < 0.0) {
+            // R maximises tr(R^T A) iff S = R^T A is symmetric and M = tr(S) I - S >= 0; M's
+            // eigenvalues are the pair sums of S's, det M = (s1+s2)(s1+s3)(s2+s3). Another
+            // stationary rotation makes one pair sum negative.
+            const Mat3 sm = x.transpose() * a;
+            Mat3 m = -0.5 * (sm + sm.transpose());
+            m.diagonal().array() += sm.trace();
+            if (!(m.determinant() > 1e-12 * n2 * std::sqrt(n2))) return false;
+        }
+        r = x;
+        return true;
+    }
+    return false;
+}
+
+/// csmRotation of an A whose |A|_F^2 = n2 is in [1e-100, 1e100]: cof A, |A|^4 and the
+/// Newton iteration's det^2 neither overflow nor underflow.
+inline Mat3 rotationInRange(const Mat3& a, double n2) {
+    const Mat3 c = cofactor(a);
+    const double c2 = c.squaredNorm();
+    constexpr double kSurelyRankOne = kRankOneTolerance / 6.0;
+    if (c2 <= kSurelyRankOne * kSurelyRankOne * n2 * n2) return rankOneRotation(a);
+    Mat3 r;
+    if (c2 >= kNewtonMinQ * kNewtonMinQ * n2 * n2 && newtonRotation(a, c, n2, c2, r)) return r;
+    return svdRotation(a);
+}
+
+/// A = 0, non-finite, or |A|_F^2 outside [1e-100, 1e100]: scaled by a power of two (exact)
+/// so that its largest entry is in [1, 2).
+EIGEN_DONT_INLINE Mat3 rotationOutOfRange(const Mat3& a_in) {
+    if (!a_in.allFinite()) return Mat3::Identity();
+    const double largest = a_in.cwiseAbs().maxCoeff();
+    if (!(largest > 0.0)) return Mat3::Identity();  // A = 0 (a single point)
+    const Mat3 a = std::ldexp(1.0, -std::ilogb(largest)) * a_in;
+    return rotationInRange(a, a.squaredNorm());
+}
+
+}  // namespace
+
+Mat3 csmRotation(const Mat3& a) {
+    const double n2 = a.squaredNorm();  // NaN or infinite for non-finite A
+    if (n2 >= 1e-100 && n2 <= 1e100) return rotationInRange(a, n2);
+    return rotationOutOfRange(a);
 }
 
 void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass, std::size_t first,

@@ -42,7 +42,7 @@ struct CsmScratch {
 /// chain. x, rest and mass are indexed absolutely (x[first] .. x[last] are read; a torn
 /// string is several pieces: call once per piece); goal[first..last] are written, nothing
 /// else is. mass > 0 (make colliding particles 3x heavier here, Strings Sec. 6). w >= 1 is
-/// the region half-width. The cost is O(n) regions of O(1) each (one 3x3 SVD per region)
+/// the region half-width. The cost is O(n) regions of O(1) each (one 3x3 polar factor each)
 /// plus O(n w) for blending; no heap allocation when `scratch` is already large enough.
 /// Throws InvalidInput if w < 1 or first > last.
 void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass, std::size_t first,
@@ -52,7 +52,8 @@ void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass
 /// used by chainShapeMatchingGoals: it maximises tr(R^T A). When A has rank <= 1 (all
 /// particles of a region collinear now or at rest) the rotation about the line is
 /// undetermined; then the rotation closest to identity (smallest angle) among the optimal
-/// ones is returned, and identity when A = 0.
+/// ones is returned, and identity when A = 0 or not finite. Computed without an SVD where
+/// a cheaper method is sure to give the same rotation to rounding (see shape_matching.cpp).
 Mat3 csmRotation(const Mat3& a);
 
 }  // namespace tearables::detail

@@ -9,12 +9,14 @@
 //   string-string), twist, tension, material.
 // Plus 10 000 and 100 000 segments in total, as one long string and as many short ones
 // (100 segments each, side by side, not touching), on 1 and 2 threads
-// (WorldSettings::threads).
-// Run: build/tests/benchmarks/tearables_bench --benchmark_filter='Table1|Segments'
+// (WorldSettings::threads). And the shape matching kernel alone (BM_CsmKernel).
+// Run: build/tests/benchmarks/tearables_bench --benchmark_filter='Table1|Segments|CsmKernel'
+#include "string/shape_matching.hpp"
 #include "tearables/world.hpp"
 
 #include <benchmark/benchmark.h>
 
+#include <cmath>
 #include <vector>
 
 namespace {
@@ -67,6 +69,30 @@ void BM_Table1Rope(benchmark::State& state) {
     state.SetItemsProcessed(state.iterations() * segments);
 }
 BENCHMARK(BM_Table1Rope)->Arg(100)->Arg(150)->Arg(200)->Arg(746)->Unit(benchmark::kMicrosecond);
+
+/// The chain shape matching kernel alone on one piece of 747 particles (BM_Table1Rope/746's
+/// rope, w = 2) bent into a swinging curve: range(0) = 0, a straight rest shape (every region
+/// rank 1, the rope's case), 1, a curved one (every region of full rank, a coiled cord's).
+void BM_CsmKernel(benchmark::State& state) {
+    const int n = 747;
+    std::vector<tearables::Vec3> x(n), rest(n), goal(n);
+    std::vector<double> mass(n, 0.001);
+    mass.back() = 7.46;
+    for (int i = 0; i < n; ++i) {
+        const double t = 0.01 * i;
+        rest[i] = state.range(0) == 0 ? tearables::Vec3(t, 0, 0)
+                                      : tearables::Vec3(t, 0.05 * std::sin(0.1 * i), 0.02 * std::cos(0.07 * i));
+        x[i] = tearables::Vec3(0.5 * std::sin(t), -t * std::cos(t), 0.01 * std::sin(3 * t));
+    }
+    tearables::detail::CsmScratch scratch;
+    for (auto _ : state) {
+        tearables::detail::chainShapeMatchingGoals(x.data(), rest.data(), mass.data(), 0, n - 1, 2, goal.data(), scratch);
+        benchmark::DoNotOptimize(goal.data());
+        benchmark::ClobberMemory();
+    }
+    state.SetItemsProcessed(state.iterations() * n);
+}
+BENCHMARK(BM_CsmKernel)->ArgName("curved_rest")->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
 /// Many segments in total: range(0) segments, as one string (range(1) = 0) or as strings
 /// of range(1) segments side by side 5 cm apart, each pinned at its first particle with a

@@ -3,10 +3,13 @@
 #include "string/shape_matching.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <limits>
 #include <random>
 #include <utility>
 #include <vector>
@@ -17,6 +20,7 @@ using tearables::Mat3;
 using tearables::Quat;
 using tearables::Vec3;
 using tearables::detail::chainShapeMatchingGoals;
+using tearables::detail::csmRotation;
 using tearables::detail::CsmScratch;
 
 constexpr double kPi = 3.14159265358979323846;
@@ -409,4 +413,133 @@ TEST(ChainShapeMatching, RejectsInvalidArguments) {
                  tearables::InvalidInput);
     EXPECT_THROW(chainShapeMatchingGoals(p.data(), p.data(), m.data(), 2, 1, 1, g.data(), scratch),
                  tearables::InvalidInput);
+}
+
+namespace {
+
+/// The rotation csmRotation documents, from Eigen's JacobiSVD (A = U S V^T): R = U diag(1,
+/// 1, det(U V^T)) V^T, or for rank 1 (sigma_2 <= 1e-12 sigma_1) the smallest rotation taking
+/// v_1 to u_1. `condition` = sigma_1 / (sigma_2 + det-signed sigma_3), the sensitivity of
+/// R to a relative change of A (infinite where R is not unique).
+struct SvdReference {
+    Mat3 r;
+    Vec3 u1, v1;
+    bool rank_one = false;
+    double condition = 0.0;
+};
+
+SvdReference svdReference(const Mat3& a) {
+    const Eigen::JacobiSVD<Mat3> svd(a, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    const Vec3 s = svd.singularValues();
+    SvdReference ref;
+    ref.u1 = svd.matrixU().col(0);
+    ref.v1 = svd.matrixV().col(0);
+    const double sign = svd.matrixU().determinant() * svd.matrixV().determinant() < 0.0 ? -1.0 : 1.0;
+    ref.condition = s(0) / (s(1) + sign * s(2));
+    ref.rank_one = s(1) <= 1e-12 * s(0);
+    if (ref.rank_one) {
+        ref.r = Quat::FromTwoVectors(ref.v1, ref.u1).normalized().toRotationMatrix();
+    } else {
+        Mat3 u = svd.matrixU();
+        u.col(2) *= sign;
+        ref.r = u * svd.matrixV().transpose();
+    }
+    return ref;
+}
+
+/// U diag(s) V^T with random rotations U, V (s(2) < 0: a reflected A).
+Mat3 withSingularValues(std::mt19937_64& rng, const Vec3& s) {
+    return randomRotation(rng).toRotationMatrix() * s.asDiagonal() * randomRotation(rng).toRotationMatrix().transpose();
+}
+
+}  // namespace
+
+// csmRotation's cheap paths (a power step for rank 1, a scaled Newton iteration for the
+// polar factor, JacobiSVD only where neither is sure) agree with the SVD's rotation to
+// rounding times the problem's own condition number, on matrices of every kind a region can
+// give, at any scale.
+TEST(ChainShapeMatching, RotationAgreesWithJacobiSvd) {
+    std::mt19937_64 rng(77);
+    std::uniform_real_distribution<double> u(-1.0, 1.0), unit(0.0, 1.0);
+    const auto pow10 = [&](double lo, double hi) { return std::pow(10.0, lo + (hi - lo) * unit(rng)); };
+    const auto sign = [&] { return u(rng) < 0.0 ? -1.0 : 1.0; };
+    const std::vector<std::pair<const char*, std::function<Mat3()>>> kinds = {
+        {"random entries",
+         [&] {
+             Mat3 a;
+             for (int i = 0; i < 9; ++i) a(i) = u(rng);
+             return a;
+         }},
+        {"well conditioned", [&] { return withSingularValues(rng, Vec3(1.0, 0.4 + 0.6 * unit(rng), sign() * (0.1 + 0.3 * unit(rng)))); }},
+        {"planar", [&] { return withSingularValues(rng, Vec3(1.0, unit(rng), 0.0)); }},
+        {"nearly planar", [&] { return withSingularValues(rng, Vec3(1.0, 0.01 + unit(rng), sign() * pow10(-15, -2))); }},
+        {"nearly rank 1",
+         [&] {
+             const double s2 = pow10(-11.5, -1);
+             return withSingularValues(rng, Vec3(1.0, s2, s2 * u(rng)));
+         }},
+        {"reflected, s3 ~ s2",
+         [&] {
+             const double s2 = pow10(-5, 0);
+             return withSingularValues(rng, Vec3(1.0, s2, -s2 * (1.0 - pow10(-8, -1))));
+         }},
+        {"rank 1", [&] { return Mat3(randomUnit(rng) * randomUnit(rng).transpose()); }},
+        {"rank 1 plus rounding", [&] { return withSingularValues(rng, Vec3(1.0, pow10(-17, -13), 0.0)); }},
+        {"straight rest along x",
+         [&] {
+             Mat3 a = Mat3::Zero();
+             a.col(0) = randomUnit(rng);
+             return a;
+         }},
+    };
+    for (const auto& [name, make] : kinds) {
+        for (int trial = 0; trial < 4000; ++trial) {
+            const double scale = std::pow(10.0, static_cast<double>(trial % 7) * 50.0 - 150.0);  // 1e-150 .. 1e150
+            const Mat3 a = scale * make();
+            const Mat3 r = csmRotation(a);
+            const SvdReference ref = svdReference(a);
+            ASSERT_TRUE(r.allFinite()) << name << " trial " << trial;
+            ASSERT_LT((r.transpose() * r - Mat3::Identity()).norm(), 1e-14) << name << " trial " << trial;
+            ASSERT_NEAR(r.determinant(), 1.0, 1e-14) << name << " trial " << trial;
+            if (ref.rank_one) {
+                // R v_1 = u_1, and R itself. Rounding in u_1 and v_1 is amplified by
+                // 1 / sqrt(1 + u_1.v_1) near a half turn, where the smallest rotation's axis
+                // becomes anyone's (Eigen's FromTwoVectors picks one below 1 + u.v = 1e-12).
+                const double c = ref.v1.dot(ref.u1);
+                if (c < -1.0 + 1e-10) continue;
+                const double tolerance = 1e-14 / std::sqrt(1.0 + c);
+                ASSERT_LT((r * ref.v1 - ref.u1).norm(), tolerance) << name << " trial " << trial << " u1.v1 " << c;
+                ASSERT_LT((r - ref.r).norm(), tolerance) << name << " trial " << trial << " u1.v1 " << c;
+                continue;
+            }
+            // Well-conditioned A: near machine precision; otherwise within rounding of A
+            // times the condition number (the SVD's own R is no more accurate than that).
+            const double tolerance = ref.condition < 1e3 ? 1e-12 : 2e-14 * ref.condition;
+            ASSERT_LT((r - ref.r).norm(), tolerance) << name << " trial " << trial << " condition " << ref.condition;
+        }
+    }
+}
+
+// The polar factor exactly: A = R0 S with S symmetric positive definite gives R0, also when
+// S is nearly singular (a nearly planar or nearly collinear region, turned by R0).
+TEST(ChainShapeMatching, RotationOfRotatedSymmetricMatrixIsTheRotation) {
+    std::mt19937_64 rng(78);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    for (int trial = 0; trial < 3000; ++trial) {
+        const double s3 = std::pow(10.0, -10.0 * unit(rng)), s2 = s3 + (1.0 - s3) * unit(rng);
+        const Mat3 q = randomRotation(rng).toRotationMatrix();
+        const Mat3 spd = q * Vec3(1.0, s2, s3).asDiagonal() * q.transpose();
+        const Mat3 r0 = randomRotation(rng).toRotationMatrix();
+        const Mat3 r = csmRotation(r0 * spd);
+        EXPECT_LT((r - r0).norm(), 2e-14 * (1.0 + 1.0 / (s2 + s3))) << "trial " << trial << " s2 " << s2 << " s3 " << s3;
+    }
+}
+
+TEST(ChainShapeMatching, RotationOfZeroOrNonFiniteMatrixIsIdentity) {
+    EXPECT_EQ(csmRotation(Mat3::Zero()), Mat3::Identity());
+    for (double bad : {std::nan(""), std::numeric_limits<double>::infinity()}) {
+        Mat3 a = Mat3::Identity();
+        a(1, 2) = bad;
+        EXPECT_EQ(csmRotation(a), Mat3::Identity());
+    }
 }
