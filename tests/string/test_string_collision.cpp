@@ -174,31 +174,38 @@ TEST(StringCollision, RopeDroppedAsAnArchHangsOnTheClampedRope) {
 }
 
 // Known bug, found 2026-12-01: the limp arch's arms (bending 0.2) swing down under the
-// clamped rope and meet head-on at 2.6 m/s (relative 5 m/s, 5 cm a step against 1 cm of thickness).
-// The joint string solve of that step (coupleStrings) flings the arms' free end: the
-// ropes' total energy (kinetic plus gravity's) rises by 0.81 J where the kinetic energy
-// was 0.061 J; main before the chain-solve changes of that day gained about 0.04 J (the
-// test above, limp then, survived that smaller kick by luck). An inelastic collision must
-// not add energy. Enable when the joint solve is fixed.
+// clamped rope and meet head-on at 2.6 m/s (relative 5 m/s, 5 cm a step against 1 cm of
+// thickness). In the joint string solve of that step (coupleStrings) the collision gives
+// the ropes energy: their total (kinetic plus gravity's) rises by up to 0.81 J where the
+// kinetic energy was 0.061 J, which flings an arm's free end up at 10 m/s. How much is
+// decided by rounding: of 15 starts shifted sideways by 0 .. 1e-3 m, 5 gain 0.2-0.65 J and
+// the others nothing (main of 2026-12-01). An inelastic collision must not add energy.
+// Enable when the joint solve is fixed.
 TEST(StringCollision, DISABLED_ArmsOfARopeMeetingHeadOnGainNoEnergy) {
-    World world(collisions());
-    const StringId clamped = world.addString(rope(line({-0.5, 0, 0}, {0.5, 0, 0}, 40)));
-    const StringId free = world.addString(rope(archAcross()));
-    world.attachToPoint(clamped, 0, {-0.5, 0, 0});
-    world.attachToPoint(clamped, -1, {0.5, 0, 0});
-    auto energy = [&] {
-        double e = 0.0;
-        for (const StringId id : {clamped, free}) {
-            const StringView v = world.view(id);
-            for (std::size_t i = 0; i < v.particleCount(); ++i)
-                e += (*v.masses)[i] * (0.5 * (*v.velocities)[i].squaredNorm() + kG * (*v.positions)[i].y());
+    for (double shift : {0.0, 1e-12, -1e-12, 1e-10, 1e-9, -1e-9, 1e-8, 1e-7, -1e-7, 1e-6, 1e-5, -1e-5, 1e-4, 1e-3, -1e-3}) {
+        World world(collisions());
+        const StringId clamped = world.addString(rope(line({-0.5, 0, 0}, {0.5, 0, 0}, 40)));
+        std::vector<Vec3> arch = archAcross();
+        for (Vec3& p : arch) p.z() += shift;
+        const StringId free = world.addString(rope(arch));
+        world.attachToPoint(clamped, 0, {-0.5, 0, 0});
+        world.attachToPoint(clamped, -1, {0.5, 0, 0});
+        auto energy = [&] {
+            double e = 0.0;
+            for (const StringId id : {clamped, free}) {
+                const StringView v = world.view(id);
+                for (std::size_t i = 0; i < v.particleCount(); ++i)
+                    e += (*v.masses)[i] * (0.5 * (*v.velocities)[i].squaredNorm() + kG * (*v.positions)[i].y());
+            }
+            return e;
+        };
+        const double start = energy();
+        double gain = -1e300;
+        for (int i = 0; i < 60; ++i) {
+            world.step(0.01);
+            gain = std::max(gain, energy() - start);
         }
-        return e;
-    };
-    const double start = energy();
-    for (int i = 0; i < 60; ++i) {
-        world.step(0.01);
-        ASSERT_LT(energy() - start, 0.005) << "step " << i;
+        EXPECT_LT(gain, 0.005) << "start shifted by " << shift << " m";
     }
 }
 
