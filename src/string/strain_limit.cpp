@@ -1028,9 +1028,40 @@ struct ClusterScratch::Impl {
     std::vector<Vec3> pool, column;
     std::vector<ChainSolver> solvers;
     std::vector<std::vector<Vec3>> y;
-    Eigen::MatrixXd sys;
-    Eigen::VectorXd rhs, z;
-    Eigen::LDLT<Eigen::MatrixXd> ldlt;
+    /// The Woodbury system of `dim` contact directions and its factorisation, one set per
+    /// dim up to kCachedDims: Eigen's dynamic matrices keep no spare capacity (a resize to
+    /// another size reallocates, and so does LDLT::compute), and the number of directions
+    /// changes from step to step, so one shared set allocated ~170 times a step for a rope
+    /// draped over another. Each set is allocated when its size first occurs; a running
+    /// scene then steps without allocating, with Eigen's LDLT bit for bit as before. When a
+    /// size first occurs, the sets up to twice it are made and sized at once (a draped rope's
+    /// directions come and go by a few). Larger systems (past 64 directions: ~30 crossings)
+    /// share one set, allocating.
+    struct Woodbury {
+        Eigen::MatrixXd sys;
+        Eigen::VectorXd rhs, z;
+        Eigen::LDLT<Eigen::MatrixXd> ldlt;
+    };
+    static constexpr Eigen::Index kCachedDims = 64;
+    std::vector<std::unique_ptr<Woodbury>> by_dim;  ///< [dim], or [0] for dims past kCachedDims
+    Woodbury& woodbury(Eigen::Index dim) {
+        if (by_dim.empty()) by_dim.resize(static_cast<std::size_t>(kCachedDims) + 1);
+        if (dim > kCachedDims) {
+            if (!by_dim[0]) by_dim[0] = std::make_unique<Woodbury>();
+            return *by_dim[0];
+        }
+        if (!by_dim[static_cast<std::size_t>(dim)])
+            for (Eigen::Index k = 1; k <= std::min(2 * dim, kCachedDims); ++k) {
+                std::unique_ptr<Woodbury>& set = by_dim[static_cast<std::size_t>(k)];
+                if (set) continue;
+                set = std::make_unique<Woodbury>();
+                set->sys.setIdentity(k, k);
+                set->rhs.setZero(k);
+                set->z.setZero(k);
+                set->ldlt.compute(set->sys);
+            }
+        return *by_dim[static_cast<std::size_t>(dim)];
+    }
 };
 
 ClusterScratch::ClusterScratch() : impl(std::make_unique<Impl>()) {}
@@ -1327,8 +1358,9 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
                 for (std::size_t i = 0; i < count; ++i) strings[i]->blk_rhs = y[i];
                 const auto dim = static_cast<Eigen::Index>(dirs.size());
                 if (dim == 0) return;
-                Eigen::MatrixXd& sys = sc.sys;
-                Eigen::VectorXd& rhs = sc.rhs;
+                ClusterScratch::Impl::Woodbury& wb = sc.woodbury(dim);
+                Eigen::MatrixXd& sys = wb.sys;
+                Eigen::VectorXd& rhs = wb.rhs;
                 sys.resize(dim, dim);
                 rhs.resize(dim);
                 for (Eigen::Index r = 0; r < dim; ++r) {
@@ -1345,9 +1377,9 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
                     sys(r, r) += 1.0 / dr.weight;
                 }
                 // Symmetric to rounding; LDLT reads the lower triangle only.
-                sc.ldlt.compute(sys);
-                Eigen::VectorXd& z = sc.z;
-                z = sc.ldlt.solve(rhs);
+                wb.ldlt.compute(sys);
+                Eigen::VectorXd& z = wb.z;
+                z = wb.ldlt.solve(rhs);
                 if (!z.allFinite()) return;
                 for (Eigen::Index r = 0; r < dim; ++r) {
                     const Direction& d = dirs[static_cast<std::size_t>(r)];
