@@ -23,7 +23,10 @@ struct WorldAccess;  // snapshots (src/core/snapshot.cpp) read and replace the w
 /// World-wide solver settings.
 struct WorldSettings {
     Vec3 gravity{0.0, -9.81, 0.0};  ///< m/s^2, finite
-    int strain_iterations = 8;       ///< at most this many Newton iterations of the chain solve, 1..64 (stops when converged)
+    /// Newton iterations of the strain-limit solves, 1..64; each stops when converged. The
+    /// budget: a cloth's solve this many, a string's 2x (a taut rope takes 3-4), a string
+    /// touching bodies or strings 4x.
+    int strain_iterations = 8;
     int coupling_iterations = 8;     ///< Gauss-Seidel sweeps over strings sharing a dynamic body, 1..64
     double strain_tolerance = 1e-6;  ///< relative stretch past L_max accepted, (0, 0.01]
     double max_speed = 500.0;        ///< particle speed clamp, m/s, > 0 (guards against blow-ups)
