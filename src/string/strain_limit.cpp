@@ -479,8 +479,9 @@ double stepEnergy(const StringState& s, const RigidTable& rigids, const StepCont
 /// toward their prediction x', a glued particle with its body's effective mass, fixed rows
 /// for pins) and the springs of the stretched segments, into blk_diag, blk_off, blk_rhs.
 /// `tension_estimate` (per segment, may be null): the tension the geometric term of the
-/// Hessian takes where it is below the spring's force now (see limitStrain).
-void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx, const double* tension_estimate) {
+/// Hessian takes where it is below the spring's force now (see limitStrain); each active
+/// segment's entry is replaced by its effective stretch now, which linearisedTension reads.
+void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx, double* tension_estimate) {
     const std::size_t m = s.segments();
     const std::size_t n = s.particles();
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
@@ -542,7 +543,10 @@ void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx, c
         // operations as the matrix expression (so the same bits), the six distinct ones
         // only (e_i e_j = e_j e_i exactly).
         double geometric = c;
-        if (tension_estimate && tension_estimate[j] > 0.0) geometric = std::min(c, tension_estimate[j] * s.compliance[j]);
+        if (tension_estimate) {
+            if (tension_estimate[j] > 0.0) geometric = std::min(c, tension_estimate[j] * s.compliance[j]);
+            tension_estimate[j] = effective;
+        }
         const double g = 1.0 + rate_gain, q = geometric / len;
         const double e00 = e.x() * e.x(), e11 = e.y() * e.y(), e22 = e.z() * e.z();
         const double e10 = e.y() * e.x(), e20 = e.z() * e.x(), e21 = e.z() * e.y();
@@ -568,16 +572,18 @@ void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx, c
 
 /// The tension of each segment after the Newton step held in blk_rhs, to first order:
 /// k max(0, C + (1 + tau/h) e . (dx_{j+1} - dx_j)), into geometric_tension (0 for the
-/// segments that took no part in the step).
+/// segments that took no part in the step). C, the effective stretch before the step, is
+/// what assembleChain left there.
 void linearisedTension(StringState& s, const StepContext& ctx) {
     const double rate_gain = s.desc.axial_damping * ctx.inv_h;
     for (std::size_t j = 0; j < s.segments(); ++j) {
-        s.geometric_tension[j] = 0.0;
-        if (!s.active[j]) continue;
+        if (!s.active[j]) {
+            s.geometric_tension[j] = 0.0;
+            continue;
+        }
         const Vec3 da = fixedRow(s, j) ? Vec3::Zero() : s.blk_rhs[j];
         const Vec3 db = fixedRow(s, j + 1) ? Vec3::Zero() : s.blk_rhs[j + 1];
-        const double stretch = (s.x[j + 1] - s.x[j]).norm() - s.rest_length[j];
-        const double effective = stretch + rate_gain * (stretch - s.prev_stretch[j]) + (1.0 + rate_gain) * s.dir[j].dot(db - da);
+        const double effective = s.geometric_tension[j] + (1.0 + rate_gain) * s.dir[j].dot(db - da);
         s.geometric_tension[j] = std::max(0.0, effective) / s.compliance[j];
     }
 }
