@@ -29,12 +29,15 @@
 // (a 746-particle rope of 1 cm segments would lose about 8 digits in A of a w = 2 region).
 // We keep the O(1) cost without any subtraction (the van Herk / Gil-Werman sliding-window
 // scheme): the piece is cut into blocks of B = 2w+1 particles; inside each block we keep
-// prefix sums (block start .. i) and suffix sums (i .. block end) of the moments taken
-// about the block's first particle. A region has at most B particles, so it is a suffix
-// of one block plus a prefix of the next (or, at the piece's ends, a prefix or a suffix of
-// one block). Both parts are shifted exactly to the region's centre particle (x_k, x0_k)
-// and added; every quantity then has the size of a few regions, and A_k = S - M c c0^T
-// (about that centre) loses only a couple of digits. Goals are blended as
+// prefix sums (block start .. i) about the block's first particle and suffix sums
+// (i .. block end) about the next block's first particle (the last block's about its own
+// first). A region has at most B particles, so it is a suffix of one block plus a prefix
+// of the next, both about the same particle of the region, which simply add (or, at the
+// piece's ends, a prefix or a suffix of one block, about its first particle); every
+// quantity then has the size of a few regions, and A_k = S - M c c0^T (about a particle
+// of the region) loses only a couple of digits. (Until 2026-12-01 both parts were shifted
+// to the region's centre particle, two 3x3 outer-product updates per region more; the
+// rounding differs in the last bits.) Goals are blended as
 // x_i + mean_k [R_k (x0_i - c0_k) + (c_k - x_i)], again with local differences only.
 //
 // Rotation. csmRotation returns the rotation R maximising tr(R^T A): with A = U S V^T (an
@@ -104,17 +107,6 @@ inline void addParticle(CsmMoments& s, double m, const Vec3& dx, const Vec3& dx0
     s.mx += mdx;
     s.mx0 += m * dx0;
     s.mxx0.noalias() += mdx * dx0.transpose();
-}
-
-/// Adds moments `s` taken about (p, p0) to `acc` taken about (q, q0); d = p - q, d0 = p0 - q0:
-/// sum m (x-q)(x0-q0)^T = S + mx d0^T + d mx0^T + m d d0^T.
-inline void addShifted(CsmMoments& acc, const CsmMoments& s, const Vec3& d, const Vec3& d0) {
-    acc.m += s.m;
-    acc.mx += s.mx + s.m * d;
-    acc.mx0 += s.mx0 + s.m * d0;
-    acc.mxx0 += s.mxx0;
-    acc.mxx0.noalias() += (s.mx + s.m * d) * d0.transpose();  // mx d0^T + m d d0^T
-    acc.mxx0.noalias() += d * s.mx0.transpose();
 }
 
 /// q = |cof A|_F / |A|_F^2 at or above which the Newton iteration is used (see above).
@@ -282,47 +274,56 @@ void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass
     CsmMoments* prefix = scratch.prefix.data();
     CsmMoments* suffix = scratch.suffix.data();
 
-    // Pass 1: per block, prefix and suffix moments about the block's first particle, with
+    // Pass 1: per block, prefix moments about the block's first particle and suffix
+    // moments about the next block's first particle (the last block's about its own), with
     // per-region masses m_i / N_i (N_i = number of regions containing i = size of region i).
+    // A region spanning two blocks is a suffix of the first plus a prefix of the second,
+    // both about the second's first particle: they add without a shift.
     for (std::size_t s = 0; s < n; s += block) {
         const std::size_t e = std::min(s + block, n) - 1;
-        const Vec3& p = x[s];
-        const Vec3& p0 = rest[s];
         CsmMoments run;
         for (std::size_t i = s; i <= e; ++i) {
             const double m = mass[i] / static_cast<double>(regionHi(i) - regionLo(i) + 1);
-            addParticle(run, m, x[i] - p, rest[i] - p0);
+            addParticle(run, m, x[i] - x[s], rest[i] - rest[s]);
             prefix[i] = run;
         }
+        const std::size_t q = s + block < n ? s + block : s;  // the suffixes' reference
         run = CsmMoments();
         for (std::size_t i = e + 1; i-- > s;) {
             const double m = mass[i] / static_cast<double>(regionHi(i) - regionLo(i) + 1);
-            addParticle(run, m, x[i] - p, rest[i] - p0);
+            addParticle(run, m, x[i] - x[q], rest[i] - rest[q]);
             suffix[i] = run;
         }
     }
 
-    // Pass 2: fit every region, moments about its centre particle k.
+    // Pass 2: fit every region, with its moments about a particle r of the region (the
+    // second block's first particle, or the one block's first: within a block of the
+    // centre, so A = S - M c c0^T still loses only a couple of digits).
     for (std::size_t k = 0; k < n; ++k) {
         const std::size_t lo = regionLo(k);
         const std::size_t hi = regionHi(k);
         const std::size_t blo = lo - lo % block;  // first particle of lo's block
         const std::size_t bhi = hi - hi % block;
         CsmMoments sum;
+        std::size_t r = bhi;
         if (blo == bhi) {
             // One block: a region shorter than a block touches the piece's start (a block
-            // prefix) or its end (a block suffix); a full-size one is the whole block.
-            addShifted(sum, lo == blo ? prefix[hi] : suffix[lo], x[blo] - x[k], rest[blo] - rest[k]);
+            // prefix) or its end (the last block's suffix); a full-size one is the whole
+            // block. All about the block's first particle.
+            sum = lo == blo ? prefix[hi] : suffix[lo];
         } else {
-            addShifted(sum, suffix[lo], x[blo] - x[k], rest[blo] - rest[k]);
-            addShifted(sum, prefix[hi], x[bhi] - x[k], rest[bhi] - rest[k]);
+            sum = suffix[lo];
+            sum.m += prefix[hi].m;
+            sum.mx += prefix[hi].mx;
+            sum.mx0 += prefix[hi].mx0;
+            sum.mxx0 += prefix[hi].mxx0;
         }
-        const Vec3 dc = sum.mx / sum.m;    // c - x_k
-        const Vec3 dc0 = sum.mx0 / sum.m;  // c0 - x0_k
+        const Vec3 dc = sum.mx / sum.m;    // c - x_r
+        const Vec3 dc0 = sum.mx0 / sum.m;  // c0 - x0_r
         const Mat3 a = sum.mxx0 - sum.mx * dc0.transpose();
         scratch.rotation[k] = csmRotation(a);
-        scratch.centroid[k] = x[k] + dc;
-        scratch.rest_centroid[k] = rest[k] + dc0;
+        scratch.centroid[k] = x[r] + dc;
+        scratch.rest_centroid[k] = rest[r] + dc0;
     }
 
     // Pass 3: blend, g_i = x_i + mean over regions k containing i of (g_ik - x_i). Region k
