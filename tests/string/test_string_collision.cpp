@@ -180,7 +180,7 @@ TEST(StringCollision, RopeDroppedAsAnArchHangsOnTheClampedRope) {
 // kinetic energy was 0.061 J, which flings an arm's free end up at 10 m/s. How much is
 // decided by rounding: of 15 starts shifted sideways by 0 .. 1e-3 m, 5 gain 0.2-0.65 J and
 // the others nothing (main of 2026-12-01). An inelastic collision must not add energy.
-// Enable when the joint solve is fixed.
+// Enable when the joint solve is fixed (branch `kick` fixes it, but see DISABLED_SlackClampedRopeStaysOnTopOfTheTautOne).
 TEST(StringCollision, DISABLED_ArmsOfARopeMeetingHeadOnGainNoEnergy) {
     for (double shift : {0.0, 1e-12, -1e-12, 1e-10, 1e-9, -1e-9, 1e-8, 1e-7, -1e-7, 1e-6, 1e-5, -1e-5, 1e-4, 1e-3, -1e-3}) {
         World world(collisions());
@@ -255,6 +255,35 @@ TEST(StringCollision, SlackClampedRopeDropsOntoTautClampedRope) {
         ASSERT_GE(d, 0.95 * thickness) << "step " << i;
     }
     EXPECT_LT(closest, 1.05 * thickness);  // the upper rope did come down onto the lower
+}
+
+// Known bug, found 2026-12-01: in the test above the slack rope goes through the taut one
+// within one step (2.2 cm a step against 1 cm of thickness) and ends hanging 4 cm below
+// it; no step's end shows an overlap, so the test above passes. The pairs that touched at
+// the start of that step and that the prediction carried clean through take the flipped
+// direction as their normal (solveStringCluster's linearisation). A fix (branch `kick`:
+// keep the side a pair met the other on, from its first touch along the straight path)
+// passes this and the head-on test, but in 1 of ~80 starts of
+// FreeRopeDroppedAcrossClampedRopeNeverPenetrates it chose a normal across the start one
+// for the arms' ends meeting under the clamped rope (50 kN, a particle at 8.6 m/s, the
+// ropes through each other), so it is not on main. Enable with the fix.
+TEST(StringCollision, DISABLED_SlackClampedRopeStaysOnTopOfTheTautOne) {
+    World world(collisions());
+    const StringId lower = world.addString(rope(line({-0.5, 0, 0}, {0.5, 0, 0}, 40)));
+    std::vector<Vec3> arch;
+    const double span = 0.6;
+    for (int i = 0; i <= 40; ++i) {
+        const double u = i / 40.0;
+        arch.push_back({0.0, 0.1 + 0.15 * std::sin(kPi * u), -0.5 * span + span * u});
+    }
+    const StringId upper = world.addString(rope(arch));
+    world.attachToPoint(lower, 0, {-0.5, 0, 0});
+    world.attachToPoint(lower, -1, {0.5, 0, 0});
+    world.attachToPoint(upper, 0, arch.front());
+    world.attachToPoint(upper, -1, arch.back());
+    for (int i = 0; i < 300; ++i) world.step(0.01);
+    // It lies on the lower rope where they cross (both ropes' middle particles).
+    EXPECT_GT((*world.view(upper).positions)[20].y(), (*world.view(lower).positions)[20].y() + 0.95 * 2.0 * kRadius);
 }
 
 // Without string collisions the same ropes pass through each other (so the tests above
