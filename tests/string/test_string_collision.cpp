@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 #include <vector>
 
 namespace {
@@ -230,10 +231,9 @@ TEST(StringCollision, ThreeRopesPileCrosswiseWithoutPenetrating) {
     EXPECT_GT(lowest(world.view(ids[0])), -0.05);
 }
 
-// Both ropes clamped at both ends, crosswise: the upper one, 10 cm higher and 30% longer
-// than its span, arched upwards at the start, drops by gravity and its sag onto the lower.
-TEST(StringCollision, SlackClampedRopeDropsOntoTautClampedRope) {
-    World world(collisions());
+/// The next tests' ropes, both clamped at both ends, crosswise: the lower one taut, the
+/// upper one 10 cm higher and 30% longer than its span, arched upwards. Returns (lower, upper).
+std::pair<StringId, StringId> slackOverTaut(World& world) {
     const StringId lower = world.addString(rope(line({-0.5, 0, 0}, {0.5, 0, 0}, 40)));
     std::vector<Vec3> arch;
     const double span = 0.6;
@@ -246,6 +246,14 @@ TEST(StringCollision, SlackClampedRopeDropsOntoTautClampedRope) {
     world.attachToPoint(lower, -1, {0.5, 0, 0});
     world.attachToPoint(upper, 0, arch.front());
     world.attachToPoint(upper, -1, arch.back());
+    return {lower, upper};
+}
+
+// Both ropes clamped at both ends, crosswise: the upper one, 10 cm higher and 30% longer
+// than its span, arched upwards at the start, drops by gravity and its sag onto the lower.
+TEST(StringCollision, SlackClampedRopeDropsOntoTautClampedRope) {
+    World world(collisions());
+    const auto [lower, upper] = slackOverTaut(world);
     const double thickness = 2.0 * kRadius;
     double closest = 1e300;
     for (int i = 0; i < 300; ++i) {
@@ -269,18 +277,7 @@ TEST(StringCollision, SlackClampedRopeDropsOntoTautClampedRope) {
 // ropes through each other), so it is not on main. Enable with the fix.
 TEST(StringCollision, DISABLED_SlackClampedRopeStaysOnTopOfTheTautOne) {
     World world(collisions());
-    const StringId lower = world.addString(rope(line({-0.5, 0, 0}, {0.5, 0, 0}, 40)));
-    std::vector<Vec3> arch;
-    const double span = 0.6;
-    for (int i = 0; i <= 40; ++i) {
-        const double u = i / 40.0;
-        arch.push_back({0.0, 0.1 + 0.15 * std::sin(kPi * u), -0.5 * span + span * u});
-    }
-    const StringId upper = world.addString(rope(arch));
-    world.attachToPoint(lower, 0, {-0.5, 0, 0});
-    world.attachToPoint(lower, -1, {0.5, 0, 0});
-    world.attachToPoint(upper, 0, arch.front());
-    world.attachToPoint(upper, -1, arch.back());
+    const auto [lower, upper] = slackOverTaut(world);
     for (int i = 0; i < 300; ++i) world.step(0.01);
     // It lies on the lower rope where they cross (both ropes' middle particles).
     EXPECT_GT((*world.view(upper).positions)[20].y(), (*world.view(lower).positions)[20].y() + 0.95 * 2.0 * kRadius);
