@@ -953,8 +953,84 @@ constexpr double kStringRelinearise = 1e-3;
 constexpr int kStringPredictRounds = 3;
 /// Position accuracy of the joint solve, as a fraction of the thinnest contact.
 constexpr double kStringContactTolerance = 1e-5;
+/// firstTouch stops within this fraction of the gap of the touch, or after this many
+/// advancements (a grazing approach; the direction there is as good).
+constexpr double kStringTouchTolerance = 1e-3;
+constexpr int kStringTouchIterations = 32;
 
 bool freeParticle(const StringState& s, std::size_t p) { return s.hold[p].kind == ParticleHold::Kind::Free; }
+
+/// How far a segment's real path over the step, from (p0, p1) to (q0, q1), may stray
+/// from the straight one (its ends moving linearly): moved by c (its ends' larger travel)
+/// while turning by theta, along an arc of that chord it strays from the chord by about
+/// c theta / 8 (the sagitta).
+double pathStray(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1) {
+    const Vec3 u = p1 - p0, v = q1 - q0;
+    const double theta = std::atan2(u.cross(v).norm(), u.dot(v));
+    const double c = std::sqrt(std::max((q0 - p0).squaredNorm(), (q1 - p1).squaredNorm()));
+    return c * theta / 8.0;
+}
+
+/// Two segments moving linearly over the step, from (pa0, pa1), (pb0, pb1) at tau = 0 to
+/// (a0, a1), (b0, b1) at tau = 1.
+struct StraightPaths {
+    Vec3 pa0, pa1, pb0, pb1, ta0, ta1, tb0, tb1;
+    double r;  ///< the largest relative travel of the ends
+    StraightPaths(const Vec3& pa0_, const Vec3& pa1_, const Vec3& pb0_, const Vec3& pb1_, const Vec3& a0,
+                  const Vec3& a1, const Vec3& b0, const Vec3& b1)
+        : pa0(pa0_), pa1(pa1_), pb0(pb0_), pb1(pb1_), ta0(a0 - pa0_), ta1(a1 - pa1_), tb0(b0 - pb0_), tb1(b1 - pb1_) {
+        r = std::sqrt(std::max({(ta0 - tb0).squaredNorm(), (ta0 - tb1).squaredNorm(), (ta1 - tb0).squaredNorm(),
+                                (ta1 - tb1).squaredNorm()}));
+    }
+    /// Where, from `tau` on, the axes first come within `reach` of each other: false when
+    /// they never do; else true, with tau there and `normal` the direction from the
+    /// second toward the first (the side each is on when they meet). Conservative
+    /// advancement: the axes' distance changes over the step by at most r (the closest
+    /// points' difference is a convex combination of the ends' differences), so advancing
+    /// by (distance - reach) / r of the step never passes the first touch. Stops within
+    /// kStringTouchTolerance of `scale` of the touch.
+    bool firstTouch(double& tau, double reach, double scale, Vec3& normal) const {
+        for (int i = 0; i < kStringTouchIterations; ++i) {
+            const SegmentClosest cp =
+                closestPointsOfSegments(pa0 + tau * ta0, pa1 + tau * ta1, pb0 + tau * tb0, pb1 + tau * tb1);
+            const double ahead = cp.distance - reach;
+            if (ahead <= kStringTouchTolerance * scale || i + 1 == kStringTouchIterations) {
+                if (!(cp.distance > 0.0)) return false;
+                normal = (cp.p - cp.q) / cp.distance;
+                return true;
+            }
+            if (!(r > 0.0)) return false;
+            tau += ahead / r;
+            if (!(tau <= 1.0)) return false;
+        }
+        return false;
+    }
+};
+
+/// The side on which two segments that were apart at the start of the step met during
+/// it, as far as the motion from the start tells: true when it does, with `side` the
+/// direction from the second toward the first where they met, and `met` whether they
+/// did. Their real paths are not known, only that each strays from its straight one by
+/// about `stray` (pathStray, both segments' summed), so the straight paths decide only
+/// what every path within `stray` of them would: that the pair met at all (the straight
+/// paths come within gap - stray: the real ones within gap; never within gap + stray: the
+/// real ones never within gap), and on which side of `now` (the direction of the pair at
+/// the end) it met, the real meeting lying between the straight paths' touches of
+/// gap + stray and gap - stray: decided when those touches, and the touch of the gap
+/// itself (`side`), see `now` on the same side.
+bool sideMet(const StraightPaths& path, double gap, double stray, const Vec3& now, bool& met, Vec3& side) {
+    met = false;
+    if (!(stray < gap)) return false;
+    double tau = 0.0;
+    Vec3 early, late;
+    if (!path.firstTouch(tau, gap + stray, gap, early)) return true;  // never within reach
+    if (!path.firstTouch(tau, gap, gap, side)) return false;
+    if (!path.firstTouch(tau, gap - stray, gap, late)) return false;
+    const bool behind = now.dot(side) <= 0.0;
+    if ((now.dot(early) <= 0.0) != behind || (now.dot(late) <= 0.0) != behind) return false;
+    met = true;
+    return true;
+}
 
 /// The penalty terms of the string's rigid contacts that penetrate now, without body
 /// unknowns (the bodies stay where they are). Their stiffness is the string's own solve's
@@ -1189,37 +1265,54 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
     // Closest points and normal at the given positions: the predicted ones in the first
     // pass (the strings' own solves, which ignored each other, may have pulled one
     // through the other), the current ones later (the passes keep them apart). The
-    // prediction may have carried a pair that touched at the start of the step through
-    // itself, or axes across each other: then the start normal says which side is which.
-    // (A pair that was apart at the start has no side yet: its closest-point direction
-    // may turn freely while it comes into reach, e.g. end against side.)
+    // contact takes the closest-point direction there, which may turn freely while the
+    // pair comes into reach (e.g. end against side), unless the positions have carried
+    // the pair through itself: then it takes the normal of the side it was on, which the
+    // motion from the start of the step tells. A pair that touched at the start is on
+    // its start normal's side; one that came into reach during the step, on the side it
+    // met the other on, as far as the straight paths from the start tell it for any path
+    // within their stray of them (sideMet). Taking the direction now for such a pair (as
+    // this code did) pushed it on through itself, against its neighbours' contacts that
+    // had not crossed: two arms of a rope meeting head-on at 5 cm a step, their segments
+    // nearly parallel, were pushed both ways at once, and the stiff penalties' compromise
+    // flung an arm's end at 10 m/s (the ropes gained 0.2-0.8 J; test_string_collision.cpp).
+    // Where the straight paths do not tell (strays near the gap: a torn rope whipping
+    // round its pin at the speed clamp), only axes that went across each other do: the
+    // side of their common perpendicular flipped. (Trusting the straight paths only
+    // where each segment strayed from its own by under a tenth of the gap, as this code
+    // did at first, split neighbouring pairs between the two rules: of the free rope's
+    // arms meeting head-on under the clamped one, the pairs of the segments that turned
+    // by 0.24 rad over 4 cm (stray 0.12 of the gap) took the flipped direction while their
+    // neighbours, at 0.08, kept their side, and the arms were squeezed through each other
+    // at 50 kN.)
     auto linearise = [&](SegmentContact& c, bool predicted) {
         const StringState& a = *strings[c.string];
         const StringState& b = *strings[c.partner];
         const std::vector<Vec3>& xa = predicted ? a.x_pred : a.x;
         const std::vector<Vec3>& xb = predicted ? b.x_pred : b.x;
-        const Vec3 a0 = xa[c.segment], a1 = xa[c.segment + 1], b0 = xb[c.partner_segment], b1 = xb[c.partner_segment + 1];
+        const std::size_t j = c.segment, k = c.partner_segment;
+        const Vec3 a0 = xa[j], a1 = xa[j + 1], b0 = xb[k], b1 = xb[k + 1];
+        const Vec3 pa0 = a.x_prev[j], pa1 = a.x_prev[j + 1], pb0 = b.x_prev[k], pb1 = b.x_prev[k + 1];
         const SegmentClosest cp = closestPointsOfSegments(a0, a1, b0, b1);
         c.s = cp.s;
         c.partner_s = cp.t;
         const Vec3 d = cp.p - cp.q;
+        Vec3 side = c.start_normal;
         bool crossed = false;
-        if (predicted && cp.distance < c.gap) {
-            if (c.start_distance < c.gap * (1.0 + kContactSlop)) {
-                crossed = d.dot(c.start_normal) <= 0.0;
-            } else if (cp.s > 0.0 && cp.s < 1.0 && cp.t > 0.0 && cp.t < 1.0) {
-                // Axes across each other: the side of the common perpendicular flipped.
-                const Vec3 m = (a1 - a0).cross(b1 - b0);
-                const Vec3 m0 = (a.x_prev[c.segment + 1] - a.x_prev[c.segment]).cross(b.x_prev[c.partner_segment + 1] - b.x_prev[c.partner_segment]);
-                const double now = m.dot(a0 - b0);
-                const double then = m0.dot(a.x_prev[c.segment] - b.x_prev[c.partner_segment]);
-                crossed = m.dot(m0) > 0.0 && now * then < 0.0;
-            }
+        if (c.start_distance < c.gap * (1.0 + kContactSlop)) {
+            crossed = d.dot(side) <= 0.0;
+        } else if (sideMet(StraightPaths(pa0, pa1, pb0, pb1, a0, a1, b0, b1), c.gap,
+                           pathStray(pa0, pa1, a0, a1) + pathStray(pb0, pb1, b0, b1), d, crossed, side)) {
+            crossed = crossed && d.dot(side) <= 0.0;
+        } else if (predicted && cp.distance < c.gap && cp.s > 0.0 && cp.s < 1.0 && cp.t > 0.0 && cp.t < 1.0) {
+            const Vec3 m = (a1 - a0).cross(b1 - b0);
+            const Vec3 m0 = (pa1 - pa0).cross(pb1 - pb0);
+            crossed = m.dot(m0) > 0.0 && m.dot(a0 - b0) * m0.dot(pa0 - pb0) < 0.0;
         }
         if (cp.distance > kStringAxisContact * c.gap && !crossed)
             c.normal = d / cp.distance;
-        else if (predicted)
-            c.normal = c.start_normal;  // else: keep the last pass's normal
+        else if (predicted || crossed)
+            c.normal = side;  // else: keep the last pass's normal
     };
     // The (up to four) particle entries of a contact direction e: +e at this side's
     // ends by the fractions, -e at the other side's.
