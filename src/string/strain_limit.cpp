@@ -709,14 +709,16 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         return rigidGap(s, c, (1.0 - c.s) * moved(j) + c.s * moved(j + 1), &step);
     };
 
+    // A chain without contacts or body unknowns: its Hessian's geometric term takes the
+    // linearised tension (starting from the last step's), its system is solved by
+    // solveChain, and it stops on a quadratic prediction (see the file's header).
+    const bool plain_chain = s.contacts.empty() && nodes == 0;
+    if (plain_chain) std::copy(s.spring_force.begin(), s.spring_force.end(), s.geometric_tension.begin());
     // Assembles the Newton system (the chain's, plus the contacts in the Hessian: those
     // marked active) and solves it: the particles' step into blk_rhs, the bodies' into
     // node_step.
-    // The geometric term of a contact-free chain's Hessian (below).
-    const bool estimate_tension = s.contacts.empty() && nodes == 0;
-    if (estimate_tension) std::copy(s.spring_force.begin(), s.spring_force.end(), s.geometric_tension.begin());
     auto solveStep = [&]() {
-        assembleChain(s, rigids, ctx, estimate_tension ? s.geometric_tension.data() : nullptr);
+        assembleChain(s, rigids, ctx, plain_chain ? s.geometric_tension.data() : nullptr);
         for (std::size_t b = 0; b < nodes; ++b) {
             const BodyNode& node = s.body_nodes[b];
             node_diag[b] = node.mass * inv_h2;
@@ -759,7 +761,7 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
             if (fb) coupling[b].emplace_back(j + 1, (w * wb) * jb);
         }
 
-        if (estimate_tension) {  // no contacts, no body unknowns
+        if (plain_chain) {
             solveChain(s);
             return;
         }
@@ -852,7 +854,7 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
             displaceBody(body, node.displacement - u - node.linearised_at, node.displacement - node.linearised_at);
             worst = std::max(worst, u.head<3>().norm());
         }
-        if (estimate_tension) linearisedTension(s, ctx);
+        if (plain_chain) linearisedTension(s, ctx);
         // Apply: free particles move, glued ones move their body by the impulse K^-1 dx.
         for (std::size_t p = 0; p < n; ++p) {
             if (fixedRow(s, p)) continue;
@@ -874,7 +876,7 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         // move ~ C times the last one squared): where the moves fall that fast, the move
         // the next iteration would make, predicted with C from the last two, is checked
         // against the tolerance (with a margin of 100) instead of being made.
-        const bool next_within = estimate_tension && last_move > 0.0 && worst < kQuadraticRegime * last_move &&
+        const bool next_within = plain_chain && last_move > 0.0 && worst < kQuadraticRegime * last_move &&
                                  kPredictionMargin * worst * worst * worst < tol * s.shortest_rest * last_move * last_move;
         last_move = worst;
         if (stalled || worst < tol * s.shortest_rest || next_within) {
