@@ -32,7 +32,7 @@ scene = {
     "dt": 0.01,
     "steps": 750,
     "gravity": [0, 0, 0],
-    "strings": [cord("cord", 0.0), cord("plain", -0.3)],
+    "strings": [cord("cord", 0.0), cord("plain", -0.6)],  # 0.6 m behind: the coil swings 0.2 m out, the bow 0.15 m,
     "drivers": [
         {"type": "twist", "target": "cord", "end": -1, "rate": round(2 * math.pi * turns / twist_seconds, 4),
          "from": 0, "until": twist_seconds},
@@ -41,7 +41,7 @@ scene = {
         {"type": "move", "target": "cord", "particle": -1, "velocity": [-0.2, 0, 0], "from": 3, "until": 7},
         {"type": "move", "target": "plain", "particle": -1, "velocity": [-0.2, 0, 0], "from": 3, "until": 7},
     ],
-    "camera": {"eye": [-0.3, 1.12, 0.4], "target": [-0.3, 1.0, -0.15], "fov": 40},
+    "camera": {"eye": [-0.3, 1.25, 0.6], "target": [-0.3, 1.0, -0.3], "fov": 45},
     "output": {"every": 10},
 }
 text = json.dumps(scene, indent=1)
