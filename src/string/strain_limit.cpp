@@ -917,11 +917,13 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         }
         if (plain_chain) linearisedTension(s, ctx);
         // Apply: free particles move, glued ones move their body by the impulse K^-1 dx.
+        // The largest move from the largest square (one square root: the same bits).
+        double worst_squared = 0.0;
         for (std::size_t p = 0; p < n; ++p) {
             if (fixedRow(s, p)) continue;
             const Vec3& dx = s.blk_rhs[p];
             if (!dx.allFinite()) continue;
-            worst = std::max(worst, dx.norm());
+            worst_squared = std::max(worst_squared, dx.squaredNorm());
             if (s.hold[p].kind == ParticleHold::Kind::Free) {
                 s.x[p] += dx;
             } else {
@@ -932,6 +934,7 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
                 applyBodyImpulse(b, s.x[p] - b.position, impulse);
             }
         }
+        worst = std::max(worst, std::sqrt(worst_squared));
         if (first_move < 0.0) first_move = worst;
         // Without contacts the iteration converges quadratically once it is close (each
         // move ~ C times the last one squared): where the moves fall that fast, the move
