@@ -1015,6 +1015,7 @@ void World::step(double h) {
     ctx.settings = &w.settings;
     ctx.time = w.time + h;
     ctx.step = w.steps + 1;
+    ctx.pool = &w.pool;
 
     RigidTable& rigids = w.rigids;
     for (std::size_t i = 0; i < rigids.bodies.size(); ++i) {
@@ -1043,7 +1044,7 @@ void World::step(double h) {
     };
 
     auto t0 = Clock::now();
-    eachLive([](StringState& s) { detail::shapeMatch(s); });
+    eachLive([&w](StringState& s) { detail::shapeMatch(s, &w.pool); });
     auto t0b = Clock::now();
     t.shape_matching = seconds(t0, t0b);
 

@@ -86,6 +86,8 @@
 // issue 9, the CSM stage, for the tests that rounding used to decide).
 #include "string/shape_matching.hpp"
 
+#include "core/thread_pool.hpp"
+
 #include <Eigen/SVD>
 
 #include <algorithm>
@@ -252,7 +254,7 @@ Mat3 csmRotation(const Mat3& a) {
 }
 
 void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass, std::size_t first,
-                             std::size_t last, int w, Vec3* goal, CsmScratch& scratch) {
+                             std::size_t last, int w, Vec3* goal, CsmScratch& scratch, ThreadPool* pool) {
     if (w < 1) throw InvalidInput("w", "region half-width must be >= 1");
     if (first > last) throw InvalidInput("first", "piece is empty (first > last)");
     const std::size_t n = last - first + 1;
@@ -274,70 +276,88 @@ void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass
     CsmMoments* prefix = scratch.prefix.data();
     CsmMoments* suffix = scratch.suffix.data();
 
+    // Each pass splits over the pool in contiguous ranges: blocks, regions, particles. Every
+    // item writes only its own entries, so the bits do not depend on the split.
+    const std::size_t parts = pool && pool->parallel() && n >= kParallelCsmParticles ? pool->threads() : 1;
+    auto split = [&](std::size_t count, auto&& body) {
+        auto range = [&](std::size_t part) { body(count * part / parts, count * (part + 1) / parts); };
+        if (parts > 1)
+            pool->forEach(parts, range);
+        else
+            range(0);
+    };
+
     // Pass 1: per block, prefix moments about the block's first particle and suffix
     // moments about the next block's first particle (the last block's about its own), with
     // per-region masses m_i / N_i (N_i = number of regions containing i = size of region i).
     // A region spanning two blocks is a suffix of the first plus a prefix of the second,
     // both about the second's first particle: they add without a shift.
-    for (std::size_t s = 0; s < n; s += block) {
-        const std::size_t e = std::min(s + block, n) - 1;
-        CsmMoments run;
-        for (std::size_t i = s; i <= e; ++i) {
-            const double m = mass[i] / static_cast<double>(regionHi(i) - regionLo(i) + 1);
-            addParticle(run, m, x[i] - x[s], rest[i] - rest[s]);
-            prefix[i] = run;
+    const std::size_t blocks = (n + block - 1) / block;
+    split(blocks, [&](std::size_t b0, std::size_t b1) {
+        for (std::size_t s = b0 * block; s < std::min(n, b1 * block); s += block) {
+            const std::size_t e = std::min(s + block, n) - 1;
+            CsmMoments run;
+            for (std::size_t i = s; i <= e; ++i) {
+                const double m = mass[i] / static_cast<double>(regionHi(i) - regionLo(i) + 1);
+                addParticle(run, m, x[i] - x[s], rest[i] - rest[s]);
+                prefix[i] = run;
+            }
+            const std::size_t q = s + block < n ? s + block : s;  // the suffixes' reference
+            run = CsmMoments();
+            for (std::size_t i = e + 1; i-- > s;) {
+                const double m = mass[i] / static_cast<double>(regionHi(i) - regionLo(i) + 1);
+                addParticle(run, m, x[i] - x[q], rest[i] - rest[q]);
+                suffix[i] = run;
+            }
         }
-        const std::size_t q = s + block < n ? s + block : s;  // the suffixes' reference
-        run = CsmMoments();
-        for (std::size_t i = e + 1; i-- > s;) {
-            const double m = mass[i] / static_cast<double>(regionHi(i) - regionLo(i) + 1);
-            addParticle(run, m, x[i] - x[q], rest[i] - rest[q]);
-            suffix[i] = run;
-        }
-    }
+    });
 
     // Pass 2: fit every region, with its moments about a particle r of the region (the
     // second block's first particle, or the one block's first: within a block of the
     // centre, so A = S - M c c0^T still loses only a couple of digits).
-    for (std::size_t k = 0; k < n; ++k) {
-        const std::size_t lo = regionLo(k);
-        const std::size_t hi = regionHi(k);
-        const std::size_t blo = lo - lo % block;  // first particle of lo's block
-        const std::size_t bhi = hi - hi % block;
-        CsmMoments sum;
-        std::size_t r = bhi;
-        if (blo == bhi) {
-            // One block: a region shorter than a block touches the piece's start (a block
-            // prefix) or its end (the last block's suffix); a full-size one is the whole
-            // block. All about the block's first particle.
-            sum = lo == blo ? prefix[hi] : suffix[lo];
-        } else {
-            sum = suffix[lo];
-            sum.m += prefix[hi].m;
-            sum.mx += prefix[hi].mx;
-            sum.mx0 += prefix[hi].mx0;
-            sum.mxx0 += prefix[hi].mxx0;
+    split(n, [&](std::size_t k0, std::size_t k1) {
+        for (std::size_t k = k0; k < k1; ++k) {
+            const std::size_t lo = regionLo(k);
+            const std::size_t hi = regionHi(k);
+            const std::size_t blo = lo - lo % block;  // first particle of lo's block
+            const std::size_t bhi = hi - hi % block;
+            CsmMoments sum;
+            std::size_t r = bhi;
+            if (blo == bhi) {
+                // One block: a region shorter than a block touches the piece's start (a block
+                // prefix) or its end (the last block's suffix); a full-size one is the whole
+                // block. All about the block's first particle.
+                sum = lo == blo ? prefix[hi] : suffix[lo];
+            } else {
+                sum = suffix[lo];
+                sum.m += prefix[hi].m;
+                sum.mx += prefix[hi].mx;
+                sum.mx0 += prefix[hi].mx0;
+                sum.mxx0 += prefix[hi].mxx0;
+            }
+            const Vec3 dc = sum.mx / sum.m;    // c - x_r
+            const Vec3 dc0 = sum.mx0 / sum.m;  // c0 - x0_r
+            const Mat3 a = sum.mxx0 - sum.mx * dc0.transpose();
+            scratch.rotation[k] = csmRotation(a);
+            scratch.centroid[k] = x[r] + dc;
+            scratch.rest_centroid[k] = rest[r] + dc0;
         }
-        const Vec3 dc = sum.mx / sum.m;    // c - x_r
-        const Vec3 dc0 = sum.mx0 / sum.m;  // c0 - x0_r
-        const Mat3 a = sum.mxx0 - sum.mx * dc0.transpose();
-        scratch.rotation[k] = csmRotation(a);
-        scratch.centroid[k] = x[r] + dc;
-        scratch.rest_centroid[k] = rest[r] + dc0;
-    }
+    });
 
     // Pass 3: blend, g_i = x_i + mean over regions k containing i of (g_ik - x_i). Region k
     // contains i iff |k - i| <= hw, so those regions are regionLo(i) .. regionHi(i).
     const Mat3* rot = scratch.rotation.data();
     const Vec3* c = scratch.centroid.data();
     const Vec3* c0 = scratch.rest_centroid.data();
-    for (std::size_t i = 0; i < n; ++i) {
-        const std::size_t lo = regionLo(i);
-        const std::size_t hi = regionHi(i);
-        Vec3 acc = Vec3::Zero();
-        for (std::size_t k = lo; k <= hi; ++k) acc.noalias() += rot[k] * (rest[i] - c0[k]) + (c[k] - x[i]);
-        goal[i] = x[i] + acc / static_cast<double>(hi - lo + 1);
-    }
+    split(n, [&](std::size_t i0, std::size_t i1) {
+        for (std::size_t i = i0; i < i1; ++i) {
+            const std::size_t lo = regionLo(i);
+            const std::size_t hi = regionHi(i);
+            Vec3 acc = Vec3::Zero();
+            for (std::size_t k = lo; k <= hi; ++k) acc.noalias() += rot[k] * (rest[i] - c0[k]) + (c[k] - x[i]);
+            goal[i] = x[i] + acc / static_cast<double>(hi - lo + 1);
+        }
+    });
 }
 
 }  // namespace tearables::detail
@@ -366,7 +386,7 @@ void updateRestShape(StringState& s) {
 // force on one particle over its region; run on the prediction it would carry part of
 // every external load itself, and the momentum-balance tension, which must carry all of
 // it, would read low. Run on the constrained shape it sees bending only.
-void shapeMatch(StringState& s) {
+void shapeMatch(StringState& s, ThreadPool* pool) {
     const std::size_t n = s.particles();
     std::fill(s.csm_goal.begin(), s.csm_goal.end(), Vec3::Zero());
     if (n < 3 || s.desc.bending <= 0.0) return;  // nothing to bend
@@ -386,7 +406,7 @@ void shapeMatch(StringState& s) {
         if (!piece_ends) continue;
         if (p > first + 1) {
             chainShapeMatchingGoals(s.x.data(), s.rest_shape.data(), s.csm_mass.data(), first, p, s.desc.csm_half_width,
-                                    s.csm_goal.data(), s.csm_scratch);
+                                    s.csm_goal.data(), s.csm_scratch, pool);
             // Particles move all the way to their goals (the paper's full step): the goal
             // displacement is kept for the prediction. Held particles stay where their hold
             // puts them and only anchor the regions they belong to.

@@ -38,6 +38,7 @@
 // pulls the rope (two-way). Strings that share a body are coupled by Gauss-Seidel sweeps
 // over the strings in World::step.
 #include "collision/capsule.hpp"
+#include "core/thread_pool.hpp"
 #include "core/tridiagonal.hpp"
 #include "string/string_state.hpp"
 
@@ -70,6 +71,11 @@ constexpr int kChainIterationFactor = 2;
 /// the next move, predicted quadratically and times kPredictionMargin, is within tolerance.
 constexpr double kQuadraticRegime = 0.1;
 constexpr double kPredictionMargin = 100.0;
+/// A contact-free chain of at least this many particles and no glued ones is split over
+/// two threads where the world has them (limitStrain, parallelChainStep): each half's
+/// assembly, sweep and back substitution on one. An iteration of 4096 particles is about
+/// 250 us of work on one thread; the pool's two hand-overs an iteration cost a few us.
+constexpr std::size_t kParallelChainParticles = 4096;
 /// A segment within this fraction of its radius of a body counts as touching it.
 constexpr double kContactSlop = 0.1;
 /// Halvings of a Newton step before the line search gives up (the energy is at its
@@ -358,7 +364,7 @@ void solveFactored(const StringState& s, std::vector<Vec3>& rhs) {
 /// divisions. As accurate as the Cholesky solve (an adjugate inverse, one division, lost
 /// ~k h^2 / m of the digits in the Schur complements of a stiff light cord, and a twisted
 /// cord coiled differently).
-inline Mat3 inverseSymmetric(const Mat3& a) {
+[[gnu::always_inline]] inline Mat3 inverseSymmetric(const Mat3& a) {
     const double r0 = 1.0 / a(0, 0);
     const double l10 = a(1, 0) * r0, l20 = a(2, 0) * r0;
     const double r1 = 1.0 / (a(1, 1) - l10 * a(1, 0));
@@ -386,7 +392,7 @@ struct ChainSweep {
 
     /// The next particle's pivot (its block `diag` less the last particle's Schur
     /// complement), and its right-hand side into r.
-    Mat3 pivot(const Mat3& diag, const Vec3& rhs, const Mat3* in, Vec3& r) const {
+    [[gnu::always_inline]] Mat3 pivot(const Mat3& diag, const Vec3& rhs, const Mat3* in, Vec3& r) const {
         Mat3 d = diag;
         r = rhs;
         if (has_prev) {  // *in: symmetric (minus a spring's Hessian)
@@ -397,7 +403,7 @@ struct ChainSweep {
     }
     /// With the pivot's inverse: y into y_out, the gain D^-1 out towards the next particle
     /// into gain_out.
-    void finish(const Mat3& inv, const Vec3& r, const Mat3& out, Vec3& y_out, Mat3& gain_out) {
+    [[gnu::always_inline]] void finish(const Mat3& inv, const Vec3& r, const Mat3& out, Vec3& y_out, Mat3& gain_out) {
         y.noalias() = inv * r;
         gain.noalias() = inv * out;
         y_out = y;
@@ -536,23 +542,17 @@ double stepEnergy(const StringState& s, const RigidTable& rigids, const StepCont
     return e;
 }
 
-/// The Newton system of the chain without contacts: the inertia rows (free particles
+/// The inertia rows of particles [p0, p1) of the chain's Newton system: free particles
 /// toward their prediction x', a glued particle with its body's effective mass, fixed rows
-/// for pins) and the springs of the stretched segments, into blk_diag, blk_off, blk_rhs.
-/// `tension_estimate` (per segment, may be null): the tension the geometric term of the
-/// Hessian takes where it is below the spring's force now (see limitStrain); each active
-/// segment's entry is replaced by its effective stretch now, which linearisedTension reads.
-void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx, double* tension_estimate) {
-    const std::size_t m = s.segments();
-    const std::size_t n = s.particles();
+/// for pins, into blk_diag and blk_rhs.
+void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx, std::size_t p0, std::size_t p1) {
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
     // Inertia: free particles are pulled back toward their prediction x'; a glued
     // particle carries its body's effective mass K^-1 at the glue point and starts
     // each iteration on the body (which absorbed the earlier corrections).
-    for (std::size_t p = 0; p < n; ++p) {
+    for (std::size_t p = p0; p < p1; ++p) {
         const ParticleHold& hold = s.hold[p];
         s.blk_rhs[p].setZero();
-        if (p < m) s.blk_off[p].setZero();
         switch (hold.kind) {
             case ParticleHold::Kind::Free:
                 s.blk_diag[p] = (s.mass[p] * inv_h2) * Mat3::Identity();
@@ -574,12 +574,32 @@ void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx, d
                 break;
         }
     }
-    // Springs of the material's stiffness k = E A / L_rest on the stretched segments:
-    // gradient k C e and Hessian k (e e^T + C/l (I - e e^T)) (the geometric term keeps
-    // Newton convergent when a heavy load pulls light particles).
-    for (std::size_t j = 0; j < m; ++j) {
+}
+
+/// A segment's spring in the chain's Newton system, where its first particle's share is
+/// held back (assembleSprings): its Hessian and force.
+struct HeldSpring {
+    bool held = false;
+    Mat3 hess;
+    Vec3 force;  // pulls j toward j+1
+};
+
+/// Springs of the material's stiffness k = E A / L_rest on the stretched segments among
+/// [j0, j1), added to blk_diag, blk_off, blk_rhs: gradient k C e and Hessian
+/// k (e e^T + C/l (I - e e^T)) (the geometric term keeps Newton convergent when a heavy
+/// load pulls light particles). Sets active, spring_force, dir and blk_off (zero where
+/// the segment couples nothing) of those segments.
+/// `tension_estimate` (per segment, may be null): the tension the geometric term of the
+/// Hessian takes where it is below the spring's force now (see limitStrain); each active
+/// segment's entry is replaced by its effective stretch now, which linearisedTension reads.
+/// `hold_first` (may be null): segment j0's share of particle j0 goes there instead (a
+/// thread that assembles [j0, j1) does not own particle j0).
+void assembleSprings(StringState& s, const StepContext& ctx, std::size_t j0, std::size_t j1, double* tension_estimate,
+                     HeldSpring* hold_first) {
+    for (std::size_t j = j0; j < j1; ++j) {
         s.active[j] = 0;
         s.spring_force[j] = 0.0;
+        s.blk_off[j].setZero();
         if (s.broken[j]) continue;
         const Vec3 d = s.x[j + 1] - s.x[j];
         const double len = d.norm();
@@ -620,8 +640,14 @@ void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx, d
         const Vec3 force = k * c * e;  // pulls j toward j+1
         const bool fa = !fixedRow(s, j), fb = !fixedRow(s, j + 1);
         if (fa) {
-            s.blk_diag[j] += hess;
-            s.blk_rhs[j] += force;
+            if (hold_first && j == j0) {
+                hold_first->held = true;
+                hold_first->hess = hess;
+                hold_first->force = force;
+            } else {
+                s.blk_diag[j] += hess;
+                s.blk_rhs[j] += force;
+            }
         }
         if (fb) {
             s.blk_diag[j + 1] += hess;
@@ -631,13 +657,20 @@ void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx, d
     }
 }
 
+/// The Newton system of the chain without contacts: the inertia rows (assembleInertia) and
+/// the springs of the stretched segments (assembleSprings), into blk_diag, blk_off, blk_rhs.
+void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx, double* tension_estimate) {
+    assembleInertia(s, rigids, ctx, 0, s.particles());
+    assembleSprings(s, ctx, 0, s.segments(), tension_estimate, nullptr);
+}
+
 /// The tension of each segment after the Newton step held in blk_rhs, to first order:
 /// k max(0, C + (1 + tau/h) e . (dx_{j+1} - dx_j)), into geometric_tension (0 for the
 /// segments that took no part in the step). C, the effective stretch before the step, is
 /// what assembleChain left there.
-void linearisedTension(StringState& s, const StepContext& ctx) {
+void linearisedTension(StringState& s, const StepContext& ctx, std::size_t j0, std::size_t j1) {
     const double rate_gain = s.desc.axial_damping * ctx.inv_h;
-    for (std::size_t j = 0; j < s.segments(); ++j) {
+    for (std::size_t j = j0; j < j1; ++j) {
         if (!s.active[j]) {
             s.geometric_tension[j] = 0.0;
             continue;
@@ -647,6 +680,105 @@ void linearisedTension(StringState& s, const StepContext& ctx) {
         const double effective = s.geometric_tension[j] + (1.0 + rate_gain) * s.dir[j].dot(db - da);
         s.geometric_tension[j] = std::max(0.0, effective) / s.compliance[j];
     }
+}
+
+/// solveChain's sweep from the top alone, over particles [0, mid) (parallelChainStep runs
+/// it on one thread and sweepFromBottom on another: the same operations, so the same bits).
+void sweepFromTop(StringState& s, std::size_t mid) {
+    const Mat3* off = s.blk_off.data();
+    ChainSweep top;
+    for (std::size_t t = 0; t < mid; ++t) {
+        Vec3 r;
+        const Mat3 d = top.pivot(s.blk_diag[t], s.blk_rhs[t], t > 0 ? off + t - 1 : nullptr, r);
+        top.finish(inverseSymmetric(d), r, off[t], s.blk_rhs[t], s.blk_factor_gain[t]);
+    }
+}
+
+/// solveChain's sweep from the far end alone, over particles (mid, n).
+void sweepFromBottom(StringState& s, std::size_t mid) {
+    const Mat3* off = s.blk_off.data();
+    ChainSweep bottom;
+    for (std::size_t i = s.particles() - 1; i > mid; --i) {
+        Vec3 r;
+        const Mat3 d = bottom.pivot(s.blk_diag[i], s.blk_rhs[i], off + i, r);
+        bottom.finish(inverseSymmetric(d), r, off[i - 1], s.blk_rhs[i], s.blk_factor_gain[i]);
+    }
+}
+
+/// solveChain's middle particle, with the share of segment mid held back from its block.
+void solveMiddle(StringState& s, std::size_t mid, const HeldSpring& held) {
+    const std::size_t n = s.particles();
+    Mat3 d = s.blk_diag[mid];
+    Vec3 r = s.blk_rhs[mid];
+    if (held.held) {
+        d += held.hess;
+        r += held.force;
+    }
+    if (mid > 0 && !s.blk_off[mid - 1].isZero(0.0)) {
+        d.noalias() -= s.blk_off[mid - 1] * s.blk_factor_gain[mid - 1];
+        r.noalias() -= s.blk_off[mid - 1] * s.blk_rhs[mid - 1];
+    }
+    if (mid + 1 < n && !s.blk_off[mid].isZero(0.0)) {
+        d.noalias() -= s.blk_off[mid] * s.blk_factor_gain[mid + 1];
+        r.noalias() -= s.blk_off[mid] * s.blk_rhs[mid + 1];
+    }
+    s.blk_rhs[mid] = inverseSymmetric(d) * r;
+}
+
+/// Moves the free particles in [p0, p1) by their step in blk_rhs (a chain without glued
+/// particles); returns the largest squared move.
+double applyChainStep(StringState& s, std::size_t p0, std::size_t p1) {
+    double worst_squared = 0.0;
+    for (std::size_t p = p0; p < p1; ++p) {
+        if (fixedRow(s, p)) continue;
+        const Vec3& dx = s.blk_rhs[p];
+        if (!dx.allFinite()) continue;
+        worst_squared = std::max(worst_squared, dx.squaredNorm());
+        s.x[p] += dx;
+    }
+    return worst_squared;
+}
+
+/// One Newton iteration of a contact-free chain without glued particles, split over two
+/// threads at the middle particle: each half assembles its rows and springs and runs its
+/// sweep of solveChain, the middle particle is solved on this thread, and each half then
+/// back-substitutes, updates its segments' linearised tension and moves its particles.
+/// The sums and products are those of assembleChain and solveChain in the same order
+/// (the middle particle's share of segment mid is held back and added in the same place),
+/// so the bits are those of the serial iteration. Returns the largest move.
+double parallelChainStep(StringState& s, RigidTable& rigids, const StepContext& ctx, ThreadPool& pool) {
+    const std::size_t n = s.particles();
+    const std::size_t m = s.segments();
+    const std::size_t mid = n / 2;
+    double* tension_estimate = s.geometric_tension.data();
+    HeldSpring held;
+    pool.forEach(2, [&](std::size_t half) {
+        if (half == 0) {
+            assembleInertia(s, rigids, ctx, 0, mid + 1);
+            assembleSprings(s, ctx, 0, mid, tension_estimate, nullptr);
+            sweepFromTop(s, mid);
+        } else {
+            assembleInertia(s, rigids, ctx, mid + 1, n);
+            assembleSprings(s, ctx, mid, m, tension_estimate, &held);
+            sweepFromBottom(s, mid);
+        }
+    });
+    solveMiddle(s, mid, held);
+    double worst_squared[2] = {0.0, 0.0};
+    pool.forEach(2, [&](std::size_t half) {
+        if (half == 0) {
+            for (std::size_t i = mid; i-- > 0;)
+                if (!s.blk_off[i].isZero(0.0)) s.blk_rhs[i].noalias() -= s.blk_factor_gain[i] * s.blk_rhs[i + 1];
+            linearisedTension(s, ctx, 0, mid);
+            worst_squared[0] = applyChainStep(s, 0, mid + 1);
+        } else {
+            for (std::size_t i = mid + 1; i < n; ++i)
+                if (!s.blk_off[i - 1].isZero(0.0)) s.blk_rhs[i].noalias() -= s.blk_factor_gain[i] * s.blk_rhs[i - 1];
+            linearisedTension(s, ctx, mid, m);
+            worst_squared[1] = applyChainStep(s, mid + 1, n);
+        }
+    });
+    return std::sqrt(std::max(worst_squared[0], worst_squared[1]));
 }
 
 /// After a solve: glued particles back on their bodies, the springs' forces in the final
@@ -775,6 +907,10 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     // solveChain, and it stops on a quadratic prediction (see the file's header).
     const bool plain_chain = s.contacts.empty() && nodes == 0;
     if (plain_chain) std::copy(s.spring_force.begin(), s.spring_force.end(), s.geometric_tension.begin());
+    // A long one, alone on the pool (not nested in a forEach over strings), is split over
+    // two threads (parallelChainStep); glued particles move bodies, so not with those.
+    bool parallel_chain = plain_chain && n >= kParallelChainParticles && ctx.pool && ctx.pool->parallel();
+    for (std::size_t p = 0; p < n && parallel_chain; ++p) parallel_chain = s.hold[p].kind != ParticleHold::Kind::Glue;
     // Assembles the Newton system (the chain's, plus the contacts in the Hessian: those
     // marked active) and solves it: the particles' step into blk_rhs, the bodies' into
     // node_step.
@@ -877,64 +1013,68 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     double last_move = -1.0;
     for (int iter = 0; iter < iterations; ++iter) {
         double worst = 0.0;
-        for (SegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
-        solveStep();
-        for (int round = 0; round < kPredictRounds; ++round) {
-            bool added = false;
-            for (SegmentContact& c : s.contacts)
-                if (!c.active && !s.broken[c.segment] && gapAfterStep(c) < 0.0) c.active = added = true;
-            if (!added) break;
-            solveStep();
-        }
-        // The springs' curvature changes along a long step (a rope deflected by
-        // centimetres) and the penalties switch on along it: backtrack until the (convex)
-        // energy decreases. Where no fraction of the step lowers it, the state is the
-        // minimum to rounding: stop there, rather than take a step that raises the energy.
-        double alpha = 1.0;
         bool stalled = false;
-        if (!s.contacts.empty()) {
-            const double e0 = stepEnergy(s, rigids, ctx, 0.0);
-            int halving = 0;
-            for (; halving < kLineSearchHalvings && stepEnergy(s, rigids, ctx, alpha) > e0; ++halving) alpha *= 0.5;
-            if (halving == kLineSearchHalvings) {
-                alpha = 0.0;
-                stalled = true;
+        if (parallel_chain) {
+            worst = parallelChainStep(s, rigids, ctx, *ctx.pool);
+        } else {
+            for (SegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
+            solveStep();
+            for (int round = 0; round < kPredictRounds; ++round) {
+                bool added = false;
+                for (SegmentContact& c : s.contacts)
+                    if (!c.active && !s.broken[c.segment] && gapAfterStep(c) < 0.0) c.active = added = true;
+                if (!added) break;
+                solveStep();
             }
-        }
-        if (alpha != 1.0)
-            for (std::size_t p = 0; p < n; ++p) s.blk_rhs[p] *= alpha;
-        for (std::size_t b = 0; b < nodes; ++b) {
-            const Vec6 u = alpha * s.node_step[b];
-            if (!u.allFinite()) continue;
-            BodyNode& node = s.body_nodes[b];
-            RigidState& body = rigids.bodies[node.body.index];
-            const Vec6 impulse = node.mass * u;
-            node.impulse += impulse;
-            node.displacement += u;
-            body.impulse += impulse.head<3>() * ctx.inv_h;
-            displaceBody(body, node.displacement - u - node.linearised_at, node.displacement - node.linearised_at);
-            worst = std::max(worst, u.head<3>().norm());
-        }
-        if (plain_chain) linearisedTension(s, ctx);
-        // Apply: free particles move, glued ones move their body by the impulse K^-1 dx.
-        // The largest move from the largest square (one square root: the same bits).
-        double worst_squared = 0.0;
-        for (std::size_t p = 0; p < n; ++p) {
-            if (fixedRow(s, p)) continue;
-            const Vec3& dx = s.blk_rhs[p];
-            if (!dx.allFinite()) continue;
-            worst_squared = std::max(worst_squared, dx.squaredNorm());
-            if (s.hold[p].kind == ParticleHold::Kind::Free) {
-                s.x[p] += dx;
-            } else {
-                RigidState& b = rigids.bodies[s.hold[p].body.index];
-                const Vec3 impulse = mobility(s, rigids, p).K.inverse() * dx;
-                s.glue_impulse[p] += impulse;
-                b.impulse += impulse * ctx.inv_h;
-                applyBodyImpulse(b, s.x[p] - b.position, impulse);
+            // The springs' curvature changes along a long step (a rope deflected by
+            // centimetres) and the penalties switch on along it: backtrack until the (convex)
+            // energy decreases. Where no fraction of the step lowers it, the state is the
+            // minimum to rounding: stop there, rather than take a step that raises the energy.
+            double alpha = 1.0;
+            if (!s.contacts.empty()) {
+                const double e0 = stepEnergy(s, rigids, ctx, 0.0);
+                int halving = 0;
+                for (; halving < kLineSearchHalvings && stepEnergy(s, rigids, ctx, alpha) > e0; ++halving) alpha *= 0.5;
+                if (halving == kLineSearchHalvings) {
+                    alpha = 0.0;
+                    stalled = true;
+                }
             }
+            if (alpha != 1.0)
+                for (std::size_t p = 0; p < n; ++p) s.blk_rhs[p] *= alpha;
+            for (std::size_t b = 0; b < nodes; ++b) {
+                const Vec6 u = alpha * s.node_step[b];
+                if (!u.allFinite()) continue;
+                BodyNode& node = s.body_nodes[b];
+                RigidState& body = rigids.bodies[node.body.index];
+                const Vec6 impulse = node.mass * u;
+                node.impulse += impulse;
+                node.displacement += u;
+                body.impulse += impulse.head<3>() * ctx.inv_h;
+                displaceBody(body, node.displacement - u - node.linearised_at, node.displacement - node.linearised_at);
+                worst = std::max(worst, u.head<3>().norm());
+            }
+            if (plain_chain) linearisedTension(s, ctx, 0, s.segments());
+            // Apply: free particles move, glued ones move their body by the impulse K^-1 dx.
+            // The largest move from the largest square (one square root: the same bits).
+            double worst_squared = 0.0;
+            for (std::size_t p = 0; p < n; ++p) {
+                if (fixedRow(s, p)) continue;
+                const Vec3& dx = s.blk_rhs[p];
+                if (!dx.allFinite()) continue;
+                worst_squared = std::max(worst_squared, dx.squaredNorm());
+                if (s.hold[p].kind == ParticleHold::Kind::Free) {
+                    s.x[p] += dx;
+                } else {
+                    RigidState& b = rigids.bodies[s.hold[p].body.index];
+                    const Vec3 impulse = mobility(s, rigids, p).K.inverse() * dx;
+                    s.glue_impulse[p] += impulse;
+                    b.impulse += impulse * ctx.inv_h;
+                    applyBodyImpulse(b, s.x[p] - b.position, impulse);
+                }
+            }
+            worst = std::max(worst, std::sqrt(worst_squared));
         }
-        worst = std::max(worst, std::sqrt(worst_squared));
         if (first_move < 0.0) first_move = worst;
         // Without contacts the iteration converges quadratically once it is close (each
         // move ~ C times the last one squared): where the moves fall that fast, the move

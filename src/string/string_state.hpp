@@ -62,6 +62,7 @@ struct SegmentContact {
 struct StringState;
 struct RigidTable;
 struct StepContext;
+class ThreadPool;
 
 /// Solves the strain limit of several strings at once, coupled by their string-string
 /// contacts (strain_limit.cpp): one Newton method on the sum of the strings' energies
@@ -171,6 +172,10 @@ struct StepContext {
     const WorldSettings* settings = nullptr;
     double time = 0.0;           ///< simulated time at the end of this step
     std::int64_t step = 0;       ///< number of this step
+    /// Where a stage may split one big string's work (may be null: serial). Its forEach
+    /// runs serially when nested in another, so stages called from a forEach over many
+    /// strings stay serial inside.
+    ThreadPool* pool = nullptr;
 };
 
 /// Per-segment material constants after random variation (Strings, Sec. 7).
@@ -302,7 +307,7 @@ void updateVelocities(StringState& s, const StepContext& ctx);
 void clampTravel(StringState& s, const StepContext& ctx);
 void updateTwistStiffness(StringState& s);
 void updateRestShape(StringState& s);
-void shapeMatch(StringState& s);
+void shapeMatch(StringState& s, ThreadPool* pool = nullptr);
 void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx);
 void computeTwistForces(StringState& s);
 

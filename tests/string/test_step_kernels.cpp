@@ -2,6 +2,7 @@
 // string-string broad phase) against the brute-force search, also for strings side by
 // side, where the chains are swept along another axis than x; the tree's whole-node
 // rejection of swept pairs (World's nodesSurelyDropped) against the pair by pair filter.
+#include "core/thread_pool.hpp"
 #include "collision/grid.hpp"
 #include "core/world_access.hpp"
 #include "tearables/world.hpp"
@@ -154,4 +155,33 @@ TEST(StepKernels, NodePruningKeepsEveryPairOfRopesFallingOnEachOther) {
         {{{0, Vec3(-0.5, 0, 0)}, {-1, Vec3(0.5, 0, 0)}}, {}, {{0, Vec3(0.2, 0.4, 0.1)}}}, 250, &kept, 2);
     EXPECT_GT(kept, 100u);    // they touched
     EXPECT_GT(rejects, 100u); // and the pruning was exercised
+}
+
+// The pool splits a forEach over its threads, and a forEach made inside another one's
+// function (any thread) runs in place: a stage may split one big string's work and still
+// be called from a forEach over many strings.
+TEST(StepKernels, ThreadPoolRunsNestedCallsInPlace) {
+    tearables::detail::ThreadPool pool;
+    pool.setThreads(2);
+    EXPECT_TRUE(pool.parallel());
+    std::vector<int> outer_parallel(4, -1);
+    std::vector<int> inner_sum(4, 0);
+    pool.forEach(4, [&](std::size_t i) {
+        outer_parallel[i] = pool.parallel() ? 1 : 0;
+        std::vector<int> seen(8, 0);
+        pool.forEach(8, [&](std::size_t k) { seen[k] = static_cast<int>(k); });  // in place
+        for (int v : seen) inner_sum[i] += v;
+    });
+    for (std::size_t i = 0; i < 4; ++i) {
+        EXPECT_EQ(outer_parallel[i], 0) << i;
+        EXPECT_EQ(inner_sum[i], 28) << i;
+    }
+    EXPECT_TRUE(pool.parallel());
+    // Restarted with other thread counts between calls, every call still runs each index once.
+    for (int round = 0; round < 200; ++round) {
+        pool.setThreads(2 + round % 3);
+        std::vector<int> hits(7, 0);
+        pool.forEach(7, [&](std::size_t k) { ++hits[k]; });
+        for (int h : hits) ASSERT_EQ(h, 1) << "round " << round;
+    }
 }
