@@ -334,10 +334,11 @@ public:
     }
 
     /// x <- A^-1 x with the factors. The solves multiply by the reciprocals of L's diagonal
-    /// (a division, ~15 cycles, sat on their critical path; within an ulp of it). Per panel, the rows below its diagonal block are
-    /// gathered (or scattered) once, and the dense parts are plain loops over contiguous
-    /// columns with independent partial sums (most panels are narrow: the dispatch of
-    /// Eigen's dense kernels would cost more than their arithmetic).
+    /// (a division, ~15 cycles, sat on their critical path; within an ulp of it). Per
+    /// panel, the rows below its diagonal block are gathered (or scattered) once, and the
+    /// dense parts are plain loops over contiguous columns with independent partial sums
+    /// (most panels are narrow: the dispatch of Eigen's dense kernels would cost more than
+    /// their arithmetic).
     void solveInPlace(Eigen::VectorXd& x) const {
         const int supernodes = static_cast<int>(first_.size()) - 1;
         double* const v = x.data();

@@ -47,9 +47,10 @@
 //    well-conditioned (every mode the motion excites has sigma^2 >> lambda') they reach
 //    the tolerance in fewer back-substitutions (100 x 100 drape: 4 for 5). Where they find
 //    a slow mode (sigma^2 <~ lambda': self-stress of a clamped weave) the fixed point is
-//    ill-conditioned: converging it moves tensions by newtons on round-off (cloth-tear then
-//    tears at step 6 instead of 84), while the truncated iteration keeps those modes at the
-//    prior; there the solve falls back to the iteration above, from the prior, as before.
+//    ill-conditioned: converging it moves tensions by newtons on round-off (cloth-tear,
+//    before its perforation, then tore at step 6 instead of 84), while the truncated
+//    iteration keeps those modes at the prior; there the solve falls back to the
+//    iteration above, from the prior, as before.
 //
 // Scaling: the factorisation of a q-yarn mesh costs about O(q^1.5) with the yarns in
 // nested-dissection order (clothEdgeOrder); 100 x 100 vertices (19800 yarns) take a few
