@@ -716,11 +716,35 @@ std::pair<int, int> clothVertex(const Node& n, const ClothDesc& d) {
     return {out[0], out[1]};
 }
 
+/// A weak yarn of a cloth whose resolution is known: {"vertex": [i, j], "yarn": "warp" |
+/// "weft", "strength": (0, 1]}, the yarn that starts at that vertex (duplicates are left to
+/// validate(), which names the entry).
+ClothWeakYarn parseWeakYarn(const Node& n, const ClothDesc& d) {
+    n.checkNoUnknownFields({"vertex", "yarn", "strength"});
+    ClothWeakYarn w;
+    const Node vertex = n.required("vertex");
+    const auto [i, j] = clothVertex(vertex, d);
+    w.i = i;
+    w.j = j;
+    const Node yarn = n.required("yarn");
+    const std::string kind = yarn.asString();
+    if (kind == "warp") w.kind = YarnKind::Warp;
+    else if (kind == "weft") w.kind = YarnKind::Weft;
+    else yarn.fail("must be \"warp\" or \"weft\" (got " + jsonQuoted(kind) + ")");
+    const std::vector<Node> ij = vertex.asArray();
+    if (w.kind == YarnKind::Warp && w.i + 1 >= d.resolution[0])
+        ij[0].fail("no warp yarn starts in the last column: a warp yarn joins [i, j] and [i + 1, j]");
+    if (w.kind == YarnKind::Weft && w.j + 1 >= d.resolution[1])
+        ij[1].fail("no weft yarn starts in the last row: a weft yarn joins [i, j] and [i, j + 1]");
+    w.strength = n.required("strength").asNumber(Range::leftOpen(0.0, 1.0));
+    return w;
+}
+
 /// A cloth; `seed` is its material variation seed, `bodies` the bodies it may attach to.
 Cloth parseCloth(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     n.checkNoUnknownFields({"name", "origin", "size", "resolution", "orientation", "areal_density", "density",
                             "yarn_radius", "material", "lambda", "shear_stiffness", "bending_stiffness", "damping",
-                            "plastic_time", "tearable", "attachments"});
+                            "plastic_time", "tearable", "weak_yarns", "attachments"});
     Cloth c;
     ClothDesc& d = c.desc;
     d.name = requiredName(n);
@@ -753,6 +777,7 @@ Cloth parseCloth(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     d.damping = n.number("damping", d.damping, Range::closed(0.0, 1000.0));
     d.plastic_time = n.number("plastic_time", d.plastic_time, Range::closed(0.0, 10.0));
     d.tearable = n.boolean("tearable", d.tearable);
+    for (const Node& w : n.array("weak_yarns")) d.weak_yarns.push_back(parseWeakYarn(w, d));
     d.seed = seed;
     try {
         validate(d);  // what the fields above cannot check alone: rupture > yield, one density, ...

@@ -36,6 +36,23 @@ struct ClothPin {
     Vec3 point = Vec3::Zero();  ///< world point, m (used when at_rest is false), finite
 };
 
+/// Which yarn an edge belongs to.
+enum class YarnKind : std::uint8_t {
+    Warp,  ///< along local x: vertices (i, j) and (i + 1, j)
+    Weft,  ///< along local z: vertices (i, j) and (i, j + 1)
+};
+
+/// A yarn edge weaker than the cloth's material: a flaw, or a notch where a tear is to
+/// start. Its yield and rupture stresses (after the material's variation) are multiplied
+/// by `strength`; its modulus is unchanged, so it carries the load its neighbours carry
+/// until it yields or breaks first.
+struct ClothWeakYarn {
+    int i = 0;                      ///< column of the edge's first vertex, negative counts from the end
+    int j = 0;                      ///< row of the edge's first vertex, negative counts from the end
+    YarnKind kind = YarnKind::Warp; ///< warp: (i, j)-(i + 1, j), so i < last column; weft: (i, j)-(i, j + 1), so j < last row
+    double strength = 0.5;          ///< factor on the yarn's yield and rupture stress, (0, 1]
+};
+
 /// Everything needed to create a cloth. Vertex (i, j) starts at
 /// origin + orientation * (i * size[0] / (resolution[0] - 1), 0, j * size[1] / (resolution[1] - 1)):
 /// the cloth lies in its local x-z plane, vertex (0, 0) at `origin`. Its flat index is
@@ -69,6 +86,7 @@ struct ClothDesc {
     double plastic_time = 0.0;
     bool tearable = true;                 ///< yarns break where their stress reaches rupture
     std::vector<ClothPin> pins;           ///< vertices pinned to world points at creation (at most one per vertex)
+    std::vector<ClothWeakYarn> weak_yarns;///< yarns weaker than `material` (at most one entry per yarn)
     std::uint64_t seed = 1;               ///< seeds the per-edge material variation
 
     /// Flat index of vertex (i, j); negative i, j count from the end. Throws InvalidInput("vertex").
@@ -79,12 +97,6 @@ struct ClothDesc {
 
 /// Throws InvalidInput naming the field when `desc` is not valid.
 void validate(const ClothDesc& desc);
-
-/// Which yarn an edge belongs to.
-enum class YarnKind : std::uint8_t {
-    Warp,  ///< along local x: vertices (i, j) and (i + 1, j)
-    Weft,  ///< along local z: vertices (i, j) and (i, j + 1)
-};
 
 /// Read-only view of a cloth's state, valid until the next step or change.
 struct ClothView {

@@ -20,8 +20,9 @@
 //           and paper sheets (version 2 added the last two);
 //   "RIGD"  the rigid proxies by slot;
 //   "STRG"  one per string slot (dead slots included: ids stay);
-//   "CLTH"  one per cloth slot (version 2): descriptor, vertices (positions, velocities,
-//           start and predicted positions, pending forces, masses, pins and glues), yarn
+//   "CLTH"  one per cloth slot (version 2; version 3 added the descriptor's weak yarns):
+//           descriptor, vertices (positions, velocities, start and predicted
+//           positions, pending forces, masses, pins and glues), yarn
 //           edges (vertices, warp/weft, rest, original and maximum lengths, tension,
 //           stiffness, peak stress, broken and yielded flags, material after variation),
 //           soft springs and which edges they go with, per-vertex edge lists, the last
@@ -54,7 +55,7 @@
 namespace tearables {
 
 /// The version this build writes and the only one it reads.
-constexpr std::uint32_t kSnapshotVersion = 2;
+constexpr std::uint32_t kSnapshotVersion = 3;
 
 /// A snapshot was refused: field() is "snapshot" or "snapshot.<section>", problem() says
 /// what is wrong (wrong magic, version, checksum, truncated, inconsistent section).

@@ -127,6 +127,7 @@ struct ClothState {
     SupernodalLLT tension_llt;                 ///< factors of normal_matrix (the pattern's analysis is kept)
     std::unique_ptr<ClothLDLT> tension_solver; ///< fallback
     Eigen::VectorXd rhs, solution, refine;
+    Eigen::VectorXd cg_residual, cg_direction, cg_image;  ///< conjugate gradients: r, p and (A^T A) p (tension.cpp)
     std::vector<Vec3> tension_projected;  ///< assembly scratch: s_ie P e_e of the yarns at one vertex
     std::uint64_t topology = 1;       ///< bumped when a yarn tears (the solvers' patterns change)
     std::uint64_t tension_topology = 0;

@@ -77,6 +77,26 @@ void validate(const ClothDesc& d) {
         if (!p.at_rest)
             for (int c = 0; c < 3; ++c) requireFinite(f + ".point", p.point[c]);
     }
+    std::set<std::pair<int, int>> weak;  // (kind, flat index of the first vertex)
+    for (std::size_t k = 0; k < d.weak_yarns.size(); ++k) {
+        const std::string f = "weak_yarns[" + std::to_string(k) + "]";
+        const ClothWeakYarn& w = d.weak_yarns[k];
+        const int a = resolveAxis(w.i, d.resolution[0], f + ".i");
+        const int b = resolveAxis(w.j, d.resolution[1], f + ".j");
+        if (w.kind != YarnKind::Warp && w.kind != YarnKind::Weft) throw InvalidInput(f + ".kind", "must be warp or weft");
+        const bool warp = w.kind == YarnKind::Warp;
+        if (warp && a + 1 >= d.resolution[0])
+            throw InvalidInput(f + ".i", "no warp yarn starts in the last column (" + std::to_string(a) +
+                                             "): a warp yarn joins (i, j) and (i + 1, j)");
+        if (!warp && b + 1 >= d.resolution[1])
+            throw InvalidInput(f + ".j", "no weft yarn starts in the last row (" + std::to_string(b) +
+                                             "): a weft yarn joins (i, j) and (i, j + 1)");
+        if (!(w.strength > 0.0 && w.strength <= 1.0))
+            throw InvalidInput(f + ".strength", "must be in (0, 1] (got " + num(w.strength) + ")");
+        if (!weak.insert({warp ? 0 : 1, b * d.resolution[0] + a}).second)
+            throw InvalidInput(f, std::string(warp ? "warp" : "weft") + " yarn (" + std::to_string(a) + ", " +
+                                      std::to_string(b) + ") is already listed");
+    }
 }
 
 }  // namespace tearables

@@ -90,6 +90,14 @@ ClothState makeCloth(const ClothDesc& desc) {
         sm.rupture = std::max(vary(c.rng, t.rupture, desc.material.variation), sm.yield * (1.0 + 1e-12));
         sm.shear_modulus = sm.torsion_yield = sm.torsion_plastic = sm.torsion_rupture = 0.0;  // cloth: no torsion
     }
+    // Weak yarns (flaws, notches): the same curve with lower stresses, so that the tear
+    // starts where the scene says and not where rounding puts the largest of equal tensions.
+    for (const ClothWeakYarn& w : desc.weak_yarns) {
+        const int i = w.i < 0 ? w.i + nu : w.i, j = w.j < 0 ? w.j + nv : w.j;
+        SegmentMaterial& sm = c.material[w.kind == YarnKind::Warp ? warp(i, j) : weft(i, j)];
+        sm.yield *= w.strength;
+        sm.rupture *= w.strength;
+    }
     // Stiff axial springs k = E A / L (engineering: E on the original section); the
     // strain-limit solve meets L_max = L (1 + sigma / E) through them implicitly.
     c.stiffness.resize(m);

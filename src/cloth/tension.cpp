@@ -41,13 +41,20 @@
 //    a jerk). Each refinement is one back-substitution with the same factor and shrinks
 //    the row-space bias by lambda' / (lambda' + sigma^2); the null-space part stays at the
 //    prior's. The iteration converges to  T_LS(min norm) + P_null T_spring.
+//  - Conjugate gradients. That iteration is Richardson's on (A^T A) T = A^T b preconditioned
+//    by the factor; conjugate gradients with the same preconditioner search the same Krylov
+//    space for the same back-substitutions and take its best point: where the system is
+//    well-conditioned (every mode the motion excites has sigma^2 >> lambda') they reach
+//    the tolerance in fewer back-substitutions (100 x 100 drape: 4 for 5). Where they find
+//    a slow mode (sigma^2 <~ lambda': self-stress of a clamped weave) the fixed point is
+//    ill-conditioned: converging it moves tensions by newtons on round-off (cloth-tear,
+//    before its perforation, then tore at step 6 instead of 84), while the truncated
+//    iteration keeps those modes at the prior; there the solve falls back to the
+//    iteration above, from the prior, as before.
 //
 // Scaling: the factorisation of a q-yarn mesh costs about O(q^1.5) with the yarns in
 // nested-dissection order (clothEdgeOrder); 100 x 100 vertices (19800 yarns) take a few
-// milliseconds (BENCHMARKS.md). Beyond that, a preconditioned conjugate gradient
-// warm-started from the last step would scale linearly per iteration (but see
-// BENCHMARKS.md: a Krylov-accelerated refinement changes which tensions the truncated
-// iteration reports).
+// milliseconds (BENCHMARKS.md).
 #include "cloth/cloth_state.hpp"
 
 #include <Eigen/OrderingMethods>
@@ -155,6 +162,9 @@ void buildPattern(ClothState& c) {
     c.rhs.resize(q);
     c.solution.resize(q);
     c.refine.resize(q);
+    c.cg_residual.resize(q);
+    c.cg_direction.resize(q);
+    c.cg_image.resize(q);
     std::size_t degree = 0;  // the most yarns at a vertex
     for (const auto& inc : c.vertex_edges) degree = std::max(degree, inc.size());
     c.tension_projected.resize(degree);
@@ -163,6 +173,105 @@ void buildPattern(ClothState& c) {
 
 /// s_ie: +1 when vertex p starts edge e, -1 when it ends it.
 double side(const ClothState& c, std::size_t p, std::uint32_t e) { return c.edges[e][0] == p ? 1.0 : -1.0; }
+
+
+/// True when a refinement whose last two changes (sup norm) were `change` and
+/// `last_change` may stop: the change is below the tolerance, or the iteration converges
+/// linearly (ratio rho of successive changes under 1/2) and the changes still to come,
+/// about change * rho / (1 - rho), are (one back-substitution fewer, same accuracy).
+bool refinementConverged(double change, double last_change, bool first, double solution_norm) {
+    const double tolerance = kRefinementTolerance * std::max(solution_norm, 1e-300);
+    if (change <= tolerance) return true;
+    const double ratio = !first && last_change > 0.0 ? change / last_change : 1.0;
+    return ratio < 0.5 && change * ratio / (1.0 - ratio) <= tolerance;
+}
+
+/// a . b in four partial sums (k mod 4), added pairwise at the end.
+double dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+    const Eigen::Index n = a.size();
+    double sum[4] = {0.0, 0.0, 0.0, 0.0};
+    Eigen::Index k = 0;
+    for (; k + 4 <= n; k += 4)
+        for (int l = 0; l < 4; ++l) sum[l] += a[k + l] * b[k + l];
+    for (; k < n; ++k) sum[0] += a[k] * b[k];
+    return (sum[0] + sum[1]) + (sum[2] + sum[3]);
+}
+
+/// Iterated Tikhonov from the prior in c.solution: T <- M^-1 (A^T b + lambda' T),
+/// M = A^T A + lambda' I the assembled matrix.
+template <class Solve>
+void iteratedTikhonov(ClothState& c, double reg, Solve&& solve) {
+    const int q = static_cast<int>(c.columns.size());
+    double last_change = 0.0;
+    for (int it = 0; it < kMaxRefinements; ++it) {
+        c.refine = c.rhs + reg * c.solution;
+        solve(c.refine);
+        double change = 0.0, norm = 0.0;  // |T_new - T|_inf and |T_new|_inf in one pass
+        for (int k = 0; k < q; ++k) {
+            change = std::max(change, std::abs(c.refine[k] - c.solution[k]));
+            norm = std::max(norm, std::abs(c.refine[k]));
+        }
+        c.solution.swap(c.refine);
+        ++c.tension_iterations;
+        if (refinementConverged(change, last_change, it == 0, norm)) break;
+        last_change = change;
+    }
+}
+
+/// The same fixed point, N' T = A^T b with N' = M - lambda' I and the null-space part of
+/// the prior in c.solution, by conjugate gradients preconditioned by M^-1 (the factor),
+/// one back-substitution a step. No product with the matrix in the loop: for z = M^-1 r,
+/// N' z = M z - lambda' z = r - lambda' z, and N' p follows by p's own recurrence (one
+/// product with M at the start, for r_0). Returns false, c.solution spoilt, at a slow mode:
+/// a step more than half the last (CG has reached an eigenvalue of M^-1 N' = sigma^2 /
+/// (sigma^2 + lambda') well below 1; see the file's comment).
+template <class Solve>
+bool conjugateGradients(ClothState& c, double reg, Solve&& solve) {
+    const int q = static_cast<int>(c.columns.size());
+    Eigen::VectorXd &t = c.solution, &r = c.cg_residual, &z = c.refine, &p = c.cg_direction, &image = c.cg_image;
+    {  // r = A^T b - N' T = A^T b + lambda' T - M T (M's lower triangle stored)
+        const int* outer = c.normal_matrix.outerIndexPtr();
+        const int* inner = c.normal_matrix.innerIndexPtr();
+        const double* values = c.normal_matrix.valuePtr();
+        for (int k = 0; k < q; ++k) r[k] = c.rhs[k] + reg * t[k];
+        for (int j = 0; j < q; ++j)
+            for (int at = outer[j]; at < outer[j + 1]; ++at) {
+                const int i = inner[at];
+                r[i] -= values[at] * t[j];
+                if (i != j) r[j] -= values[at] * t[i];
+            }
+    }
+    double last_change = 0.0, rz_last = 0.0;
+    for (int it = 0; it < kMaxRefinements; ++it) {
+        z = r;
+        solve(z);
+        ++c.tension_iterations;
+        // Three passes over the vectors a step (Eigen's expressions would take eight).
+        const double rz = dot(r, z);
+        const double beta = it == 0 ? 0.0 : rz / rz_last;
+        double p_max = 0.0;
+        for (int k = 0; k < q; ++k) {
+            p[k] = it == 0 ? z[k] : z[k] + beta * p[k];
+            image[k] = it == 0 ? r[k] - reg * z[k] : (r[k] - reg * z[k]) + beta * image[k];
+            p_max = std::max(p_max, std::abs(p[k]));
+        }
+        const double pq = dot(p, image);
+        if (!(rz > 0.0) || !(pq > 0.0)) return rz == 0.0;  // r = 0: solved; else round-off has the last word
+        const double alpha = rz / pq;
+        const double change = alpha * p_max;
+        if (it > 0 && !(change <= 0.5 * last_change)) return false;  // a slow mode
+        double t_max = 0.0;
+        for (int k = 0; k < q; ++k) {
+            t[k] += alpha * p[k];
+            r[k] -= alpha * image[k];
+            t_max = std::max(t_max, std::abs(t[k]));
+        }
+        rz_last = rz;
+        if (refinementConverged(change, last_change, it == 0, t_max)) return true;
+        last_change = change;
+    }
+    return true;  // at the cap, every step under half the last: reported as is
+}
 
 }  // namespace
 
@@ -294,30 +403,19 @@ void solveTensionLeastSquares(ClothState& c) {
         c.tension_solver->compute(c.normal_matrix);
         if (c.tension_solver->info() != Eigen::Success) return;
     }
-    for (int k = 0; k < q; ++k) c.solution[k] = std::isfinite(c.tension[c.columns[k]]) ? c.tension[c.columns[k]] : 0.0;
-    // Each refinement shrinks the change by about the same ratio rho (linear convergence):
-    // the changes still to come sum to about change * rho / (1 - rho). Stop when that is
-    // below the tolerance, rather than when the change itself is (one back-substitution
-    // fewer, to the same accuracy).
-    double last_change = 0.0;
-    for (int it = 0; it < kMaxRefinements; ++it) {
-        c.refine = c.rhs + reg * c.solution;
+    auto solve = [&](Eigen::VectorXd& v) {
         if (llt)
-            c.tension_llt.solveInPlace(c.refine);
+            c.tension_llt.solveInPlace(v);
         else
-            c.refine = c.tension_solver->solve(c.refine);
-        double change = 0.0, norm = 0.0;  // |T_new - T|_inf and |T_new|_inf in one pass
-        for (int k = 0; k < q; ++k) {
-            change = std::max(change, std::abs(c.refine[k] - c.solution[k]));
-            norm = std::max(norm, std::abs(c.refine[k]));
-        }
-        c.solution.swap(c.refine);
-        c.tension_iterations = it + 1;
-        const double tolerance = kRefinementTolerance * std::max(norm, 1e-300);
-        if (change <= tolerance) break;
-        const double ratio = it > 0 && last_change > 0.0 ? change / last_change : 1.0;
-        if (ratio < 0.5 && change * ratio / (1.0 - ratio) <= tolerance) break;
-        last_change = change;
+            v = c.tension_solver->solve(v);
+    };
+    auto start = [&] {
+        for (int k = 0; k < q; ++k) c.solution[k] = std::isfinite(c.tension[c.columns[k]]) ? c.tension[c.columns[k]] : 0.0;
+    };
+    start();
+    if (!conjugateGradients(c, reg, solve)) {
+        start();  // a slow mode: the plain iteration from the prior, as if CG had not been tried
+        iteratedTikhonov(c, reg, solve);
     }
     for (std::size_t e = 0; e < c.edgeCount(); ++e) c.tension[e] = c.unknown[e] >= 0 ? c.solution[c.unknown[e]] : 0.0;
     // Residual |A T - b| / |b| of what was solved (zero for a consistent system).

@@ -340,6 +340,13 @@ void io(A& a, YarnKind& k) {
     ioEnum(a, k, static_cast<int>(YarnKind::Weft), "yarn kind");
 }
 template <class A>
+void io(A& a, ClothWeakYarn& w) {
+    io(a, w.i);
+    io(a, w.j);
+    io(a, w.kind);
+    io(a, w.strength);
+}
+template <class A>
 void io(A& a, detail::SoftSpring& s) {
     io(a, s.a);
     io(a, s.b);
@@ -470,6 +477,7 @@ void io(A& a, ClothDesc& d) {
     io(a, d.plastic_time);
     io(a, d.tearable);
     io(a, d.pins);
+    io(a, d.weak_yarns);
     io(a, d.seed);
 }
 

@@ -311,6 +311,15 @@ TEST(ClothDesc, BadInputNamesTheField) {
         {"pins[0].i", [](ClothDesc& d) { d.pins = {{12, 0}}; }},
         {"pins[1]", [](ClothDesc& d) { d.pins = {{0, 0}, {0, 0}}; }},
         {"pins[0].point", [&](ClothDesc& d) { d.pins = {{0, 0, false, Vec3(nan, 0, 0)}}; }},
+        {"weak_yarns[0].i", [](ClothDesc& d) { d.weak_yarns = {{6, 0, YarnKind::Warp, 0.5}}; }},
+        {"weak_yarns[0].j", [](ClothDesc& d) { d.weak_yarns = {{0, -7, YarnKind::Weft, 0.5}}; }},
+        {"weak_yarns[0].i", [](ClothDesc& d) { d.weak_yarns = {{-1, 0, YarnKind::Warp, 0.5}}; }},  // no warp yarn starts in the last column
+        {"weak_yarns[0].j", [](ClothDesc& d) { d.weak_yarns = {{0, 5, YarnKind::Weft, 0.5}}; }},   // nor a weft yarn in the last row
+        {"weak_yarns[0].kind", [](ClothDesc& d) { d.weak_yarns = {{0, 0, static_cast<YarnKind>(7), 0.5}}; }},
+        {"weak_yarns[0].strength", [&](ClothDesc& d) { d.weak_yarns = {{0, 0, YarnKind::Warp, nan}}; }},
+        {"weak_yarns[0].strength", [](ClothDesc& d) { d.weak_yarns = {{0, 0, YarnKind::Warp, 0.0}}; }},
+        {"weak_yarns[0].strength", [](ClothDesc& d) { d.weak_yarns = {{0, 0, YarnKind::Warp, 1.0 + 1e-9}}; }},
+        {"weak_yarns[2]", [](ClothDesc& d) { d.weak_yarns = {{1, 2, YarnKind::Warp, 0.5}, {1, 2, YarnKind::Weft, 0.5}, {-5, -4, YarnKind::Warp, 0.9}}; }},
     };
     for (const Case& c : cases) {
         ClothDesc d = square(6, 0.2);
@@ -368,6 +377,49 @@ TEST(ClothTear, WeakerYarnTearsFirst) {
     // The weight of the yarn adds a little to the applied load at the top yarn.
     EXPECT_NEAR(left_load, left.material.tensile.rupture * area, 0.05 * left.material.tensile.rupture * area);
     EXPECT_NEAR(right_load, right.material.tensile.rupture * area, 0.05 * right.material.tensile.rupture * area);
+}
+
+// A weak yarn (ClothDesc::weak_yarns) in the middle of a hanging yarn loaded at its
+// bottom: every yarn carries the load (plus the little weight below it), so the weak one
+// yields when the load passes strength * yield * pi r^2 and tears when it passes
+// strength * rupture * pi r^2, before any other; without it, the top yarn (the most
+// weight below it) tears first, at the full rupture load.
+TEST(ClothTear, WeakYarnYieldsAndTearsAtItsScaledStress) {
+    struct Result {
+        int first_yield = -1, first_tear = -1;
+        double yield_load = -1.0, tear_load = -1.0;
+    };
+    auto pull = [](const ClothDesc& d) {
+        World world;
+        const ClothId id = world.addCloth(d);
+        Result r;
+        for (int i = 0; i < 3000 && r.first_tear < 0; ++i) {
+            const double load = 10.0 * i * 0.01;  // N, ramped at 10 N/s on the bottom vertex
+            world.applyClothForce(id, -1, Vec3(0, -load, 0));
+            world.step(0.01);
+            for (const auto& e : world.events()) {
+                if (e.type == EventType::Yield && r.first_yield < 0) r.first_yield = e.segment, r.yield_load = load;
+                if (e.type == EventType::Tear && r.first_tear < 0) r.first_tear = e.segment, r.tear_load = load;
+            }
+        }
+        return r;
+    };
+    ClothDesc d = yarn(11, 0.2);
+    const double area = kPi * d.yarn_radius * d.yarn_radius;
+    const tearables::TensileCurve curve = d.material.tensile;
+    const Result plain = pull(d);
+    ASSERT_GE(plain.first_tear, 0);
+    EXPECT_EQ(plain.first_tear, 0);  // the top yarn: it also carries the yarn below it
+    EXPECT_NEAR(plain.tear_load, curve.rupture * area, 0.05 * curve.rupture * area);
+
+    const double strength = 0.5;
+    d.weak_yarns = {{0, 5, YarnKind::Weft, strength}};  // the sixth of ten yarns (edges are weft: resolution 1 x 11)
+    const Result weak = pull(d);
+    ASSERT_GE(weak.first_tear, 0);
+    EXPECT_EQ(weak.first_yield, 5);
+    EXPECT_EQ(weak.first_tear, 5);
+    EXPECT_NEAR(weak.yield_load, strength * curve.yield * area, 0.05 * strength * curve.yield * area);
+    EXPECT_NEAR(weak.tear_load, strength * curve.rupture * area, 0.05 * strength * curve.rupture * area);
 }
 
 namespace {
@@ -467,7 +519,8 @@ TEST(ClothTear, PulledClothTearsAcrossThePull) {
 TEST(ClothScene, LoadsClothFields) {
     const tearables::scene::Scene s = tearables::scene::parseScene(R"({"cloths": [
         {"name": "a", "resolution": [4, 3], "size": [0.3, 0.2], "yarn_radius": 0.001, "lambda": 1e-5,
-         "attachments": [{"vertex": [0, -1], "world": true}, {"vertex": [-1, 0], "world": [1, 2, 3]}]},
+         "attachments": [{"vertex": [0, -1], "world": true}, {"vertex": [-1, 0], "world": [1, 2, 3]}],
+         "weak_yarns": [{"vertex": [-2, 1], "yarn": "warp", "strength": 0.25}, {"vertex": [3, -3], "yarn": "weft", "strength": 1}]},
         {"name": "y", "resolution": [1, 5], "size": [0, 0.1], "density": 1000}]})");
     ASSERT_EQ(s.cloths.size(), 2u);
     const ClothDesc& a = s.cloths[0].desc;
@@ -482,6 +535,17 @@ TEST(ClothScene, LoadsClothFields) {
     EXPECT_EQ(a.pins[1].point, Vec3(1, 2, 3));
     EXPECT_DOUBLE_EQ(s.cloths[1].desc.areal_density, 0.0);
     EXPECT_DOUBLE_EQ(s.cloths[1].desc.density, 1000.0);
+    // Weak yarns: the vertex resolved like an attachment's, the kind and strength as given.
+    ASSERT_EQ(a.weak_yarns.size(), 2u);
+    EXPECT_EQ(a.weak_yarns[0].i, 2);
+    EXPECT_EQ(a.weak_yarns[0].j, 1);
+    EXPECT_EQ(a.weak_yarns[0].kind, YarnKind::Warp);
+    EXPECT_DOUBLE_EQ(a.weak_yarns[0].strength, 0.25);
+    EXPECT_EQ(a.weak_yarns[1].i, 3);
+    EXPECT_EQ(a.weak_yarns[1].j, 0);
+    EXPECT_EQ(a.weak_yarns[1].kind, YarnKind::Weft);
+    EXPECT_DOUBLE_EQ(a.weak_yarns[1].strength, 1.0);
+    EXPECT_TRUE(s.cloths[1].desc.weak_yarns.empty());
 }
 
 namespace {

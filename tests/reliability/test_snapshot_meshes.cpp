@@ -419,6 +419,13 @@ TEST(SnapshotMeshes, WorldWithOtherClothsOrSheetsRefusesAndChangesNothing) {
         expectRefused(other.world, [&] { other.step(); }, bytes, "snapshot.CLTH", "cloth 0 (\"weave\") was created from another descriptor",
                       "other seed");
     }
+    {  // The same cloth with one weak yarn (its material differs at that yarn alone).
+        ClothScene other(false);
+        other.desc.weak_yarns = {{4, 3, tearables::YarnKind::Warp, 0.9}};
+        other.create();
+        expectRefused(other.world, [&] { other.step(); }, bytes, "snapshot.CLTH", "cloth 0 (\"weave\") was created from another descriptor",
+                      "a weak yarn");
+    }
     {  // Another name.
         ClothScene other(false);
         other.desc.name = "flag";
