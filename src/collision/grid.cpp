@@ -464,6 +464,7 @@ std::vector<SegmentPair> bruteForcePairs(const Vec3* positions, std::size_t part
 
 namespace {
 constexpr std::uint32_t kLeaf = 4;  // segments per leaf of a ChainTree
+constexpr std::uint32_t kParallelChainSegments = 4096;  // a chain this long is split over the pool
 bool boxesOverlap(const Vec3& alo, const Vec3& ahi, const Vec3& blo, const Vec3& bhi) {
     return alo.x() <= bhi.x() && blo.x() <= ahi.x() && alo.y() <= bhi.y() && blo.y() <= ahi.y() && alo.z() <= bhi.z() &&
            blo.z() <= ahi.z();
@@ -478,10 +479,10 @@ std::uint32_t treeNodes(std::uint32_t count) {
 
 std::uint32_t ChainTree::build(std::uint32_t first, std::uint32_t count, std::uint32_t& next) {
     const std::uint32_t index = next++;  // pre-order, as nodes are numbered by treeNodes
-    Node node;
-    node.first = first;
-    node.count = count;
     if (count <= kLeaf) {
+        Node node;
+        node.first = first;
+        node.count = count;
         node.lo = seg_lo_[first];
         node.hi = seg_hi_[first];
         for (std::uint32_t k = first + 1; k < first + count; ++k) {
@@ -509,25 +510,64 @@ std::uint32_t ChainTree::build(std::uint32_t first, std::uint32_t count, std::ui
             }
             bounds_[index] = b;
         }
+        nodes_[index] = node;
     } else {
         const std::uint32_t half = count / 2;
-        node.left = build(first, half, next);
-        node.right = build(first + half, count - half, next);
-        node.lo = nodes_[node.left].lo.cwiseMin(nodes_[node.right].lo);
-        node.hi = nodes_[node.left].hi.cwiseMax(nodes_[node.right].hi);
-        if (sweep_.reject) {
-            const NodeBounds& l = bounds_[node.left];
-            const NodeBounds& r = bounds_[node.right];
-            NodeBounds& b = bounds_[index];
-            b.lo = l.lo.cwiseMin(r.lo);
-            b.hi = l.hi.cwiseMax(r.hi);
-            b.travel_lo = l.travel_lo.cwiseMin(r.travel_lo);
-            b.travel_hi = l.travel_hi.cwiseMax(r.travel_hi);
-            b.thickness = std::max(l.thickness, r.thickness);
-        }
+        const std::uint32_t left = build(first, half, next);
+        const std::uint32_t right = build(first + half, count - half, next);
+        join(index, first, count, left, right);
+    }
+    return index;
+}
+
+void ChainTree::join(std::uint32_t index, std::uint32_t first, std::uint32_t count, std::uint32_t left, std::uint32_t right) {
+    Node node;
+    node.first = first;
+    node.count = count;
+    node.left = left;
+    node.right = right;
+    node.lo = nodes_[left].lo.cwiseMin(nodes_[right].lo);
+    node.hi = nodes_[left].hi.cwiseMax(nodes_[right].hi);
+    if (sweep_.reject) {
+        const NodeBounds& l = bounds_[left];
+        const NodeBounds& r = bounds_[right];
+        NodeBounds& b = bounds_[index];
+        b.lo = l.lo.cwiseMin(r.lo);
+        b.hi = l.hi.cwiseMax(r.hi);
+        b.travel_lo = l.travel_lo.cwiseMin(r.travel_lo);
+        b.travel_hi = l.travel_hi.cwiseMax(r.travel_hi);
+        b.thickness = std::max(l.thickness, r.thickness);
     }
     nodes_[index] = node;
-    return index;
+}
+
+void ChainTree::splitChain(std::size_t c, ThreadPool& pool) {
+    // The root's children are built on two threads, each numbering its nodes from where
+    // the serial pre-order would (the left subtree right after the root, the right one
+    // after it); then the root's self pairs as three parts, self(left), self(right) and
+    // cross(left, right), each into a buffer of its own, appended in the serial order.
+    const std::uint32_t first = chain_first_[c], count = chain_count_[c], root = chain_node_[c];
+    const std::uint32_t half = count / 2;
+    const std::uint32_t left = root + 1, right = left + treeNodes(half);
+    pool.forEach(2, [&](std::size_t k) {
+        std::uint32_t next = k == 0 ? left : right;
+        if (k == 0)
+            build(first, half, next);
+        else
+            build(first + half, count - half, next);
+    });
+    join(root, first, count, left, right);
+    roots_[c] = root;
+    std::size_t rejects[3] = {0, 0, 0};
+    pool.forEach(3, [&](std::size_t k) {
+        split_out_[k].clear();
+        if (k == 0) self(left, split_out_[k], rejects[k]);
+        if (k == 1) self(right, split_out_[k], rejects[k]);
+        if (k == 2) cross(left, right, split_out_[k], rejects[k]);
+    });
+    chain_out_[c].clear();
+    for (const std::vector<SegmentPair>& part : split_out_) chain_out_[c].insert(chain_out_[c].end(), part.begin(), part.end());
+    chain_rejects_[c] = rejects[0] + rejects[1] + rejects[2];
 }
 
 void ChainTree::test(std::uint32_t i, std::uint32_t j, std::vector<SegmentPair>& out) const {
@@ -656,13 +696,20 @@ void ChainTree::findPairs(const Vec3* positions, const std::vector<CollisionSegm
     if (chain_out_.size() < chains) chain_out_.resize(chains);
     roots_.resize(chains);
     chain_rejects_.resize(chains);
+    // A chain of kParallelChainSegments or more, where the pool runs in parallel, is split
+    // over it by itself (splitChain: a long rope alone uses every core); the others run
+    // one per thread. The nodes and pairs are the same either way.
+    auto big = [&](std::size_t c) { return pool && pool->parallel() && chain_count_[c] >= kParallelChainSegments; };
     each(chains, [&](std::size_t c) {
+        if (big(c)) return;
         std::uint32_t next = chain_node_[c];
         roots_[c] = build(chain_first_[c], chain_count_[c], next);
         chain_out_[c].clear();
         chain_rejects_[c] = 0;
         self(roots_[c], chain_out_[c], chain_rejects_[c]);
     });
+    for (std::size_t c = 0; c < chains; ++c)
+        if (big(c)) splitChain(c, *pool);
     for (std::size_t c = 0; c < chains; ++c) out.insert(out.end(), chain_out_[c].begin(), chain_out_[c].end());
     // Chains against each other: sweep the root boxes along the axis on which their
     // centres spread most (strings side by side all overlap along their own length: swept

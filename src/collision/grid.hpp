@@ -254,6 +254,10 @@ private:
         std::uint32_t left = 0, right = 0;  // children (leaves: 0)
     };
     std::uint32_t build(std::uint32_t first, std::uint32_t count, std::uint32_t& next);
+    /// Node `index` over segments [first, first + count) with children left and right.
+    void join(std::uint32_t index, std::uint32_t first, std::uint32_t count, std::uint32_t left, std::uint32_t right);
+    /// Chain c's tree and self pairs, on two threads of `pool`.
+    void splitChain(std::size_t c, ThreadPool& pool);
     void self(std::uint32_t node, std::vector<SegmentPair>& out, std::size_t& rejects) const;
     void cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>& out, std::size_t& rejects) const;
     void test(std::uint32_t i, std::uint32_t j, std::vector<SegmentPair>& out) const;
@@ -265,6 +269,7 @@ private:
     std::vector<std::uint32_t> roots_, order_;
     std::vector<std::uint32_t> chain_first_, chain_count_, chain_node_;  // per chain: segments, first node
     std::vector<std::vector<SegmentPair>> chain_out_;                    // per chain: its self pairs
+    std::vector<SegmentPair> split_out_[3];                              // splitChain's parts
     std::vector<std::pair<std::uint32_t, std::uint32_t>> root_pairs_;   // roots the sweep pairs up
     std::vector<std::vector<SegmentPair>> root_out_;                     // per root pair: its pairs
     const Vec3* x_ = nullptr;

@@ -147,4 +147,22 @@ private:
     static inline thread_local bool inside_ = false;  // this thread runs a forEach's fn
 };
 
+/// The most ranges forRanges cuts a loop into.
+constexpr std::size_t kMaxRanges = 16;
+
+/// Calls body(lo, hi, part) on [0, count) cut into one contiguous range per thread of
+/// `pool` (at most kMaxRanges; part numbers them) when the pool runs in parallel now and
+/// count >= min_count, else body(0, count, 0) here. For loops whose items write only their
+/// own entries (the bits do not depend on the cut).
+template <class Body>
+void forRanges(ThreadPool* pool, std::size_t count, std::size_t min_count, Body&& body) {
+    const std::size_t parts =
+        pool && pool->parallel() && count >= min_count ? std::min<std::size_t>(pool->threads(), kMaxRanges) : 1;
+    if (parts <= 1) {
+        body(std::size_t{0}, count, std::size_t{0});
+        return;
+    }
+    pool->forEach(parts, [&](std::size_t part) { body(count * part / parts, count * (part + 1) / parts, part); });
+}
+
 }  // namespace tearables::detail

@@ -22,6 +22,7 @@
 // rope hanging at rest, whose particles all fall by the same g h^2 before limiting, reads
 // about one particle's weight at its clamp and almost zero below it. Momentum balance
 // sees the weight below every segment; that is why it is the default.
+#include "core/thread_pool.hpp"
 #include "core/tridiagonal.hpp"
 #include "string/string_state.hpp"
 
@@ -32,6 +33,10 @@ namespace tearables::detail {
 namespace {
 
 constexpr double kRegularisation = 1e-6;
+/// A string of this many segments or more splits the tension's assembly and read-out over
+/// the pool (StepContext::pool): one long rope alone uses every core. The tridiagonal solve
+/// itself stays serial (a few ns a segment).
+constexpr std::size_t kParallelSegments = 4096;
 
 /// Weight of particle p's equation (1), or 0 when it gives none: clamped, or glued to an
 /// immovable body; both carry an unknown support force.
@@ -52,42 +57,54 @@ Vec3 rowImpulse(const StringState& s, std::size_t p) {
 
 void momentumTension(StringState& s, const StepContext& ctx) {
     const std::size_t m = s.segments();
-    for (std::size_t j = 0; j < m; ++j) {
-        const Vec3 d = s.x[j + 1] - s.x[j];
-        const double len = d.norm();
-        if (len > 1e-15) s.dir[j] = d / len;
-    }
-    double max_diag = 0.0;
-    for (std::size_t j = 0; j < m; ++j) {
-        if (s.broken[j]) {
-            s.diag[j] = 1.0;
-            s.off[j] = 0.0;
-            s.rhs[j] = 0.0;
-            continue;
+    // Each range of segments writes only its own entries, and the largest diagonal is the
+    // largest of the ranges' (max is exact): the same bits on any number of threads.
+    forRanges(ctx.pool, m, kParallelSegments, [&](std::size_t j0, std::size_t j1, std::size_t) {
+        for (std::size_t j = j0; j < j1; ++j) {
+            const Vec3 d = s.x[j + 1] - s.x[j];
+            const double len = d.norm();
+            if (len > 1e-15) s.dir[j] = d / len;
         }
-        const Vec3& e = s.dir[j];
-        const double wa = rowWeight(s, j);
-        const double wb = rowWeight(s, j + 1);
-        const Mat3& pa = s.row_projector[j];
-        const Mat3& pb = s.row_projector[j + 1];
-        s.diag[j] = wa * e.dot(pa * e) + wb * e.dot(pb * e);
-        s.rhs[j] = (wa > 0.0 ? wa * e.dot(pa * rowImpulse(s, j)) : 0.0) - (wb > 0.0 ? wb * e.dot(pb * rowImpulse(s, j + 1)) : 0.0);
-        s.off[j] = 0.0;
-        if (j + 1 < m && !s.broken[j + 1]) s.off[j] = -wb * e.dot(pb * s.dir[j + 1]);
-        max_diag = std::max(max_diag, s.diag[j]);
-    }
+    });
+    double range_max[kMaxRanges] = {};
+    forRanges(ctx.pool, m, kParallelSegments, [&](std::size_t j0, std::size_t j1, std::size_t part) {
+        double max_diag = 0.0;
+        for (std::size_t j = j0; j < j1; ++j) {
+            if (s.broken[j]) {
+                s.diag[j] = 1.0;
+                s.off[j] = 0.0;
+                s.rhs[j] = 0.0;
+                continue;
+            }
+            const Vec3& e = s.dir[j];
+            const double wa = rowWeight(s, j);
+            const double wb = rowWeight(s, j + 1);
+            const Mat3& pa = s.row_projector[j];
+            const Mat3& pb = s.row_projector[j + 1];
+            s.diag[j] = wa * e.dot(pa * e) + wb * e.dot(pb * e);
+            s.rhs[j] = (wa > 0.0 ? wa * e.dot(pa * rowImpulse(s, j)) : 0.0) - (wb > 0.0 ? wb * e.dot(pb * rowImpulse(s, j + 1)) : 0.0);
+            s.off[j] = 0.0;
+            if (j + 1 < m && !s.broken[j + 1]) s.off[j] = -wb * e.dot(pb * s.dir[j + 1]);
+            max_diag = std::max(max_diag, s.diag[j]);
+        }
+        range_max[part] = max_diag;
+    });
+    const double max_diag = *std::max_element(range_max, range_max + kMaxRanges);
     const double reg = kRegularisation * (max_diag > 0.0 ? max_diag : 1.0) / static_cast<double>(m);
     for (std::size_t j = 0; j < m; ++j)
         if (!s.broken[j]) s.diag[j] += reg;
     solveSymmetricTridiagonal(s.diag, s.off, s.rhs, s.scratch);
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
-    for (std::size_t j = 0; j < m; ++j) s.tension[j] = s.broken[j] ? 0.0 : s.rhs[j] * inv_h2;
     // Where a body presses the string, its motion cannot tell tension from contact force:
     // there the tension is the spring force of the converged solve (the same quantity,
     // which the momentum balance recovers elsewhere more robustly).
-    for (std::size_t j = 0; j < m; ++j)
-        if (!s.broken[j] && (!s.row_projector[j].isIdentity(0.0) || !s.row_projector[j + 1].isIdentity(0.0)))
-            s.tension[j] = s.spring_force[j];
+    forRanges(ctx.pool, m, kParallelSegments, [&](std::size_t j0, std::size_t j1, std::size_t) {
+        for (std::size_t j = j0; j < j1; ++j) {
+            s.tension[j] = s.broken[j] ? 0.0 : s.rhs[j] * inv_h2;
+            if (!s.broken[j] && (!s.row_projector[j].isIdentity(0.0) || !s.row_projector[j + 1].isIdentity(0.0)))
+                s.tension[j] = s.spring_force[j];
+        }
+    });
 }
 
 void localTension(StringState& s, const StepContext& ctx) {

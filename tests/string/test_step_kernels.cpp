@@ -185,3 +185,47 @@ TEST(StepKernels, ThreadPoolRunsNestedCallsInPlace) {
         for (int h : hits) ASSERT_EQ(h, 1) << "round " << round;
     }
 }
+
+// A chain long enough (6000 segments) that the tree splits its build and self pairs over a
+// parallel pool: a coiled random walk (thousands of self pairs) beside a short chain, found
+// with and without a pool of two threads: the same pairs in the same order, and the same
+// as the brute-force search.
+TEST(StepKernels, ChainTreeSplitsALongChainOverThePoolWithTheSamePairs) {
+    std::mt19937_64 rng(11);
+    std::vector<Vec3> x;
+    std::vector<detail::CollisionSegment> segs;
+    for (int c = 0; c < 2; ++c) {
+        const int count = c == 0 ? 6000 : 50;
+        const auto base = static_cast<std::uint32_t>(x.size());
+        Vec3 p(0.03 * c, 0.0, 0.0);
+        for (int i = 0; i <= count; ++i) {
+            x.push_back(p);
+            p += randomUnit(rng) * 0.01;
+            p *= 0.999;  // pulled in: a coil, not a spreading walk
+        }
+        for (int i = 0; i < count; ++i) {
+            detail::CollisionSegment s;
+            s.a = base + static_cast<std::uint32_t>(i);
+            s.b = s.a + 1;
+            s.chain = static_cast<std::uint32_t>(c);
+            s.index_in_chain = static_cast<std::uint32_t>(i);
+            s.radius = 0.004;
+            s.skip = (i % 997) == 5;
+            segs.push_back(s);
+        }
+    }
+    detail::ChainTree serial, split;
+    std::vector<detail::SegmentPair> a, b;
+    serial.findPairs(x.data(), segs, 0.0, a, 3);
+    detail::ThreadPool pool;
+    pool.setThreads(2);
+    split.findPairs(x.data(), segs, 0.0, b, 3, &pool);
+    ASSERT_GT(a.size(), 1000u);
+    ASSERT_EQ(a.size(), b.size());
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        ASSERT_EQ(a[i].first, b[i].first) << i;
+        ASSERT_EQ(a[i].second, b[i].second) << i;
+        ASSERT_EQ(a[i].distance, b[i].distance) << i;
+    }
+    EXPECT_EQ(keys(b), keys(detail::bruteForcePairs(x.data(), x.size(), segs, 0.0, 3)));
+}
