@@ -147,6 +147,11 @@ private:
     static inline thread_local bool inside_ = false;  // this thread runs a forEach's fn
 };
 
+/// A loop over one string's particles or segments of this many or more is split over the
+/// pool where it runs in parallel (a long rope alone uses every core); shorter loops are
+/// not worth the hand-over.
+constexpr std::size_t kParallelItems = 4096;
+
 /// The most ranges forRanges cuts a loop into.
 constexpr std::size_t kMaxRanges = 16;
 

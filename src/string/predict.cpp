@@ -1,4 +1,5 @@
 // Stages 2 and 8 of a step: unconstrained prediction x' and velocities from positions.
+#include "core/thread_pool.hpp"
 #include "string/string_state.hpp"
 
 #include <cmath>
@@ -12,35 +13,37 @@ namespace tearables::detail {
 void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
     const double h = ctx.h;
     const double damp = 1.0 / (1.0 + s.desc.damping * h);
-    const std::size_t n = s.particles();
-    for (std::size_t p = 0; p < n; ++p) {
-        s.x_prev[p] = s.x[p];
-        const ParticleHold& hold = s.hold[p];
-        switch (hold.kind) {
-            case ParticleHold::Kind::Pin:
-                s.x[p] = hold.point;
-                break;
-            case ParticleHold::Kind::Glue:
-                s.x[p] = gluePoint(rigids.bodies[hold.body.index], hold.point);
-                break;
-            case ParticleHold::Kind::Free: {
-                // Drag damps the motion, not the load: a rope at rest still feels all of
-                // gravity (damping the whole update would hide a fraction of the weight
-                // from the momentum-balance tension).
-                // The twist force of the previous step (Eq. 6) is explicit: cap the
-                // displacement it can cause in one step at a tenth of a segment, a
-                // safety limit that only acts on a string twisted far past its strength.
-                Vec3 twist = s.twist_force[p];
-                const double cap = 0.1 * s.shortest_rest * s.mass[p] * ctx.inv_h * ctx.inv_h;
-                const double f = twist.norm();
-                if (f > cap) twist *= cap / f;
-                const Vec3 v = damp * s.v[p] + h * (ctx.gravity + s.inv_mass[p] * (s.force[p] + twist));
-                s.v[p] = v;
-                s.x[p] += h * v + s.csm_goal[p];  // plus the bending correction (shape_matching.cpp)
-                break;
+    // Particle by particle (on the pool for a long string: the same bits).
+    forRanges(ctx.pool, s.particles(), kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {
+        for (std::size_t p = p0; p < p1; ++p) {
+            s.x_prev[p] = s.x[p];
+            const ParticleHold& hold = s.hold[p];
+            switch (hold.kind) {
+                case ParticleHold::Kind::Pin:
+                    s.x[p] = hold.point;
+                    break;
+                case ParticleHold::Kind::Glue:
+                    s.x[p] = gluePoint(rigids.bodies[hold.body.index], hold.point);
+                    break;
+                case ParticleHold::Kind::Free: {
+                    // Drag damps the motion, not the load: a rope at rest still feels all of
+                    // gravity (damping the whole update would hide a fraction of the weight
+                    // from the momentum-balance tension).
+                    // The twist force of the previous step (Eq. 6) is explicit: cap the
+                    // displacement it can cause in one step at a tenth of a segment, a
+                    // safety limit that only acts on a string twisted far past its strength.
+                    Vec3 twist = s.twist_force[p];
+                    const double cap = 0.1 * s.shortest_rest * s.mass[p] * ctx.inv_h * ctx.inv_h;
+                    const double f = twist.norm();
+                    if (f > cap) twist *= cap / f;
+                    const Vec3 v = damp * s.v[p] + h * (ctx.gravity + s.inv_mass[p] * (s.force[p] + twist));
+                    s.v[p] = v;
+                    s.x[p] += h * v + s.csm_goal[p];  // plus the bending correction (shape_matching.cpp)
+                    break;
+                }
             }
         }
-    }
+    });
 }
 
 // The speed clamp on positions (issue 8): after the strain limit, no free particle has
@@ -51,20 +54,22 @@ void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
 void clampTravel(StringState& s, const StepContext& ctx) {
     const double reach = ctx.settings->max_speed * ctx.h;
     const std::size_t n = s.particles();
-    for (std::size_t p = 0; p < n; ++p) {
-        if (s.hold[p].kind != ParticleHold::Kind::Free) continue;
-        const Vec3 d = s.x[p] - s.x_prev[p];
-        const double travel2 = d.squaredNorm();
-        if (travel2 > reach * reach) {
-            s.x[p] = s.x_prev[p] + d * (reach / std::sqrt(travel2));
-            // A particle that no segment holds any more: its run-away prediction goes too
-            // (the string-string joint solve and its collision search start from it). One
-            // on a segment keeps it, so that the pull reads as tension and tears it.
-            const bool before = p > 0 && !s.broken[p - 1];
-            const bool after = p + 1 < n && !s.broken[p];
-            if (!before && !after) s.x_pred[p] = s.x[p];
+    forRanges(ctx.pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {
+        for (std::size_t p = p0; p < p1; ++p) {
+            if (s.hold[p].kind != ParticleHold::Kind::Free) continue;
+            const Vec3 d = s.x[p] - s.x_prev[p];
+            const double travel2 = d.squaredNorm();
+            if (travel2 > reach * reach) {
+                s.x[p] = s.x_prev[p] + d * (reach / std::sqrt(travel2));
+                // A particle that no segment holds any more: its run-away prediction goes too
+                // (the string-string joint solve and its collision search start from it). One
+                // on a segment keeps it, so that the pull reads as tension and tears it.
+                const bool before = p > 0 && !s.broken[p - 1];
+                const bool after = p + 1 < n && !s.broken[p];
+                if (!before && !after) s.x_pred[p] = s.x[p];
+            }
         }
-    }
+    });
 }
 
 // Position-based velocity update: v = (x - x_prev) / h, for every particle (held ones
@@ -73,13 +78,14 @@ void clampTravel(StringState& s, const StepContext& ctx) {
 // force on a light particle may predict a huge speed that the limiter then removes.
 void updateVelocities(StringState& s, const StepContext& ctx) {
     const double max_speed = ctx.settings->max_speed;
-    const std::size_t n = s.particles();
-    for (std::size_t p = 0; p < n; ++p) {
-        Vec3 v = (s.x[p] - s.x_prev[p]) * ctx.inv_h;
-        const double speed2 = v.squaredNorm();
-        if (speed2 > max_speed * max_speed) v *= max_speed / std::sqrt(speed2);
-        s.v[p] = v;
-    }
+    forRanges(ctx.pool, s.particles(), kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {
+        for (std::size_t p = p0; p < p1; ++p) {
+            Vec3 v = (s.x[p] - s.x_prev[p]) * ctx.inv_h;
+            const double speed2 = v.squaredNorm();
+            if (speed2 > max_speed * max_speed) v *= max_speed / std::sqrt(speed2);
+            s.v[p] = v;
+        }
+    });
 }
 
 }  // namespace tearables::detail

@@ -576,84 +576,91 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
     }
 }
 
-/// A segment's spring in the chain's Newton system, where its first particle's share is
-/// held back (assembleSprings): its Hessian and force.
-struct HeldSpring {
-    bool held = false;
-    Mat3 hess;
-    Vec3 force;  // pulls j toward j+1
+/// A segment's spring in the chain's Newton system: Hessian and force, and to which of its
+/// particles they apply (a fixed particle's row takes neither).
+struct SpringTerm {
+    Mat3 hess = Mat3::Zero();
+    Vec3 force = Vec3::Zero();  // pulls j toward j+1
+    bool to_a = false;  // applies to particle j
+    bool to_b = false;  // applies to particle j+1
 };
 
-/// Springs of the material's stiffness k = E A / L_rest on the stretched segments among
-/// [j0, j1), added to blk_diag, blk_off, blk_rhs: gradient k C e and Hessian
-/// k (e e^T + C/l (I - e e^T)) (the geometric term keeps Newton convergent when a heavy
-/// load pulls light particles). Sets active, spring_force, dir and blk_off (zero where
-/// the segment couples nothing) of those segments.
-/// `tension_estimate` (per segment, may be null): the tension the geometric term of the
-/// Hessian takes where it is below the spring's force now (see limitStrain); each active
-/// segment's entry is replaced by its effective stretch now, which linearisedTension reads.
-/// `hold_first` (may be null): segment j0's share of particle j0 goes there instead (a
-/// thread that assembles [j0, j1) does not own particle j0).
-void assembleSprings(StringState& s, const StepContext& ctx, std::size_t j0, std::size_t j1, double* tension_estimate,
-                     HeldSpring* hold_first) {
+/// A segment's spring whose share of its first particle is held back, for the thread that
+/// owns that particle (parallelChainStep's middle particle).
+struct HeldSpring {
+    bool held = false;
+    Mat3 hess = Mat3::Zero();
+    Vec3 force = Vec3::Zero();
+};
+
+/// Segment j's spring of the material's stiffness k = E A / L_rest, if stretched: gradient
+/// k C e and Hessian k (e e^T + C/l (I - e e^T)) (the geometric term keeps Newton convergent
+/// when a heavy load pulls light particles). Sets active, spring_force, dir and blk_off
+/// (zero where the segment couples nothing) of the segment. `tension_estimate` (per
+/// segment, may be null): the tension the geometric term of the Hessian takes where it is
+/// below the spring's force now (see limitStrain); if the segment is active, its entry is
+/// replaced by its effective stretch now, which linearisedTension reads.
+[[gnu::always_inline]] inline SpringTerm springTerm(StringState& s, const StepContext& ctx, std::size_t j,
+                                                     double* tension_estimate) {
+    SpringTerm term;
+    s.active[j] = 0;
+    s.spring_force[j] = 0.0;
+    s.blk_off[j].setZero();
+    if (s.broken[j]) return term;
+    const Vec3 d = s.x[j + 1] - s.x[j];
+    const double len = d.norm();
+    if (len > 1e-15) s.dir[j] = d / len;
+    const double stretch = len - s.rest_length[j];
+    // Kelvin-Voigt: the segment's force is k (C + tau dC/dt), tau the material's
+    // retardation time; it damps the rope's axial (bungee) vibration, which a
+    // real fibre's internal friction kills within a few periods.
+    const double rate_gain = s.desc.axial_damping * ctx.inv_h;
+    const double effective = stretch + rate_gain * (stretch - s.prev_stretch[j]);
+    // Slack segments carry nothing (a rope does not push). Taut ones (within
+    // kTautSlack of rest) join with their stiffness but no force, so that one
+    // Newton step sees the whole taut chain a correction would stretch; a
+    // segment the step compresses leaves again at the next iteration.
+    if (stretch <= -kTautSlack * s.rest_length[j] && effective <= 0.0) return term;
+    const double c = std::max(effective, 0.0);
+    s.active[j] = 1;
+    const double k = 1.0 / s.compliance[j];
+    s.spring_force[j] = k * c;
+    const Vec3& e = s.dir[j];
+    // hess = k ((1 + tau/h) e e^T + C/l (I - e e^T)), entry by entry with the same
+    // operations as the matrix expression (so the same bits), the six distinct ones
+    // only (e_i e_j = e_j e_i exactly).
+    double geometric = c;
+    if (tension_estimate) {
+        if (tension_estimate[j] > 0.0) geometric = std::min(c, tension_estimate[j] * s.compliance[j]);
+        tension_estimate[j] = effective;
+    }
+    const double g = 1.0 + rate_gain, q = geometric / len;
+    const double e00 = e.x() * e.x(), e11 = e.y() * e.y(), e22 = e.z() * e.z();
+    const double e10 = e.y() * e.x(), e20 = e.z() * e.x(), e21 = e.z() * e.y();
+    const double h10 = k * (g * e10 + q * (0.0 - e10)), h20 = k * (g * e20 + q * (0.0 - e20));
+    const double h21 = k * (g * e21 + q * (0.0 - e21));
+    term.hess << k * (g * e00 + q * (1.0 - e00)), h10, h20,  //
+        h10, k * (g * e11 + q * (1.0 - e11)), h21,           //
+        h20, h21, k * (g * e22 + q * (1.0 - e22));
+    term.force = k * c * e;
+    term.to_a = !fixedRow(s, j);
+    term.to_b = !fixedRow(s, j + 1);
+    if (term.to_a && term.to_b) s.blk_off[j] = -term.hess;
+    return term;
+}
+
+/// The springs of segments [j0, j1) (springTerm) added to blk_diag and blk_rhs.
+void assembleSprings(StringState& s, const StepContext& ctx, std::size_t j0, std::size_t j1, double* tension_estimate) {
     for (std::size_t j = j0; j < j1; ++j) {
-        s.active[j] = 0;
-        s.spring_force[j] = 0.0;
-        s.blk_off[j].setZero();
-        if (s.broken[j]) continue;
-        const Vec3 d = s.x[j + 1] - s.x[j];
-        const double len = d.norm();
-        if (len > 1e-15) s.dir[j] = d / len;
-        const double stretch = len - s.rest_length[j];
-        // Kelvin-Voigt: the segment's force is k (C + tau dC/dt), tau the material's
-        // retardation time; it damps the rope's axial (bungee) vibration, which a
-        // real fibre's internal friction kills within a few periods.
-        const double rate_gain = s.desc.axial_damping * ctx.inv_h;
-        const double effective = stretch + rate_gain * (stretch - s.prev_stretch[j]);
-        // Slack segments carry nothing (a rope does not push). Taut ones (within
-        // kTautSlack of rest) join with their stiffness but no force, so that one
-        // Newton step sees the whole taut chain a correction would stretch; a
-        // segment the step compresses leaves again at the next iteration.
-        if (stretch <= -kTautSlack * s.rest_length[j] && effective <= 0.0) continue;
-        const double c = std::max(effective, 0.0);
-        s.active[j] = 1;
-        const double k = 1.0 / s.compliance[j];
-        s.spring_force[j] = k * c;
-        const Vec3& e = s.dir[j];
-        // hess = k ((1 + tau/h) e e^T + C/l (I - e e^T)), entry by entry with the same
-        // operations as the matrix expression (so the same bits), the six distinct ones
-        // only (e_i e_j = e_j e_i exactly).
-        double geometric = c;
-        if (tension_estimate) {
-            if (tension_estimate[j] > 0.0) geometric = std::min(c, tension_estimate[j] * s.compliance[j]);
-            tension_estimate[j] = effective;
+        const SpringTerm term = springTerm(s, ctx, j, tension_estimate);
+        if (term.to_a) {
+            s.blk_diag[j] += term.hess;
+            s.blk_rhs[j] += term.force;
         }
-        const double g = 1.0 + rate_gain, q = geometric / len;
-        const double e00 = e.x() * e.x(), e11 = e.y() * e.y(), e22 = e.z() * e.z();
-        const double e10 = e.y() * e.x(), e20 = e.z() * e.x(), e21 = e.z() * e.y();
-        const double h10 = k * (g * e10 + q * (0.0 - e10)), h20 = k * (g * e20 + q * (0.0 - e20));
-        const double h21 = k * (g * e21 + q * (0.0 - e21));
-        Mat3 hess;
-        hess << k * (g * e00 + q * (1.0 - e00)), h10, h20,  //
-            h10, k * (g * e11 + q * (1.0 - e11)), h21,      //
-            h20, h21, k * (g * e22 + q * (1.0 - e22));
-        const Vec3 force = k * c * e;  // pulls j toward j+1
-        const bool fa = !fixedRow(s, j), fb = !fixedRow(s, j + 1);
-        if (fa) {
-            if (hold_first && j == j0) {
-                hold_first->held = true;
-                hold_first->hess = hess;
-                hold_first->force = force;
-            } else {
-                s.blk_diag[j] += hess;
-                s.blk_rhs[j] += force;
-            }
+        if (term.to_b) {
+            s.blk_diag[j + 1] += term.hess;
+            s.blk_rhs[j + 1] -= term.force;
         }
-        if (fb) {
-            s.blk_diag[j + 1] += hess;
-            s.blk_rhs[j + 1] -= force;
-        }
-        if (fa && fb) s.blk_off[j] = -hess;
     }
 }
 
@@ -661,7 +668,7 @@ void assembleSprings(StringState& s, const StepContext& ctx, std::size_t j0, std
 /// the springs of the stretched segments (assembleSprings), into blk_diag, blk_off, blk_rhs.
 void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx, double* tension_estimate) {
     assembleInertia(s, rigids, ctx, 0, s.particles());
-    assembleSprings(s, ctx, 0, s.segments(), tension_estimate, nullptr);
+    assembleSprings(s, ctx, 0, s.segments(), tension_estimate);
 }
 
 /// The tension of each segment after the Newton step held in blk_rhs, to first order:
@@ -682,27 +689,67 @@ void linearisedTension(StringState& s, const StepContext& ctx, std::size_t j0, s
     }
 }
 
-/// solveChain's sweep from the top alone, over particles [0, mid) (parallelChainStep runs
-/// it on one thread and sweepFromBottom on another: the same operations, so the same bits).
-void sweepFromTop(StringState& s, std::size_t mid) {
+/// solveChain's sweep from the top alone, over particles [0, mid), with the springs of
+/// segments [0, mid) assembled as it goes (their sums in assembleChain's order: particle t
+/// takes segment t-1's share, then segment t's), and segment mid-1's share of particle mid
+/// added at the end. One sweep alone leaves the core idle while a pivot's divisions run;
+/// the assembly fills that time. parallelChainStep runs it on one thread and
+/// sweepFromBottom on another: the same operations as the serial iteration, so the same
+/// bits.
+void sweepFromTop(StringState& s, const StepContext& ctx, std::size_t mid, double* tension_estimate) {
     const Mat3* off = s.blk_off.data();
     ChainSweep top;
+    SpringTerm last;  // segment t-1
     for (std::size_t t = 0; t < mid; ++t) {
+        const SpringTerm next = springTerm(s, ctx, t, tension_estimate);
+        Mat3 d = s.blk_diag[t];
+        Vec3 rhs = s.blk_rhs[t];
+        if (last.to_b) {
+            d += last.hess;
+            rhs -= last.force;
+        }
+        if (next.to_a) {
+            d += next.hess;
+            rhs += next.force;
+        }
+        last = next;
         Vec3 r;
-        const Mat3 d = top.pivot(s.blk_diag[t], s.blk_rhs[t], t > 0 ? off + t - 1 : nullptr, r);
-        top.finish(inverseSymmetric(d), r, off[t], s.blk_rhs[t], s.blk_factor_gain[t]);
+        const Mat3 pivot = top.pivot(d, rhs, t > 0 ? off + t - 1 : nullptr, r);
+        top.finish(inverseSymmetric(pivot), r, off[t], s.blk_rhs[t], s.blk_factor_gain[t]);
+    }
+    if (last.to_b) {
+        s.blk_diag[mid] += last.hess;
+        s.blk_rhs[mid] -= last.force;
     }
 }
 
-/// solveChain's sweep from the far end alone, over particles (mid, n).
-void sweepFromBottom(StringState& s, std::size_t mid) {
+/// solveChain's sweep from the far end alone, over particles (mid, n), with the springs
+/// of segments [mid, m) assembled as it goes; segment mid's share of particle mid goes to
+/// `held` (the middle particle is not this thread's).
+void sweepFromBottom(StringState& s, const StepContext& ctx, std::size_t mid, double* tension_estimate, HeldSpring& held) {
     const Mat3* off = s.blk_off.data();
     ChainSweep bottom;
+    SpringTerm last;  // segment i
     for (std::size_t i = s.particles() - 1; i > mid; --i) {
+        const SpringTerm next = springTerm(s, ctx, i - 1, tension_estimate);
+        Mat3 d = s.blk_diag[i];
+        Vec3 rhs = s.blk_rhs[i];
+        if (next.to_b) {
+            d += next.hess;
+            rhs -= next.force;
+        }
+        if (last.to_a) {
+            d += last.hess;
+            rhs += last.force;
+        }
+        last = next;
         Vec3 r;
-        const Mat3 d = bottom.pivot(s.blk_diag[i], s.blk_rhs[i], off + i, r);
-        bottom.finish(inverseSymmetric(d), r, off[i - 1], s.blk_rhs[i], s.blk_factor_gain[i]);
+        const Mat3 pivot = bottom.pivot(d, rhs, off + i, r);
+        bottom.finish(inverseSymmetric(pivot), r, off[i - 1], s.blk_rhs[i], s.blk_factor_gain[i]);
     }
+    held.held = last.to_a;
+    held.hess = last.hess;
+    held.force = last.force;
 }
 
 /// solveChain's middle particle, with the share of segment mid held back from its block.
@@ -755,12 +802,10 @@ double parallelChainStep(StringState& s, RigidTable& rigids, const StepContext& 
     pool.forEach(2, [&](std::size_t half) {
         if (half == 0) {
             assembleInertia(s, rigids, ctx, 0, mid + 1);
-            assembleSprings(s, ctx, 0, mid, tension_estimate, nullptr);
-            sweepFromTop(s, mid);
+            sweepFromTop(s, ctx, mid, tension_estimate);
         } else {
             assembleInertia(s, rigids, ctx, mid + 1, n);
-            assembleSprings(s, ctx, mid, m, tension_estimate, &held);
-            sweepFromBottom(s, mid);
+            sweepFromBottom(s, ctx, mid, tension_estimate, held);
         }
     });
     solveMiddle(s, mid, held);

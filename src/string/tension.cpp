@@ -34,9 +34,9 @@ namespace {
 
 constexpr double kRegularisation = 1e-6;
 /// A string of this many segments or more splits the tension's assembly and read-out over
-/// the pool (StepContext::pool): one long rope alone uses every core. The tridiagonal solve
-/// itself stays serial (a few ns a segment).
-constexpr std::size_t kParallelSegments = 4096;
+/// the pool (StepContext::pool). The tridiagonal solve itself stays serial (a few ns a
+/// segment).
+constexpr std::size_t kParallelSegments = kParallelItems;
 
 /// Weight of particle p's equation (1), or 0 when it gives none: clamped, or glued to an
 /// immovable body; both carry an unknown support force.
