@@ -40,10 +40,15 @@ struct WorldSettings {
     /// meet.
     bool string_collisions = true;
     /// Threads that step independent strings in parallel, 0..64: 1 steps on the calling
-    /// thread only, 0 uses every core the machine reports. Results are bit-identical
-    /// whatever the count (each string's stages are sequential and run in a fixed order;
-    /// what strings share, the rigid bodies and the string-string collision, stays on the
-    /// calling thread). Not part of snapshots.
+    /// thread only, 0 uses every core the machine reports. Where a stage has one string
+    /// to step and it has 4096 particles or more (one long rope), the string's own work is
+    /// split instead: its strain-limit solve in two halves (no glued particles, no rigid
+    /// contacts), shape matching and tension in ranges. The collision tree of every string
+    /// that long is built and searched in two halves. Results are bit-identical whatever
+    /// the count (every split does the same operations in the same order; what strings
+    /// share, the rigid bodies and the string-string joint solve, stays on the calling
+    /// thread). Waiting workers spin for up to 0.2 ms before they sleep. Not part of
+    /// snapshots.
     int threads = 1;
 };
 

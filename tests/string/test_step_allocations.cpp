@@ -239,6 +239,21 @@ TEST(StepAllocations, SwingingRopesStepWithoutAllocating) {
     }
 }
 
+// One long rope alone (5000 segments, swinging down from the horizontal) on two threads:
+// its stages split their own work over the pool (the strain limit's halves, shape
+// matching's passes, the tension's loops, the chain tree's subtrees): no allocation either.
+TEST(StepAllocations, LongRopeSplitOverTwoThreadsStepsWithoutAllocating) {
+    prepare();
+    if (IsSkipped()) return;
+    tearables::WorldSettings settings;
+    settings.threads = 2;
+    World world(settings);
+    const StringId a = world.addString(rope({0, 0, 0}, {50, 0, 0}, 5000, 5.0));
+    world.attachToPoint(a, 0, {0, 0, 0});
+    const long allocations = countedSteps(world);
+    EXPECT_EQ(allocations, 0) << "heap allocations in " << kCounted << " steps (run with TEARABLES_ALLOC_BACKTRACE=1 to see where)";
+}
+
 // The same with string-string contacts: a rope pinned at one end swings down onto a rope
 // stretched across its path and hangs draped over it; the contacts last through the
 // counted steps. Until 2026-12-01 (disabled until then) detail::solveStringCluster made
