@@ -41,7 +41,7 @@ scene = {
         {"type": "move", "target": "cord", "particle": -1, "velocity": [-0.2, 0, 0], "from": 3, "until": 7},
         {"type": "move", "target": "plain", "particle": -1, "velocity": [-0.2, 0, 0], "from": 3, "until": 7},
     ],
-    "camera": {"eye": [-0.3, 1.25, 0.6], "target": [-0.3, 1.0, -0.3], "fov": 45},
+    "camera": {"eye": [-0.3, 1.16, 0.45], "target": [-0.3, 1.0, -0.3], "fov": 45},
     "output": {"every": 10},
 }
 text = json.dumps(scene, indent=1)
