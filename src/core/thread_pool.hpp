@@ -6,11 +6,13 @@
 // since callers only pass work whose items share nothing they write. So results are
 // bit-identical for any thread count. Workers are started lazily on the first parallel
 // call; no allocation per call. Between calls a worker first spins for kSpinMicroseconds
-// (watching the call counter) and then sleeps on a condition variable, and the caller
-// spins the same way for the workers to finish before it sleeps. Waking a sleeping
-// thread took 70-110 us on this project's (virtual) machine, more than the work of one
-// Newton iteration of a 8192-particle rope split in two; calls in quick succession (the
-// iterations of one solve) now hand over in about a microsecond.
+// (watching the call counter: pause instructions, then yielding the core) and then sleeps
+// on a condition variable, and the caller waits for the workers the same way. Waking a
+// sleeping thread took 70-110 us on this project's (virtual) machine, as much as the work
+// of one Newton iteration of a 8192-particle rope split in two; calls in quick succession
+// (the iterations of one solve) now hand over in 1-2 us, also with every core busy with
+// other work (pure pause spinning took up to 400 us a call there: the thread waited for
+// could not run).
 //
 // Nested calls run serially: a forEach made from inside a forEach's fn (on any thread)
 // loops in place. So a stage may split one big string's work over the pool (a long
@@ -108,15 +110,21 @@ private:
         for (std::thread& w : workers_) w.join();
         workers_.clear();
     }
-    /// Spins while busy() holds, for at most kSpinMicroseconds.
+    /// Spins while busy() holds, for at most kSpinMicroseconds: pause instructions first,
+    /// then yielding the core (where the machine has more runnable threads than cores, the
+    /// thread waited for may need this one).
     template <class Busy>
     static void spinWhile(Busy&& busy) {
         const auto start = std::chrono::steady_clock::now();
         for (unsigned i = 1; busy(); ++i) {
+            if (i < kPauseSpins) {
 #if defined(__x86_64__) || defined(__i386__)
-            _mm_pause();
+                _mm_pause();
 #endif
-            if (i % 64 == 0 && std::chrono::steady_clock::now() - start > std::chrono::microseconds(kSpinMicroseconds)) return;
+                continue;
+            }
+            std::this_thread::yield();
+            if (std::chrono::steady_clock::now() - start > std::chrono::microseconds(kSpinMicroseconds)) return;
         }
     }
     void loop(std::size_t part, std::size_t seen) {
@@ -141,6 +149,7 @@ private:
     void* context_ = nullptr;  // the caller's function object, called through call_
     void (*call_)(void*, std::size_t) = nullptr;
     static constexpr int kSpinMicroseconds = 200;
+    static constexpr unsigned kPauseSpins = 1024;  // ~10-40 us of pause instructions
     std::size_t count_ = 0, parts_ = 1;
     std::atomic<std::size_t> pending_{0}, generation_{0};
     std::atomic<bool> quit_{false};
