@@ -689,6 +689,20 @@ void linearisedTension(StringState& s, const StepContext& ctx, std::size_t j0, s
     }
 }
 
+/// Adds to a particle's block d and right-hand side rhs its share of the spring before it
+/// (the segment it ends) and then of the spring after it (the segment it starts): the
+/// order of assembleSprings' sums.
+[[gnu::always_inline]] inline void addSprings(const SpringTerm& before, const SpringTerm& after, Mat3& d, Vec3& rhs) {
+    if (before.to_b) {
+        d += before.hess;
+        rhs -= before.force;
+    }
+    if (after.to_a) {
+        d += after.hess;
+        rhs += after.force;
+    }
+}
+
 /// solveChain's sweep from the top alone, over particles [0, mid), with the springs of
 /// segments [0, mid) assembled as it goes (their sums in assembleChain's order: particle t
 /// takes segment t-1's share, then segment t's), and segment mid-1's share of particle mid
@@ -704,14 +718,7 @@ void sweepFromTop(StringState& s, const StepContext& ctx, std::size_t mid, doubl
         const SpringTerm next = springTerm(s, ctx, t, tension_estimate);
         Mat3 d = s.blk_diag[t];
         Vec3 rhs = s.blk_rhs[t];
-        if (last.to_b) {
-            d += last.hess;
-            rhs -= last.force;
-        }
-        if (next.to_a) {
-            d += next.hess;
-            rhs += next.force;
-        }
+        addSprings(last, next, d, rhs);
         last = next;
         Vec3 r;
         const Mat3 pivot = top.pivot(d, rhs, t > 0 ? off + t - 1 : nullptr, r);
@@ -734,14 +741,7 @@ void sweepFromBottom(StringState& s, const StepContext& ctx, std::size_t mid, do
         const SpringTerm next = springTerm(s, ctx, i - 1, tension_estimate);
         Mat3 d = s.blk_diag[i];
         Vec3 rhs = s.blk_rhs[i];
-        if (next.to_b) {
-            d += next.hess;
-            rhs -= next.force;
-        }
-        if (last.to_a) {
-            d += last.hess;
-            rhs += last.force;
-        }
+        addSprings(next, last, d, rhs);
         last = next;
         Vec3 r;
         const Mat3 pivot = bottom.pivot(d, rhs, off + i, r);

@@ -31,6 +31,25 @@ std::vector<std::tuple<std::uint32_t, std::uint32_t>> keys(const std::vector<det
     return out;
 }
 
+/// Appends a chain through `points` to the search's particles and segments: segment i
+/// of radius radius(i), skipped where skip(i).
+template <class Radius, class Skip>
+void appendChain(const std::vector<Vec3>& points, std::uint32_t chain, std::vector<Vec3>& x,
+                 std::vector<detail::CollisionSegment>& segs, Radius radius, Skip skip) {
+    const auto base = static_cast<std::uint32_t>(x.size());
+    x.insert(x.end(), points.begin(), points.end());
+    for (int i = 0; i + 1 < static_cast<int>(points.size()); ++i) {
+        detail::CollisionSegment s;
+        s.a = base + static_cast<std::uint32_t>(i);
+        s.b = s.a + 1;
+        s.chain = chain;
+        s.index_in_chain = static_cast<std::uint32_t>(i);
+        s.radius = radius(i);
+        s.skip = skip(i);
+        segs.push_back(s);
+    }
+}
+
 // Random-walk ropes, as a pile and side by side (strings of equal extent in x and y,
 // spread along z: the sweep runs along z), with swept radii of different sizes.
 TEST(StepKernels, ChainTreeFindsTheBruteForcePairs) {
@@ -41,22 +60,14 @@ TEST(StepKernels, ChainTreeFindsTheBruteForcePairs) {
         std::vector<detail::CollisionSegment> segs;
         const int chains = 30, per_chain = 40;
         for (int c = 0; c < chains; ++c) {
-            const auto base = static_cast<std::uint32_t>(x.size());
             Vec3 p = layout == 0 ? Vec3(u(rng), u(rng), u(rng)) * 0.1 : Vec3(0.0, 0.0, 0.012 * c);
+            std::vector<Vec3> points;
             for (int i = 0; i <= per_chain; ++i) {
-                x.push_back(p);
+                points.push_back(p);
                 p += layout == 0 ? randomUnit(rng) * 0.01 : Vec3(0.01, 0.002 * u(rng), 0.002 * u(rng));
             }
-            for (int i = 0; i < per_chain; ++i) {
-                detail::CollisionSegment s;
-                s.a = base + static_cast<std::uint32_t>(i);
-                s.b = s.a + 1;
-                s.chain = static_cast<std::uint32_t>(c);
-                s.index_in_chain = static_cast<std::uint32_t>(i);
-                s.radius = 0.004 * (1.0 + (i % 7 == 0 ? 3.0 : 0.0));
-                s.skip = (i % 29) == 5;
-                segs.push_back(s);
-            }
+            appendChain(points, static_cast<std::uint32_t>(c), x, segs, [](int i) { return 0.004 * (1.0 + (i % 7 == 0 ? 3.0 : 0.0)); },
+                        [](int i) { return i % 29 == 5; });
         }
         detail::ChainTree tree;
         std::vector<detail::SegmentPair> out;
@@ -196,23 +207,14 @@ TEST(StepKernels, ChainTreeSplitsALongChainOverThePoolWithTheSamePairs) {
     std::vector<detail::CollisionSegment> segs;
     for (int c = 0; c < 2; ++c) {
         const int count = c == 0 ? 6000 : 50;
-        const auto base = static_cast<std::uint32_t>(x.size());
         Vec3 p(0.03 * c, 0.0, 0.0);
+        std::vector<Vec3> points;
         for (int i = 0; i <= count; ++i) {
-            x.push_back(p);
+            points.push_back(p);
             p += randomUnit(rng) * 0.01;
             p *= 0.999;  // pulled in: a coil, not a spreading walk
         }
-        for (int i = 0; i < count; ++i) {
-            detail::CollisionSegment s;
-            s.a = base + static_cast<std::uint32_t>(i);
-            s.b = s.a + 1;
-            s.chain = static_cast<std::uint32_t>(c);
-            s.index_in_chain = static_cast<std::uint32_t>(i);
-            s.radius = 0.004;
-            s.skip = (i % 997) == 5;
-            segs.push_back(s);
-        }
+        appendChain(points, static_cast<std::uint32_t>(c), x, segs, [](int i) { return 0.004; }, [](int i) { return i % 997 == 5; });
     }
     detail::ChainTree serial, split;
     std::vector<detail::SegmentPair> a, b;
