@@ -464,7 +464,7 @@ std::vector<SegmentPair> bruteForcePairs(const Vec3* positions, std::size_t part
 
 namespace {
 constexpr std::uint32_t kLeaf = 4;  // segments per leaf of a ChainTree
-constexpr std::uint32_t kParallelChainSegments = 4096;  // a chain this long is split over the pool
+constexpr std::size_t kParallelChainSegments = kParallelItems;  // a chain this long is split over the pool
 bool boxesOverlap(const Vec3& alo, const Vec3& ahi, const Vec3& blo, const Vec3& bhi) {
     return alo.x() <= bhi.x() && blo.x() <= ahi.x() && alo.y() <= bhi.y() && blo.y() <= ahi.y() && alo.z() <= bhi.z() &&
            blo.z() <= ahi.z();

@@ -92,6 +92,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace tearables::detail {
 
@@ -278,13 +279,10 @@ void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass
 
     // Each pass splits over the pool in contiguous ranges: blocks, regions, particles. Every
     // item writes only its own entries, so the bits do not depend on the split.
-    const std::size_t parts = pool && pool->parallel() && n >= kParallelCsmParticles ? pool->threads() : 1;
+    // (Whether to split is decided by the piece's particles, also for the pass over blocks.)
+    const std::size_t min_count = n >= kParallelItems ? 0 : std::numeric_limits<std::size_t>::max();
     auto split = [&](std::size_t count, auto&& body) {
-        auto range = [&](std::size_t part) { body(count * part / parts, count * (part + 1) / parts); };
-        if (parts > 1)
-            pool->forEach(parts, range);
-        else
-            range(0);
+        forRanges(pool, count, min_count, [&](std::size_t lo, std::size_t hi, std::size_t) { body(lo, hi); });
     };
 
     // Pass 1: per block, prefix moments about the block's first particle and suffix

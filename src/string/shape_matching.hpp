@@ -46,11 +46,10 @@ struct CsmScratch {
 /// else is. mass > 0 (make colliding particles 3x heavier here, Strings Sec. 6). w >= 1 is
 /// the region half-width. The cost is O(n) regions of O(1) each (one 3x3 polar factor each)
 /// plus O(n w) for blending; no heap allocation when `scratch` is already large enough.
-/// A piece of kParallelCsmParticles or more is split over `pool` (may be null), with the
-/// same bits as serially. Throws InvalidInput if w < 1 or first > last.
+/// A piece of kParallelItems (thread_pool.hpp) particles or more is split over `pool`
+/// (may be null), with the same bits as serially. Throws InvalidInput if w < 1 or first > last.
 void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass, std::size_t first,
                              std::size_t last, int w, Vec3* goal, CsmScratch& scratch, ThreadPool* pool = nullptr);
-constexpr std::size_t kParallelCsmParticles = 4096;
 
 /// The rotational part of a 3x3 matrix A (the R in A = R S, S symmetric, det R = +1) as
 /// used by chainShapeMatchingGoals: it maximises tr(R^T A). When A has rank <= 1 (all

@@ -75,7 +75,7 @@ constexpr double kPredictionMargin = 100.0;
 /// two threads where the world has them (limitStrain, parallelChainStep): each half's
 /// assembly, sweep and back substitution on one. An iteration of 4096 particles is about
 /// 250 us of work on one thread; the pool's two hand-overs an iteration cost a few us.
-constexpr std::size_t kParallelChainParticles = 4096;
+constexpr std::size_t kParallelChainParticles = kParallelItems;
 /// A segment within this fraction of its radius of a body counts as touching it.
 constexpr double kContactSlop = 0.1;
 /// Halvings of a Newton step before the line search gives up (the energy is at its
@@ -381,6 +381,29 @@ void solveFactored(const StringState& s, std::vector<Vec3>& rhs) {
     return inv;
 }
 
+/// A segment's spring in the chain's Newton system: Hessian and force, and to which of its
+/// particles they apply (a fixed particle's row takes neither).
+struct SpringTerm {
+    Mat3 hess = Mat3::Zero();
+    Vec3 force = Vec3::Zero();  // pulls j toward j+1
+    bool to_a = false;  // applies to particle j
+    bool to_b = false;  // applies to particle j+1
+};
+
+/// Adds to a particle's block d and right-hand side rhs its share of the spring before it
+/// (the segment it ends) and then of the spring after it (the segment it starts): the
+/// order of assembleSprings' sums.
+[[gnu::always_inline]] inline void addSprings(const SpringTerm& before, const SpringTerm& after, Mat3& d, Vec3& rhs) {
+    if (before.to_b) {
+        d += before.hess;
+        rhs -= before.force;
+    }
+    if (after.to_a) {
+        d += after.hess;
+        rhs += after.force;
+    }
+}
+
 /// One sweep of solveChain, carried in registers: the gain W and y of the particle it
 /// eliminated last. A step is split in two around the pivot's inverse, so that the two
 /// sweeps' steps can be written interleaved: one step is ~250 instructions, more than the
@@ -412,6 +435,36 @@ struct ChainSweep {
     }
 };
 
+/// solveChain's middle particle: its block, with its share of segment mid (`after`) where
+/// that was held back from it (parallelChainStep), less both sides' Schur complements.
+void solveMiddle(StringState& s, std::size_t mid, const SpringTerm& after) {
+    const std::size_t n = s.particles();
+    Mat3 d = s.blk_diag[mid];
+    Vec3 r = s.blk_rhs[mid];
+    addSprings(SpringTerm{}, after, d, r);
+    if (mid > 0 && !s.blk_off[mid - 1].isZero(0.0)) {
+        d.noalias() -= s.blk_off[mid - 1] * s.blk_factor_gain[mid - 1];
+        r.noalias() -= s.blk_off[mid - 1] * s.blk_rhs[mid - 1];
+    }
+    if (mid + 1 < n && !s.blk_off[mid].isZero(0.0)) {
+        d.noalias() -= s.blk_off[mid] * s.blk_factor_gain[mid + 1];
+        r.noalias() -= s.blk_off[mid] * s.blk_rhs[mid + 1];
+    }
+    s.blk_rhs[mid] = inverseSymmetric(d) * r;
+}
+
+/// solveChain's back substitution above the middle particle (x_i = y_i - W_i x_{i+1},
+/// i < mid) and below it (x_i = y_i - W_i x_{i-1}, i > mid); a zero coupling block
+/// (nothing crosses it) leaves y_i.
+void substituteAbove(StringState& s, std::size_t mid) {
+    for (std::size_t i = mid; i-- > 0;)
+        if (!s.blk_off[i].isZero(0.0)) s.blk_rhs[i].noalias() -= s.blk_factor_gain[i] * s.blk_rhs[i + 1];
+}
+void substituteBelow(StringState& s, std::size_t mid) {
+    for (std::size_t i = mid + 1; i < s.particles(); ++i)
+        if (!s.blk_off[i - 1].isZero(0.0)) s.blk_rhs[i].noalias() -= s.blk_factor_gain[i] * s.blk_rhs[i - 1];
+}
+
 /// Solves the chain's system (blk_diag, blk_off, blk_rhs) in place, for a chain without
 /// contacts or body unknowns: the block Thomas algorithm with each pivot inverted
 /// explicitly, run from both ends at once (a twisted factorisation). Each sweep folds
@@ -433,7 +486,6 @@ void solveChain(StringState& s) {
     const std::size_t n = s.particles();
     const std::size_t mid = n / 2;
     const std::size_t below = n - 1 - mid;  // particles the sweep from the far end takes
-    auto coupled = [&](std::size_t j) { return !s.blk_off[j].isZero(0.0); };  // j and j+1
     const Mat3* diag = s.blk_diag.data();
     const Mat3* off = s.blk_off.data();
     Vec3* rhs = s.blk_rhs.data();
@@ -455,23 +507,11 @@ void solveChain(StringState& s) {
         const Mat3 d_top = top.pivot(diag[t], rhs[t], t > 0 ? off + t - 1 : nullptr, r_top);
         top.finish(inverseSymmetric(d_top), r_top, off[t], rhs[t], gain[t]);
     }
-    // The middle particle: both sides eliminated into its pivot.
-    Mat3 d = s.blk_diag[mid];
-    Vec3 r = s.blk_rhs[mid];
-    if (mid > 0 && coupled(mid - 1)) {
-        d.noalias() -= s.blk_off[mid - 1] * s.blk_factor_gain[mid - 1];
-        r.noalias() -= s.blk_off[mid - 1] * s.blk_rhs[mid - 1];
-    }
-    if (mid + 1 < n && coupled(mid)) {
-        d.noalias() -= s.blk_off[mid] * s.blk_factor_gain[mid + 1];
-        r.noalias() -= s.blk_off[mid] * s.blk_rhs[mid + 1];
-    }
-    s.blk_rhs[mid] = inverseSymmetric(d) * r;
-    // Back substitution, outward from the middle.
-    for (std::size_t i = mid; i-- > 0;)
-        if (coupled(i)) s.blk_rhs[i].noalias() -= s.blk_factor_gain[i] * s.blk_rhs[i + 1];
-    for (std::size_t i = mid + 1; i < n; ++i)
-        if (coupled(i - 1)) s.blk_rhs[i].noalias() -= s.blk_factor_gain[i] * s.blk_rhs[i - 1];
+    // The middle particle: both sides eliminated into its pivot; then the back
+    // substitution, outward from it.
+    solveMiddle(s, mid, SpringTerm{});
+    substituteAbove(s, mid);
+    substituteBelow(s, mid);
 }
 
 /// Generalised mass of a body (translation, rotation about its centre), world frame.
@@ -576,23 +616,6 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
     }
 }
 
-/// A segment's spring in the chain's Newton system: Hessian and force, and to which of its
-/// particles they apply (a fixed particle's row takes neither).
-struct SpringTerm {
-    Mat3 hess = Mat3::Zero();
-    Vec3 force = Vec3::Zero();  // pulls j toward j+1
-    bool to_a = false;  // applies to particle j
-    bool to_b = false;  // applies to particle j+1
-};
-
-/// A segment's spring whose share of its first particle is held back, for the thread that
-/// owns that particle (parallelChainStep's middle particle).
-struct HeldSpring {
-    bool held = false;
-    Mat3 hess = Mat3::Zero();
-    Vec3 force = Vec3::Zero();
-};
-
 /// Segment j's spring of the material's stiffness k = E A / L_rest, if stretched: gradient
 /// k C e and Hessian k (e e^T + C/l (I - e e^T)) (the geometric term keeps Newton convergent
 /// when a heavy load pulls light particles). Sets active, spring_force, dir and blk_off
@@ -689,20 +712,6 @@ void linearisedTension(StringState& s, const StepContext& ctx, std::size_t j0, s
     }
 }
 
-/// Adds to a particle's block d and right-hand side rhs its share of the spring before it
-/// (the segment it ends) and then of the spring after it (the segment it starts): the
-/// order of assembleSprings' sums.
-[[gnu::always_inline]] inline void addSprings(const SpringTerm& before, const SpringTerm& after, Mat3& d, Vec3& rhs) {
-    if (before.to_b) {
-        d += before.hess;
-        rhs -= before.force;
-    }
-    if (after.to_a) {
-        d += after.hess;
-        rhs += after.force;
-    }
-}
-
 /// solveChain's sweep from the top alone, over particles [0, mid), with the springs of
 /// segments [0, mid) assembled as it goes (their sums in assembleChain's order: particle t
 /// takes segment t-1's share, then segment t's), and segment mid-1's share of particle mid
@@ -732,8 +741,8 @@ void sweepFromTop(StringState& s, const StepContext& ctx, std::size_t mid, doubl
 
 /// solveChain's sweep from the far end alone, over particles (mid, n), with the springs
 /// of segments [mid, m) assembled as it goes; segment mid's share of particle mid goes to
-/// `held` (the middle particle is not this thread's).
-void sweepFromBottom(StringState& s, const StepContext& ctx, std::size_t mid, double* tension_estimate, HeldSpring& held) {
+/// the returned spring (the middle particle is not this thread's).
+SpringTerm sweepFromBottom(StringState& s, const StepContext& ctx, std::size_t mid, double* tension_estimate) {
     const Mat3* off = s.blk_off.data();
     ChainSweep bottom;
     SpringTerm last;  // segment i
@@ -747,29 +756,7 @@ void sweepFromBottom(StringState& s, const StepContext& ctx, std::size_t mid, do
         const Mat3 pivot = bottom.pivot(d, rhs, off + i, r);
         bottom.finish(inverseSymmetric(pivot), r, off[i - 1], s.blk_rhs[i], s.blk_factor_gain[i]);
     }
-    held.held = last.to_a;
-    held.hess = last.hess;
-    held.force = last.force;
-}
-
-/// solveChain's middle particle, with the share of segment mid held back from its block.
-void solveMiddle(StringState& s, std::size_t mid, const HeldSpring& held) {
-    const std::size_t n = s.particles();
-    Mat3 d = s.blk_diag[mid];
-    Vec3 r = s.blk_rhs[mid];
-    if (held.held) {
-        d += held.hess;
-        r += held.force;
-    }
-    if (mid > 0 && !s.blk_off[mid - 1].isZero(0.0)) {
-        d.noalias() -= s.blk_off[mid - 1] * s.blk_factor_gain[mid - 1];
-        r.noalias() -= s.blk_off[mid - 1] * s.blk_rhs[mid - 1];
-    }
-    if (mid + 1 < n && !s.blk_off[mid].isZero(0.0)) {
-        d.noalias() -= s.blk_off[mid] * s.blk_factor_gain[mid + 1];
-        r.noalias() -= s.blk_off[mid] * s.blk_rhs[mid + 1];
-    }
-    s.blk_rhs[mid] = inverseSymmetric(d) * r;
+    return last;
 }
 
 /// Moves the free particles in [p0, p1) by their step in blk_rhs (a chain without glued
@@ -798,27 +785,25 @@ double parallelChainStep(StringState& s, RigidTable& rigids, const StepContext& 
     const std::size_t m = s.segments();
     const std::size_t mid = n / 2;
     double* tension_estimate = s.geometric_tension.data();
-    HeldSpring held;
+    SpringTerm held;  // segment mid, whose share of the middle particle waits for it
     pool.forEach(2, [&](std::size_t half) {
         if (half == 0) {
             assembleInertia(s, rigids, ctx, 0, mid + 1);
             sweepFromTop(s, ctx, mid, tension_estimate);
         } else {
             assembleInertia(s, rigids, ctx, mid + 1, n);
-            sweepFromBottom(s, ctx, mid, tension_estimate, held);
+            held = sweepFromBottom(s, ctx, mid, tension_estimate);
         }
     });
     solveMiddle(s, mid, held);
     double worst_squared[2] = {0.0, 0.0};
     pool.forEach(2, [&](std::size_t half) {
         if (half == 0) {
-            for (std::size_t i = mid; i-- > 0;)
-                if (!s.blk_off[i].isZero(0.0)) s.blk_rhs[i].noalias() -= s.blk_factor_gain[i] * s.blk_rhs[i + 1];
+            substituteAbove(s, mid);
             linearisedTension(s, ctx, 0, mid);
             worst_squared[0] = applyChainStep(s, 0, mid + 1);
         } else {
-            for (std::size_t i = mid + 1; i < n; ++i)
-                if (!s.blk_off[i - 1].isZero(0.0)) s.blk_rhs[i].noalias() -= s.blk_factor_gain[i] * s.blk_rhs[i - 1];
+            substituteBelow(s, mid);
             linearisedTension(s, ctx, mid, m);
             worst_squared[1] = applyChainStep(s, mid + 1, n);
         }
