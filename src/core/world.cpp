@@ -129,6 +129,7 @@ struct World::Impl {
     std::vector<Vec3> grid_travel;  // per particle of grid_positions: x - x_prev after the strings' own solves
     std::vector<double> grid_thickness;  // per segment of grid_segments: its string's radius there
     double grid_rounding = 0.0;  // nodesSurelyDropped's rounding margin (from the largest |x|_1)
+    bool sparse_joint_steps = false;  // ClusterScratch::always_sparse (tests compare)
     bool node_pruning = true;    // nodesSurelyDropped in the search (off: tests compare)
     std::vector<detail::CollisionSegment> grid_segments;
     std::vector<detail::SegmentPair> grid_pairs;
@@ -643,6 +644,7 @@ struct World::Impl {
         // on the pool; each writes only its own strings and its own pairs.
         pool.forEach(count, [&](std::size_t q) {
             Cluster& cl = clusters[q];
+            cl.scratch.always_sparse = sparse_joint_steps;
             detail::solveStringCluster(cl.strings, cl.contacts, rigids, ctx, cl.scratch);
             for (std::size_t i = 0; i < cl.contacts.size(); ++i) {
                 detail::SegmentContact& c = string_pairs[cl.index[i]];
@@ -1250,6 +1252,7 @@ detail::WorldParts detail::WorldAccess::parts(World& world) {
             &w.events, &w.previous_pairs, &w.deep_pairs, &w.time, &w.steps};
 }
 void detail::WorldAccess::setStringNodePruning(World& world, bool on) { world.impl_->node_pruning = on; }
+void detail::WorldAccess::setSparseJointSteps(World& world, bool on) { world.impl_->sparse_joint_steps = on; }
 std::size_t detail::WorldAccess::lastStringNodeRejects(const World& world) { return world.impl_->tree.lastNodeRejects(); }
 const std::vector<detail::SegmentPair>& detail::WorldAccess::lastStringSearchPairs(const World& world) {
     return world.impl_->grid_pairs;

@@ -42,6 +42,9 @@ struct WorldAccess {
     static void setStringNodePruning(World& world, bool on);
     static std::size_t lastStringNodeRejects(const World& world);
     static const std::vector<SegmentPair>& lastStringSearchPairs(const World& world);
+    // Every joint string solve's Newton steps by the sparse factorisation of the whole
+    // cluster (ClusterScratch::always_sparse), for tests that compare it with Woodbury's.
+    static void setSparseJointSteps(World& world, bool on);
 };
 
 }  // namespace tearables::detail

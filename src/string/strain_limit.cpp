@@ -43,10 +43,12 @@
 #include "string/string_state.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/SparseCholesky>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 
 namespace tearables::detail {
 
@@ -1187,6 +1189,26 @@ constexpr double kStringRelinearise = 1e-3;
 /// Times per Newton iteration that contacts the step would hit are added and the step
 /// solved again.
 constexpr int kStringPredictRounds = 3;
+/// When a joint Newton step is solved by one sparse factorisation of the cluster's whole
+/// Hessian (sparseClusterStep) instead of the Woodbury identity: past kWoodburyDirections
+/// contact directions (normals and friction tangents), or past kWoodburyCachedDirections
+/// when directions times the cluster's particles exceed kWoodburyWork. Woodbury costs one
+/// chain solve and one stored column of the cluster's length per direction, and a dense
+/// system of their number: cheap for the few crossings of ropes lying on each other, but a
+/// long rope folded onto itself (the arms of a tear recoiling side by side) makes
+/// thousands, and a 5000-segment rope pulled at 10x its rupture load took 28 s in one
+/// step (8155 directions: a dense LDL^T of 8155^2 and 1 GB of columns); the sparse
+/// factorisation's fill follows where the contacts join the strings (the same step: 5 s,
+/// most of it in the Newton iterations of a cluster that does not settle). The tests'
+/// clusters stay below both (at most ~190 directions, ~27 000 directions x particles), so
+/// their bits are Woodbury's as before.
+constexpr std::size_t kWoodburyDirections = 256;
+constexpr std::size_t kWoodburyCachedDirections = 64;
+constexpr std::size_t kWoodburyWork = 100000;
+bool sparseStepPays(std::size_t directions, std::size_t particles) {
+    return directions > kWoodburyDirections ||
+           (directions > kWoodburyCachedDirections && directions * particles > kWoodburyWork);
+}
 /// Position accuracy of the joint solve, as a fraction of the thinnest contact.
 constexpr double kStringContactTolerance = 1e-5;
 /// firstTouch stops within this fraction of the gap of the touch, or after this many
@@ -1342,6 +1364,8 @@ struct ClusterScratch::Impl {
     std::vector<std::array<std::uint32_t, 4>> keys;
     std::vector<std::size_t> order;
     std::vector<double> friction_weight, previous_weight;
+    std::vector<std::size_t> live, candidates;
+    std::vector<double> gap_seen, travel_seen;
     std::vector<cluster::Direction> dirs;
     std::vector<Vec3> pool, column;
     std::vector<ChainSolver> solvers;
@@ -1360,7 +1384,14 @@ struct ClusterScratch::Impl {
         Eigen::VectorXd rhs, z;
         Eigen::LDLT<Eigen::MatrixXd> ldlt;
     };
-    static constexpr Eigen::Index kCachedDims = 64;
+    /// Each string's right-hand side of the Newton system, for sparseClusterStep (the
+    /// Woodbury step overwrites blk_rhs); and that step's matrix and factorisation.
+    std::vector<std::vector<Vec3>> r;
+    std::vector<Eigen::Triplet<double>> triplets;
+    Eigen::SparseMatrix<double> hessian;
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> sparse;
+    Eigen::VectorXd sparse_rhs, sparse_dx;
+    static constexpr auto kCachedDims = static_cast<Eigen::Index>(kWoodburyCachedDirections);
     std::vector<std::unique_ptr<Woodbury>> by_dim;  ///< [dim], or [0] for dims past kCachedDims
     Woodbury& woodbury(Eigen::Index dim) {
         if (by_dim.empty()) by_dim.resize(static_cast<std::size_t>(kCachedDims) + 1);
@@ -1381,6 +1412,66 @@ struct ClusterScratch::Impl {
         return *by_dim[static_cast<std::size_t>(dim)];
     }
 };
+
+namespace {
+
+/// The joint Newton step of many contact directions: (A + U W U^T) dx = r, A the strings'
+/// own block-tridiagonal systems (blk_diag, blk_off as the strings hold them after
+/// assembly; fixed rows are identity rows), U W U^T the directions' rank-1 terms, r the
+/// right-hand sides kept in sc.r, as one sparse symmetric matrix of the cluster's 3n
+/// unknowns, factorised by Eigen's SimplicialLDLT (AMD ordering). The same step as the
+/// Woodbury identity's, to rounding. Writes dx into the strings' blk_rhs (zero for
+/// particles that are not free); false, with blk_rhs untouched, if the factorisation fails
+/// or the step is not finite. It allocates (the pattern is new each time); it only runs
+/// for the large clusters of kWoodburyDirections, which allocate in the Woodbury path too.
+bool sparseClusterStep(const std::vector<StringState*>& strings, const std::vector<cluster::Direction>& dirs,
+                       ClusterScratch::Impl& sc) {
+    std::vector<Eigen::Index> offset(strings.size() + 1, 0);
+    for (std::size_t i = 0; i < strings.size(); ++i)
+        offset[i + 1] = offset[i] + 3 * static_cast<Eigen::Index>(strings[i]->particles());
+    auto add = [&](Eigen::Index row, Eigen::Index col, const Mat3& block) {
+        for (Eigen::Index a = 0; a < 3; ++a)
+            for (Eigen::Index b = 0; b < 3; ++b)
+                if (block(a, b) != 0.0 && row + a >= col + b) sc.triplets.emplace_back(row + a, col + b, block(a, b));
+    };
+    sc.triplets.clear();
+    for (std::size_t i = 0; i < strings.size(); ++i) {
+        const StringState& s = *strings[i];
+        for (std::size_t p = 0; p < s.particles(); ++p) {
+            const Eigen::Index row = offset[i] + 3 * static_cast<Eigen::Index>(p);
+            add(row, row, s.blk_diag[p]);
+            if (p + 1 < s.particles()) add(row + 3, row, s.blk_off[p].transpose());  // A(p+1, p)
+        }
+    }
+    // A direction's term w u u^T: its entries pairwise (the lower triangle is read).
+    for (const cluster::Direction& d : dirs)
+        for (int a = 0; a < d.entries; ++a)
+            for (int b = 0; b < d.entries; ++b) {
+                const Eigen::Index row = offset[d.u[a].string] + 3 * static_cast<Eigen::Index>(d.u[a].particle);
+                const Eigen::Index col = offset[d.u[b].string] + 3 * static_cast<Eigen::Index>(d.u[b].particle);
+                if (row >= col) add(row, col, d.weight * d.u[a].coef * d.u[b].coef.transpose());
+            }
+    const Eigen::Index dim = offset.back();
+    sc.hessian.resize(dim, dim);
+    sc.hessian.setFromTriplets(sc.triplets.begin(), sc.triplets.end());  // sums duplicates
+    sc.sparse.compute(sc.hessian);
+    if (sc.sparse.info() != Eigen::Success) return false;
+    sc.sparse_rhs.resize(dim);
+    for (std::size_t i = 0; i < strings.size(); ++i)
+        for (std::size_t p = 0; p < strings[i]->particles(); ++p)
+            sc.sparse_rhs.segment<3>(offset[i] + 3 * static_cast<Eigen::Index>(p)) = sc.r[i][p];
+    sc.sparse_dx = sc.sparse.solve(sc.sparse_rhs);
+    if (sc.sparse.info() != Eigen::Success || !sc.sparse_dx.allFinite()) return false;
+    for (std::size_t i = 0; i < strings.size(); ++i) {
+        StringState& s = *strings[i];
+        for (std::size_t p = 0; p < s.particles(); ++p)
+            s.blk_rhs[p] = freeParticle(s, p) ? Vec3(sc.sparse_dx.segment<3>(offset[i] + 3 * static_cast<Eigen::Index>(p)))
+                                              : Vec3::Zero();
+    }
+    return true;
+}
+
+}  // namespace
 
 ClusterScratch::ClusterScratch() : impl(std::make_unique<Impl>()) {}
 ClusterScratch::~ClusterScratch() = default;
@@ -1592,9 +1683,65 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
         return Vec3::Zero();
     };
 
+    // A long rope folded onto itself brings ~1e5-1e6 pairs into its cluster, nearly all
+    // of them far apart, and every Newton iteration looked at each several times (the
+    // contacts the step runs into, the line search's energies): 14 s of one step. So each
+    // contact keeps a lower bound of its gap: the gap last computed, less twice the
+    // largest move of any particle since (`travel`: a contact point is a convex
+    // combination of two particles, and the normal is a unit vector, so the gap moves by
+    // at most the two sides' moves). A contact whose bound clears what a step can close
+    // is known to stay apart, and is left out of the loops that would only find that
+    // (the same contacts, the same sums, the same bits). `live`: the contacts not skipped
+    // in this pass; `candidates`: those of them a step of `reach` could bring to touch,
+    // or with friction, in order.
+    std::vector<std::size_t>& live = sc.live;
+    std::vector<std::size_t>& candidates = sc.candidates;
+    std::vector<double>& gap_seen = sc.gap_seen;
+    std::vector<double>& travel_seen = sc.travel_seen;
+    gap_seen.resize(contacts.size());
+    travel_seen.resize(contacts.size());
+    double travel = 0.0;
+    auto clear = [&](std::size_t ci, double reach) {
+        return gap_seen[ci] - (travel - travel_seen[ci]) > reach * (1.0 + 1e-6) + 1e-6 * contacts[ci].gap;
+    };
+    auto seeGap = [&](std::size_t ci) {
+        gap_seen[ci] = gapAt(contacts[ci], 0.0);
+        travel_seen[ci] = travel;
+        return gap_seen[ci];
+    };
+    // Twice the largest move of the step held in blk_rhs (infinite if any is not finite,
+    // so that nothing is left out).
+    auto stepReach = [&]() {
+        double largest = 0.0;
+        for (const StringState* sp : strings)
+            for (std::size_t p = 0; p < sp->particles(); ++p) {
+                if (!freeParticle(*sp, p)) continue;
+                const double d = sp->blk_rhs[p].squaredNorm();
+                largest = std::isfinite(d) ? std::max(largest, d) : std::numeric_limits<double>::infinity();
+            }
+        return 2.0 * std::sqrt(largest);
+    };
+    auto findCandidates = [&](double reach) {
+        candidates.clear();
+        for (std::size_t ci : live)
+            if (!clear(ci, reach) || friction_weight[ci] > 0.0) candidates.push_back(ci);
+    };
+    std::size_t cluster_particles = 0;
+    for (const StringState* sp : strings) cluster_particles += sp->particles();
     const int iterations = ctx.settings->strain_iterations * kContactIterationFactor;
     for (int pass = 0; pass < kContactPasses; ++pass) {
         bool converged = false;
+        live.clear();
+        for (std::size_t ci = 0; ci < contacts.size(); ++ci) {
+            if (skipped(contacts[ci])) {
+                contacts[ci].active = false;
+                continue;
+            }
+            live.push_back(ci);
+            gap_seen[ci] = -std::numeric_limits<double>::infinity();  // not known in this pass
+            travel_seen[ci] = 0.0;
+        }
+        travel = 0.0;
         for (int iter = 0; iter < iterations; ++iter) {
             // Each string's own system (glued particles held: no body unknowns here).
             for (StringState* sp : strings) {
@@ -1612,13 +1759,13 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
             }
             // The contacts' gradients and their directions for the Woodbury step.
             dirs.clear();
-            for (std::size_t ci = 0; ci < contacts.size(); ++ci) {
+            for (std::size_t ci : live) {
                 SegmentContact& c = contacts[ci];
                 // The penalty k_c/2 min(0, g)^2 is one-sided: it never pulls, so a normal
                 // that turned at a corner cannot drag the strings together (contacts held
                 // as equalities, as the rigid ones are, did that here).
-                const double g = gapAt(c, 0.0);
-                c.active = !skipped(c) && g < 0.0;
+                const double g = clear(ci, 0.0) ? 1.0 : seeGap(ci);
+                c.active = g < 0.0;
                 if (c.active) {
                     // Normal: gradient k g u, Hessian k u u^T.
                     UEntry u[4];
@@ -1649,9 +1796,11 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
                 }
             }
             // Factorise every string and solve y = A^-1 r.
+            if (sc.r.size() < count) sc.r.resize(count);
             for (std::size_t i = 0; i < count; ++i) {
                 StringState& s = *strings[i];
                 solvers[i].factor(s);
+                sc.r[i] = s.blk_rhs;
                 y[i] = s.blk_rhs;
                 solvers[i].solve(s, y[i]);
                 for (std::size_t p = 0; p < s.particles(); ++p)
@@ -1689,6 +1838,8 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
             };
             // (K^-1 + U^T Z) z = U^T y, dx = y - Z z (into blk_rhs).
             auto woodbury = [&]() {
+                if ((work.always_sparse || sparseStepPays(dirs.size(), cluster_particles)) && sparseClusterStep(strings, dirs, sc))
+                    return;
                 columns();
                 for (std::size_t i = 0; i < count; ++i) strings[i]->blk_rhs = y[i];
                 const auto dim = static_cast<Eigen::Index>(dirs.size());
@@ -1726,14 +1877,16 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
                 }
             };
             woodbury();
+            findCandidates(stepReach());
             // A separated contact that the full step would drive into penetration joins
             // the Hessian (not the gradient: it does not push yet) and the step is solved
             // again, so that the step stops at it instead of the line search shrinking to
             // nothing against a penalty that switches on (a contact touching exactly).
             for (int round = 0; round < kStringPredictRounds; ++round) {
                 bool added = false;
-                for (SegmentContact& c : contacts) {
-                    if (c.active || skipped(c) || !(gapAt(c, 1.0) < 0.0)) continue;
+                for (std::size_t ci : candidates) {
+                    SegmentContact& c = contacts[ci];
+                    if (c.active || !(gapAt(c, 1.0) < 0.0)) continue;
                     c.active = true;
                     Direction dn;
                     dn.entries = entries(c, c.normal, dn.u);
@@ -1745,14 +1898,15 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
                 }
                 if (!added) break;
                 woodbury();
+                findCandidates(stepReach());
             }
-            // Backtracking line search on the cluster's energy.
+            // Backtracking line search on the cluster's energy (the contacts left out of
+            // `candidates` stay apart along the whole step: no penalty, no friction).
             auto energy = [&](double alpha) {
                 double e = 0.0;
                 for (const StringState* s : strings) e += stepEnergy(*s, rigids, ctx, alpha);
-                for (std::size_t ci = 0; ci < contacts.size(); ++ci) {
+                for (std::size_t ci : candidates) {
                     const SegmentContact& c = contacts[ci];
-                    if (skipped(c)) continue;
                     const double g = std::min(0.0, gapAt(c, alpha));
                     e += 0.5 * c.stiffness * g * g;
                     if (friction_weight[ci] > 0.0) e += frictionEnergy(ci, alpha);
@@ -1771,6 +1925,7 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
                     sp->x[p] += dx;
                     worst = std::max(worst, dx.norm());
                 }
+            travel += 2.0 * worst;
             if (worst < tol) {
                 converged = true;
                 break;

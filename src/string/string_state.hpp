@@ -75,6 +75,9 @@ struct ClusterScratch {
     ClusterScratch& operator=(ClusterScratch&&) noexcept;
     struct Impl;
     std::unique_ptr<Impl> impl;
+    /// Every joint step by the sparse factorisation of the whole cluster, which otherwise
+    /// only the large clusters take (tests compare it with the Woodbury step).
+    bool always_sparse = false;
 };
 void solveStringCluster(const std::vector<StringState*>& strings, std::vector<SegmentContact>& contacts,
                         RigidTable& rigids, const StepContext& ctx, ClusterScratch& work);
