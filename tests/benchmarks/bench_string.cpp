@@ -10,7 +10,9 @@
 // Plus 10 000 and 100 000 segments in total, as one long string and as many short ones
 // (100 segments each, side by side, not touching), on 1 and 2 threads
 // (WorldSettings::threads). And the shape matching kernel alone (BM_CsmKernel).
-// Run: build/tests/benchmarks/tearables_bench --benchmark_filter='Table1|Segments|CsmKernel'
+// And the step in which a long rope tears (BM_LongRopeTear).
+// Run: build/tests/benchmarks/tearables_bench --benchmark_filter='Table1|Segments|CsmKernel|LongRopeTear'
+#include "core/world_access.hpp"
 #include "string/shape_matching.hpp"
 #include "tearables/world.hpp"
 
@@ -135,3 +137,39 @@ BENCHMARK(BM_Segments)
 }  // namespace
 
 BENCHMARK_MAIN();
+
+/// The step in which a long rope tears: 5000 segments of 1 cm (radius 4 mm, the default
+/// material), pinned at particles 0 and 1700, pulled at particle 2600 by range(0) newtons
+/// for one step after three of settling: 5 kN is about its rupture load, 50 kN ten times
+/// it. The recoiling arms fold onto each other within the step, and the string collision's
+/// joint solve takes every pair the swept search keeps (~1e5 at 5 kN, ~8e5 at 50 kN) into
+/// one cluster: the case that took 0.4 s and 28 s before the joint solve's sparse step and
+/// gap bounds (README, known limits). Real time of that one step, a fresh world each time.
+void BM_LongRopeTear(benchmark::State& state) {
+    const double force = static_cast<double>(state.range(0));
+    std::size_t pairs = 0;
+    for (auto _ : state) {
+        state.PauseTiming();
+        tearables::WorldSettings settings;
+        settings.threads = 1;
+        tearables::World world(settings);
+        auto desc = tearables::StringDesc::straight({0, 0, 0}, {50.0, 0.0, 5.0}, 5000);
+        desc.radius = 0.004;
+        desc.particle_masses = {{-1, 20.0}};
+        const auto id = world.addString(desc);
+        world.attachToPoint(id, 0, {0, 0, 0});
+        world.attachToPoint(id, 1700, (*world.view(id).positions)[1700]);
+        for (int i = 0; i < 3; ++i) world.step(0.01);
+        world.applyForce(id, 2600, {0.0, force, 0.0});
+        state.ResumeTiming();
+        world.step(0.01);
+        state.PauseTiming();
+        pairs = tearables::detail::WorldAccess::lastStringSearchPairs(world).size();
+        std::size_t broken = 0;
+        for (const auto b : *world.view(id).broken) broken += b;
+        if (broken == 0) state.SkipWithError("the rope did not tear");
+        state.ResumeTiming();
+    }
+    state.counters["candidate_pairs"] = static_cast<double>(pairs);
+}
+BENCHMARK(BM_LongRopeTear)->ArgName("newtons")->Arg(5000)->Arg(50000)->Iterations(2)->Unit(benchmark::kMillisecond)->UseRealTime();
