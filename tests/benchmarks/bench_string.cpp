@@ -13,6 +13,7 @@
 // And the step in which a long rope tears (BM_LongRopeTear).
 // Run: build/tests/benchmarks/tearables_bench --benchmark_filter='Table1|Segments|CsmKernel|LongRopeTear'
 #include "core/world_access.hpp"
+#include "long_rope.hpp"
 #include "string/shape_matching.hpp"
 #include "tearables/world.hpp"
 
@@ -138,8 +139,8 @@ BENCHMARK(BM_Segments)
 
 BENCHMARK_MAIN();
 
-/// The step in which a long rope tears: 5000 segments of 1 cm (radius 4 mm, the default
-/// material), pinned at particles 0 and 1700, pulled at particle 2600 by range(0) newtons
+/// The step in which a long rope tears: tests/long_rope.hpp's 5000 segments, pulled at
+/// particle 2600 by range(0) newtons
 /// for one step after three of settling: 5 kN is about its rupture load, 50 kN ten times
 /// it. The recoiling arms fold onto each other within the step, and the string collision's
 /// joint solve takes every pair the swept search keeps (~1e5 at 5 kN, ~8e5 at 50 kN) into
@@ -153,12 +154,7 @@ void BM_LongRopeTear(benchmark::State& state) {
         tearables::WorldSettings settings;
         settings.threads = 1;
         tearables::World world(settings);
-        auto desc = tearables::StringDesc::straight({0, 0, 0}, {50.0, 0.0, 5.0}, 5000);
-        desc.radius = 0.004;
-        desc.particle_masses = {{-1, 20.0}};
-        const auto id = world.addString(desc);
-        world.attachToPoint(id, 0, {0, 0, 0});
-        world.attachToPoint(id, 1700, (*world.view(id).positions)[1700]);
+        const auto id = tearables::testing::addLongRope(world);
         for (int i = 0; i < 3; ++i) world.step(0.01);
         world.applyForce(id, 2600, {0.0, force, 0.0});
         state.ResumeTiming();

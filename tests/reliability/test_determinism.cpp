@@ -140,6 +140,7 @@ TEST(Determinism, ClothAndPaperSceneTwiceThroughTheCommandLineHasTheSameDigest) 
 
 }  // namespace
 
+#include "long_rope.hpp"
 #include "tearables/world.hpp"
 
 #include <cstring>
@@ -186,18 +187,13 @@ TEST(Determinism, ThreadCountDoesNotChangeOneBit) {
 namespace {
 
 // One rope long enough (5001 particles) that a stage splits its own work over the pool
-// (the strain limit's two sweeps, shape matching's passes), pinned at its start and in
-// its middle third, a heavy tip; the thread count may change between steps.
+// (the strain limit's two sweeps, shape matching's passes); the thread count may change
+// between steps.
 std::vector<double> runLongRope(const std::vector<int>& threads_per_step) {
     tearables::WorldSettings settings;
     settings.threads = threads_per_step.front();
     tearables::World world(settings);
-    auto desc = tearables::StringDesc::straight({0, 0, 0}, {50.0, 0.0, 5.0}, 5000);
-    desc.radius = 0.004;
-    desc.particle_masses = {{-1, 20.0}};
-    const auto id = world.addString(desc);
-    world.attachToPoint(id, 0, {0, 0, 0});
-    world.attachToPoint(id, 1700, (*world.view(id).positions)[1700]);
+    const auto id = tearables::testing::addLongRope(world);
     for (int threads : threads_per_step) {
         world.settings().threads = threads;
         world.step(0.01);
