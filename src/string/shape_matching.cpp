@@ -206,22 +206,31 @@ EIGEN_DONT_INLINE Mat3 svdRotation(const Mat3& a) {
 /// root and one division on the critical path (normalising p and q first took two of
 /// each). For an obtuse angle w = |k|^2 / (|p||q| - p.q), without the cancellation. Near a
 /// half turn (1 + c < 1e-6) the axis is ill-defined and Eigen's FromTwoVectors picks one.
+/// The smallest rotation taking p to q when they are (nearly) opposite: the axis is
+/// ill-defined, and Eigen's FromTwoVectors picks one. Out of line: rare.
+EIGEN_DONT_INLINE void halfTurnRotation(const Vec3& p, const Vec3& q, Mat3& r) {
+    r = Quat::FromTwoVectors(p, q).normalized().toRotationMatrix();
+}
+
 void rankOneRotation(const Mat3& a, double n2, Mat3& r) {
-    const double n0 = a.col(0).squaredNorm(), n1 = a.col(1).squaredNorm(), nn2 = a.col(2).squaredNorm();
-    const int j = n0 >= n1 ? (n0 >= nn2 ? 0 : 2) : (n1 >= nn2 ? 1 : 2);
-    const Vec3 p = (a.transpose() * a.col(j)) * (1.0 / n2);  // along v_1
-    const Vec3 q = a * p;                                     // along u_1
-    const double kx = p.y() * q.z() - p.z() * q.y();
-    const double ky = p.z() * q.x() - p.x() * q.z();
-    const double kz = p.x() * q.y() - p.y() * q.x();
+    // In scalars (Eigen's 3-vector expressions cost half as many instructions again in
+    // shuffles). col(c)[i] = a(i, c).
+    const double* col[3] = {a.data(), a.data() + 3, a.data() + 6};
+    auto dot = [](const double* u, const double* v) { return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]; };
+    const double n0 = dot(col[0], col[0]), n1 = dot(col[1], col[1]), nn2 = dot(col[2], col[2]);
+    const double* u = col[n0 >= n1 ? (n0 >= nn2 ? 0 : 2) : (n1 >= nn2 ? 1 : 2)];
+    const double inv_n2 = 1.0 / n2;
+    const double p[3] = {dot(col[0], u) * inv_n2, dot(col[1], u) * inv_n2, dot(col[2], u) * inv_n2};  // along v_1
+    double q[3];  // along u_1
+    for (int i = 0; i < 3; ++i) q[i] = col[0][i] * p[0] + col[1][i] * p[1] + col[2][i] * p[2];
+    const double kx = p[1] * q[2] - p[2] * q[1];
+    const double ky = p[2] * q[0] - p[0] * q[2];
+    const double kz = p[0] * q[1] - p[1] * q[0];
     const double kk = kx * kx + ky * ky + kz * kz;
-    const double s = std::sqrt(p.squaredNorm() * q.squaredNorm());  // |p||q|
-    const double pq = p.dot(q);
+    const double s = std::sqrt(dot(p, p) * dot(q, q));  // |p||q|
+    const double pq = dot(p, q);
     const double w = pq >= 0.0 ? s + pq : kk / (s - pq);
-    if (!(w > 1e-6 * s)) {
-        r = Quat::FromTwoVectors(p, q).normalized().toRotationMatrix();
-        return;
-    }
+    if (!(w > 1e-6 * s)) return halfTurnRotation(Vec3(p[0], p[1], p[2]), Vec3(q[0], q[1], q[2]), r);
     // R = I + (2 / (w^2 + |k|^2)) (w [k]x + [k]x^2), orthogonal to rounding for any (w, k).
     const double g = 2.0 / (w * w + kk);
     const double c = 1.0 - g * kk, sw = g * w;
@@ -419,9 +428,19 @@ void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass
         for (std::size_t i = i0; i < i1; ++i) {
             const std::size_t lo = regionLo(i);
             const std::size_t hi = regionHi(i);
-            Vec3 acc = Vec3::Zero();
-            for (std::size_t k = lo; k <= hi; ++k) acc.noalias() += rot[k] * (rest[i] - c0[k]) + (c[k] - x[i]);
-            goal[i] = x[i] + acc / static_cast<double>(hi - lo + 1);
+            // In scalars: Eigen's 3-vector expressions here mixed packet and scalar work.
+            const double px = x[i].x(), py = x[i].y(), pz = x[i].z();
+            const double qx = rest[i].x(), qy = rest[i].y(), qz = rest[i].z();
+            double ax = 0.0, ay = 0.0, az = 0.0;
+            for (std::size_t k = lo; k <= hi; ++k) {
+                const double* r = rot[k].data();  // column-major
+                const double dx = qx - c0[k].x(), dy = qy - c0[k].y(), dz = qz - c0[k].z();
+                ax += (r[0] * dx + r[3] * dy + r[6] * dz) + (c[k].x() - px);
+                ay += (r[1] * dx + r[4] * dy + r[7] * dz) + (c[k].y() - py);
+                az += (r[2] * dx + r[5] * dy + r[8] * dz) + (c[k].z() - pz);
+            }
+            const double count = static_cast<double>(hi - lo + 1);
+            goal[i] = Vec3(px + ax / count, py + ay / count, pz + az / count);
         }
     });
 }
