@@ -196,49 +196,120 @@ EIGEN_DONT_INLINE Mat3 svdRotation(const Mat3& a) {
     return u * v.transpose();
 }
 
-/// A of rank 1 (sigma_2 <= 5e-13 sigma_1), n2 = |A|_F^2 in [1e-100, 1e100]: the smallest
-/// rotation taking v_1 to u_1. The longest column is sigma_1 u_1 v_1j with |v_1j| >=
-/// 1/sqrt(3); two power steps after it, p = A^T a_j / n2 (along v_1, of length in
-/// [1/sqrt(3), 1]: dividing by n2 keeps every product below within range) and q = A p
-/// (along u_1, of length ~ sigma_1; the pair has consistent signs), leave an error of
-/// (sigma_2/sigma_1)^2 in the directions, below rounding. The rotation from p to q is the
-/// unnormalised quaternion (w, k), k = p x q, w = |p||q| + p.q = |p||q| (1 + c): one square
-/// root and one division on the critical path (normalising p and q first took two of
-/// each). For an obtuse angle w = |k|^2 / (|p||q| - p.q), without the cancellation. Near a
-/// half turn (1 + c < 1e-6) the axis is ill-defined and Eigen's FromTwoVectors picks one.
 /// The smallest rotation taking p to q when they are (nearly) opposite: the axis is
 /// ill-defined, and Eigen's FromTwoVectors picks one. Out of line: rare.
 EIGEN_DONT_INLINE void halfTurnRotation(const Vec3& p, const Vec3& q, Mat3& r) {
     r = Quat::FromTwoVectors(p, q).normalized().toRotationMatrix();
 }
 
-void rankOneRotation(const Mat3& a, double n2, Mat3& r) {
-    // In scalars (Eigen's 3-vector expressions cost half as many instructions again in
-    // shuffles). col(c)[i] = a(i, c).
-    const double* col[3] = {a.data(), a.data() + 3, a.data() + 6};
-    auto dot = [](const double* u, const double* v) { return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]; };
-    const double n0 = dot(col[0], col[0]), n1 = dot(col[1], col[1]), nn2 = dot(col[2], col[2]);
-    const double* u = col[n0 >= n1 ? (n0 >= nn2 ? 0 : 2) : (n1 >= nn2 ? 1 : 2)];
-    const double inv_n2 = 1.0 / n2;
-    const double p[3] = {dot(col[0], u) * inv_n2, dot(col[1], u) * inv_n2, dot(col[2], u) * inv_n2};  // along v_1
-    double q[3];  // along u_1
-    for (int i = 0; i < 3; ++i) q[i] = col[0][i] * p[0] + col[1][i] * p[1] + col[2][i] * p[2];
-    const double kx = p[1] * q[2] - p[2] * q[1];
-    const double ky = p[2] * q[0] - p[0] * q[2];
-    const double kz = p[0] * q[1] - p[1] * q[0];
-    const double kk = kx * kx + ky * ky + kz * kz;
-    const double s = std::sqrt(dot(p, p) * dot(q, q));  // |p||q|
-    const double pq = dot(p, q);
-    const double w = pq >= 0.0 ? s + pq : kk / (s - pq);
-    if (!(w > 1e-6 * s)) return halfTurnRotation(Vec3(p[0], p[1], p[2]), Vec3(q[0], q[1], q[2]), r);
-    // R = I + (2 / (w^2 + |k|^2)) (w [k]x + [k]x^2), orthogonal to rounding for any (w, k).
-    const double g = 2.0 / (w * w + kk);
-    const double c = 1.0 - g * kk, sw = g * w;
-    const double gx = g * kx, gy = g * ky, gz = g * kz;
-    r << c + gx * kx, gx * ky - sw * kz, gx * kz + sw * ky,  //
-        gy * kx + sw * kz, c + gy * ky, gy * kz - sw * kx,   //
-        gz * kx - sw * ky, gz * ky + sw * kx, c + gz * kz;
-}
+/// Rotations of A of rank 1 (sigma_2 <= 5e-13 sigma_1), |A|_F^2 = n2 in [1e-100, 1e100],
+/// queued and computed kLanes at a time: the smallest rotation taking v_1 to u_1.
+///
+/// The longest column a_j is sigma_1 u_1 v_1j with |v_1j| >= 1/sqrt(3); two power steps
+/// after it, p = A^T a_j / n2 (along v_1, of length in [1/sqrt(3), 1]: dividing by n2
+/// keeps every product below within range) and q = A p (along u_1, of length ~ sigma_1;
+/// the pair has consistent signs), leave an error of (sigma_2/sigma_1)^2 in the
+/// directions, below rounding. The rotation from p to q is the unnormalised quaternion
+/// (w, k), k = p x q, w = |p||q| + p.q = |p||q| (1 + c): one square root (normalising p
+/// and q first took two, and the divisions by their lengths). w is
+/// computed as |k|^2 / (|p||q| + |p.q|) + (p.q + |p.q|), which for an obtuse angle avoids
+/// the cancellation of |p||q| + p.q, without a branch (see add()). Near a half turn
+/// (1 + c < 1e-6) halfTurnRotation.
+///
+/// Why a batch: the computation is some 130 scalar operations with no data-dependent
+/// control flow but selections, and SSE2 code for one 3x3 matrix spends as many
+/// instructions again on register moves and shuffles. Stored as structure of arrays, the
+/// loops over the lanes below vectorise (two regions per instruction), with the same
+/// operations, so the same bits, as one region at a time. A queued rotation is written when
+/// the batch fills or at solve(); its A is copied in, so it may be written over A.
+class RankOneBatch {
+public:
+    void add(const Mat3& a, double n2, Mat3& r) {
+        for (int e = 0; e < 9; ++e) a_[e][count_] = a.data()[e];
+        // The longest column is picked here, one region at a time: in the loops over the
+        // lanes, the compiler makes branches of any selection ahead of arithmetic (it does
+        // not if-convert arithmetic, which might raise a floating-point exception), and a
+        // loop with branches does not vectorise.
+        const double n0 = a.col(0).squaredNorm(), n1 = a.col(1).squaredNorm(), nn2 = a.col(2).squaredNorm();
+        const int j = n0 >= n1 ? (n0 >= nn2 ? 0 : 2) : (n1 >= nn2 ? 1 : 2);
+        for (int i = 0; i < 3; ++i) u_[i][count_] = a(i, j);
+        inv_n2_[count_] = 1.0 / n2;
+        out_[count_] = &r;
+        if (++count_ == kLanes) solve();
+    }
+
+    void solve() {
+        if (count_ == 0) return;
+        for (int l = count_; l < kLanes; ++l) {  // idle lanes repeat lane 0
+            for (int e = 0; e < 9; ++e) a_[e][l] = a_[e][0];
+            for (int i = 0; i < 3; ++i) u_[i][l] = u_[i][0];
+            inv_n2_[l] = inv_n2_[0];
+        }
+        powerSteps();
+        for (int l = 0; l < kLanes; ++l) s_[l] = std::sqrt(s_[l]);  // apart: sqrt with errno does not vectorise
+        rotations();
+        for (int l = 0; l < count_; ++l) {
+            if (w_[l] > 1e-6 * s_[l]) {
+                for (int e = 0; e < 9; ++e) out_[l]->data()[e] = r_[e][l];
+            } else {
+                halfTurnRotation(Vec3(p_[0][l], p_[1][l], p_[2][l]), Vec3(q_[0][l], q_[1][l], q_[2][l]), *out_[l]);
+            }
+        }
+        count_ = 0;
+    }
+
+private:
+    static constexpr int kLanes = 8;
+
+    /// p, q, k = p x q, |k|^2, |p|^2 |q|^2 (in s_) and p.q of every lane.
+    void powerSteps() {
+        for (int l = 0; l < kLanes; ++l) {
+            double col[3][3];  // col[c][i] = a(i, c)
+            for (int e = 0; e < 9; ++e) col[e / 3][e % 3] = a_[e][l];
+            auto dot = [](const double* u, const double* v) { return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]; };
+            const double u[3] = {u_[0][l], u_[1][l], u_[2][l]};
+            double p[3], q[3];
+            for (int c = 0; c < 3; ++c) p[c] = dot(col[c], u) * inv_n2_[l];  // along v_1
+            for (int i = 0; i < 3; ++i) q[i] = col[0][i] * p[0] + col[1][i] * p[1] + col[2][i] * p[2];  // along u_1
+            const double k[3] = {p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]};
+            for (int i = 0; i < 3; ++i) {
+                p_[i][l] = p[i];
+                q_[i][l] = q[i];
+                k_[i][l] = k[i];
+            }
+            kk_[l] = dot(k, k);
+            s_[l] = dot(p, p) * dot(q, q);
+            pq_[l] = dot(p, q);
+        }
+    }
+
+    /// w and R = I + (2 / (w^2 + |k|^2)) (w [k]x + [k]x^2) (orthogonal to rounding for any
+    /// (w, k)) of every lane, s_ = |p||q|.
+    void rotations() {
+        for (int l = 0; l < kLanes; ++l) {
+            const double kx = k_[0][l], ky = k_[1][l], kz = k_[2][l], kk = kk_[l], s = s_[l], pq = pq_[l];
+            // w = (|p||q| - |p.q|) + (p.q + |p.q|), the first part as |k|^2 / (|p||q| + |p.q|).
+            const double w = kk / (s + std::fabs(pq)) + (pq + std::fabs(pq));
+            const double g = 2.0 / (w * w + kk);
+            const double c = 1.0 - g * kk, sw = g * w;
+            const double gx = g * kx, gy = g * ky, gz = g * kz;
+            w_[l] = w;
+            // Column-major.
+            r_[0][l] = c + gx * kx, r_[3][l] = gx * ky - sw * kz, r_[6][l] = gx * kz + sw * ky;
+            r_[1][l] = gy * kx + sw * kz, r_[4][l] = c + gy * ky, r_[7][l] = gy * kz - sw * kx;
+            r_[2][l] = gz * kx - sw * ky, r_[5][l] = gz * ky + sw * kx, r_[8][l] = c + gz * kz;
+        }
+    }
+
+    int count_ = 0;
+    Mat3* out_[kLanes];
+    alignas(16) double a_[9][kLanes];  // A column-major
+    alignas(16) double inv_n2_[kLanes];
+    alignas(16) double u_[3][kLanes];  // A's longest column
+    alignas(16) double p_[3][kLanes], q_[3][kLanes], k_[3][kLanes];
+    alignas(16) double kk_[kLanes], s_[kLanes], pq_[kLanes], w_[kLanes];
+    alignas(16) double r_[9][kLanes];
+};
 
 /// Scaled Newton iteration for R (see the header comment); a with |a|_F^2 in [1e-100,
 /// 1e100], its cofactors c, n2 = |a|_F^2, c2 = |c|_F^2. False when it does not converge or,
@@ -290,10 +361,13 @@ EIGEN_DONT_INLINE bool newtonRotation(const Mat3& a, double n2, double c2, Mat3&
 
 /// csmRotation of an A whose |A|_F^2 = n2 is in [1e-100, 1e100]: cof A, |A|^4 and the
 /// Newton iteration's det^2 neither overflow nor underflow.
-inline void rotationInRange(const Mat3& a, double n2, Mat3& r) {
+/// csmRotation into r of an A whose |A|_F^2 = n2 is in [1e-100, 1e100] (cof A, |A|^4 and
+/// the Newton iteration's det^2 neither overflow nor underflow); a rank-1 A is queued on
+/// `batch` (r written at its solve()).
+inline void rotationInRange(const Mat3& a, double n2, Mat3& r, RankOneBatch& batch) {
     const double c2 = cofactorSquaredNorm(a);
     constexpr double kSurelyRankOne = kRankOneTolerance / 6.0;
-    if (c2 <= kSurelyRankOne * kSurelyRankOne * n2 * n2) return rankOneRotation(a, n2, r);
+    if (c2 <= kSurelyRankOne * kSurelyRankOne * n2 * n2) return batch.add(a, n2, r);
     if (c2 >= kNewtonMinQ * kNewtonMinQ * n2 * n2 && newtonRotation(a, n2, c2, r)) return;
     r = svdRotation(a);
 }
@@ -307,16 +381,18 @@ EIGEN_DONT_INLINE void rotationOutOfRange(const Mat3& a_in, Mat3& r) {
         return;
     }
     const Mat3 a = std::ldexp(1.0, -std::ilogb(largest)) * a_in;
-    rotationInRange(a, a.squaredNorm(), r);
+    RankOneBatch batch;
+    rotationInRange(a, a.squaredNorm(), r, batch);
+    batch.solve();
 }
 
 /// csmRotation into r, which may be a itself (every path reads all of a before it writes
 /// r): the fit pass turns A_k in place into R_k, and the result is stored straight where it
 /// belongs (returned by value, the copy into place reloaded it in other widths than it
-/// was stored in, and missed store forwarding).
-inline void rotationInto(const Mat3& a, Mat3& r) {
+/// was stored in, and missed store forwarding). Rank 1: r is written at batch.solve().
+inline void rotationInto(const Mat3& a, Mat3& r, RankOneBatch& batch) {
     const double n2 = a.squaredNorm();  // NaN or infinite for non-finite A
-    if (n2 >= 1e-100 && n2 <= 1e100) return rotationInRange(a, n2, r);
+    if (n2 >= 1e-100 && n2 <= 1e100) return rotationInRange(a, n2, r, batch);
     rotationOutOfRange(a, r);
 }
 
@@ -324,7 +400,9 @@ inline void rotationInto(const Mat3& a, Mat3& r) {
 
 Mat3 csmRotation(const Mat3& a) {
     Mat3 r;
-    rotationInto(a, r);
+    RankOneBatch batch;
+    rotationInto(a, r, batch);
+    batch.solve();
     return r;
 }
 
@@ -416,7 +494,9 @@ void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass
     // reloaded from cache; handed over straight after its computation, its reload (in other
     // widths than Eigen stored it in) missed store forwarding.
     split(n, [&](std::size_t k0, std::size_t k1) {
-        for (std::size_t k = k0; k < k1; ++k) rotationInto(scratch.rotation[k], scratch.rotation[k]);
+        RankOneBatch batch;
+        for (std::size_t k = k0; k < k1; ++k) rotationInto(scratch.rotation[k], scratch.rotation[k], batch);
+        batch.solve();
     });
 
     // Pass 4: blend, g_i = x_i + mean over regions k containing i of (g_ik - x_i). Region k
