@@ -311,6 +311,38 @@ private:
     alignas(16) double r_[9][kLanes];
 };
 
+/// One step of the scaled Newton iteration X <- (zeta X + X^-T / zeta) / 2 on x (3x3,
+/// column-major), in scalars (Eigen's 3x3 expressions under SSE2 spend most of their
+/// instructions on shuffles, and divided cof X by zeta det X entry by entry). False when
+/// det X <= 0; else delta2 = |X_next - X|_F^2.
+inline bool newtonStep(double (&x)[9], double& delta2) {
+    auto cross = [](const double* u, const double* v, double* out) {
+        out[0] = u[1] * v[2] - u[2] * v[1];
+        out[1] = u[2] * v[0] - u[0] * v[2];
+        out[2] = u[0] * v[1] - u[1] * v[0];
+    };
+    double cx[9];  // cof X = det X X^-T
+    cross(x + 3, x + 6, cx);
+    cross(x + 6, x, cx + 3);
+    cross(x, x + 3, cx + 6);
+    const double d = x[0] * cx[0] + x[1] * cx[1] + x[2] * cx[2];
+    if (!(d > 0.0)) return false;
+    double xx = 0.0, cc = 0.0;
+    for (int e = 0; e < 9; ++e) {
+        xx += x[e] * x[e];
+        cc += cx[e] * cx[e];
+    }
+    const double zeta = std::sqrt(std::sqrt(cc / xx) / d);
+    const double half_zeta = 0.5 * zeta, half_inv = 0.5 / (zeta * d);
+    delta2 = 0.0;
+    for (int e = 0; e < 9; ++e) {
+        const double next = half_zeta * x[e] + half_inv * cx[e];
+        delta2 += (next - x[e]) * (next - x[e]);
+        x[e] = next;
+    }
+    return true;
+}
+
 /// Scaled Newton iteration for R (see the header comment); a with |a|_F^2 in [1e-100,
 /// 1e100], its cofactors c, n2 = |a|_F^2, c2 = |c|_F^2. False when it does not converge or,
 /// for reflected a, when the result is not the maximiser of tr(R^T a): the caller then
@@ -333,27 +365,23 @@ EIGEN_DONT_INLINE bool newtonRotation(const Mat3& a, double n2, double c2, Mat3&
             if (!(step > 1e-6 * s1sq)) break;
         }
     }
-    Mat3 x = a + c / std::sqrt(s1sq);
+    const Mat3 b = a + c / std::sqrt(s1sq);
+    double x[9];
+    std::copy(b.data(), b.data() + 9, x);
     for (int k = 0; k < 12; ++k) {
-        const Mat3 cx = cofactor(x);
-        const double d = x.col(0).dot(cx.col(0));
-        if (!(d > 0.0)) return false;
-        const double zeta = std::sqrt(std::sqrt(cx.squaredNorm() / x.squaredNorm()) / d);
-        const Mat3 next = 0.5 * (zeta * x + cx / (zeta * d));
-        // Quadratic convergence: |X_k - R| ~ |X_k+1 - X_k| = delta, |X_k+1 - R| ~ delta^2 / 2.
-        const double delta2 = (next - x).squaredNorm();
-        x = next;
+        double delta2;
+        if (!newtonStep(x, delta2)) return false;
         if (delta2 > 1e-16) continue;
         if (det < 0.0) {
             // R maximises tr(R^T A) iff S = R^T A is symmetric and M = tr(S) I - S >= 0; M's
             // eigenvalues are the pair sums of S's, det M = (s1+s2)(s1+s3)(s2+s3). Another
             // stationary rotation makes one pair sum negative.
-            const Mat3 sm = x.transpose() * a;
+            const Mat3 sm = Eigen::Map<const Mat3>(x).transpose() * a;
             Mat3 m = -0.5 * (sm + sm.transpose());
             m.diagonal().array() += sm.trace();
             if (!(m.determinant() > 1e-12 * n2 * std::sqrt(n2))) return false;
         }
-        r = x;
+        r = Eigen::Map<const Mat3>(x);
         return true;
     }
     return false;
