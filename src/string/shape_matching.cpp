@@ -344,7 +344,7 @@ inline bool newtonStep(double (&x)[9], double& delta2) {
 }
 
 /// Scaled Newton iteration for R (see the header comment); a with |a|_F^2 in [1e-100,
-/// 1e100], its cofactors c, n2 = |a|_F^2, c2 = |c|_F^2. False when it does not converge or,
+/// 1e100], n2 = |a|_F^2, c2 = |cof a|_F^2. False when it does not converge or,
 /// for reflected a, when the result is not the maximiser of tr(R^T a): the caller then
 /// takes the SVD.
 EIGEN_DONT_INLINE bool newtonRotation(const Mat3& a, double n2, double c2, Mat3& r) {
@@ -371,6 +371,7 @@ EIGEN_DONT_INLINE bool newtonRotation(const Mat3& a, double n2, double c2, Mat3&
     for (int k = 0; k < 12; ++k) {
         double delta2;
         if (!newtonStep(x, delta2)) return false;
+        // Quadratic convergence: |X_k - R| ~ |X_k+1 - X_k| = delta, |X_k+1 - R| ~ delta^2 / 2.
         if (delta2 > 1e-16) continue;
         if (det < 0.0) {
             // R maximises tr(R^T A) iff S = R^T A is symmetric and M = tr(S) I - S >= 0; M's
@@ -387,8 +388,6 @@ EIGEN_DONT_INLINE bool newtonRotation(const Mat3& a, double n2, double c2, Mat3&
     return false;
 }
 
-/// csmRotation of an A whose |A|_F^2 = n2 is in [1e-100, 1e100]: cof A, |A|^4 and the
-/// Newton iteration's det^2 neither overflow nor underflow.
 /// csmRotation into r of an A whose |A|_F^2 = n2 is in [1e-100, 1e100] (cof A, |A|^4 and
 /// the Newton iteration's det^2 neither overflow nor underflow); a rank-1 A is queued on
 /// `batch` (r written at its solve()).
