@@ -60,9 +60,10 @@
 // A^-T (columns a_1 x a_2, a_2 x a_0, a_0 x a_1) gives q = |cof A|_F / |A|_F^2, which
 // brackets the rank test: q / sqrt(3) <= sigma_2 / sigma_1 <= 3 q. (A with |A|_F^2 outside
 // [1e-100, 1e100] is first scaled by a power of two, so that |A|^4 cannot overflow.)
-//   - q <= 1e-12 / 6 (surely rank 1; every region of a straight rest shape): u_1 and v_1 by
-//     power steps from A's longest column u, v_1 = A^T u / |.|, u_1 = A v_1 / |.| (the pair
-//     has consistent signs), and R = the smallest rotation taking v_1 to u_1 as above.
+//   - q <= 1e-12 / 6 (surely rank 1; every region of a straight rest shape): v_1 and u_1
+//     (up to their lengths) by power steps from A's longest column u, p = A^T u / |A|_F^2,
+//     q = A p (the pair has consistent signs), and R = the smallest rotation taking p to q
+//     as above, from the quaternion (|p||q| + p.q, p x q).
 //   - q >= 1e-7 (sigma_2 / sigma_1 >= 5.7e-8): Higham's scaled Newton iteration for the
 //     polar factor, X <- (z X + X^-T / z) / 2, z = (|X^-1|_F / |X|_F)^(1/2), X^-T =
 //     cof X / det X, started from B = A + cof(A) / s with s ~ sigma_1. In the SVD with
@@ -103,13 +104,54 @@ namespace {
 /// the rotation about the line would be picked by round-off.
 constexpr double kRankOneTolerance = 1e-12;
 
+/// The 16 sums of CsmMoments as one flat array: m, mx, mx0, mxx0 (column-major). The
+/// passes accumulate, store and add moments in this form, element by element over an even
+/// count, which the compiler keeps in registers or moves in aligned pairs. (On Eigen's 3-
+/// and 9-element objects it mixed packet and scalar accesses to the same spilled values; a
+/// value stored one way and reloaded the other misses store forwarding, and those stalls
+/// were half the time of the moment pass.)
+struct FlatMoments {
+    alignas(16) double v[16] = {};
+};
+constexpr int kMx = 1, kMx0 = 4, kMxx0 = 7;  // offsets in FlatMoments::v
+
+/// Adds moments b about the same reference to a.
+inline void add(FlatMoments& a, const FlatMoments& b) {
+    for (int j = 0; j < 16; ++j) a.v[j] += b.v[j];
+}
+
 /// Adds a particle of per-region mass m at (dx, dx0) relative to the moments' reference.
-inline void addParticle(CsmMoments& s, double m, const Vec3& dx, const Vec3& dx0) {
-    s.m += m;
-    const Vec3 mdx = m * dx;
-    s.mx += mdx;
-    s.mx0 += m * dx0;
-    s.mxx0.noalias() += mdx * dx0.transpose();
+inline void addParticle(FlatMoments& s, double m, const Vec3& dx, const Vec3& dx0) {
+    FlatMoments f;
+    double* t = f.v;
+    t[0] = m;
+    for (int r = 0; r < 3; ++r) {
+        t[kMx + r] = m * dx[r];
+        t[kMx0 + r] = m * dx0[r];
+    }
+    for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r) t[kMxx0 + 3 * c + r] = t[kMx + r] * dx0[c];
+    add(s, f);
+}
+
+inline void store(const FlatMoments& f, CsmMoments& s) {
+    s.m = f.v[0];
+    for (int r = 0; r < 3; ++r) {
+        s.mx[r] = f.v[kMx + r];
+        s.mx0[r] = f.v[kMx0 + r];
+    }
+    for (int j = 0; j < 9; ++j) s.mxx0.data()[j] = f.v[kMxx0 + j];
+}
+
+inline FlatMoments flat(const CsmMoments& s) {
+    FlatMoments f;
+    f.v[0] = s.m;
+    for (int r = 0; r < 3; ++r) {
+        f.v[kMx + r] = s.mx[r];
+        f.v[kMx0 + r] = s.mx0[r];
+    }
+    for (int j = 0; j < 9; ++j) f.v[kMxx0 + j] = s.mxx0.data()[j];
+    return f;
 }
 
 /// q = |cof A|_F / |A|_F^2 at or above which the Newton iteration is used (see above).
@@ -122,6 +164,20 @@ inline Mat3 cofactor(const Mat3& a) {
     c.col(1) = a.col(2).cross(a.col(0));
     c.col(2) = a.col(0).cross(a.col(1));
     return c;
+}
+
+/// |cof A|_F^2 = |cofactor(a)|_F^2, in scalars: the fast path needs only this, and the
+/// Mat3 of cofactor(), spilled and reloaded in mixed widths, missed store forwarding.
+inline double cofactorSquaredNorm(const Mat3& a) {
+    double sum = 0.0;
+    for (int j = 0; j < 3; ++j) {
+        const int j1 = j == 2 ? 0 : j + 1, j2 = j == 0 ? 2 : j - 1;  // column j = a_j1 x a_j2
+        const double cx = a(1, j1) * a(2, j2) - a(2, j1) * a(1, j2);
+        const double cy = a(2, j1) * a(0, j2) - a(0, j1) * a(2, j2);
+        const double cz = a(0, j1) * a(1, j2) - a(1, j1) * a(0, j2);
+        sum += cx * cx + cy * cy + cz * cz;
+    }
+    return sum;
 }
 
 /// The reference: R from a 3x3 JacobiSVD (unconditionally convergent and accurate).
@@ -140,48 +196,159 @@ EIGEN_DONT_INLINE Mat3 svdRotation(const Mat3& a) {
     return u * v.transpose();
 }
 
-/// A of rank 1 (sigma_2 <= 5e-13 sigma_1), |A|_F^2 in [1e-100, 1e100]: the smallest
-/// rotation taking v_1 to u_1. The longest column is sigma_1 u_1 v_1j with |v_1j| >=
-/// 1/sqrt(3); the two power steps after it leave an error of (sigma_2/sigma_1)^2 in the
-/// pair, below rounding. With c = v.u, k = v x u: R = c I + [k]x + k k^T / (1 + c) (the
-/// half-way quaternion's matrix: two square roots and two divisions, where Eigen's
-/// FromTwoVectors and the normalisations took fifteen divisions), 1 + c = |u + v|^2 / 2
-/// without cancellation. Near a half turn (1 + c < 1e-6) the axis is ill-defined and
-/// Eigen's FromTwoVectors picks one.
-Mat3 rankOneRotation(const Mat3& a) {
-    const double n0 = a.col(0).squaredNorm(), n1 = a.col(1).squaredNorm(), n2 = a.col(2).squaredNorm();
-    const int j = n0 >= n1 ? (n0 >= n2 ? 0 : 2) : (n1 >= n2 ? 1 : 2);
-    const Vec3 p = a.transpose() * a.col(j);  // along v_1
-    const Vec3 q = a * p;                     // along u_1
-    const double pp = p.squaredNorm(), qq = q.squaredNorm();
-    const double sp = std::sqrt(pp), sq = std::sqrt(qq);
-    const double inv = 1.0 / (sp * sq);  // ~ sigma_1^-5: in range for |A|_F^2 in [1e-100, 1e100]
-    const Vec3 v = p * (sq * inv);
-    const Vec3 u = q * (sp * inv);
-    const double hh = (u + v).squaredNorm();  // 2 (1 + c)
-    if (!(hh > 2e-6)) return Quat::FromTwoVectors(v, u).normalized().toRotationMatrix();
-    const double kx = v.y() * u.z() - v.z() * u.y();
-    const double ky = v.z() * u.x() - v.x() * u.z();
-    const double kz = v.x() * u.y() - v.y() * u.x();
-    // The unnormalised quaternion (w, k), w = 1 + c: R = I + (2 / (w^2 + |k|^2)) (w [k]x +
-    // [k]x^2), orthogonal to rounding even where u and v are unit only to rounding.
-    const double w = 0.5 * hh;
-    const double kk = kx * kx + ky * ky + kz * kz;
-    const double g = 2.0 / (w * w + kk);
-    const double c = 1.0 - g * kk, sw = g * w;
-    const double gx = g * kx, gy = g * ky, gz = g * kz;
-    Mat3 r;
-    r << c + gx * kx, gx * ky - sw * kz, gx * kz + sw * ky,  //
-        gy * kx + sw * kz, c + gy * ky, gy * kz - sw * kx,   //
-        gz * kx - sw * ky, gz * ky + sw * kx, c + gz * kz;
-    return r;
+/// The smallest rotation taking p to q when they are (nearly) opposite: the axis is
+/// ill-defined, and Eigen's FromTwoVectors picks one. Out of line: rare.
+EIGEN_DONT_INLINE void halfTurnRotation(const Vec3& p, const Vec3& q, Mat3& r) {
+    r = Quat::FromTwoVectors(p, q).normalized().toRotationMatrix();
+}
+
+/// Rotations of A of rank 1 (sigma_2 <= 5e-13 sigma_1), |A|_F^2 = n2 in [1e-100, 1e100],
+/// queued and computed kLanes at a time: the smallest rotation taking v_1 to u_1.
+///
+/// The longest column a_j is sigma_1 u_1 v_1j with |v_1j| >= 1/sqrt(3); two power steps
+/// after it, p = A^T a_j / n2 (along v_1, of length in [1/sqrt(3), 1]: dividing by n2
+/// keeps every product below within range) and q = A p (along u_1, of length ~ sigma_1;
+/// the pair has consistent signs), leave an error of (sigma_2/sigma_1)^2 in the
+/// directions, below rounding. The rotation from p to q is the unnormalised quaternion
+/// (w, k), k = p x q, w = |p||q| + p.q = |p||q| (1 + c): one square root (normalising p
+/// and q first took two, and the divisions by their lengths). w is
+/// computed as |k|^2 / (|p||q| + |p.q|) + (p.q + |p.q|), which for an obtuse angle avoids
+/// the cancellation of |p||q| + p.q, without a branch (see add()). Near a half turn
+/// (1 + c < 1e-6) halfTurnRotation.
+///
+/// Why a batch: the computation is some 130 scalar operations with no data-dependent
+/// control flow but selections, and SSE2 code for one 3x3 matrix spends as many
+/// instructions again on register moves and shuffles. Stored as structure of arrays, the
+/// loops over the lanes below vectorise (two regions per instruction), with the same
+/// operations, so the same bits, as one region at a time. A queued rotation is written when
+/// the batch fills or at solve(); its A is copied in, so it may be written over A.
+class RankOneBatch {
+public:
+    void add(const Mat3& a, double n2, Mat3& r) {
+        for (int e = 0; e < 9; ++e) a_[e][count_] = a.data()[e];
+        // The longest column is picked here, one region at a time: in the loops over the
+        // lanes, the compiler makes branches of any selection ahead of arithmetic (it does
+        // not if-convert arithmetic, which might raise a floating-point exception), and a
+        // loop with branches does not vectorise.
+        const double n0 = a.col(0).squaredNorm(), n1 = a.col(1).squaredNorm(), nn2 = a.col(2).squaredNorm();
+        const int j = n0 >= n1 ? (n0 >= nn2 ? 0 : 2) : (n1 >= nn2 ? 1 : 2);
+        for (int i = 0; i < 3; ++i) u_[i][count_] = a(i, j);
+        inv_n2_[count_] = 1.0 / n2;
+        out_[count_] = &r;
+        if (++count_ == kLanes) solve();
+    }
+
+    void solve() {
+        if (count_ == 0) return;
+        for (int l = count_; l < kLanes; ++l) {  // idle lanes repeat lane 0
+            for (int e = 0; e < 9; ++e) a_[e][l] = a_[e][0];
+            for (int i = 0; i < 3; ++i) u_[i][l] = u_[i][0];
+            inv_n2_[l] = inv_n2_[0];
+        }
+        powerSteps();
+        for (int l = 0; l < kLanes; ++l) s_[l] = std::sqrt(s_[l]);  // apart: sqrt with errno does not vectorise
+        rotations();
+        for (int l = 0; l < count_; ++l) {
+            if (w_[l] > 1e-6 * s_[l]) {
+                for (int e = 0; e < 9; ++e) out_[l]->data()[e] = r_[e][l];
+            } else {
+                halfTurnRotation(Vec3(p_[0][l], p_[1][l], p_[2][l]), Vec3(q_[0][l], q_[1][l], q_[2][l]), *out_[l]);
+            }
+        }
+        count_ = 0;
+    }
+
+private:
+    static constexpr int kLanes = 8;
+
+    /// p, q, k = p x q, |k|^2, |p|^2 |q|^2 (in s_) and p.q of every lane.
+    void powerSteps() {
+        for (int l = 0; l < kLanes; ++l) {
+            double col[3][3];  // col[c][i] = a(i, c)
+            for (int e = 0; e < 9; ++e) col[e / 3][e % 3] = a_[e][l];
+            auto dot = [](const double* u, const double* v) { return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]; };
+            const double u[3] = {u_[0][l], u_[1][l], u_[2][l]};
+            double p[3], q[3];
+            for (int c = 0; c < 3; ++c) p[c] = dot(col[c], u) * inv_n2_[l];  // along v_1
+            for (int i = 0; i < 3; ++i) q[i] = col[0][i] * p[0] + col[1][i] * p[1] + col[2][i] * p[2];  // along u_1
+            const double k[3] = {p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]};
+            for (int i = 0; i < 3; ++i) {
+                p_[i][l] = p[i];
+                q_[i][l] = q[i];
+                k_[i][l] = k[i];
+            }
+            kk_[l] = dot(k, k);
+            s_[l] = dot(p, p) * dot(q, q);
+            pq_[l] = dot(p, q);
+        }
+    }
+
+    /// w and R = I + (2 / (w^2 + |k|^2)) (w [k]x + [k]x^2) (orthogonal to rounding for any
+    /// (w, k)) of every lane, s_ = |p||q|.
+    void rotations() {
+        for (int l = 0; l < kLanes; ++l) {
+            const double kx = k_[0][l], ky = k_[1][l], kz = k_[2][l], kk = kk_[l], s = s_[l], pq = pq_[l];
+            // w = (|p||q| - |p.q|) + (p.q + |p.q|), the first part as |k|^2 / (|p||q| + |p.q|).
+            const double w = kk / (s + std::fabs(pq)) + (pq + std::fabs(pq));
+            const double g = 2.0 / (w * w + kk);
+            const double c = 1.0 - g * kk, sw = g * w;
+            const double gx = g * kx, gy = g * ky, gz = g * kz;
+            w_[l] = w;
+            // Column-major.
+            r_[0][l] = c + gx * kx, r_[3][l] = gx * ky - sw * kz, r_[6][l] = gx * kz + sw * ky;
+            r_[1][l] = gy * kx + sw * kz, r_[4][l] = c + gy * ky, r_[7][l] = gy * kz - sw * kx;
+            r_[2][l] = gz * kx - sw * ky, r_[5][l] = gz * ky + sw * kx, r_[8][l] = c + gz * kz;
+        }
+    }
+
+    int count_ = 0;
+    Mat3* out_[kLanes];
+    alignas(16) double a_[9][kLanes];  // A column-major
+    alignas(16) double inv_n2_[kLanes];
+    alignas(16) double u_[3][kLanes];  // A's longest column
+    alignas(16) double p_[3][kLanes], q_[3][kLanes], k_[3][kLanes];
+    alignas(16) double kk_[kLanes], s_[kLanes], pq_[kLanes], w_[kLanes];
+    alignas(16) double r_[9][kLanes];
+};
+
+/// One step of the scaled Newton iteration X <- (zeta X + X^-T / zeta) / 2 on x (3x3,
+/// column-major), in scalars (Eigen's 3x3 expressions under SSE2 spend most of their
+/// instructions on shuffles, and divided cof X by zeta det X entry by entry). False when
+/// det X <= 0; else delta2 = |X_next - X|_F^2.
+inline bool newtonStep(double (&x)[9], double& delta2) {
+    auto cross = [](const double* u, const double* v, double* out) {
+        out[0] = u[1] * v[2] - u[2] * v[1];
+        out[1] = u[2] * v[0] - u[0] * v[2];
+        out[2] = u[0] * v[1] - u[1] * v[0];
+    };
+    double cx[9];  // cof X = det X X^-T
+    cross(x + 3, x + 6, cx);
+    cross(x + 6, x, cx + 3);
+    cross(x, x + 3, cx + 6);
+    const double d = x[0] * cx[0] + x[1] * cx[1] + x[2] * cx[2];
+    if (!(d > 0.0)) return false;
+    double xx = 0.0, cc = 0.0;
+    for (int e = 0; e < 9; ++e) {
+        xx += x[e] * x[e];
+        cc += cx[e] * cx[e];
+    }
+    const double zeta = std::sqrt(std::sqrt(cc / xx) / d);
+    const double half_zeta = 0.5 * zeta, half_inv = 0.5 / (zeta * d);
+    delta2 = 0.0;
+    for (int e = 0; e < 9; ++e) {
+        const double next = half_zeta * x[e] + half_inv * cx[e];
+        delta2 += (next - x[e]) * (next - x[e]);
+        x[e] = next;
+    }
+    return true;
 }
 
 /// Scaled Newton iteration for R (see the header comment); a with |a|_F^2 in [1e-100,
-/// 1e100], its cofactors c, n2 = |a|_F^2, c2 = |c|_F^2. False when it does not converge or,
+/// 1e100], n2 = |a|_F^2, c2 = |cof a|_F^2. False when it does not converge or,
 /// for reflected a, when the result is not the maximiser of tr(R^T a): the caller then
 /// takes the SVD.
-EIGEN_DONT_INLINE bool newtonRotation(const Mat3& a, const Mat3& c, double n2, double c2, Mat3& r) {
+EIGEN_DONT_INLINE bool newtonRotation(const Mat3& a, double n2, double c2, Mat3& r) {
+    const Mat3 c = cofactor(a);
     const double det = a.col(0).dot(c.col(0));
     // s ~ sigma_1: |A|_F >= sigma_1 (all that B needs when det A >= 0). For det A < 0, B's
     // smallest values are sigma_2 - sigma_3 sigma_1/s and sigma_2 sigma_1/s - sigma_3, so s
@@ -198,60 +365,72 @@ EIGEN_DONT_INLINE bool newtonRotation(const Mat3& a, const Mat3& c, double n2, d
             if (!(step > 1e-6 * s1sq)) break;
         }
     }
-    Mat3 x = a + c / std::sqrt(s1sq);
+    const Mat3 b = a + c / std::sqrt(s1sq);
+    double x[9];
+    std::copy(b.data(), b.data() + 9, x);
     for (int k = 0; k < 12; ++k) {
-        const Mat3 cx = cofactor(x);
-        const double d = x.col(0).dot(cx.col(0));
-        if (!(d > 0.0)) return false;
-        const double zeta = std::sqrt(std::sqrt(cx.squaredNorm() / x.squaredNorm()) / d);
-        const Mat3 next = 0.5 * (zeta * x + cx / (zeta * d));
+        double delta2;
+        if (!newtonStep(x, delta2)) return false;
         // Quadratic convergence: |X_k - R| ~ |X_k+1 - X_k| = delta, |X_k+1 - R| ~ delta^2 / 2.
-        const double delta2 = (next - x).squaredNorm();
-        x = next;
         if (delta2 > 1e-16) continue;
         if (det < 0.0) {
             // R maximises tr(R^T A) iff S = R^T A is symmetric and M = tr(S) I - S >= 0; M's
             // eigenvalues are the pair sums of S's, det M = (s1+s2)(s1+s3)(s2+s3). Another
             // stationary rotation makes one pair sum negative.
-            const Mat3 sm = x.transpose() * a;
+            const Mat3 sm = Eigen::Map<const Mat3>(x).transpose() * a;
             Mat3 m = -0.5 * (sm + sm.transpose());
             m.diagonal().array() += sm.trace();
             if (!(m.determinant() > 1e-12 * n2 * std::sqrt(n2))) return false;
         }
-        r = x;
+        r = Eigen::Map<const Mat3>(x);
         return true;
     }
     return false;
 }
 
-/// csmRotation of an A whose |A|_F^2 = n2 is in [1e-100, 1e100]: cof A, |A|^4 and the
-/// Newton iteration's det^2 neither overflow nor underflow.
-inline Mat3 rotationInRange(const Mat3& a, double n2) {
-    const Mat3 c = cofactor(a);
-    const double c2 = c.squaredNorm();
+/// csmRotation into r of an A whose |A|_F^2 = n2 is in [1e-100, 1e100] (cof A, |A|^4 and
+/// the Newton iteration's det^2 neither overflow nor underflow); a rank-1 A is queued on
+/// `batch` (r written at its solve()).
+inline void rotationInRange(const Mat3& a, double n2, Mat3& r, RankOneBatch& batch) {
+    const double c2 = cofactorSquaredNorm(a);
     constexpr double kSurelyRankOne = kRankOneTolerance / 6.0;
-    if (c2 <= kSurelyRankOne * kSurelyRankOne * n2 * n2) return rankOneRotation(a);
-    Mat3 r;
-    if (c2 >= kNewtonMinQ * kNewtonMinQ * n2 * n2 && newtonRotation(a, c, n2, c2, r)) return r;
-    return svdRotation(a);
+    if (c2 <= kSurelyRankOne * kSurelyRankOne * n2 * n2) return batch.add(a, n2, r);
+    if (c2 >= kNewtonMinQ * kNewtonMinQ * n2 * n2 && newtonRotation(a, n2, c2, r)) return;
+    r = svdRotation(a);
 }
 
 /// A = 0, non-finite, or |A|_F^2 outside [1e-100, 1e100]: scaled by a power of two (exact)
 /// so that its largest entry is in [1, 2).
-EIGEN_DONT_INLINE Mat3 rotationOutOfRange(const Mat3& a_in) {
-    if (!a_in.allFinite()) return Mat3::Identity();
-    const double largest = a_in.cwiseAbs().maxCoeff();
-    if (!(largest > 0.0)) return Mat3::Identity();  // A = 0 (a single point)
+EIGEN_DONT_INLINE void rotationOutOfRange(const Mat3& a_in, Mat3& r) {
+    const double largest = a_in.cwiseAbs().maxCoeff();  // NaN compares false
+    if (!a_in.allFinite() || !(largest > 0.0)) {
+        r = Mat3::Identity();  // non-finite, or A = 0 (a single point)
+        return;
+    }
     const Mat3 a = std::ldexp(1.0, -std::ilogb(largest)) * a_in;
-    return rotationInRange(a, a.squaredNorm());
+    RankOneBatch batch;
+    rotationInRange(a, a.squaredNorm(), r, batch);
+    batch.solve();
+}
+
+/// csmRotation into r, which may be a itself (every path reads all of a before it writes
+/// r): the fit pass turns A_k in place into R_k, and the result is stored straight where it
+/// belongs (returned by value, the copy into place reloaded it in other widths than it
+/// was stored in, and missed store forwarding). Rank 1: r is written at batch.solve().
+inline void rotationInto(const Mat3& a, Mat3& r, RankOneBatch& batch) {
+    const double n2 = a.squaredNorm();  // NaN or infinite for non-finite A
+    if (n2 >= 1e-100 && n2 <= 1e100) return rotationInRange(a, n2, r, batch);
+    rotationOutOfRange(a, r);
 }
 
 }  // namespace
 
 Mat3 csmRotation(const Mat3& a) {
-    const double n2 = a.squaredNorm();  // NaN or infinite for non-finite A
-    if (n2 >= 1e-100 && n2 <= 1e100) return rotationInRange(a, n2);
-    return rotationOutOfRange(a);
+    Mat3 r;
+    RankOneBatch batch;
+    rotationInto(a, r, batch);
+    batch.solve();
+    return r;
 }
 
 void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass, std::size_t first,
@@ -294,55 +473,60 @@ void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass
     split(blocks, [&](std::size_t b0, std::size_t b1) {
         for (std::size_t s = b0 * block; s < std::min(n, b1 * block); s += block) {
             const std::size_t e = std::min(s + block, n) - 1;
-            CsmMoments run;
+            FlatMoments run;
             for (std::size_t i = s; i <= e; ++i) {
                 const double m = mass[i] / static_cast<double>(regionHi(i) - regionLo(i) + 1);
                 addParticle(run, m, x[i] - x[s], rest[i] - rest[s]);
-                prefix[i] = run;
+                store(run, prefix[i]);
             }
             const std::size_t q = s + block < n ? s + block : s;  // the suffixes' reference
-            run = CsmMoments();
+            run = FlatMoments();
             for (std::size_t i = e + 1; i-- > s;) {
                 const double m = mass[i] / static_cast<double>(regionHi(i) - regionLo(i) + 1);
                 addParticle(run, m, x[i] - x[q], rest[i] - rest[q]);
-                suffix[i] = run;
+                store(run, suffix[i]);
             }
         }
     });
 
     // Pass 2: fit every region, with its moments about a particle r of the region (the
     // second block's first particle, or the one block's first: within a block of the
-    // centre, so A = S - M c c0^T still loses only a couple of digits).
+    // centre, so A = S - M c c0^T still loses only a couple of digits). A_k is kept in
+    // rotation[k] for pass 3.
     split(n, [&](std::size_t k0, std::size_t k1) {
         for (std::size_t k = k0; k < k1; ++k) {
             const std::size_t lo = regionLo(k);
             const std::size_t hi = regionHi(k);
             const std::size_t blo = lo - lo % block;  // first particle of lo's block
             const std::size_t bhi = hi - hi % block;
-            CsmMoments sum;
-            std::size_t r = bhi;
-            if (blo == bhi) {
-                // One block: a region shorter than a block touches the piece's start (a block
-                // prefix) or its end (the last block's suffix); a full-size one is the whole
-                // block. All about the block's first particle.
-                sum = lo == blo ? prefix[hi] : suffix[lo];
-            } else {
-                sum = suffix[lo];
-                sum.m += prefix[hi].m;
-                sum.mx += prefix[hi].mx;
-                sum.mx0 += prefix[hi].mx0;
-                sum.mxx0 += prefix[hi].mxx0;
-            }
-            const Vec3 dc = sum.mx / sum.m;    // c - x_r
-            const Vec3 dc0 = sum.mx0 / sum.m;  // c0 - x0_r
-            const Mat3 a = sum.mxx0 - sum.mx * dc0.transpose();
-            scratch.rotation[k] = csmRotation(a);
+            const std::size_t r = bhi;
+            // One block: a region shorter than a block touches the piece's start (a block
+            // prefix) or its end (the last block's suffix); a full-size one is the whole
+            // block. All about the block's first particle. Two blocks: a suffix of the
+            // first plus a prefix of the second.
+            FlatMoments f = flat(blo == bhi && lo == blo ? prefix[hi] : suffix[lo]);
+            if (blo != bhi) add(f, flat(prefix[hi]));
+            const Vec3 dc = Vec3(f.v[kMx], f.v[kMx + 1], f.v[kMx + 2]) / f.v[0];     // c - x_r
+            const Vec3 dc0 = Vec3(f.v[kMx0], f.v[kMx0 + 1], f.v[kMx0 + 2]) / f.v[0];  // c0 - x0_r
+            Mat3 a;
+            for (int c = 0; c < 3; ++c)
+                for (int rr = 0; rr < 3; ++rr) a(rr, c) = f.v[kMxx0 + 3 * c + rr] - f.v[kMx + rr] * dc0[c];
+            scratch.rotation[k] = a;
             scratch.centroid[k] = x[r] + dc;
             scratch.rest_centroid[k] = rest[r] + dc0;
         }
     });
 
-    // Pass 3: blend, g_i = x_i + mean over regions k containing i of (g_ik - x_i). Region k
+    // Pass 3: R_k from A_k, in place, in a pass of its own: A_k, stored long before, is
+    // reloaded from cache; handed over straight after its computation, its reload (in other
+    // widths than Eigen stored it in) missed store forwarding.
+    split(n, [&](std::size_t k0, std::size_t k1) {
+        RankOneBatch batch;
+        for (std::size_t k = k0; k < k1; ++k) rotationInto(scratch.rotation[k], scratch.rotation[k], batch);
+        batch.solve();
+    });
+
+    // Pass 4: blend, g_i = x_i + mean over regions k containing i of (g_ik - x_i). Region k
     // contains i iff |k - i| <= hw, so those regions are regionLo(i) .. regionHi(i).
     const Mat3* rot = scratch.rotation.data();
     const Vec3* c = scratch.centroid.data();
@@ -351,9 +535,19 @@ void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass
         for (std::size_t i = i0; i < i1; ++i) {
             const std::size_t lo = regionLo(i);
             const std::size_t hi = regionHi(i);
-            Vec3 acc = Vec3::Zero();
-            for (std::size_t k = lo; k <= hi; ++k) acc.noalias() += rot[k] * (rest[i] - c0[k]) + (c[k] - x[i]);
-            goal[i] = x[i] + acc / static_cast<double>(hi - lo + 1);
+            // In scalars: Eigen's 3-vector expressions here mixed packet and scalar work.
+            const double px = x[i].x(), py = x[i].y(), pz = x[i].z();
+            const double qx = rest[i].x(), qy = rest[i].y(), qz = rest[i].z();
+            double ax = 0.0, ay = 0.0, az = 0.0;
+            for (std::size_t k = lo; k <= hi; ++k) {
+                const double* r = rot[k].data();  // column-major
+                const double dx = qx - c0[k].x(), dy = qy - c0[k].y(), dz = qz - c0[k].z();
+                ax += (r[0] * dx + r[3] * dy + r[6] * dz) + (c[k].x() - px);
+                ay += (r[1] * dx + r[4] * dy + r[7] * dz) + (c[k].y() - py);
+                az += (r[2] * dx + r[5] * dy + r[8] * dz) + (c[k].z() - pz);
+            }
+            const double count = static_cast<double>(hi - lo + 1);
+            goal[i] = Vec3(px + ax / count, py + ay / count, pz + az / count);
         }
     });
 }
