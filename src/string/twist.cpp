@@ -156,13 +156,16 @@ void computeTwistForces(StringState& s) {
     for (std::size_t p = 1; p + 1 < n; ++p) {
         const std::size_t a = p - 1, b = p;  // segments meeting at particle p (joint a)
         if (s.broken[a] || s.broken[b] || s.joint_stiffness[a] <= 0.0) continue;
+        // An untwisted joint (most of a rope that nothing twists) exerts nothing: skipped
+        // before its two square roots and nine divisions.
+        const double moment = s.joint_stiffness[a] * (s.twist[b] - s.twist[a] - s.rest_twist[a]);
+        if (moment == 0.0) continue;
         const Vec3 ea = s.x[p] - s.x[p - 1];
         const Vec3 eb = s.x[p + 1] - s.x[p];
         const double la = ea.norm(), lb = eb.norm();
         const double denom = la * lb + ea.dot(eb);
         if (!(denom > 1e-12 * la * lb)) continue;  // folded back on itself: undefined
         const Vec3 kb = 2.0 * ea.cross(eb) / denom;
-        const double moment = s.joint_stiffness[a] * (s.twist[b] - s.twist[a] - s.rest_twist[a]);
         const Vec3 d_prev = kb / (2.0 * la);
         const Vec3 d_next = -kb / (2.0 * lb);
         s.twist_force[p - 1] -= moment * d_prev;
