@@ -415,7 +415,9 @@ struct World::Impl {
         // are not dropped (a swinging rope's swept search finds thousands, nearly all of them
         // dropped: stored, they were most of the search's memory traffic).
         auto keep = [](const void* self, const detail::SegmentPair& pair) {
-            detail::SegmentContact scratch;
+            // judgePair writes what it reads of the contact first: a scratch per thread,
+            // not a SegmentContact (~330 bytes of defaults) built for every candidate.
+            thread_local detail::SegmentContact scratch;
             return static_cast<const Impl*>(self)->judgePair(pair, scratch) != kPairDropped;
         };
         auto reject = [](const void* self, std::uint32_t i, std::uint32_t j) {
