@@ -562,6 +562,10 @@ void substituteBelow(StringState& s, std::size_t mid) {
 /// Newton iteration (exact gradient) does not notice. Contacts' blocks are 1e8 stiffer in
 /// one direction, where the explicit inverse lost that direction: they keep the Cholesky.
 /// A zero coupling block (a pin, a broken segment) is skipped, so nothing crosses it.
+/// Assembling the springs inside the two interleaved sweeps here, as sweepFromTop and
+/// sweepFromBottom do on their own threads, measured slower (a larger share of the
+/// profile): the springs' divisions and square roots then compete with both pivot chains
+/// for the divider, and the loop body spills.
 void solveChain(StringState& s) {
     const std::size_t n = s.particles();
     const std::size_t mid = n / 2;
@@ -751,6 +755,9 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
         if (tension_estimate[j] > 0.0) geometric = std::min(c, tension_estimate[j] * s.compliance[j]);
         tension_estimate[j] = effective;
     }
+    // (One reciprocal of len for e and q instead of four divisions, and the square root
+    // and divisions computed a segment ahead, measured no faster, within the noise: the
+    // first changes the bits, the second adds code; neither was kept.)
     const double g = 1.0 + rate_gain, q = geometric / len;
     const double e00 = e0 * e0, e11 = e1 * e1, e22 = e2 * e2;
     const double e10 = e1 * e0, e20 = e2 * e0, e21 = e2 * e1;
