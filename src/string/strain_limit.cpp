@@ -368,9 +368,9 @@ void solveFactored(const StringState& s, std::vector<Vec3>& rhs) {
 // the same operations in the same order as Eigen's expressions did (a product's entry
 // as (a_0 b_0 + a_1 b_1) + a_2 b_2), so the bits are those of the Eigen version.
 
-/// A symmetric 3x3 matrix by its lower triangle (the Newton system's blocks, their
-/// inverses and the springs' Hessians are symmetric exactly: both triangles are computed
-/// from the same numbers).
+/// A symmetric 3x3 matrix by its lower triangle: the springs' Hessians and the pivots'
+/// inverses (symmetric exactly: both triangles are computed from the same numbers), and
+/// the pivots, of which inverseSymmetric reads the lower triangle only.
 struct Sym3 {
     double xx = 0.0, yx = 0.0, zx = 0.0, yy = 0.0, zy = 0.0, zz = 0.0;
     double operator()(int r, int c) const {
@@ -379,7 +379,7 @@ struct Sym3 {
     }
 };
 
-/// The lower triangle of a; a full matrix from a lower triangle.
+/// The lower triangle of a.
 [[gnu::always_inline]] inline Sym3 lower(const Mat3& a) {
     return Sym3{a(0, 0), a(1, 0), a(2, 0), a(1, 1), a(2, 1), a(2, 2)};
 }
