@@ -361,81 +361,33 @@ void solveFactored(const StringState& s, std::vector<Vec3>& rhs) {
 }
 
 
-// The chain solve below works on plain doubles, not on Eigen's fixed 3-vectors and 3x3
-// matrices: those are stored as SSE2 packets and reloaded as scalars (or the other way
-// round), which misses store forwarding, and on the sweeps' dependency chain (one pivot
-// inverse after the other) each such stall is paid in full. Each entry is computed with
-// the same operations in the same order as Eigen's expressions did (a product's entry
-// as (a_0 b_0 + a_1 b_1) + a_2 b_2), so the bits are those of the Eigen version.
-
-/// A symmetric 3x3 matrix by its lower triangle: the springs' Hessians and the pivots'
-/// inverses (symmetric exactly: both triangles are computed from the same numbers), and
-/// the pivots, of which inverseSymmetric reads the lower triangle only.
-struct Sym3 {
-    double xx = 0.0, yx = 0.0, zx = 0.0, yy = 0.0, zy = 0.0, zz = 0.0;
-    double operator()(int r, int c) const {
-        const int lo = r < c ? r : c, hi = r < c ? c : r;
-        return lo == 0 ? (hi == 0 ? xx : hi == 1 ? yx : zx) : lo == 1 ? (hi == 1 ? yy : zy) : zz;
-    }
-};
-
-/// The lower triangle of a.
-[[gnu::always_inline]] inline Sym3 lower(const Mat3& a) {
-    return Sym3{a(0, 0), a(1, 0), a(2, 0), a(1, 1), a(2, 1), a(2, 2)};
-}
-/// Stores a (times `sign`, +-1: exact) into both triangles of out, entry by entry (a Mat3
-/// built on the stack and copied was stored as scalars and reloaded as packets).
-[[gnu::always_inline]] inline void store(const Sym3& a, Mat3& out, double sign = 1.0) {
-    double* o = out.data();
-    o[0] = sign * a.xx;
-    o[1] = o[3] = sign * a.yx;
-    o[2] = o[6] = sign * a.zx;
-    o[4] = sign * a.yy;
-    o[5] = o[7] = sign * a.zy;
-    o[8] = sign * a.zz;
-}
-
-/// A 3-vector of the chain solve, in scalars.
-struct Vec3s {
-    double v[3] = {0.0, 0.0, 0.0};
-};
-[[gnu::always_inline]] inline Vec3s scalars(const Vec3& a) { return Vec3s{{a.x(), a.y(), a.z()}}; }
-[[gnu::always_inline]] inline void store(const Vec3s& a, Vec3& out) {
-    out.x() = a.v[0];
-    out.y() = a.v[1];
-    out.z() = a.v[2];
-}
-
-/// The inverse of a symmetric positive definite 3x3 matrix (its lower triangle), from its
-/// root-free Cholesky factorisation A = L D L^T: A^-1 = L^-T D^-1 L^-1, three divisions. As
-/// accurate as the Cholesky solve (an adjugate inverse, one division, lost ~k h^2 / m of
-/// the digits in the Schur complements of a stiff light cord, and a twisted cord coiled
-/// differently).
-[[gnu::always_inline]] inline Sym3 inverseSymmetric(const Sym3& a) {
-    const double r0 = 1.0 / a.xx;
-    const double l10 = a.yx * r0, l20 = a.zx * r0;
-    const double r1 = 1.0 / (a.yy - l10 * a.yx);
-    const double b21 = a.zy - l20 * a.yx;
+/// The inverse of a symmetric positive definite 3x3 matrix (its lower triangle is read),
+/// from its root-free Cholesky factorisation A = L D L^T: A^-1 = L^-T D^-1 L^-1, three
+/// divisions. As accurate as the Cholesky solve (an adjugate inverse, one division, lost
+/// ~k h^2 / m of the digits in the Schur complements of a stiff light cord, and a twisted
+/// cord coiled differently).
+[[gnu::always_inline]] inline Mat3 inverseSymmetric(const Mat3& a) {
+    const double r0 = 1.0 / a(0, 0);
+    const double l10 = a(1, 0) * r0, l20 = a(2, 0) * r0;
+    const double r1 = 1.0 / (a(1, 1) - l10 * a(1, 0));
+    const double b21 = a(2, 1) - l20 * a(1, 0);
     const double l21 = b21 * r1;
-    const double r2 = 1.0 / (a.zz - l20 * a.zx - l21 * b21);
+    const double r2 = 1.0 / (a(2, 2) - l20 * a(2, 0) - l21 * b21);
     const double m20 = l10 * l21 - l20;  // row 2 of L^-1: (m20, -l21, 1)
     const double i20 = r2 * m20, i21 = -r2 * l21;
     const double i10 = -r1 * l10 + i21 * m20;
-    return Sym3{r0 + r1 * l10 * l10 + i20 * m20, i10, i20, r1 + i21 * -l21, i21, r2};
-}
-
-/// a b for a symmetric a, in Eigen's order of a product's sums.
-[[gnu::always_inline]] inline Vec3s times(const Sym3& a, const Vec3s& b) {
-    Vec3s p;
-    for (int r = 0; r < 3; ++r) p.v[r] = a(r, 0) * b.v[0] + a(r, 1) * b.v[1] + a(r, 2) * b.v[2];
-    return p;
+    Mat3 inv;
+    inv << r0 + r1 * l10 * l10 + i20 * m20, i10, i20,  //
+        i10, r1 + i21 * -l21, i21,                       //
+        i20, i21, r2;
+    return inv;
 }
 
 /// A segment's spring in the chain's Newton system: Hessian and force, and to which of its
 /// particles they apply (a fixed particle's row takes neither).
 struct SpringTerm {
-    Sym3 hess;
-    Vec3s force;  // pulls j toward j+1
+    Mat3 hess = Mat3::Zero();
+    Vec3 force = Vec3::Zero();  // pulls j toward j+1
     bool to_a = false;  // applies to particle j
     bool to_b = false;  // applies to particle j+1
 };
@@ -443,24 +395,15 @@ struct SpringTerm {
 /// Adds to a particle's block d and right-hand side rhs its share of the spring before it
 /// (the segment it ends) and then of the spring after it (the segment it starts): the
 /// order of assembleSprings' sums.
-[[gnu::always_inline]] inline void addSprings(const SpringTerm& before, const SpringTerm& after, Sym3& d, Vec3s& rhs) {
-    auto add = [&](const SpringTerm& t, double sign) {
-        d.xx += t.hess.xx;
-        d.yx += t.hess.yx;
-        d.zx += t.hess.zx;
-        d.yy += t.hess.yy;
-        d.zy += t.hess.zy;
-        d.zz += t.hess.zz;
-        for (int k = 0; k < 3; ++k) rhs.v[k] += sign * t.force.v[k];  // +-f: exact, as -= f
-    };
-    if (before.to_b) add(before, -1.0);
-    if (after.to_a) add(after, 1.0);
-}
-
-/// Whether a coupling block (a segment's -Hessian, symmetric, or zero) couples anything.
-[[gnu::always_inline]] inline bool couples(const Mat3& off) {
-    return !(off(0, 0) == 0.0 && off(1, 0) == 0.0 && off(2, 0) == 0.0 && off(1, 1) == 0.0 && off(2, 1) == 0.0 &&
-             off(2, 2) == 0.0);
+[[gnu::always_inline]] inline void addSprings(const SpringTerm& before, const SpringTerm& after, Mat3& d, Vec3& rhs) {
+    if (before.to_b) {
+        d += before.hess;
+        rhs -= before.force;
+    }
+    if (after.to_a) {
+        d += after.hess;
+        rhs += after.force;
+    }
 }
 
 /// One sweep of solveChain, carried in registers: the gain W and y of the particle it
@@ -468,36 +411,29 @@ struct SpringTerm {
 /// sweeps' steps can be written interleaved: one step is ~250 instructions, more than the
 /// core's reorder window, and written one after the other the two chains did not overlap.
 struct ChainSweep {
-    double gain[3][3] = {};  // (row, column)
-    Vec3s y;
+    Mat3 gain = Mat3::Zero();
+    Vec3 y = Vec3::Zero();
     bool has_prev = false;  // coupled to the particle eliminated before, through `in`
 
-    /// The next particle's pivot (its block `d` less the last particle's Schur
-    /// complement, the lower triangle only: inverseSymmetric reads no more), and its
-    /// right-hand side r, in place.
-    [[gnu::always_inline]] void pivot(Sym3& d, Vec3s& r, const Mat3* in) const {
-        if (!has_prev) return;
-        const Mat3& a = *in;  // symmetric (minus a spring's Hessian)
-        auto entry = [&](int i, int j) { return a(i, 0) * gain[0][j] + a(i, 1) * gain[1][j] + a(i, 2) * gain[2][j]; };
-        d.xx -= entry(0, 0);
-        d.yx -= entry(1, 0);
-        d.zx -= entry(2, 0);
-        d.yy -= entry(1, 1);
-        d.zy -= entry(2, 1);
-        d.zz -= entry(2, 2);
-        for (int i = 0; i < 3; ++i) r.v[i] -= a(i, 0) * y.v[0] + a(i, 1) * y.v[1] + a(i, 2) * y.v[2];
+    /// The next particle's pivot (its block `diag` less the last particle's Schur
+    /// complement), and its right-hand side into r.
+    [[gnu::always_inline]] Mat3 pivot(const Mat3& diag, const Vec3& rhs, const Mat3* in, Vec3& r) const {
+        Mat3 d = diag;
+        r = rhs;
+        if (has_prev) {  // *in: symmetric (minus a spring's Hessian)
+            d.noalias() -= *in * gain;
+            r.noalias() -= *in * y;
+        }
+        return d;
     }
     /// With the pivot's inverse: y into y_out, the gain D^-1 out towards the next particle
     /// into gain_out.
-    [[gnu::always_inline]] void finish(const Sym3& inv, const Vec3s& r, const Mat3& out, Vec3& y_out, Mat3& gain_out) {
-        y = times(inv, r);
-        for (int i = 0; i < 3; ++i)
-            for (int j = 0; j < 3; ++j) {
-                gain[i][j] = inv(i, 0) * out(0, j) + inv(i, 1) * out(1, j) + inv(i, 2) * out(2, j);
-                gain_out(i, j) = gain[i][j];
-            }
-        store(y, y_out);
-        has_prev = couples(out);
+    [[gnu::always_inline]] void finish(const Mat3& inv, const Vec3& r, const Mat3& out, Vec3& y_out, Mat3& gain_out) {
+        y.noalias() = inv * r;
+        gain.noalias() = inv * out;
+        y_out = y;
+        gain_out = gain;
+        has_prev = !out.isZero(0.0);
     }
 };
 
@@ -505,44 +441,30 @@ struct ChainSweep {
 /// that was held back from it (parallelChainStep), less both sides' Schur complements.
 void solveMiddle(StringState& s, std::size_t mid, const SpringTerm& after) {
     const std::size_t n = s.particles();
-    Sym3 d = lower(s.blk_diag[mid]);
-    Vec3s r = scalars(s.blk_rhs[mid]);
+    Mat3 d = s.blk_diag[mid];
+    Vec3 r = s.blk_rhs[mid];
     addSprings(SpringTerm{}, after, d, r);
-    // Each side's Schur complement as the sweeps take it (ChainSweep::pivot).
-    auto eliminate = [&](std::size_t coupling, std::size_t side) {
-        if (!couples(s.blk_off[coupling])) return;
-        ChainSweep from;
-        const Mat3& g = s.blk_factor_gain[side];
-        for (int i = 0; i < 3; ++i)
-            for (int j = 0; j < 3; ++j) from.gain[i][j] = g(i, j);
-        from.y = scalars(s.blk_rhs[side]);
-        from.has_prev = true;
-        from.pivot(d, r, &s.blk_off[coupling]);
-    };
-    if (mid > 0) eliminate(mid - 1, mid - 1);
-    if (mid + 1 < n) eliminate(mid, mid + 1);
-    store(times(inverseSymmetric(d), r), s.blk_rhs[mid]);
+    if (mid > 0 && !s.blk_off[mid - 1].isZero(0.0)) {
+        d.noalias() -= s.blk_off[mid - 1] * s.blk_factor_gain[mid - 1];
+        r.noalias() -= s.blk_off[mid - 1] * s.blk_rhs[mid - 1];
+    }
+    if (mid + 1 < n && !s.blk_off[mid].isZero(0.0)) {
+        d.noalias() -= s.blk_off[mid] * s.blk_factor_gain[mid + 1];
+        r.noalias() -= s.blk_off[mid] * s.blk_rhs[mid + 1];
+    }
+    s.blk_rhs[mid] = inverseSymmetric(d) * r;
 }
 
 /// solveChain's back substitution above the middle particle (x_i = y_i - W_i x_{i+1},
 /// i < mid) and below it (x_i = y_i - W_i x_{i-1}, i > mid); a zero coupling block
-/// (nothing crosses it) leaves y_i. The last x is carried in registers, not reloaded.
-[[gnu::always_inline]] inline void substituteStep(const Mat3& gain, bool coupled, Vec3& io, Vec3s& x) {
-    Vec3s y = scalars(io);
-    if (coupled) {
-        for (int i = 0; i < 3; ++i) y.v[i] -= gain(i, 0) * x.v[0] + gain(i, 1) * x.v[1] + gain(i, 2) * x.v[2];
-        store(y, io);
-    }
-    x = y;
-}
+/// (nothing crosses it) leaves y_i.
 void substituteAbove(StringState& s, std::size_t mid) {
-    Vec3s x = scalars(s.blk_rhs[mid]);
-    for (std::size_t i = mid; i-- > 0;) substituteStep(s.blk_factor_gain[i], couples(s.blk_off[i]), s.blk_rhs[i], x);
+    for (std::size_t i = mid; i-- > 0;)
+        if (!s.blk_off[i].isZero(0.0)) s.blk_rhs[i].noalias() -= s.blk_factor_gain[i] * s.blk_rhs[i + 1];
 }
 void substituteBelow(StringState& s, std::size_t mid) {
-    Vec3s x = scalars(s.blk_rhs[mid]);
     for (std::size_t i = mid + 1; i < s.particles(); ++i)
-        substituteStep(s.blk_factor_gain[i], couples(s.blk_off[i - 1]), s.blk_rhs[i], x);
+        if (!s.blk_off[i - 1].isZero(0.0)) s.blk_rhs[i].noalias() -= s.blk_factor_gain[i] * s.blk_rhs[i - 1];
 }
 
 /// Solves the chain's system (blk_diag, blk_off, blk_rhs) in place, for a chain without
@@ -562,10 +484,6 @@ void substituteBelow(StringState& s, std::size_t mid) {
 /// Newton iteration (exact gradient) does not notice. Contacts' blocks are 1e8 stiffer in
 /// one direction, where the explicit inverse lost that direction: they keep the Cholesky.
 /// A zero coupling block (a pin, a broken segment) is skipped, so nothing crosses it.
-/// Assembling the springs inside the two interleaved sweeps here, as sweepFromTop and
-/// sweepFromBottom do on their own threads, measured slower (a larger share of the
-/// profile): the springs' divisions and square roots then compete with both pivot chains
-/// for the divider, and the loop body spills.
 void solveChain(StringState& s) {
     const std::size_t n = s.particles();
     const std::size_t mid = n / 2;
@@ -579,18 +497,16 @@ void solveChain(StringState& s) {
     std::size_t t = 0;
     for (; t < below; ++t) {
         const std::size_t i = n - 1 - t;
-        Sym3 d_top = lower(diag[t]), d_bottom = lower(diag[i]);
-        Vec3s r_top = scalars(rhs[t]), r_bottom = scalars(rhs[i]);
-        top.pivot(d_top, r_top, t > 0 ? off + t - 1 : nullptr);
-        bottom.pivot(d_bottom, r_bottom, off + i);
-        const Sym3 inv_top = inverseSymmetric(d_top), inv_bottom = inverseSymmetric(d_bottom);
+        Vec3 r_top, r_bottom;
+        const Mat3 d_top = top.pivot(diag[t], rhs[t], t > 0 ? off + t - 1 : nullptr, r_top);
+        const Mat3 d_bottom = bottom.pivot(diag[i], rhs[i], off + i, r_bottom);
+        const Mat3 inv_top = inverseSymmetric(d_top), inv_bottom = inverseSymmetric(d_bottom);
         top.finish(inv_top, r_top, off[t], rhs[t], gain[t]);
         bottom.finish(inv_bottom, r_bottom, off[i - 1], rhs[i], gain[i]);
     }
     for (; t < mid; ++t) {  // an even count leaves the top sweep one more
-        Sym3 d_top = lower(diag[t]);
-        Vec3s r_top = scalars(rhs[t]);
-        top.pivot(d_top, r_top, t > 0 ? off + t - 1 : nullptr);
+        Vec3 r_top;
+        const Mat3 d_top = top.pivot(diag[t], rhs[t], t > 0 ? off + t - 1 : nullptr, r_top);
         top.finish(inverseSymmetric(d_top), r_top, off[t], rhs[t], gain[t]);
     }
     // The middle particle: both sides eliminated into its pivot; then the back
@@ -714,24 +630,11 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
     SpringTerm term;
     s.active[j] = 0;
     s.spring_force[j] = 0.0;
-    Mat3& off = s.blk_off[j];
-    off.setZero();
+    s.blk_off[j].setZero();
     if (s.broken[j]) return term;
-    // In scalars (see Sym3): the direction is used as computed, not reloaded from dir.
-    const Vec3& xa = s.x[j];
-    const Vec3& xb = s.x[j + 1];
-    const double d0 = xb.x() - xa.x(), d1 = xb.y() - xa.y(), d2 = xb.z() - xa.z();
-    const double len = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
-    Vec3& dir = s.dir[j];
-    double e0 = dir.x(), e1 = dir.y(), e2 = dir.z();
-    if (len > 1e-15) {
-        e0 = d0 / len;
-        e1 = d1 / len;
-        e2 = d2 / len;
-        dir.x() = e0;
-        dir.y() = e1;
-        dir.z() = e2;
-    }
+    const Vec3 d = s.x[j + 1] - s.x[j];
+    const double len = d.norm();
+    if (len > 1e-15) s.dir[j] = d / len;
     const double stretch = len - s.rest_length[j];
     // Kelvin-Voigt: the segment's force is k (C + tau dC/dt), tau the material's
     // retardation time; it damps the rope's axial (bungee) vibration, which a
@@ -747,6 +650,7 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
     s.active[j] = 1;
     const double k = 1.0 / s.compliance[j];
     s.spring_force[j] = k * c;
+    const Vec3& e = s.dir[j];
     // hess = k ((1 + tau/h) e e^T + C/l (I - e e^T)), entry by entry with the same
     // operations as the matrix expression (so the same bits), the six distinct ones
     // only (e_i e_j = e_j e_i exactly).
@@ -755,48 +659,33 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
         if (tension_estimate[j] > 0.0) geometric = std::min(c, tension_estimate[j] * s.compliance[j]);
         tension_estimate[j] = effective;
     }
-    // (One reciprocal of len for e and q instead of four divisions, and the square root
-    // and divisions computed a segment ahead, measured no faster, within the noise: the
-    // first changes the bits, the second adds code; neither was kept.)
     const double g = 1.0 + rate_gain, q = geometric / len;
-    const double e00 = e0 * e0, e11 = e1 * e1, e22 = e2 * e2;
-    const double e10 = e1 * e0, e20 = e2 * e0, e21 = e2 * e1;
-    Sym3& h = term.hess;
-    h.xx = k * (g * e00 + q * (1.0 - e00));
-    h.yx = k * (g * e10 + q * (0.0 - e10));
-    h.zx = k * (g * e20 + q * (0.0 - e20));
-    h.yy = k * (g * e11 + q * (1.0 - e11));
-    h.zy = k * (g * e21 + q * (0.0 - e21));
-    h.zz = k * (g * e22 + q * (1.0 - e22));
-    const double kc = k * c;
-    term.force = Vec3s{{kc * e0, kc * e1, kc * e2}};
+    const double e00 = e.x() * e.x(), e11 = e.y() * e.y(), e22 = e.z() * e.z();
+    const double e10 = e.y() * e.x(), e20 = e.z() * e.x(), e21 = e.z() * e.y();
+    const double h10 = k * (g * e10 + q * (0.0 - e10)), h20 = k * (g * e20 + q * (0.0 - e20));
+    const double h21 = k * (g * e21 + q * (0.0 - e21));
+    term.hess << k * (g * e00 + q * (1.0 - e00)), h10, h20,  //
+        h10, k * (g * e11 + q * (1.0 - e11)), h21,           //
+        h20, h21, k * (g * e22 + q * (1.0 - e22));
+    term.force = k * c * e;
     term.to_a = !fixedRow(s, j);
     term.to_b = !fixedRow(s, j + 1);
-    if (term.to_a && term.to_b) store(h, off, -1.0);
+    if (term.to_a && term.to_b) s.blk_off[j] = -term.hess;
     return term;
 }
 
-/// The springs of segments [j0, j1) (springTerm) added to blk_diag and blk_rhs, the last
-/// segment's share of a particle carried to it in registers (addSprings: the same sums).
+/// The springs of segments [j0, j1) (springTerm) added to blk_diag and blk_rhs.
 void assembleSprings(StringState& s, const StepContext& ctx, std::size_t j0, std::size_t j1, double* tension_estimate) {
-    if (j0 >= j1) return;
-    SpringTerm last;  // segment j-1's, not yet added to particle j
-    for (std::size_t j = j0; j <= j1; ++j) {
-        const SpringTerm next = j < j1 ? springTerm(s, ctx, j, tension_estimate) : SpringTerm{};
-        if (!last.to_b && !next.to_a) {
-            last = next;
-            continue;
+    for (std::size_t j = j0; j < j1; ++j) {
+        const SpringTerm term = springTerm(s, ctx, j, tension_estimate);
+        if (term.to_a) {
+            s.blk_diag[j] += term.hess;
+            s.blk_rhs[j] += term.force;
         }
-        // Both triangles, each with its own sums (an inertia block need not be
-        // symmetric to the bit: a glued particle's K^-1).
-        Mat3& block = s.blk_diag[j];
-        Sym3 lo = lower(block), up{block(0, 0), block(0, 1), block(0, 2), block(1, 1), block(1, 2), block(2, 2)};
-        Vec3s rhs = scalars(s.blk_rhs[j]), rhs_again = rhs;
-        addSprings(last, next, lo, rhs);
-        addSprings(last, next, up, rhs_again);
-        block << lo.xx, up.yx, up.zx, lo.yx, lo.yy, up.zy, lo.zx, lo.zy, lo.zz;
-        store(rhs, s.blk_rhs[j]);
-        last = next;
+        if (term.to_b) {
+            s.blk_diag[j + 1] += term.hess;
+            s.blk_rhs[j + 1] -= term.force;
+        }
     }
 }
 
@@ -838,20 +727,18 @@ void sweepFromTop(StringState& s, const StepContext& ctx, std::size_t mid, doubl
     SpringTerm last;  // segment t-1
     for (std::size_t t = 0; t < mid; ++t) {
         const SpringTerm next = springTerm(s, ctx, t, tension_estimate);
-        Sym3 d = lower(s.blk_diag[t]);
-        Vec3s r = scalars(s.blk_rhs[t]);
-        addSprings(last, next, d, r);
+        Mat3 d = s.blk_diag[t];
+        Vec3 rhs = s.blk_rhs[t];
+        addSprings(last, next, d, rhs);
         last = next;
-        top.pivot(d, r, t > 0 ? off + t - 1 : nullptr);
-        top.finish(inverseSymmetric(d), r, off[t], s.blk_rhs[t], s.blk_factor_gain[t]);
+        Vec3 r;
+        const Mat3 pivot = top.pivot(d, rhs, t > 0 ? off + t - 1 : nullptr, r);
+        top.finish(inverseSymmetric(pivot), r, off[t], s.blk_rhs[t], s.blk_factor_gain[t]);
     }
-    // Segment mid-1's share of the middle particle (the lower triangle: solveMiddle reads
-    // no more).
-    Sym3 d = lower(s.blk_diag[mid]);
-    Vec3s r = scalars(s.blk_rhs[mid]);
-    addSprings(last, SpringTerm{}, d, r);
-    store(d, s.blk_diag[mid]);
-    store(r, s.blk_rhs[mid]);
+    if (last.to_b) {
+        s.blk_diag[mid] += last.hess;
+        s.blk_rhs[mid] -= last.force;
+    }
 }
 
 /// solveChain's sweep from the far end alone, over particles (mid, n), with the springs
@@ -863,12 +750,13 @@ SpringTerm sweepFromBottom(StringState& s, const StepContext& ctx, std::size_t m
     SpringTerm last;  // segment i
     for (std::size_t i = s.particles() - 1; i > mid; --i) {
         const SpringTerm next = springTerm(s, ctx, i - 1, tension_estimate);
-        Sym3 d = lower(s.blk_diag[i]);
-        Vec3s r = scalars(s.blk_rhs[i]);
-        addSprings(next, last, d, r);
+        Mat3 d = s.blk_diag[i];
+        Vec3 rhs = s.blk_rhs[i];
+        addSprings(next, last, d, rhs);
         last = next;
-        bottom.pivot(d, r, off + i);
-        bottom.finish(inverseSymmetric(d), r, off[i - 1], s.blk_rhs[i], s.blk_factor_gain[i]);
+        Vec3 r;
+        const Mat3 pivot = bottom.pivot(d, rhs, off + i, r);
+        bottom.finish(inverseSymmetric(pivot), r, off[i - 1], s.blk_rhs[i], s.blk_factor_gain[i]);
     }
     return last;
 }
