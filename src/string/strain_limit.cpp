@@ -1362,7 +1362,6 @@ struct ClusterScratch::Impl {
     std::vector<double> stiffest;
     std::vector<char> shadowed, was_shadowed;
     std::vector<std::array<std::uint32_t, 4>> keys;
-    std::vector<std::size_t> order;
     std::vector<double> friction_weight, previous_weight;
     std::vector<std::size_t> live, candidates;
     std::vector<double> gap_seen, travel_seen;
@@ -1535,17 +1534,16 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
         const SegmentContact& c = contacts[i];
         keys[i] = keyOf(c.string, c.segment, c.partner, c.partner_segment);
     }
-    std::vector<std::size_t>& order = sc.order;
-    order.resize(contacts.size());
-    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return keys[a] < keys[b]; });
+    // Sorted, for the lookups of `exists` (binary searches over the keys themselves: through
+    // an index array each step of the search missed the cache twice, and a long rope folded
+    // onto itself brings 1e5 contacts, two lookups each per pass).
+    std::sort(keys.begin(), keys.end());
     auto exists = [&](std::uint32_t sa, std::int64_t ja, std::uint32_t sb, std::int64_t jb) {
         if (ja < 0 || jb < 0 || ja >= static_cast<std::int64_t>(strings[sa]->segments()) ||
             jb >= static_cast<std::int64_t>(strings[sb]->segments()))
             return false;
         const auto k = keyOf(sa, static_cast<std::uint32_t>(ja), sb, static_cast<std::uint32_t>(jb));
-        auto it = std::lower_bound(order.begin(), order.end(), k, [&](std::size_t i, const std::array<std::uint32_t, 4>& v) { return keys[i] < v; });
-        return it != order.end() && keys[*it] == k && !strings[sa]->broken[static_cast<std::size_t>(ja)] &&
+        return std::binary_search(keys.begin(), keys.end(), k) && !strings[sa]->broken[static_cast<std::size_t>(ja)] &&
                !strings[sb]->broken[static_cast<std::size_t>(jb)];
     };
     auto shadow = [&]() {
