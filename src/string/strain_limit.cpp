@@ -1422,7 +1422,8 @@ namespace {
 /// Woodbury identity's, to rounding. Writes dx into the strings' blk_rhs (zero for
 /// particles that are not free); false, with blk_rhs untouched, if the factorisation fails
 /// or the step is not finite. It allocates (the pattern is new each time); it only runs
-/// for the large clusters of kWoodburyDirections, which allocate in the Woodbury path too.
+/// for the large clusters of sparseStepPays (past kWoodburyCachedDirections directions,
+/// where the Woodbury path allocates too), or where a test asks for it.
 bool sparseClusterStep(const std::vector<StringState*>& strings, const std::vector<cluster::Direction>& dirs,
                        ClusterScratch::Impl& sc) {
     std::vector<Eigen::Index> offset(strings.size() + 1, 0);
