@@ -678,14 +678,8 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
 void assembleSprings(StringState& s, const StepContext& ctx, std::size_t j0, std::size_t j1, double* tension_estimate) {
     for (std::size_t j = j0; j < j1; ++j) {
         const SpringTerm term = springTerm(s, ctx, j, tension_estimate);
-        if (term.to_a) {
-            s.blk_diag[j] += term.hess;
-            s.blk_rhs[j] += term.force;
-        }
-        if (term.to_b) {
-            s.blk_diag[j + 1] += term.hess;
-            s.blk_rhs[j + 1] -= term.force;
-        }
+        addSprings(SpringTerm{}, term, s.blk_diag[j], s.blk_rhs[j]);
+        addSprings(term, SpringTerm{}, s.blk_diag[j + 1], s.blk_rhs[j + 1]);
     }
 }
 
@@ -735,10 +729,7 @@ void sweepFromTop(StringState& s, const StepContext& ctx, std::size_t mid, doubl
         const Mat3 pivot = top.pivot(d, rhs, t > 0 ? off + t - 1 : nullptr, r);
         top.finish(inverseSymmetric(pivot), r, off[t], s.blk_rhs[t], s.blk_factor_gain[t]);
     }
-    if (last.to_b) {
-        s.blk_diag[mid] += last.hess;
-        s.blk_rhs[mid] -= last.force;
-    }
+    addSprings(last, SpringTerm{}, s.blk_diag[mid], s.blk_rhs[mid]);
 }
 
 /// solveChain's sweep from the far end alone, over particles (mid, n), with the springs
