@@ -130,6 +130,7 @@ struct World::Impl {
     std::vector<double> grid_thickness;  // per segment of grid_segments: its string's radius there
     double grid_rounding = 0.0;  // nodesSurelyDropped's rounding margin (from the largest |x|_1)
     bool sparse_joint_steps = false;  // ClusterScratch::always_sparse (tests compare)
+    bool cold_strain_starts = false;  // StepContext::cold_strain_starts (tests compare)
     bool node_pruning = true;    // nodesSurelyDropped in the search (off: tests compare)
     std::vector<detail::CollisionSegment> grid_segments;
     std::vector<detail::SegmentPair> grid_pairs;
@@ -1020,6 +1021,7 @@ void World::step(double h) {
     ctx.time = w.time + h;
     ctx.step = w.steps + 1;
     ctx.pool = &w.pool;
+    ctx.cold_strain_starts = w.cold_strain_starts;
 
     RigidTable& rigids = w.rigids;
     for (std::size_t i = 0; i < rigids.bodies.size(); ++i) {
@@ -1255,6 +1257,7 @@ detail::WorldParts detail::WorldAccess::parts(World& world) {
 }
 void detail::WorldAccess::setStringNodePruning(World& world, bool on) { world.impl_->node_pruning = on; }
 void detail::WorldAccess::setSparseJointSteps(World& world, bool on) { world.impl_->sparse_joint_steps = on; }
+void detail::WorldAccess::setColdStrainStarts(World& world, bool on) { world.impl_->cold_strain_starts = on; }
 std::size_t detail::WorldAccess::lastStringNodeRejects(const World& world) { return world.impl_->tree.lastNodeRejects(); }
 const std::vector<detail::SegmentPair>& detail::WorldAccess::lastStringSearchPairs(const World& world) {
     return world.impl_->grid_pairs;

@@ -45,6 +45,9 @@ struct WorldAccess {
     // Every joint string solve's Newton steps by the sparse factorisation of the whole
     // cluster (ClusterScratch::always_sparse), for tests that compare it with Woodbury's.
     static void setSparseJointSteps(World& world, bool on);
+    // Chains' strain solves started at the prediction instead of the warm start
+    // (StepContext::cold_strain_starts), for tests that compare the two.
+    static void setColdStrainStarts(World& world, bool on);
 };
 
 }  // namespace tearables::detail

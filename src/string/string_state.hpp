@@ -179,6 +179,9 @@ struct StepContext {
     /// runs serially when nested in another, so stages called from a forEach over many
     /// strings stay serial inside.
     ThreadPool* pool = nullptr;
+    /// Chains start their strain solve at the prediction, never warm (strain_limit.cpp,
+    /// warmStart): tests compare the two.
+    bool cold_strain_starts = false;
 };
 
 /// Per-segment material constants after random variation (Strings, Sec. 7).
@@ -231,6 +234,10 @@ struct StringState {
     // --- rigid contacts (collision stage) -------------------------------------------------
     std::vector<SegmentContact> contacts;
     std::vector<double> spring_force;     ///< per segment: k c of the last Newton iteration, N
+    /// The strain solve started warm this step (strain_limit.cpp, warmStart) and has not
+    /// made its first Newton iteration yet (scratch).
+    bool strain_warm_start = false;
+    int strain_newton_iterations = 0;     ///< Newton iterations of this step's strain solves (diagnostic)
     std::vector<double> geometric_tension;  ///< per segment: the tension estimate of the chain Hessian's geometric term, N (scratch)
     std::vector<Mat3> row_projector;      ///< per particle: I, or I minus the normals of the bodies pressing it
     std::vector<std::uint8_t> colliding;  ///< per particle: in a string-string contact last step (3x heavier in CSM)
