@@ -499,6 +499,8 @@ std::uint32_t ChainTree::build(std::uint32_t first, std::uint32_t count, std::ui
             b.lo = b.hi = x0;
             b.travel_lo = b.travel_hi = t0;
             b.thickness = sweep_.thickness[first];
+            b.tangent_lo = Vec3::Constant(1.0);
+            b.tangent_hi = Vec3::Constant(-1.0);
             for (std::uint32_t k = first; k < first + count; ++k) {
                 for (const std::uint32_t p : {segs[k].a, segs[k].b}) {
                     b.lo = b.lo.cwiseMin(x_[p]);
@@ -507,6 +509,15 @@ std::uint32_t ChainTree::build(std::uint32_t first, std::uint32_t count, std::ui
                     b.travel_hi = b.travel_hi.cwiseMax(sweep_.travel[p]);
                 }
                 b.thickness = std::max(b.thickness, sweep_.thickness[k]);
+                // The axis' direction; a point-like axis may point anywhere, and so may one
+                // whose chain does not go on from its end (cross's separation along the
+                // chain adds up the segments between two: they must be linked).
+                const double length = 2.0 * info_[k].half_length;
+                const Vec3 tangent = length > 0.0 ? Vec3((x_[segs[k].b] - x_[segs[k].a]) / length) : Vec3::Zero();
+                const bool linked = k + 1 >= segs.size() || segs[k + 1].chain != segs[k].chain || segs[k + 1].a == segs[k].b;
+                const bool known = linked && length > 0.0 && tangent.allFinite();
+                b.tangent_lo = b.tangent_lo.cwiseMin(known ? tangent : Vec3::Constant(-1.0));
+                b.tangent_hi = b.tangent_hi.cwiseMax(known ? tangent : Vec3::Constant(1.0));
             }
             bounds_[index] = b;
         }
@@ -536,6 +547,8 @@ void ChainTree::join(std::uint32_t index, std::uint32_t first, std::uint32_t cou
         b.hi = l.hi.cwiseMax(r.hi);
         b.travel_lo = l.travel_lo.cwiseMin(r.travel_lo);
         b.travel_hi = l.travel_hi.cwiseMax(r.travel_hi);
+        b.tangent_lo = l.tangent_lo.cwiseMin(r.tangent_lo);
+        b.tangent_hi = l.tangent_hi.cwiseMax(r.tangent_hi);
         b.thickness = std::max(l.thickness, r.thickness);
     }
     nodes_[index] = node;
@@ -559,11 +572,13 @@ void ChainTree::splitChain(std::size_t c, ThreadPool& pool) {
     join(root, first, count, left, right);
     roots_[c] = root;
     std::size_t rejects[3] = {0, 0, 0};
+    Vec3 along;
+    const Vec3* forward = forwardDirection(root, along) ? &along : nullptr;
     pool.forEach(3, [&](std::size_t k) {
         split_out_[k].clear();
-        if (k == 0) self(left, split_out_[k], rejects[k]);
-        if (k == 1) self(right, split_out_[k], rejects[k]);
-        if (k == 2) cross(left, right, split_out_[k], rejects[k]);
+        if (k == 0) self(left, split_out_[k], rejects[k], forward);
+        if (k == 1) self(right, split_out_[k], rejects[k], forward);
+        if (k == 2) cross(left, right, split_out_[k], rejects[k], forward);
     });
     chain_out_[c].clear();
     for (const std::vector<SegmentPair>& part : split_out_) chain_out_[c].insert(chain_out_[c].end(), part.begin(), part.end());
@@ -587,19 +602,43 @@ void ChainTree::test(std::uint32_t i, std::uint32_t j, std::vector<SegmentPair>&
     if (keep_ && out.size() > before && !keep_(keep_context_, out.back())) out.pop_back();
 }
 
-void ChainTree::self(std::uint32_t index, std::vector<SegmentPair>& out, std::size_t& rejects) const {
-    const Node& node = nodes_[index];
-    if (node.left == 0) {
-        for (std::uint32_t i = node.first; i < node.first + node.count; ++i)
-            for (std::uint32_t j = i + 1; j < node.first + node.count; ++j) test(i, j, out);
-        return;
-    }
-    self(node.left, out, rejects);
-    self(node.right, out, rejects);
-    cross(node.left, node.right, out, rejects);
+bool ChainTree::forwardDirection(std::uint32_t index, Vec3& along) const {
+    if (!sweep_.separation) return false;
+    // The middle of the tangents' box, and the least of t . u over the box (per
+    // coordinate, the end that makes the product smallest): every tangent has at least
+    // that much along u. Kept only with a clear margin (1e-6) over rounding.
+    const NodeBounds& b = bounds_[index];
+    const Vec3 middle = 0.5 * (b.tangent_lo + b.tangent_hi);
+    const double norm = middle.norm();
+    if (!(norm > 0.1)) return false;
+    along = middle / norm;
+    double least = 0.0;
+    for (int c = 0; c < 3; ++c) least += std::min(along[c] * b.tangent_lo[c], along[c] * b.tangent_hi[c]);
+    return least > 1e-6;
 }
 
-void ChainTree::cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>& out, std::size_t& rejects) const {
+void ChainTree::self(std::uint32_t index, std::vector<SegmentPair>& out, std::size_t& rejects, const Vec3* along) const {
+    const Node& node = nodes_[index];
+    if (node.left == 0) {
+        // Within a leaf, a pair that the separation along `along` settles (see cross).
+        const double needed = along ? sweep_.separation(keep_context_, bounds_[index], bounds_[index]) : 0.0;
+        const std::vector<CollisionSegment>& segs = *segs_;
+        for (std::uint32_t i = node.first; i < node.first + node.count; ++i)
+            for (std::uint32_t j = i + 1; j < node.first + node.count; ++j) {
+                if (along && (x_[segs[j].a] - x_[segs[i].b]).dot(*along) > needed) break;  // and every later j
+                test(i, j, out);
+            }
+        return;
+    }
+    Vec3 own;
+    if (!along && forwardDirection(index, own)) along = &own;
+    self(node.left, out, rejects, along);
+    self(node.right, out, rejects, along);
+    cross(node.left, node.right, out, rejects, along);
+}
+
+void ChainTree::cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>& out, std::size_t& rejects,
+                      const Vec3* along) const {
     const Node& na = nodes_[a];
     const Node& nb = nodes_[b];
     if (!boxesOverlap(na.lo, na.hi, nb.lo, nb.hi)) return;
@@ -613,6 +652,20 @@ void ChainTree::cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>
         const std::uint32_t far = std::max(hi_b > lo_a ? hi_b - lo_a : lo_a - hi_b, hi_a > lo_b ? hi_a - lo_b : lo_b - hi_a);
         if (far <= skip_) return;
     }
+    // Along a chain whose segments all point forward along `along` (from a's first to b's
+    // last; a's come first), a point of segment i of a and one of segment j of b are at
+    // least (x_j,start - x_i,end) . along apart along it: the rest of segment i and the
+    // start of segment j only add to that, as do the segments between. The smallest of
+    // these, over a's last and b's first segment, bounds every pair's.
+    const std::vector<CollisionSegment>& segs = *segs_;
+    double needed = 0.0;
+    if (along) {
+        needed = sweep_.separation(keep_context_, bounds_[a], bounds_[b]);
+        if ((x_[segs[nb.first].a] - x_[segs[na.first + na.count - 1].b]).dot(*along) > needed) {
+            ++rejects;
+            return;
+        }
+    }
     // The caller's proof that it drops every pair below these two nodes (a rope swinging
     // as a whole: its segments' swept boxes overlap, their relative travel is small).
     if (sweep_.reject && sweep_.reject(keep_context_, bounds_[a], bounds_[b])) {
@@ -620,16 +673,21 @@ void ChainTree::cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>
         return;
     }
     if (na.left == 0 && nb.left == 0) {
+        // The separation grows with j (each segment adds to it): past the first j it
+        // settles, it settles every later one too.
         for (std::uint32_t i = na.first; i < na.first + na.count; ++i)
-            for (std::uint32_t j = nb.first; j < nb.first + nb.count; ++j) test(i, j, out);
+            for (std::uint32_t j = nb.first; j < nb.first + nb.count; ++j) {
+                if (along && (x_[segs[j].a] - x_[segs[i].b]).dot(*along) > needed) break;
+                test(i, j, out);
+            }
         return;
     }
     if (nb.left == 0 || (na.left != 0 && na.count >= nb.count)) {
-        cross(na.left, b, out, rejects);
-        cross(na.right, b, out, rejects);
+        cross(na.left, b, out, rejects, along);
+        cross(na.right, b, out, rejects, along);
     } else {
-        cross(a, nb.left, out, rejects);
-        cross(a, nb.right, out, rejects);
+        cross(a, nb.left, out, rejects, along);
+        cross(a, nb.right, out, rejects, along);
     }
 }
 
@@ -759,3 +817,4 @@ std::size_t ChainTree::lastNodeRejects() const {
 }
 
 }  // namespace tearables::detail
+

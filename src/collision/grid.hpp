@@ -226,16 +226,26 @@ public:
     struct NodeBounds {
         Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();                ///< axes' end positions
         Vec3 travel_lo = Vec3::Zero(), travel_hi = Vec3::Zero();  ///< end particles' travel
+        Vec3 tangent_lo = Vec3::Zero(), tangent_hi = Vec3::Zero();///< axes' unit directions
         double thickness = 0.0;                                   ///< largest per-segment value
     };
     /// reject(context, a, b) true: the caller's proof that its `reject`/`keep` would drop
     /// every pair of a segment under node a with one under node b. The tree then skips the
     /// node pair whole: the output is exactly what it is without it (given that proof).
     using NodeReject = bool (*)(const void* context, const NodeBounds& a, const NodeBounds& b);
+    /// separation(context, a, b): a distance such that, when every point of the axes of
+    /// node a's segments and every point of node b's are further apart than it along one
+    /// unit direction, the caller's `reject`/`keep` would drop every pair of them (its
+    /// proof, as for NodeReject). The tree finds such directions along a chain that turns
+    /// by less than a right angle (see cross): a rope swinging as a whole, whose
+    /// neighbouring nodes' boxes overlap but whose segments further apart along it than a
+    /// few thicknesses are also that far apart in space.
+    using NodeSeparation = double (*)(const void* context, const NodeBounds& a, const NodeBounds& b);
     struct Sweep {
         const Vec3* travel = nullptr;     ///< per particle (indexed like positions)
         const double* thickness = nullptr;///< per segment
         NodeReject reject = nullptr;
+        NodeSeparation separation = nullptr;  ///< optional
     };
 
     void findPairs(const Vec3* positions, const std::vector<CollisionSegment>& segments, double margin,
@@ -258,8 +268,16 @@ private:
     void join(std::uint32_t index, std::uint32_t first, std::uint32_t count, std::uint32_t left, std::uint32_t right);
     /// Chain c's tree and self pairs, on two threads of `pool`.
     void splitChain(std::size_t c, ThreadPool& pool);
-    void self(std::uint32_t node, std::vector<SegmentPair>& out, std::size_t& rejects) const;
-    void cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>& out, std::size_t& rejects) const;
+    /// `along`: a unit direction along which every segment of the node (and so of its
+    /// children) points forward, or null (see cross).
+    void self(std::uint32_t node, std::vector<SegmentPair>& out, std::size_t& rejects, const Vec3* along = nullptr) const;
+    /// `along` (null, or as for self): a's segments come before b's in one chain, and every
+    /// segment from a's first to b's last points forward along it.
+    void cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>& out, std::size_t& rejects,
+               const Vec3* along = nullptr) const;
+    /// A unit direction along which every segment of `node` points forward, from its
+    /// tangent bounds, into `along`; false where none is found (the chain turns too much).
+    bool forwardDirection(std::uint32_t node, Vec3& along) const;
     void test(std::uint32_t i, std::uint32_t j, std::vector<SegmentPair>& out) const;
 
     std::vector<Node> nodes_;

@@ -430,8 +430,12 @@ struct World::Impl {
                                const detail::ChainTree::NodeBounds& b) {
             return static_cast<const Impl*>(self)->nodesSurelyDropped(a, b);
         };
+        auto separation_needed = [](const void* self, const detail::ChainTree::NodeBounds& a,
+                                    const detail::ChainTree::NodeBounds& b) {
+            return static_cast<const Impl*>(self)->nodesSeparationNeeded(a, b);
+        };
         grid_rounding = 1e-15 * (2.0 * extent + 1.0);
-        const detail::ChainTree::Sweep sweep{grid_travel.data(), grid_thickness.data(), reject_nodes};
+        const detail::ChainTree::Sweep sweep{grid_travel.data(), grid_thickness.data(), reject_nodes, separation_needed};
         tree.findPairs(grid_positions.data(), grid_segments, 0.0, grid_pairs, stringContactSkip(thickest, shortest_segment), &pool,
                        keep, this, reject, node_pruning ? &sweep : nullptr);
         pair_verdict.resize(grid_pairs.size());
@@ -583,6 +587,18 @@ struct World::Impl {
         const double relative = std::sqrt(d.x() * d.x() + d.y() * d.y() + d.z() * d.z()) * (1.0 + 1e-12);
         const double apart = (1.0 + kStringNear) * (a.thickness + b.thickness) + 2.0 * relative;
         return separation - relative > apart * (1.0 + 1e-6) + grid_rounding;
+    }
+
+    /// The separation along any unit direction beyond which judgePair drops every pair of
+    /// node a's segments with node b's: nodesSurelyDropped's argument, for a separation
+    /// that the tree finds along a direction of its own (ChainTree::NodeSeparation). The
+    /// rounding of that separation (a dot product of positions, along a direction unit to
+    /// 1e-16) is within grid_rounding.
+    double nodesSeparationNeeded(const detail::ChainTree::NodeBounds& a, const detail::ChainTree::NodeBounds& b) const {
+        const Vec3 d = (a.travel_hi - b.travel_lo).cwiseMax(b.travel_hi - a.travel_lo);
+        const double relative = std::sqrt(d.x() * d.x() + d.y() * d.y() + d.z() * d.z()) * (1.0 + 1e-12);
+        const double apart = (1.0 + kStringNear) * (a.thickness + b.thickness) + 2.0 * relative;
+        return relative + apart * (1.0 + 1e-6) + 2.0 * grid_rounding;
     }
 
     /// After every string's own strain limit, before the tension stage: finds the pairs
