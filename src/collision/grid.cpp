@@ -817,4 +817,3 @@ std::size_t ChainTree::lastNodeRejects() const {
 }
 
 }  // namespace tearables::detail
-
