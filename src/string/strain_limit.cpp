@@ -878,17 +878,20 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
 ///    (its final writhe below 2 turns in 3 of 15 runs with perturbed tolerances, against
 ///    none of 15 without the warm start); taut everywhere or not at all, it coils as
 ///    before.
-bool warmStart(StringState& s, const StepContext& ctx) {
-    const std::size_t n = s.particles();
-    const double inv_h2 = ctx.inv_h * ctx.inv_h;
-    const double rate_gain = s.desc.axial_damping * ctx.inv_h;
+/// warmStart's sums over segments [j0, j1) and particles [p0, p1): the start's inertia
+/// (times 2 h^2), and the springs at the prediction (cold) and at the start (warm), their
+/// common factor 1 / (2 (1 + tau/h)) taken out; `refused` where a segment is slack at the
+/// prediction or not stretched at the start.
+struct WarmSums {
+    double inertia = 0.0, cold = 0.0, warm = 0.0;
+    bool refused = false;
+};
+WarmSums warmSums(const StringState& s, double rate_gain, std::size_t j0, std::size_t j1, std::size_t p0, std::size_t p1) {
     const Vec3* x = s.x.data();
     const Vec3* shift = s.blk_rhs.data();
-    // The springs at the prediction (cold) and at the start (warm), in one pass; their
-    // common factor 1 / (2 (1 + tau/h)) taken out of the sums.
-    double inertia = 0.0, cold = 0.0, warm = 0.0;
-    for (std::size_t p = 0; p < n; ++p) inertia += s.mass[p] * shift[p].squaredNorm();
-    for (std::size_t j = 0; j + 1 < n; ++j) {
+    WarmSums sum;
+    for (std::size_t p = p0; p < p1; ++p) sum.inertia += s.mass[p] * shift[p].squaredNorm();
+    for (std::size_t j = j0; j < j1; ++j) {
         if (s.broken[j]) continue;
         const Vec3 d = x[j + 1] - x[j];
         const Vec3 moved = d + (shift[j + 1] - shift[j]);
@@ -899,16 +902,56 @@ bool warmStart(StringState& s, const StepContext& ctx) {
         // Every segment takes part in the solve from the prediction (none slack as
         // springTerm has it) and is stretched at the start.
         const bool slack_cold = stretch_cold <= -kTautSlack * s.rest_length[j] && effective_cold <= 0.0;
-        if (slack_cold || !(stretch_warm > 0.0)) return false;
+        if (slack_cold || !(stretch_warm > 0.0)) {
+            sum.refused = true;
+            return sum;
+        }
         const double k = 1.0 / s.compliance[j];
         const double c_cold = std::max(0.0, effective_cold), c_warm = std::max(0.0, effective_warm);
-        cold += k * c_cold * c_cold;
-        warm += k * c_warm * c_warm;
+        sum.cold += k * c_cold * c_cold;
+        sum.warm += k * c_warm * c_warm;
     }
-    cold *= 0.5 / (1.0 + rate_gain);
-    warm = warm * (0.5 / (1.0 + rate_gain)) + 0.5 * inv_h2 * inertia;
+    return sum;
+}
+
+/// warmStart's sums are taken in blocks of at least this many segments (at most
+/// kWarmBlocks of them), on the pool where a long string has it; the blocks depend on the
+/// string's length only, so the sums and the decision are the same on any thread count.
+constexpr std::size_t kWarmBlock = kParallelItems;
+constexpr std::size_t kWarmBlocks = 64;
+
+bool warmStart(StringState& s, const StepContext& ctx) {
+    const std::size_t n = s.particles();
+    const std::size_t m = s.segments();
+    const double inv_h2 = ctx.inv_h * ctx.inv_h;
+    const double rate_gain = s.desc.axial_damping * ctx.inv_h;
+    const std::size_t blocks = std::clamp<std::size_t>((m + kWarmBlock - 1) / kWarmBlock, 1, kWarmBlocks);
+    WarmSums sums[kWarmBlocks];
+    auto block = [&](std::size_t b) {
+        const std::size_t j0 = m * b / blocks, j1 = m * (b + 1) / blocks;
+        sums[b] = warmSums(s, rate_gain, j0, j1, j0, b + 1 == blocks ? n : j1);
+    };
+    if (blocks > 1 && ctx.pool && ctx.pool->parallel()) {
+        ctx.pool->forEach(blocks, block);
+    } else {
+        for (std::size_t b = 0; b < blocks; ++b) {
+            block(b);
+            if (sums[b].refused) return false;
+        }
+    }
+    WarmSums total;
+    for (std::size_t b = 0; b < blocks; ++b) {
+        if (sums[b].refused) return false;
+        total.inertia += sums[b].inertia;
+        total.cold += sums[b].cold;
+        total.warm += sums[b].warm;
+    }
+    const double cold = total.cold * (0.5 / (1.0 + rate_gain));
+    const double warm = total.warm * (0.5 / (1.0 + rate_gain)) + 0.5 * inv_h2 * total.inertia;
     if (!(warm < cold)) return false;
-    for (std::size_t p = 0; p < n; ++p) s.x[p] += shift[p];
+    forRanges(ctx.pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {
+        for (std::size_t p = p0; p < p1; ++p) s.x[p] += s.blk_rhs[p];
+    });
     return true;
 }
 
@@ -930,11 +973,13 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
     }
     // The last step's correction of the free particles (its end less its prediction),
     // for warmStart, in blk_rhs (limitStrain writes it before it reads it).
-    for (std::size_t p = 0; p < n; ++p) {
-        const Vec3 correction = s.x_prev[p] - s.x_pred[p];
-        const bool free = s.hold[p].kind == ParticleHold::Kind::Free;
-        s.blk_rhs[p] = free && correction.allFinite() ? correction : Vec3::Zero();
-    }
+    forRanges(ctx.pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {
+        for (std::size_t p = p0; p < p1; ++p) {
+            const Vec3 correction = s.x_prev[p] - s.x_pred[p];
+            const bool free = s.hold[p].kind == ParticleHold::Kind::Free;
+            s.blk_rhs[p] = free && correction.allFinite() ? correction : Vec3::Zero();
+        }
+    });
     s.x_pred = s.x;
     std::fill(s.impulse.begin(), s.impulse.end(), 0.0);
     for (BodyNode& node : s.body_nodes) {
