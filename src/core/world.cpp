@@ -582,18 +582,14 @@ struct World::Impl {
     bool nodesSurelyDropped(const detail::ChainTree::NodeBounds& a, const detail::ChainTree::NodeBounds& b) const {
         const Vec3 s = (b.lo - a.hi).cwiseMax(a.lo - b.hi);
         const double separation = std::max(s.x(), std::max(s.y(), s.z()));
-        if (!(separation > 0.0)) return false;
-        const Vec3 d = (a.travel_hi - b.travel_lo).cwiseMax(b.travel_hi - a.travel_lo);
-        const double relative = std::sqrt(d.x() * d.x() + d.y() * d.y() + d.z() * d.z()) * (1.0 + 1e-12);
-        const double apart = (1.0 + kStringNear) * (a.thickness + b.thickness) + 2.0 * relative;
-        return separation - relative > apart * (1.0 + 1e-6) + grid_rounding;
+        return separation > 0.0 && separation > nodesSeparationNeeded(a, b);
     }
 
     /// The separation along any unit direction beyond which judgePair drops every pair of
     /// node a's segments with node b's: nodesSurelyDropped's argument, for a separation
-    /// that the tree finds along a direction of its own (ChainTree::NodeSeparation). The
-    /// rounding of that separation (a dot product of positions, along a direction unit to
-    /// 1e-16) is within grid_rounding.
+    /// along a coordinate axis (nodesSurelyDropped) or along a direction the tree finds
+    /// (ChainTree::NodeSeparation). The rounding of the latter (a dot product of
+    /// positions, along a direction unit to 1e-16) is within the second grid_rounding.
     double nodesSeparationNeeded(const detail::ChainTree::NodeBounds& a, const detail::ChainTree::NodeBounds& b) const {
         const Vec3 d = (a.travel_hi - b.travel_lo).cwiseMax(b.travel_hi - a.travel_lo);
         const double relative = std::sqrt(d.x() * d.x() + d.y() * d.y() + d.z() * d.z()) * (1.0 + 1e-12);
