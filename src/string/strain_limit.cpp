@@ -316,6 +316,19 @@ double stiffestTerm(const StringState& s, double inv_h2) {
     return std::max({1.0 / *std::min_element(s.compliance.begin(), s.compliance.end()), heaviest * inv_h2, 1e-12});
 }
 
+/// Segment j's stretch C with the material's rate term (Kelvin-Voigt, see springTerm):
+/// C + (tau/h) (C - C_prev), the stretch its force and energy take.
+inline double effectiveStretch(const StringState& s, std::size_t j, double stretch, double rate_gain) {
+    return stretch + rate_gain * (stretch - s.prev_stretch[j]);
+}
+
+/// Whether segment j, at stretch C and effective stretch `effective`, is slack: shorter
+/// than kTautSlack of its rest length and not stretching. A slack segment carries nothing
+/// and takes no part in the solve (springTerm).
+inline bool slackSegment(const StringState& s, std::size_t j, double stretch, double effective) {
+    return stretch <= -kTautSlack * s.rest_length[j] && effective <= 0.0;
+}
+
 /// True when particle p does not move in the solve (pinned, or glued to an immovable body).
 bool fixedRow(const StringState& s, std::size_t p) {
     const ParticleHold& hold = s.hold[p];
@@ -575,7 +588,7 @@ double stepEnergy(const StringState& s, const RigidTable& rigids, const StepCont
     for (std::size_t j = 0; j < m; ++j) {
         if (s.broken[j]) continue;
         const double stretch = (trial(j + 1) - trial(j)).norm() - s.rest_length[j];
-        const double effective = std::max(0.0, stretch + rate_gain * (stretch - s.prev_stretch[j]));
+        const double effective = std::max(0.0, effectiveStretch(s, j, stretch, rate_gain));
         e += 0.5 / (s.compliance[j] * (1.0 + rate_gain)) * effective * effective;
     }
     for (const SegmentContact& c : s.contacts) {
@@ -647,12 +660,12 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
     // retardation time; it damps the rope's axial (bungee) vibration, which a
     // real fibre's internal friction kills within a few periods.
     const double rate_gain = s.desc.axial_damping * ctx.inv_h;
-    const double effective = stretch + rate_gain * (stretch - s.prev_stretch[j]);
+    const double effective = effectiveStretch(s, j, stretch, rate_gain);
     // Slack segments carry nothing (a rope does not push). Taut ones (within
     // kTautSlack of rest) join with their stiffness but no force, so that one
     // Newton step sees the whole taut chain a correction would stretch; a
     // segment the step compresses leaves again at the next iteration.
-    if (stretch <= -kTautSlack * s.rest_length[j] && effective <= 0.0) return term;
+    if (slackSegment(s, j, stretch, effective)) return term;
     const double c = std::max(effective, 0.0);
     s.active[j] = 1;
     const double k = 1.0 / s.compliance[j];
@@ -833,7 +846,7 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
     for (std::size_t j = 0; j < m; ++j) {
         if (s.broken[j]) continue;
         const double stretch = (s.x[j + 1] - s.x[j]).norm() - s.rest_length[j];
-        s.spring_force[j] = std::max(0.0, stretch + rate_gain * (stretch - s.prev_stretch[j])) / s.compliance[j];
+        s.spring_force[j] = std::max(0.0, effectiveStretch(s, j, stretch, rate_gain)) / s.compliance[j];
     }
     // Particles pressed by a body carry an unknown contact force along its normal: the
     // tension solve uses only their equations across the normal (tension.cpp).
@@ -897,12 +910,11 @@ WarmSums warmSums(const StringState& s, double rate_gain, std::size_t j0, std::s
         const Vec3 moved = d + (shift[j + 1] - shift[j]);
         const double stretch_cold = std::sqrt(d.squaredNorm()) - s.rest_length[j];
         const double stretch_warm = std::sqrt(moved.squaredNorm()) - s.rest_length[j];
-        const double effective_cold = stretch_cold + rate_gain * (stretch_cold - s.prev_stretch[j]);
-        const double effective_warm = stretch_warm + rate_gain * (stretch_warm - s.prev_stretch[j]);
-        // Every segment takes part in the solve from the prediction (none slack as
-        // springTerm has it) and is stretched at the start.
-        const bool slack_cold = stretch_cold <= -kTautSlack * s.rest_length[j] && effective_cold <= 0.0;
-        if (slack_cold || !(stretch_warm > 0.0)) {
+        const double effective_cold = effectiveStretch(s, j, stretch_cold, rate_gain);
+        const double effective_warm = effectiveStretch(s, j, stretch_warm, rate_gain);
+        // Every segment takes part in the solve from the prediction (none slack) and is
+        // stretched at the start.
+        if (slackSegment(s, j, stretch_cold, effective_cold) || !(stretch_warm > 0.0)) {
             sum.refused = true;
             return sum;
         }
