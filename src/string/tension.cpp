@@ -78,25 +78,39 @@ void momentumTension(StringState& s, const StepContext& ctx) {
         }
     });
     double range_max[kMaxRanges] = {};
+    // Each particle's weight, whether its row is whole, and its impulse are found once and
+    // carried from the segment it ends to the segment it starts (the same values, so the
+    // same bits, as finding them per segment: they were a third of the stage).
+    struct Row {
+        double weight;
+        bool whole;
+        Vec3 impulse;  // only where weight > 0
+    };
+    auto row = [&s](std::size_t p) {
+        Row r{rowWeight(s, p), wholeRow(s, p), Vec3::Zero()};
+        if (r.weight > 0.0) r.impulse = rowImpulse(s, p);
+        return r;
+    };
     forRanges(ctx.pool, m, kParallelSegments, [&](std::size_t j0, std::size_t j1, std::size_t part) {
         double max_diag = 0.0;
+        Row a = row(j0);
         for (std::size_t j = j0; j < j1; ++j) {
+            const Row b = row(j + 1);
             if (s.broken[j]) {
                 s.diag[j] = 1.0;
                 s.off[j] = 0.0;
                 s.rhs[j] = 0.0;
+                a = b;
                 continue;
             }
             const Vec3& e = s.dir[j];
-            const double wa = rowWeight(s, j);
-            const double wb = rowWeight(s, j + 1);
-            const bool whole_a = wholeRow(s, j), whole_b = wholeRow(s, j + 1);
-            s.diag[j] = wa * projectedDot(s, j, whole_a, e, e) + wb * projectedDot(s, j + 1, whole_b, e, e);
-            s.rhs[j] = (wa > 0.0 ? wa * projectedDot(s, j, whole_a, e, rowImpulse(s, j)) : 0.0) -
-                       (wb > 0.0 ? wb * projectedDot(s, j + 1, whole_b, e, rowImpulse(s, j + 1)) : 0.0);
+            s.diag[j] = a.weight * projectedDot(s, j, a.whole, e, e) + b.weight * projectedDot(s, j + 1, b.whole, e, e);
+            s.rhs[j] = (a.weight > 0.0 ? a.weight * projectedDot(s, j, a.whole, e, a.impulse) : 0.0) -
+                       (b.weight > 0.0 ? b.weight * projectedDot(s, j + 1, b.whole, e, b.impulse) : 0.0);
             s.off[j] = 0.0;
-            if (j + 1 < m && !s.broken[j + 1]) s.off[j] = -wb * projectedDot(s, j + 1, whole_b, e, s.dir[j + 1]);
+            if (j + 1 < m && !s.broken[j + 1]) s.off[j] = -b.weight * projectedDot(s, j + 1, b.whole, e, s.dir[j + 1]);
             max_diag = std::max(max_diag, s.diag[j]);
+            a = b;
         }
         range_max[part] = max_diag;
     });
@@ -110,10 +124,12 @@ void momentumTension(StringState& s, const StepContext& ctx) {
     // there the tension is the spring force of the converged solve (the same quantity,
     // which the momentum balance recovers elsewhere more robustly).
     forRanges(ctx.pool, m, kParallelSegments, [&](std::size_t j0, std::size_t j1, std::size_t) {
+        bool whole_a = wholeRow(s, j0);
         for (std::size_t j = j0; j < j1; ++j) {
+            const bool whole_b = wholeRow(s, j + 1);
             s.tension[j] = s.broken[j] ? 0.0 : s.rhs[j] * inv_h2;
-            if (!s.broken[j] && (!wholeRow(s, j) || !wholeRow(s, j + 1)))
-                s.tension[j] = s.spring_force[j];
+            if (!s.broken[j] && (!whole_a || !whole_b)) s.tension[j] = s.spring_force[j];
+            whole_a = whole_b;
         }
     });
 }
