@@ -470,6 +470,13 @@ bool boxesOverlap(const Vec3& alo, const Vec3& ahi, const Vec3& blo, const Vec3&
            blo.z() <= ahi.z();
 }
 
+/// How far apart two nodes' boxes of axis end positions are along the coordinate axis that
+/// separates them most (<= 0 where the boxes overlap).
+double axisSeparation(const ChainTree::NodeBounds& a, const ChainTree::NodeBounds& b) {
+    const Vec3 s = (b.lo - a.hi).cwiseMax(a.lo - b.hi);
+    return std::max(s.x(), std::max(s.y(), s.z()));
+}
+
 /// Nodes of the tree that build() makes over `count` segments.
 std::uint32_t treeNodes(std::uint32_t count) {
     return count <= kLeaf ? 1 : 1 + treeNodes(count / 2) + treeNodes(count - count / 2);
@@ -489,7 +496,7 @@ std::uint32_t ChainTree::build(std::uint32_t first, std::uint32_t count, std::ui
             node.lo = node.lo.cwiseMin(seg_lo_[k]);
             node.hi = node.hi.cwiseMax(seg_hi_[k]);
         }
-        if (sweep_.reject) {
+        if (bounded()) {
             // The bounds over every segment of the leaf, skipped ones too (a bound is all
             // the caller's proof needs; a skipped segment is never paired anyway).
             const std::vector<CollisionSegment>& segs = *segs_;
@@ -539,7 +546,7 @@ void ChainTree::join(std::uint32_t index, std::uint32_t first, std::uint32_t cou
     node.right = right;
     node.lo = nodes_[left].lo.cwiseMin(nodes_[right].lo);
     node.hi = nodes_[left].hi.cwiseMax(nodes_[right].hi);
-    if (sweep_.reject) {
+    if (bounded()) {
         const NodeBounds& l = bounds_[left];
         const NodeBounds& r = bounds_[right];
         NodeBounds& b = bounds_[index];
@@ -658,17 +665,18 @@ void ChainTree::cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>
     // start of segment j only add to that, as do the segments between. The smallest of
     // these, over a's last and b's first segment, bounds every pair's.
     const std::vector<CollisionSegment>& segs = *segs_;
-    double needed = 0.0;
-    if (along) {
-        needed = sweep_.separation(keep_context_, bounds_[a], bounds_[b]);
-        if ((x_[segs[nb.first].a] - x_[segs[na.first + na.count - 1].b]).dot(*along) > needed) {
-            ++rejects;
-            return;
-        }
+    const double needed = sweep_.separation ? sweep_.separation(keep_context_, bounds_[a], bounds_[b]) : 0.0;
+    if (along && (x_[segs[nb.first].a] - x_[segs[na.first + na.count - 1].b]).dot(*along) > needed) {
+        ++rejects;
+        return;
     }
     // The caller's proof that it drops every pair below these two nodes (a rope swinging
-    // as a whole: its segments' swept boxes overlap, their relative travel is small).
-    if (sweep_.reject && sweep_.reject(keep_context_, bounds_[a], bounds_[b])) {
+    // as a whole: its segments' swept boxes overlap, their relative travel is small):
+    // with `separation`, the nodes' position boxes apart by more than it along a
+    // coordinate axis; else the caller's `reject`.
+    const bool dropped = sweep_.separation ? axisSeparation(bounds_[a], bounds_[b]) > needed
+                                           : sweep_.reject && sweep_.reject(keep_context_, bounds_[a], bounds_[b]);
+    if (dropped) {
         ++rejects;
         return;
     }
@@ -697,7 +705,7 @@ void ChainTree::findPairs(const Vec3* positions, const std::vector<CollisionSegm
     out.clear();
     keep_ = keep;
     reject_ = reject;
-    sweep_ = sweep && sweep->reject && sweep->travel && sweep->thickness ? *sweep : Sweep{};
+    sweep_ = sweep && (sweep->reject || sweep->separation) && sweep->travel && sweep->thickness ? *sweep : Sweep{};
     keep_context_ = context;
     x_ = positions;
     segs_ = &segments;
@@ -749,7 +757,7 @@ void ChainTree::findPairs(const Vec3* positions, const std::vector<CollisionSegm
     }
     nodes_.resize(nodes);
     nodes_[0] = Node{};
-    if (sweep_.reject) bounds_.resize(nodes);
+    if (bounded()) bounds_.resize(nodes);
     const std::size_t chains = chain_first_.size();
     if (chain_out_.size() < chains) chain_out_.resize(chains);
     roots_.resize(chains);

@@ -212,10 +212,10 @@ public:
     /// With a `reject` test as well, a candidate pair (segments i < j) for which
     /// reject(context, i, j) is true is dropped before its closest points are computed (the
     /// caller's proof that `keep` would drop it). With a `sweep` (travel per particle,
-    /// thickness per segment, a NodeReject test), every node also bounds its segments'
-    /// axes, travel and thickness, and a pair of nodes whose boxes overlap is skipped whole
-    /// when sweep->reject says so (for a swinging rope: segments whose swept capsules
-    /// overlap but whose relative travel is small beside their separation).
+    /// thickness per segment, a NodeReject or NodeSeparation test), every node also bounds
+    /// its segments' axes, travel and thickness, and a pair of nodes whose boxes overlap is
+    /// skipped whole when the sweep's test says so (for a swinging rope: segments whose
+    /// swept capsules overlap but whose relative travel is small beside their separation).
     using Filter = bool (*)(const void* context, const SegmentPair& pair);
     using Reject = bool (*)(const void* context, std::uint32_t i, std::uint32_t j);
 
@@ -241,11 +241,14 @@ public:
     /// neighbouring nodes' boxes overlap but whose segments further apart along it than a
     /// few thicknesses are also that far apart in space.
     using NodeSeparation = double (*)(const void* context, const NodeBounds& a, const NodeBounds& b);
+    /// One of reject and separation is needed. With separation, the tree itself drops a
+    /// node pair whose position boxes are further apart than it along a coordinate axis
+    /// (one unit direction among others) and does not call reject: one call per node pair.
     struct Sweep {
         const Vec3* travel = nullptr;     ///< per particle (indexed like positions)
         const double* thickness = nullptr;///< per segment
         NodeReject reject = nullptr;
-        NodeSeparation separation = nullptr;  ///< optional
+        NodeSeparation separation = nullptr;
     };
 
     void findPairs(const Vec3* positions, const std::vector<CollisionSegment>& segments, double margin,
@@ -253,7 +256,7 @@ public:
                    Filter keep = nullptr, const void* context = nullptr, Reject reject = nullptr,
                    const Sweep* sweep = nullptr);
 
-    /// Node pairs the last findPairs skipped through Sweep::reject (for tests, benchmarks).
+    /// Node pairs the last findPairs skipped whole through its Sweep (for tests, benchmarks).
     std::size_t lastNodeRejects() const;
 
 private:
@@ -278,6 +281,8 @@ private:
     /// A unit direction along which every segment of `node` points forward, from its
     /// tangent bounds, into `along`; false where none is found (the chain turns too much).
     bool forwardDirection(std::uint32_t node, Vec3& along) const;
+    /// Whether the nodes carry NodeBounds (findPairs was given a Sweep).
+    bool bounded() const { return sweep_.travel != nullptr; }
     void test(std::uint32_t i, std::uint32_t j, std::vector<SegmentPair>& out) const;
 
     std::vector<Node> nodes_;

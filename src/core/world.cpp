@@ -128,10 +128,10 @@ struct World::Impl {
     std::vector<Vec3> grid_positions;
     std::vector<Vec3> grid_travel;  // per particle of grid_positions: x - x_prev after the strings' own solves
     std::vector<double> grid_thickness;  // per segment of grid_segments: its string's radius there
-    double grid_rounding = 0.0;  // nodesSurelyDropped's rounding margin (from the largest |x|_1)
+    double grid_rounding = 0.0;  // nodesSeparationNeeded's rounding margin (from the largest |x|_1)
     bool sparse_joint_steps = false;  // ClusterScratch::always_sparse (tests compare)
     bool cold_strain_starts = false;  // StepContext::cold_strain_starts (tests compare)
-    bool node_pruning = true;    // nodesSurelyDropped in the search (off: tests compare)
+    bool node_pruning = true;    // nodesSeparationNeeded in the search (off: tests compare)
     std::vector<detail::CollisionSegment> grid_segments;
     std::vector<detail::SegmentPair> grid_pairs;
     // findStringPairs' scratch: per live string where its particles and segments start in
@@ -424,18 +424,15 @@ struct World::Impl {
         auto reject = [](const void* self, std::uint32_t i, std::uint32_t j) {
             return static_cast<const Impl*>(self)->surelyDropped(i, j);
         };
-        // Whole node pairs of the tree dropped at once (nodesSurelyDropped): a rope swinging
-        // as a whole has its swept boxes overlap far along it, their relative travel small.
-        auto reject_nodes = [](const void* self, const detail::ChainTree::NodeBounds& a,
-                               const detail::ChainTree::NodeBounds& b) {
-            return static_cast<const Impl*>(self)->nodesSurelyDropped(a, b);
-        };
+        // Whole node pairs of the tree dropped at once (nodesSeparationNeeded): a rope
+        // swinging as a whole has its swept boxes overlap far along it, their relative
+        // travel small.
         auto separation_needed = [](const void* self, const detail::ChainTree::NodeBounds& a,
                                     const detail::ChainTree::NodeBounds& b) {
             return static_cast<const Impl*>(self)->nodesSeparationNeeded(a, b);
         };
         grid_rounding = 1e-15 * (2.0 * extent + 1.0);
-        const detail::ChainTree::Sweep sweep{grid_travel.data(), grid_thickness.data(), reject_nodes, separation_needed};
+        const detail::ChainTree::Sweep sweep{grid_travel.data(), grid_thickness.data(), nullptr, separation_needed};
         tree.findPairs(grid_positions.data(), grid_segments, 0.0, grid_pairs, stringContactSkip(thickest, shortest_segment), &pool,
                        keep, this, reject, node_pruning ? &sweep : nullptr);
         pair_verdict.resize(grid_pairs.size());
@@ -568,28 +565,20 @@ struct World::Impl {
         return room * room > 4.0 * length2 * (k * k * (1.0 + 1e-12)) * relative2;
     }
 
-    /// True when judgePair would drop every pair of a segment under tree node a with one
-    /// under node b, by surelyDropped's argument for all of them at once: the nodes' start
-    /// boxes (of the axes' ends, grid_positions) are separated along a coordinate axis u
-    /// by sep, which bounds every pair's separation along u from below; the travel boxes
-    /// bound every end pair's relative travel: |t_a - t_b| <= |max(ta_hi - tb_lo,
-    /// tb_hi - ta_lo)| (per coordinate), >= each pair's `relative`; the thicknesses bound
-    /// each pair's gap. So when sep - R > (1 + kStringNear) (g_a + g_b) + 2 R, every pair
-    /// meets surelyDropped's condition with its own (smaller) gap and travel, on u. The
-    /// relative margins: 1e-12 on R for the order of the sums in judgePair's norms (a few
-    /// ulps), 1e-6 and grid_rounding (from the largest |x|_1 of the strings' particles,
-    /// start or now, >= judgePair's) as in surelyDropped.
-    bool nodesSurelyDropped(const detail::ChainTree::NodeBounds& a, const detail::ChainTree::NodeBounds& b) const {
-        const Vec3 s = (b.lo - a.hi).cwiseMax(a.lo - b.hi);
-        const double separation = std::max(s.x(), std::max(s.y(), s.z()));
-        return separation > 0.0 && separation > nodesSeparationNeeded(a, b);
-    }
-
-    /// The separation along any unit direction beyond which judgePair drops every pair of
-    /// node a's segments with node b's: nodesSurelyDropped's argument, for a separation
-    /// along a coordinate axis (nodesSurelyDropped) or along a direction the tree finds
-    /// (ChainTree::NodeSeparation). The rounding of the latter (a dot product of
-    /// positions, along a direction unit to 1e-16) is within the second grid_rounding.
+    /// The separation along any unit direction u beyond which judgePair drops every pair of
+    /// node a's segments with node b's (the tree tests it along the coordinate axes and
+    /// along directions it finds, ChainTree::NodeSeparation). surelyDropped's argument for
+    /// all the pairs at once: a separation sep of the nodes' start boxes (of the axes' ends,
+    /// grid_positions) along u bounds every pair's separation along u from below; the
+    /// travel boxes bound every end pair's relative travel: |t_a - t_b| <= |max(ta_hi -
+    /// tb_lo, tb_hi - ta_lo)| (per coordinate), >= each pair's `relative`; the thicknesses
+    /// bound each pair's gap. So when sep - R > (1 + kStringNear) (g_a + g_b) + 2 R, every
+    /// pair meets surelyDropped's condition with its own (smaller) gap and travel, on u.
+    /// The relative margins: 1e-12 on R for the order of the sums in judgePair's norms (a
+    /// few ulps), 1e-6 and grid_rounding (from the largest |x|_1 of the strings' particles,
+    /// start or now, >= judgePair's) as in surelyDropped; the rounding of a separation
+    /// along a direction the tree finds (a dot product of positions, along a direction
+    /// unit to 1e-16) is within the second grid_rounding.
     double nodesSeparationNeeded(const detail::ChainTree::NodeBounds& a, const detail::ChainTree::NodeBounds& b) const {
         const Vec3 d = (a.travel_hi - b.travel_lo).cwiseMax(b.travel_hi - a.travel_lo);
         const double relative = std::sqrt(d.x() * d.x() + d.y() * d.y() + d.z() * d.z()) * (1.0 + 1e-12);

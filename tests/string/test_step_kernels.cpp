@@ -1,7 +1,7 @@
 // Issue 9: the faster kernels give what the ones they replace gave: ChainTree (the
 // string-string broad phase) against the brute-force search, also for strings side by
 // side, where the chains are swept along another axis than x; the tree's whole-node
-// rejection of swept pairs (World's nodesSurelyDropped) against the pair by pair filter.
+// rejection of swept pairs (World's nodesSeparationNeeded) against the pair by pair filter.
 #include "core/thread_pool.hpp"
 #include "collision/grid.hpp"
 #include "core/world_access.hpp"
