@@ -448,106 +448,137 @@ void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass
     const auto regionLo = [hw](std::size_t k) { return k > hw ? k - hw : 0; };
     const auto regionHi = [hw, n](std::size_t k) { return std::min(n - 1, k + hw); };
 
-    if (scratch.prefix.size() < n) scratch.prefix.resize(n);
-    if (scratch.suffix.size() < n) scratch.suffix.resize(n);
     if (scratch.rotation.size() < n) scratch.rotation.resize(n);
     if (scratch.centroid.size() < n) scratch.centroid.resize(n);
     if (scratch.rest_centroid.size() < n) scratch.rest_centroid.resize(n);
-    CsmMoments* prefix = scratch.prefix.data();
-    CsmMoments* suffix = scratch.suffix.data();
 
-    // Each pass splits over the pool in contiguous ranges: blocks, regions, particles. Every
-    // item writes only its own entries, so the bits do not depend on the split.
-    // (Whether to split is decided by the piece's particles, also for the pass over blocks.)
+    // The piece is done in chunks of whole blocks, each through all four passes while its
+    // moments and regions are in cache (on a long piece, pass by pass, the passes streamed
+    // ~0.9 kB a particle through memory, and the stage ran at the memory's speed on one
+    // thread and on two). A chunk's particles need the regions up to hw beyond it, and
+    // those the blocks next to it: both are computed again by the neighbouring chunk, from
+    // the same particles by the same operations, so the bits are those of one pass over
+    // the whole piece. Chunks go to the pool in contiguous ranges (a piece of
+    // kParallelItems particles or more), each range with work buffers of its own.
+    const std::size_t chunk = std::max<std::size_t>(1, kCsmChunkParticles / block) * block;
+    const std::size_t chunks = (n + chunk - 1) / chunk;
     const std::size_t min_count = n >= kParallelItems ? 0 : std::numeric_limits<std::size_t>::max();
-    auto split = [&](std::size_t count, auto&& body) {
-        forRanges(pool, count, min_count, [&](std::size_t lo, std::size_t hi, std::size_t) { body(lo, hi); });
-    };
-
-    // Pass 1: per block, prefix moments about the block's first particle and suffix
-    // moments about the next block's first particle (the last block's about its own), with
-    // per-region masses m_i / N_i (N_i = number of regions containing i = size of region i).
-    // A region spanning two blocks is a suffix of the first plus a prefix of the second,
-    // both about the second's first particle: they add without a shift.
-    const std::size_t blocks = (n + block - 1) / block;
-    split(blocks, [&](std::size_t b0, std::size_t b1) {
-        for (std::size_t s = b0 * block; s < std::min(n, b1 * block); s += block) {
-            const std::size_t e = std::min(s + block, n) - 1;
-            FlatMoments run;
-            for (std::size_t i = s; i <= e; ++i) {
-                const double m = mass[i] / static_cast<double>(regionHi(i) - regionLo(i) + 1);
-                addParticle(run, m, x[i] - x[s], rest[i] - rest[s]);
-                store(run, prefix[i]);
+    if (scratch.work.size() < kMaxRanges) scratch.work.resize(kMaxRanges);
+    forRanges(pool, chunks, min_count, [&](std::size_t c0, std::size_t c1, std::size_t part) {
+        CsmScratch::Work& work = scratch.work[part];
+        for (std::size_t c = c0; c < c1; ++c) {
+            const std::size_t p0 = c * chunk, p1 = std::min(n, p0 + chunk);  // the chunk's particles
+            const std::size_t r0 = regionLo(p0), r1 = regionHi(p1 - 1) + 1;   // the regions they need
+            const std::size_t b0 = regionLo(r0) / block;                       // the blocks those need
+            const std::size_t b1 = regionHi(r1 - 1) / block + 1;
+            const std::size_t first_particle = b0 * block;
+            const std::size_t particles = std::min(n, b1 * block) - first_particle;
+            if (work.prefix.size() < particles) work.prefix.resize(particles);
+            if (work.suffix.size() < particles) work.suffix.resize(particles);
+            // One chunk: the regions straight into the scratch's (no copy).
+            const bool whole = chunks == 1;
+            if (!whole && work.rotation.size() < r1 - r0) {
+                work.rotation.resize(r1 - r0);
+                work.centroid.resize(r1 - r0);
+                work.rest_centroid.resize(r1 - r0);
             }
-            const std::size_t q = s + block < n ? s + block : s;  // the suffixes' reference
-            run = FlatMoments();
-            for (std::size_t i = e + 1; i-- > s;) {
-                const double m = mass[i] / static_cast<double>(regionHi(i) - regionLo(i) + 1);
-                addParticle(run, m, x[i] - x[q], rest[i] - rest[q]);
-                store(run, suffix[i]);
+            // By particle and region number within the piece.
+            const auto prefix = [&work, first_particle](std::size_t i) -> CsmMoments& { return work.prefix[i - first_particle]; };
+            const auto suffix = [&work, first_particle](std::size_t i) -> CsmMoments& { return work.suffix[i - first_particle]; };
+            Mat3* const rot_base = whole ? scratch.rotation.data() : work.rotation.data();
+            Vec3* const centroid_base = whole ? scratch.centroid.data() : work.centroid.data();
+            Vec3* const rest_centroid_base = whole ? scratch.rest_centroid.data() : work.rest_centroid.data();
+            const auto rot = [rot_base, r0](std::size_t k) -> Mat3& { return rot_base[k - r0]; };
+            const auto centroid = [centroid_base, r0](std::size_t k) -> Vec3& { return centroid_base[k - r0]; };
+            const auto rest_centroid = [rest_centroid_base, r0](std::size_t k) -> Vec3& { return rest_centroid_base[k - r0]; };
+
+            // Pass 1: per block, prefix moments about the block's first particle and suffix
+            // moments about the next block's first particle (the last block's about its
+            // own), with per-region masses m_i / N_i (N_i = number of regions containing i
+            // = size of region i). A region spanning two blocks is a suffix of the first
+            // plus a prefix of the second, both about the second's first particle: they add
+            // without a shift.
+            for (std::size_t b = b0; b < b1; ++b) {
+                const std::size_t s = b * block;
+                const std::size_t e = std::min(s + block, n) - 1;
+                FlatMoments run;
+                for (std::size_t i = s; i <= e; ++i) {
+                    const double m = mass[i] / static_cast<double>(regionHi(i) - regionLo(i) + 1);
+                    addParticle(run, m, x[i] - x[s], rest[i] - rest[s]);
+                    store(run, prefix(i));
+                }
+                const std::size_t q = s + block < n ? s + block : s;  // the suffixes' reference
+                run = FlatMoments();
+                for (std::size_t i = e + 1; i-- > s;) {
+                    const double m = mass[i] / static_cast<double>(regionHi(i) - regionLo(i) + 1);
+                    addParticle(run, m, x[i] - x[q], rest[i] - rest[q]);
+                    store(run, suffix(i));
+                }
             }
-        }
-    });
 
-    // Pass 2: fit every region, with its moments about a particle r of the region (the
-    // second block's first particle, or the one block's first: within a block of the
-    // centre, so A = S - M c c0^T still loses only a couple of digits). A_k is kept in
-    // rotation[k] for pass 3.
-    split(n, [&](std::size_t k0, std::size_t k1) {
-        for (std::size_t k = k0; k < k1; ++k) {
-            const std::size_t lo = regionLo(k);
-            const std::size_t hi = regionHi(k);
-            const std::size_t blo = lo - lo % block;  // first particle of lo's block
-            const std::size_t bhi = hi - hi % block;
-            const std::size_t r = bhi;
-            // One block: a region shorter than a block touches the piece's start (a block
-            // prefix) or its end (the last block's suffix); a full-size one is the whole
-            // block. All about the block's first particle. Two blocks: a suffix of the
-            // first plus a prefix of the second.
-            FlatMoments f = flat(blo == bhi && lo == blo ? prefix[hi] : suffix[lo]);
-            if (blo != bhi) add(f, flat(prefix[hi]));
-            const Vec3 dc = Vec3(f.v[kMx], f.v[kMx + 1], f.v[kMx + 2]) / f.v[0];     // c - x_r
-            const Vec3 dc0 = Vec3(f.v[kMx0], f.v[kMx0 + 1], f.v[kMx0 + 2]) / f.v[0];  // c0 - x0_r
-            Mat3 a;
-            for (int c = 0; c < 3; ++c)
-                for (int rr = 0; rr < 3; ++rr) a(rr, c) = f.v[kMxx0 + 3 * c + rr] - f.v[kMx + rr] * dc0[c];
-            scratch.rotation[k] = a;
-            scratch.centroid[k] = x[r] + dc;
-            scratch.rest_centroid[k] = rest[r] + dc0;
-        }
-    });
-
-    // Pass 3: R_k from A_k, in place, in a pass of its own: A_k, stored long before, is
-    // reloaded from cache; handed over straight after its computation, its reload (in other
-    // widths than Eigen stored it in) missed store forwarding.
-    split(n, [&](std::size_t k0, std::size_t k1) {
-        RankOneBatch batch;
-        for (std::size_t k = k0; k < k1; ++k) rotationInto(scratch.rotation[k], scratch.rotation[k], batch);
-        batch.solve();
-    });
-
-    // Pass 4: blend, g_i = x_i + mean over regions k containing i of (g_ik - x_i). Region k
-    // contains i iff |k - i| <= hw, so those regions are regionLo(i) .. regionHi(i).
-    const Mat3* rot = scratch.rotation.data();
-    const Vec3* c = scratch.centroid.data();
-    const Vec3* c0 = scratch.rest_centroid.data();
-    split(n, [&](std::size_t i0, std::size_t i1) {
-        for (std::size_t i = i0; i < i1; ++i) {
-            const std::size_t lo = regionLo(i);
-            const std::size_t hi = regionHi(i);
-            // In scalars: Eigen's 3-vector expressions here mixed packet and scalar work.
-            const double px = x[i].x(), py = x[i].y(), pz = x[i].z();
-            const double qx = rest[i].x(), qy = rest[i].y(), qz = rest[i].z();
-            double ax = 0.0, ay = 0.0, az = 0.0;
-            for (std::size_t k = lo; k <= hi; ++k) {
-                const double* r = rot[k].data();  // column-major
-                const double dx = qx - c0[k].x(), dy = qy - c0[k].y(), dz = qz - c0[k].z();
-                ax += (r[0] * dx + r[3] * dy + r[6] * dz) + (c[k].x() - px);
-                ay += (r[1] * dx + r[4] * dy + r[7] * dz) + (c[k].y() - py);
-                az += (r[2] * dx + r[5] * dy + r[8] * dz) + (c[k].z() - pz);
+            // Pass 2: fit every region, with its moments about a particle r of the region
+            // (the second block's first particle, or the one block's first: within a block
+            // of the centre, so A = S - M c c0^T still loses only a couple of digits). A_k
+            // is kept in rot[k] for pass 3.
+            for (std::size_t k = r0; k < r1; ++k) {
+                const std::size_t lo = regionLo(k);
+                const std::size_t hi = regionHi(k);
+                const std::size_t blo = lo - lo % block;  // first particle of lo's block
+                const std::size_t bhi = hi - hi % block;
+                const std::size_t r = bhi;
+                // One block: a region shorter than a block touches the piece's start (a
+                // block prefix) or its end (the last block's suffix); a full-size one is the
+                // whole block. All about the block's first particle. Two blocks: a suffix of
+                // the first plus a prefix of the second.
+                FlatMoments f = flat(blo == bhi && lo == blo ? prefix(hi) : suffix(lo));
+                if (blo != bhi) add(f, flat(prefix(hi)));
+                const Vec3 dc = Vec3(f.v[kMx], f.v[kMx + 1], f.v[kMx + 2]) / f.v[0];     // c - x_r
+                const Vec3 dc0 = Vec3(f.v[kMx0], f.v[kMx0 + 1], f.v[kMx0 + 2]) / f.v[0];  // c0 - x0_r
+                Mat3 a;
+                for (int col = 0; col < 3; ++col)
+                    for (int row = 0; row < 3; ++row) a(row, col) = f.v[kMxx0 + 3 * col + row] - f.v[kMx + row] * dc0[col];
+                rot(k) = a;
+                centroid(k) = x[r] + dc;
+                rest_centroid(k) = rest[r] + dc0;
             }
-            const double count = static_cast<double>(hi - lo + 1);
-            goal[i] = Vec3(px + ax / count, py + ay / count, pz + az / count);
+
+            // Pass 3: R_k from A_k, in place, in a pass of its own: A_k, stored long before,
+            // is reloaded from cache; handed over straight after its computation, its
+            // reload (in other widths than Eigen stored it in) missed store forwarding.
+            RankOneBatch batch;
+            for (std::size_t k = r0; k < r1; ++k) rotationInto(rot(k), rot(k), batch);
+            batch.solve();
+
+            // Pass 4: blend, g_i = x_i + mean over regions k containing i of (g_ik - x_i).
+            // Region k contains i iff |k - i| <= hw, so those regions are regionLo(i) ..
+            // regionHi(i).
+            for (std::size_t i = p0; i < p1; ++i) {
+                const std::size_t lo = regionLo(i);
+                const std::size_t hi = regionHi(i);
+                // In scalars: Eigen's 3-vector expressions here mixed packet and scalar work.
+                const double px = x[i].x(), py = x[i].y(), pz = x[i].z();
+                const double qx = rest[i].x(), qy = rest[i].y(), qz = rest[i].z();
+                double ax = 0.0, ay = 0.0, az = 0.0;
+                for (std::size_t k = lo; k <= hi; ++k) {
+                    const double* rk = rot(k).data();  // column-major
+                    const Vec3& ck = centroid(k);
+                    const Vec3& c0k = rest_centroid(k);
+                    const double dx = qx - c0k.x(), dy = qy - c0k.y(), dz = qz - c0k.z();
+                    ax += (rk[0] * dx + rk[3] * dy + rk[6] * dz) + (ck.x() - px);
+                    ay += (rk[1] * dx + rk[4] * dy + rk[7] * dz) + (ck.y() - py);
+                    az += (rk[2] * dx + rk[5] * dy + rk[8] * dz) + (ck.z() - pz);
+                }
+                const double count = static_cast<double>(hi - lo + 1);
+                goal[i] = Vec3(px + ax / count, py + ay / count, pz + az / count);
+            }
+            // The chunk's own regions into the scratch (what it reports after the call).
+            if (!whole) {
+                for (std::size_t k = p0; k < p1; ++k) {
+                    scratch.rotation[k] = rot(k);
+                    scratch.centroid[k] = centroid(k);
+                    scratch.rest_centroid[k] = rest_centroid(k);
+                }
+            }
         }
     });
 }

@@ -33,12 +33,25 @@ struct CsmMoments {
 /// `rest_centroid` describes region first+j of that call's piece: its optimal rotation
 /// R_k, its current centroid c_k and its rest centroid c0_k (per-region mass weighted).
 struct CsmScratch {
-    std::vector<CsmMoments> prefix;  ///< moments from the start of a block to a particle
-    std::vector<CsmMoments> suffix;  ///< moments from a particle to the end of its block
     std::vector<Mat3> rotation;
     std::vector<Vec3> centroid;
     std::vector<Vec3> rest_centroid;
+    /// One chunk's working memory (chainShapeMatchingGoals does a long piece in chunks),
+    /// one per range of chunks on the pool.
+    struct Work {
+        std::vector<CsmMoments> prefix;  ///< moments from the start of a block to a particle
+        std::vector<CsmMoments> suffix;  ///< moments from a particle to the end of its block
+        std::vector<Mat3> rotation;      ///< a chunk's regions (those beyond it included)
+        std::vector<Vec3> centroid;
+        std::vector<Vec3> rest_centroid;
+    };
+    std::vector<Work> work;
 };
+
+/// The particles of a piece chainShapeMatchingGoals does at a time (rounded down to whole
+/// blocks of 2w+1): ~0.4 kB of moments and regions each, so that a chunk stays in the
+/// core's own cache through its four passes.
+constexpr std::size_t kCsmChunkParticles = 1024;
 
 /// Computes CSM goal positions for the particles first..last (inclusive) of one piece of
 /// chain. x, rest and mass are indexed absolutely (x[first] .. x[last] are read; a torn
