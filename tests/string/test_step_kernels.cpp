@@ -157,12 +157,13 @@ TEST(StepKernels, NodePruningKeepsEveryPairOfASwingingRope) {
 
 // Ropes falling onto each other: a free rope dropped across one clamped at both ends (they
 // touch, press and slide off), a third one hanging from a pin and swinging through both;
-// the pruned world on two threads.
+// the pruned world on two threads. (Long enough for trees of several levels above their
+// leaves of 16 segments: ropes of 40 and 80 segments had no node pair to drop whole.)
 TEST(StepKernels, NodePruningKeepsEveryPairOfRopesFallingOnEachOther) {
     std::size_t kept = 0;
     const std::size_t rejects = expectSamePairsWithNodePruning(
-        {ropeDesc(Vec3(-0.5, 0, 0), Vec3(0.5, 0, 0), 40, 0.0), ropeDesc(Vec3(0, 0.05, -0.5), Vec3(0, 0.05, 0.5), 40, 0.0),
-         ropeDesc(Vec3(0.2, 0.4, 0.1), Vec3(-0.6, 0.4, 0.1), 80, 3.0)},
+        {ropeDesc(Vec3(-0.5, 0, 0), Vec3(0.5, 0, 0), 80, 0.0), ropeDesc(Vec3(0, 0.05, -0.5), Vec3(0, 0.05, 0.5), 80, 0.0),
+         ropeDesc(Vec3(0.2, 0.4, 0.1), Vec3(-0.6, 0.4, 0.1), 160, 3.0)},
         {{{0, Vec3(-0.5, 0, 0)}, {-1, Vec3(0.5, 0, 0)}}, {}, {{0, Vec3(0.2, 0.4, 0.1)}}}, 250, &kept, 2);
     EXPECT_GT(kept, 100u);    // they touched
     EXPECT_GT(rejects, 100u); // and the pruning was exercised
