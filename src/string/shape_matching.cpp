@@ -85,6 +85,15 @@
 // These paths are not bit for bit the SVD: R changes in the last bits, and so do the
 // results of every scene with strings (where a scene is chaotic, more: see BENCHMARKS.md,
 // issue 9, the CSM stage, for the tests that rounding used to decide).
+//
+// Straight rest shapes (straightChainShapeMatchingGoals). A string created along one line
+// (StringDesc::straight, the common rope) has every region of rank 1, A = a v^T with v the
+// line's direction, and only R v = a / |a| enters its goals (the rest offsets lie along
+// v): c + ((x0_i - c0) . v) a / |a|. So a second kernel keeps 8 moment sums instead of 16
+// (m, m x, m s and m x s, s the rest offset along v) and fits a region with one square
+// root and no rotation. Its goals are the rank-1 path's to rounding (tested against it),
+// at about half the time (BM_CsmKernel); the stage takes it where a piece's rest
+// directions agree to 1e-12. The structure (blocks, chunks, passes) is the same.
 #include "string/shape_matching.hpp"
 
 #include "core/thread_pool.hpp"
@@ -96,6 +105,7 @@
 #include <limits>
 
 namespace tearables::detail {
+
 
 namespace {
 
@@ -433,6 +443,58 @@ Mat3 csmRotation(const Mat3& a) {
     return r;
 }
 
+namespace {
+
+/// The regions, blocks and chunks of a piece of n particles at half-width w (both kernels).
+/// The piece is done in chunks of whole blocks, each through all four passes while its
+/// moments and regions are in cache (on a long piece, pass by pass, the passes streamed
+/// ~0.9 kB a particle through memory, and the stage ran at the memory's speed on one
+/// thread and on two). A chunk's particles need the regions up to hw beyond it, and those
+/// the blocks next to it: both are computed again by the neighbouring chunk, from the same
+/// particles by the same operations, so the bits are those of one pass over the whole piece.
+struct PieceLayout {
+    struct Chunk {
+        std::size_t p0, p1;  // its particles
+        std::size_t r0, r1;  // the regions they need
+        std::size_t b0, b1;  // the blocks those need
+    };
+    std::size_t n, hw, block, chunk, chunks;
+
+    PieceLayout(std::size_t particles, int w)
+        : n(particles),
+          // A half-width beyond the piece gives the same regions as n-1 (whole piece).
+          hw(std::min(static_cast<std::size_t>(w), particles - 1)),
+          block(2 * hw + 1),
+          chunk(std::max<std::size_t>(1, kCsmChunkParticles / block) * block),
+          chunks((particles + chunk - 1) / chunk) {}
+    std::size_t regionLo(std::size_t k) const { return k > hw ? k - hw : 0; }
+    std::size_t regionHi(std::size_t k) const { return std::min(n - 1, k + hw); }
+    Chunk at(std::size_t c) const {
+        Chunk h;
+        h.p0 = c * chunk;
+        h.p1 = std::min(n, h.p0 + chunk);
+        h.r0 = regionLo(h.p0);
+        h.r1 = regionHi(h.p1 - 1) + 1;
+        h.b0 = regionLo(h.r0) / block;
+        h.b1 = regionHi(h.r1 - 1) / block + 1;
+        return h;
+    }
+};
+
+/// Calls body(chunk, work) for every chunk of the piece; chunks go to the pool in
+/// contiguous ranges (a piece of kParallelItems particles or more), each range with work
+/// buffers of its own.
+template <class Body>
+void forChunks(const PieceLayout& layout, CsmScratch& scratch, ThreadPool* pool, Body&& body) {
+    const std::size_t min_count = layout.n >= kParallelItems ? 0 : std::numeric_limits<std::size_t>::max();
+    if (scratch.work.size() < kMaxRanges) scratch.work.resize(kMaxRanges);
+    forRanges(pool, layout.chunks, min_count, [&](std::size_t c0, std::size_t c1, std::size_t part) {
+        for (std::size_t c = c0; c < c1; ++c) body(layout.at(c), scratch.work[part]);
+    });
+}
+
+}  // namespace
+
 void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass, std::size_t first,
                              std::size_t last, int w, Vec3* goal, CsmScratch& scratch, ThreadPool* pool) {
     if (w < 1) throw InvalidInput("w", "region half-width must be >= 1");
@@ -442,143 +504,252 @@ void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass
     rest += first;
     mass += first;
     goal += first;
-    // A half-width beyond the piece gives the same regions as n-1 (whole piece).
-    const std::size_t hw = std::min(static_cast<std::size_t>(w), n - 1);
-    const std::size_t block = 2 * hw + 1;
-    const auto regionLo = [hw](std::size_t k) { return k > hw ? k - hw : 0; };
-    const auto regionHi = [hw, n](std::size_t k) { return std::min(n - 1, k + hw); };
+    const PieceLayout layout(n, w);
+    const std::size_t block = layout.block;
 
     if (scratch.rotation.size() < n) scratch.rotation.resize(n);
     if (scratch.centroid.size() < n) scratch.centroid.resize(n);
     if (scratch.rest_centroid.size() < n) scratch.rest_centroid.resize(n);
 
-    // The piece is done in chunks of whole blocks, each through all four passes while its
-    // moments and regions are in cache (on a long piece, pass by pass, the passes streamed
-    // ~0.9 kB a particle through memory, and the stage ran at the memory's speed on one
-    // thread and on two). A chunk's particles need the regions up to hw beyond it, and
-    // those the blocks next to it: both are computed again by the neighbouring chunk, from
-    // the same particles by the same operations, so the bits are those of one pass over
-    // the whole piece. Chunks go to the pool in contiguous ranges (a piece of
-    // kParallelItems particles or more), each range with work buffers of its own.
-    const std::size_t chunk = std::max<std::size_t>(1, kCsmChunkParticles / block) * block;
-    const std::size_t chunks = (n + chunk - 1) / chunk;
-    const std::size_t min_count = n >= kParallelItems ? 0 : std::numeric_limits<std::size_t>::max();
-    if (scratch.work.size() < kMaxRanges) scratch.work.resize(kMaxRanges);
-    forRanges(pool, chunks, min_count, [&](std::size_t c0, std::size_t c1, std::size_t part) {
-        CsmScratch::Work& work = scratch.work[part];
-        for (std::size_t c = c0; c < c1; ++c) {
-            const std::size_t p0 = c * chunk, p1 = std::min(n, p0 + chunk);  // the chunk's particles
-            const std::size_t r0 = regionLo(p0), r1 = regionHi(p1 - 1) + 1;   // the regions they need
-            const std::size_t b0 = regionLo(r0) / block;                       // the blocks those need
-            const std::size_t b1 = regionHi(r1 - 1) / block + 1;
-            const std::size_t first_particle = b0 * block;
-            const std::size_t particles = std::min(n, b1 * block) - first_particle;
-            if (work.prefix.size() < particles) work.prefix.resize(particles);
-            if (work.suffix.size() < particles) work.suffix.resize(particles);
-            // One chunk: the regions straight into the scratch's (no copy).
-            const bool whole = chunks == 1;
-            if (!whole && work.rotation.size() < r1 - r0) {
-                work.rotation.resize(r1 - r0);
-                work.centroid.resize(r1 - r0);
-                work.rest_centroid.resize(r1 - r0);
-            }
-            // By particle and region number within the piece.
-            const auto prefix = [&work, first_particle](std::size_t i) -> CsmMoments& { return work.prefix[i - first_particle]; };
-            const auto suffix = [&work, first_particle](std::size_t i) -> CsmMoments& { return work.suffix[i - first_particle]; };
-            Mat3* const rot_base = whole ? scratch.rotation.data() : work.rotation.data();
-            Vec3* const centroid_base = whole ? scratch.centroid.data() : work.centroid.data();
-            Vec3* const rest_centroid_base = whole ? scratch.rest_centroid.data() : work.rest_centroid.data();
-            const auto rot = [rot_base, r0](std::size_t k) -> Mat3& { return rot_base[k - r0]; };
-            const auto centroid = [centroid_base, r0](std::size_t k) -> Vec3& { return centroid_base[k - r0]; };
-            const auto rest_centroid = [rest_centroid_base, r0](std::size_t k) -> Vec3& { return rest_centroid_base[k - r0]; };
+    // One chunk: the regions straight into the scratch's (no copy).
+    const bool whole = layout.chunks == 1;
+    forChunks(layout, scratch, pool, [&](const PieceLayout::Chunk& h, CsmScratch::Work& work) {
+        const std::size_t first_particle = h.b0 * block;
+        const std::size_t particles = std::min(n, h.b1 * block) - first_particle;
+        if (work.prefix.size() < particles) work.prefix.resize(particles);
+        if (work.suffix.size() < particles) work.suffix.resize(particles);
+        if (!whole && work.rotation.size() < h.r1 - h.r0) {
+            work.rotation.resize(h.r1 - h.r0);
+            work.centroid.resize(h.r1 - h.r0);
+            work.rest_centroid.resize(h.r1 - h.r0);
+        }
+        // By particle and region number within the piece.
+        const auto prefix = [&work, first_particle](std::size_t i) -> CsmMoments& { return work.prefix[i - first_particle]; };
+        const auto suffix = [&work, first_particle](std::size_t i) -> CsmMoments& { return work.suffix[i - first_particle]; };
+        Mat3* const rot_base = whole ? scratch.rotation.data() : work.rotation.data();
+        Vec3* const centroid_base = whole ? scratch.centroid.data() : work.centroid.data();
+        Vec3* const rest_centroid_base = whole ? scratch.rest_centroid.data() : work.rest_centroid.data();
+        const std::size_t r0 = h.r0;
+        const auto rot = [rot_base, r0](std::size_t k) -> Mat3& { return rot_base[k - r0]; };
+        const auto centroid = [centroid_base, r0](std::size_t k) -> Vec3& { return centroid_base[k - r0]; };
+        const auto rest_centroid = [rest_centroid_base, r0](std::size_t k) -> Vec3& { return rest_centroid_base[k - r0]; };
 
-            // Pass 1: per block, prefix moments about the block's first particle and suffix
-            // moments about the next block's first particle (the last block's about its
-            // own), with per-region masses m_i / N_i (N_i = number of regions containing i
-            // = size of region i). A region spanning two blocks is a suffix of the first
-            // plus a prefix of the second, both about the second's first particle: they add
-            // without a shift.
-            for (std::size_t b = b0; b < b1; ++b) {
-                const std::size_t s = b * block;
-                const std::size_t e = std::min(s + block, n) - 1;
-                FlatMoments run;
-                for (std::size_t i = s; i <= e; ++i) {
-                    const double m = mass[i] / static_cast<double>(regionHi(i) - regionLo(i) + 1);
-                    addParticle(run, m, x[i] - x[s], rest[i] - rest[s]);
-                    store(run, prefix(i));
-                }
-                const std::size_t q = s + block < n ? s + block : s;  // the suffixes' reference
-                run = FlatMoments();
-                for (std::size_t i = e + 1; i-- > s;) {
-                    const double m = mass[i] / static_cast<double>(regionHi(i) - regionLo(i) + 1);
-                    addParticle(run, m, x[i] - x[q], rest[i] - rest[q]);
-                    store(run, suffix(i));
-                }
+        // Pass 1: per block, prefix moments about the block's first particle and suffix
+        // moments about the next block's first particle (the last block's about its own),
+        // with per-region masses m_i / N_i (N_i = number of regions containing i = size of
+        // region i). A region spanning two blocks is a suffix of the first plus a prefix of
+        // the second, both about the second's first particle: they add without a shift.
+        for (std::size_t b = h.b0; b < h.b1; ++b) {
+            const std::size_t s = b * block;
+            const std::size_t e = std::min(s + block, n) - 1;
+            FlatMoments run;
+            for (std::size_t i = s; i <= e; ++i) {
+                const double m = mass[i] / static_cast<double>(layout.regionHi(i) - layout.regionLo(i) + 1);
+                addParticle(run, m, x[i] - x[s], rest[i] - rest[s]);
+                store(run, prefix(i));
             }
+            const std::size_t q = s + block < n ? s + block : s;  // the suffixes' reference
+            run = FlatMoments();
+            for (std::size_t i = e + 1; i-- > s;) {
+                const double m = mass[i] / static_cast<double>(layout.regionHi(i) - layout.regionLo(i) + 1);
+                addParticle(run, m, x[i] - x[q], rest[i] - rest[q]);
+                store(run, suffix(i));
+            }
+        }
 
-            // Pass 2: fit every region, with its moments about a particle r of the region
-            // (the second block's first particle, or the one block's first: within a block
-            // of the centre, so A = S - M c c0^T still loses only a couple of digits). A_k
-            // is kept in rot[k] for pass 3.
-            for (std::size_t k = r0; k < r1; ++k) {
-                const std::size_t lo = regionLo(k);
-                const std::size_t hi = regionHi(k);
-                const std::size_t blo = lo - lo % block;  // first particle of lo's block
-                const std::size_t bhi = hi - hi % block;
-                const std::size_t r = bhi;
-                // One block: a region shorter than a block touches the piece's start (a
-                // block prefix) or its end (the last block's suffix); a full-size one is the
-                // whole block. All about the block's first particle. Two blocks: a suffix of
-                // the first plus a prefix of the second.
-                FlatMoments f = flat(blo == bhi && lo == blo ? prefix(hi) : suffix(lo));
-                if (blo != bhi) add(f, flat(prefix(hi)));
-                const Vec3 dc = Vec3(f.v[kMx], f.v[kMx + 1], f.v[kMx + 2]) / f.v[0];     // c - x_r
-                const Vec3 dc0 = Vec3(f.v[kMx0], f.v[kMx0 + 1], f.v[kMx0 + 2]) / f.v[0];  // c0 - x0_r
-                Mat3 a;
-                for (int col = 0; col < 3; ++col)
-                    for (int row = 0; row < 3; ++row) a(row, col) = f.v[kMxx0 + 3 * col + row] - f.v[kMx + row] * dc0[col];
-                rot(k) = a;
-                centroid(k) = x[r] + dc;
-                rest_centroid(k) = rest[r] + dc0;
-            }
+        // Pass 2: fit every region, with its moments about a particle r of the region (the
+        // second block's first particle, or the one block's first: within a block of the
+        // centre, so A = S - M c c0^T still loses only a couple of digits). A_k is kept in
+        // rot(k) for pass 3.
+        for (std::size_t k = h.r0; k < h.r1; ++k) {
+            const std::size_t lo = layout.regionLo(k);
+            const std::size_t hi = layout.regionHi(k);
+            const std::size_t blo = lo - lo % block;  // first particle of lo's block
+            const std::size_t bhi = hi - hi % block;
+            const std::size_t r = bhi;
+            // One block: a region shorter than a block touches the piece's start (a block
+            // prefix) or its end (the last block's suffix); a full-size one is the whole
+            // block. All about the block's first particle. Two blocks: a suffix of the first
+            // plus a prefix of the second.
+            FlatMoments f = flat(blo == bhi && lo == blo ? prefix(hi) : suffix(lo));
+            if (blo != bhi) add(f, flat(prefix(hi)));
+            const Vec3 dc = Vec3(f.v[kMx], f.v[kMx + 1], f.v[kMx + 2]) / f.v[0];     // c - x_r
+            const Vec3 dc0 = Vec3(f.v[kMx0], f.v[kMx0 + 1], f.v[kMx0 + 2]) / f.v[0];  // c0 - x0_r
+            Mat3 a;
+            for (int col = 0; col < 3; ++col)
+                for (int row = 0; row < 3; ++row) a(row, col) = f.v[kMxx0 + 3 * col + row] - f.v[kMx + row] * dc0[col];
+            rot(k) = a;
+            centroid(k) = x[r] + dc;
+            rest_centroid(k) = rest[r] + dc0;
+        }
 
-            // Pass 3: R_k from A_k, in place, in a pass of its own: A_k, stored long before,
-            // is reloaded from cache; handed over straight after its computation, its
-            // reload (in other widths than Eigen stored it in) missed store forwarding.
-            RankOneBatch batch;
-            for (std::size_t k = r0; k < r1; ++k) rotationInto(rot(k), rot(k), batch);
-            batch.solve();
+        // Pass 3: R_k from A_k, in place, in a pass of its own: A_k, stored long before, is
+        // reloaded from cache; handed over straight after its computation, its reload (in
+        // other widths than Eigen stored it in) missed store forwarding.
+        RankOneBatch batch;
+        for (std::size_t k = h.r0; k < h.r1; ++k) rotationInto(rot(k), rot(k), batch);
+        batch.solve();
 
-            // Pass 4: blend, g_i = x_i + mean over regions k containing i of (g_ik - x_i).
-            // Region k contains i iff |k - i| <= hw, so those regions are regionLo(i) ..
-            // regionHi(i).
-            for (std::size_t i = p0; i < p1; ++i) {
-                const std::size_t lo = regionLo(i);
-                const std::size_t hi = regionHi(i);
-                // In scalars: Eigen's 3-vector expressions here mixed packet and scalar work.
-                const double px = x[i].x(), py = x[i].y(), pz = x[i].z();
-                const double qx = rest[i].x(), qy = rest[i].y(), qz = rest[i].z();
-                double ax = 0.0, ay = 0.0, az = 0.0;
-                for (std::size_t k = lo; k <= hi; ++k) {
-                    const double* rk = rot(k).data();  // column-major
-                    const Vec3& ck = centroid(k);
-                    const Vec3& c0k = rest_centroid(k);
-                    const double dx = qx - c0k.x(), dy = qy - c0k.y(), dz = qz - c0k.z();
-                    ax += (rk[0] * dx + rk[3] * dy + rk[6] * dz) + (ck.x() - px);
-                    ay += (rk[1] * dx + rk[4] * dy + rk[7] * dz) + (ck.y() - py);
-                    az += (rk[2] * dx + rk[5] * dy + rk[8] * dz) + (ck.z() - pz);
-                }
-                const double count = static_cast<double>(hi - lo + 1);
-                goal[i] = Vec3(px + ax / count, py + ay / count, pz + az / count);
+        // Pass 4: blend, g_i = x_i + mean over regions k containing i of (g_ik - x_i).
+        // Region k contains i iff |k - i| <= hw, so those regions are regionLo(i) ..
+        // regionHi(i).
+        for (std::size_t i = h.p0; i < h.p1; ++i) {
+            const std::size_t lo = layout.regionLo(i);
+            const std::size_t hi = layout.regionHi(i);
+            // In scalars: Eigen's 3-vector expressions here mixed packet and scalar work.
+            const double px = x[i].x(), py = x[i].y(), pz = x[i].z();
+            const double qx = rest[i].x(), qy = rest[i].y(), qz = rest[i].z();
+            double ax = 0.0, ay = 0.0, az = 0.0;
+            for (std::size_t k = lo; k <= hi; ++k) {
+                const double* rk = rot(k).data();  // column-major
+                const Vec3& ck = centroid(k);
+                const Vec3& c0k = rest_centroid(k);
+                const double dx = qx - c0k.x(), dy = qy - c0k.y(), dz = qz - c0k.z();
+                ax += (rk[0] * dx + rk[3] * dy + rk[6] * dz) + (ck.x() - px);
+                ay += (rk[1] * dx + rk[4] * dy + rk[7] * dz) + (ck.y() - py);
+                az += (rk[2] * dx + rk[5] * dy + rk[8] * dz) + (ck.z() - pz);
             }
-            // The chunk's own regions into the scratch (what it reports after the call).
-            if (!whole) {
-                for (std::size_t k = p0; k < p1; ++k) {
-                    scratch.rotation[k] = rot(k);
-                    scratch.centroid[k] = centroid(k);
-                    scratch.rest_centroid[k] = rest_centroid(k);
-                }
+            const double count = static_cast<double>(hi - lo + 1);
+            goal[i] = Vec3(px + ax / count, py + ay / count, pz + az / count);
+        }
+        // The chunk's own regions into the scratch (what it reports after the call).
+        if (!whole) {
+            for (std::size_t k = h.p0; k < h.p1; ++k) {
+                scratch.rotation[k] = rot(k);
+                scratch.centroid[k] = centroid(k);
+                scratch.rest_centroid[k] = rest_centroid(k);
             }
+        }
+    });
+}
+
+namespace {
+
+/// The 8 sums of a run of particles for a straight rest shape along v, about a reference
+/// pair (p, p0), with s = (x0 - p0) . v: m, m (x - p), m s, m (x - p) s.
+struct LineMoments {
+    alignas(16) double v[8] = {};
+};
+constexpr int kLineMx = 1, kLineMs = 4, kLineMxs = 5;  // offsets in LineMoments::v
+
+inline void add(LineMoments& a, const LineMoments& b) {
+    for (int j = 0; j < 8; ++j) a.v[j] += b.v[j];
+}
+
+inline void addParticle(LineMoments& sums, double m, const Vec3& dx, double ds) {
+    LineMoments f;
+    f.v[0] = m;
+    for (int r = 0; r < 3; ++r) f.v[kLineMx + r] = m * dx[r];
+    f.v[kLineMs] = m * ds;
+    for (int r = 0; r < 3; ++r) f.v[kLineMxs + r] = f.v[kLineMx + r] * ds;
+    add(sums, f);
+}
+
+/// a / |a|, or `fallback` where a is zero or not finite (csmRotation's identity for A = 0
+/// or a non-finite A). Scaled by its largest entry first, so that a tiny a keeps its
+/// direction (as csmRotation's power-of-two scaling does).
+Vec3 unitOr(const Vec3& a, const Vec3& fallback) {
+    const double n2 = a.squaredNorm();  // NaN or infinite for a non-finite a
+    if (n2 >= 1e-200 && n2 <= 1e200) return a * (1.0 / std::sqrt(n2));
+    const double largest = a.cwiseAbs().maxCoeff();  // NaN compares false
+    if (!a.allFinite() || !(largest > 0.0)) return fallback;
+    const Vec3 b = a / largest;
+    return b / b.norm();
+}
+
+}  // namespace
+
+void straightChainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass, std::size_t first,
+                                     std::size_t last, int w, const Vec3& direction, Vec3* goal, CsmScratch& scratch,
+                                     ThreadPool* pool) {
+    if (w < 1) throw InvalidInput("w", "region half-width must be >= 1");
+    if (first > last) throw InvalidInput("first", "piece is empty (first > last)");
+    const std::size_t n = last - first + 1;
+    x += first;
+    rest += first;
+    mass += first;
+    goal += first;
+    const PieceLayout layout(n, w);
+    const std::size_t block = layout.block;
+    const Vec3 v = direction;
+    // N_i, the regions particle i belongs to (= the particles of region i).
+    const auto count = [&layout](std::size_t i) { return static_cast<double>(layout.regionHi(i) - layout.regionLo(i) + 1); };
+    forChunks(layout, scratch, pool, [&](const PieceLayout::Chunk& h, CsmScratch::Work& work) {
+        const std::size_t first_particle = h.b0 * block;
+        const std::size_t particles = std::min(n, h.b1 * block) - first_particle;
+        if (work.line_prefix.size() < 8 * particles) work.line_prefix.resize(8 * particles);
+        if (work.line_suffix.size() < 8 * particles) work.line_suffix.resize(8 * particles);
+        if (work.direction.size() < h.r1 - h.r0) {
+            work.direction.resize(h.r1 - h.r0);
+            work.centroid.resize(h.r1 - h.r0);
+            work.rest_centroid.resize(h.r1 - h.r0);
+        }
+        const auto prefix = [&work, first_particle](std::size_t i) { return work.line_prefix.data() + 8 * (i - first_particle); };
+        const auto suffix = [&work, first_particle](std::size_t i) { return work.line_suffix.data() + 8 * (i - first_particle); };
+        const std::size_t r0 = h.r0;
+        const auto centroid = [&work, r0](std::size_t k) -> Vec3& { return work.centroid[k - r0]; };
+        const auto rest_centroid = [&work, r0](std::size_t k) -> Vec3& { return work.rest_centroid[k - r0]; };
+        const auto along = [&work, r0](std::size_t k) -> Vec3& { return work.direction[k - r0]; };
+
+        // Pass 1: the blocks' prefix and suffix sums, as chainShapeMatchingGoals' pass 1,
+        // with the rest offsets taken along v.
+        for (std::size_t b = h.b0; b < h.b1; ++b) {
+            const std::size_t s = b * block;
+            const std::size_t e = std::min(s + block, n) - 1;
+            LineMoments run;
+            for (std::size_t i = s; i <= e; ++i) {
+                addParticle(run, mass[i] / count(i), x[i] - x[s], (rest[i] - rest[s]).dot(v));
+                std::copy(run.v, run.v + 8, prefix(i));
+            }
+            const std::size_t q = s + block < n ? s + block : s;
+            run = LineMoments();
+            for (std::size_t i = e + 1; i-- > s;) {
+                addParticle(run, mass[i] / count(i), x[i] - x[q], (rest[i] - rest[q]).dot(v));
+                std::copy(run.v, run.v + 8, suffix(i));
+            }
+        }
+
+        // Pass 2: every region's centroids and the direction R v = a / |a| its rotation
+        // takes v to, with a = sum m (x - c) s about the region's reference particle r.
+        for (std::size_t k = h.r0; k < h.r1; ++k) {
+            const std::size_t lo = layout.regionLo(k);
+            const std::size_t hi = layout.regionHi(k);
+            const std::size_t blo = lo - lo % block;  // first particle of lo's block
+            const std::size_t bhi = hi - hi % block;
+            const std::size_t r = bhi;
+            // The sums straight from the buffers into registers (a copy into a local array
+            // first was reloaded in other widths than it was stored in: store forwarding
+            // failed, and this pass took three times as long).
+            const double* one = blo == bhi && lo == blo ? prefix(hi) : suffix(lo);
+            const double* other = blo != bhi ? prefix(hi) : nullptr;
+            LineMoments f;
+            for (int j = 0; j < 8; ++j) f.v[j] = other ? one[j] + other[j] : one[j];
+            const Vec3 dc = Vec3(f.v[kLineMx], f.v[kLineMx + 1], f.v[kLineMx + 2]) / f.v[0];  // c - x_r
+            const double ds = f.v[kLineMs] / f.v[0];                                         // (c0 - x0_r) . v
+            const Vec3 a(f.v[kLineMxs] - f.v[kLineMx] * ds, f.v[kLineMxs + 1] - f.v[kLineMx + 1] * ds,
+                         f.v[kLineMxs + 2] - f.v[kLineMx + 2] * ds);
+            along(k) = unitOr(a, v);
+            centroid(k) = x[r] + dc;
+            rest_centroid(k) = rest[r] + ds * v;
+        }
+
+        // Pass 3: blend, g_i = x_i + mean over i's regions k of (c_k + ((x0_i - c0_k) . v)
+        // R_k v - x_i).
+        for (std::size_t i = h.p0; i < h.p1; ++i) {
+            const std::size_t lo = layout.regionLo(i);
+            const std::size_t hi = layout.regionHi(i);
+            const double px = x[i].x(), py = x[i].y(), pz = x[i].z();
+            double ax = 0.0, ay = 0.0, az = 0.0;
+            for (std::size_t k = lo; k <= hi; ++k) {
+                const Vec3& ck = centroid(k);
+                const Vec3& uk = along(k);
+                const double d = (rest[i] - rest_centroid(k)).dot(v);
+                ax += d * uk.x() + (ck.x() - px);
+                ay += d * uk.y() + (ck.y() - py);
+                az += d * uk.z() + (ck.z() - pz);
+            }
+            const double n_i = count(i);
+            goal[i] = Vec3(px + ax / n_i, py + ay / n_i, pz + az / n_i);
         }
     });
 }
@@ -609,6 +780,11 @@ void updateRestShape(StringState& s) {
 // force on one particle over its region; run on the prediction it would carry part of
 // every external load itself, and the momentum-balance tension, which must carry all of
 // it, would read low. Run on the constrained shape it sees bending only.
+/// Rest directions within this of each other (per coordinate) make a straight rest shape:
+/// a rest point then lies off the line by at most this times its distance along it, and
+/// the goals differ from those of chainShapeMatchingGoals by as little.
+constexpr double kStraightRest = 1e-12;
+
 void shapeMatch(StringState& s, ThreadPool* pool) {
     const std::size_t n = s.particles();
     std::fill(s.csm_goal.begin(), s.csm_goal.end(), Vec3::Zero());
@@ -628,8 +804,19 @@ void shapeMatch(StringState& s, ThreadPool* pool) {
         const bool piece_ends = p + 1 == n || s.broken[p];
         if (!piece_ends) continue;
         if (p > first + 1) {
-            chainShapeMatchingGoals(s.x.data(), s.rest_shape.data(), s.csm_mass.data(), first, p, s.desc.csm_half_width,
-                                    s.csm_goal.data(), s.csm_scratch, pool);
+            // A piece created straight keeps a straight rest shape (plasticity only
+            // lengthens its segments): the straight kernel, without polar factors. Its
+            // directions are those of points laid out along one line, equal to rounding.
+            const Vec3& along = s.rest_direction[first];
+            bool straight = true;
+            for (std::size_t j = first + 1; j < p && straight; ++j)
+                straight = (s.rest_direction[j] - along).cwiseAbs().maxCoeff() <= kStraightRest;
+            if (straight)
+                straightChainShapeMatchingGoals(s.x.data(), s.rest_shape.data(), s.csm_mass.data(), first, p,
+                                                s.desc.csm_half_width, along, s.csm_goal.data(), s.csm_scratch, pool);
+            else
+                chainShapeMatchingGoals(s.x.data(), s.rest_shape.data(), s.csm_mass.data(), first, p, s.desc.csm_half_width,
+                                        s.csm_goal.data(), s.csm_scratch, pool);
             // Particles move all the way to their goals (the paper's full step): the goal
             // displacement is kept for the prediction. Held particles stay where their hold
             // puts them and only anchor the regions they belong to.

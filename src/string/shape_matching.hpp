@@ -44,6 +44,8 @@ struct CsmScratch {
         std::vector<Mat3> rotation;      ///< a chunk's regions (those beyond it included)
         std::vector<Vec3> centroid;
         std::vector<Vec3> rest_centroid;
+        std::vector<double> line_prefix, line_suffix;  ///< straightChainShapeMatchingGoals' sums
+        std::vector<Vec3> direction;                   ///< its regions' R v
     };
     std::vector<Work> work;
 };
@@ -63,6 +65,18 @@ constexpr std::size_t kCsmChunkParticles = 1024;
 /// (may be null), with the same bits as serially. Throws InvalidInput if w < 1 or first > last.
 void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass, std::size_t first,
                              std::size_t last, int w, Vec3* goal, CsmScratch& scratch, ThreadPool* pool = nullptr);
+
+/// chainShapeMatchingGoals for a piece whose rest shape is straight: rest[first..last] lie
+/// on one line, in order along the unit vector `direction` v. Every region's A is then
+/// rank 1, A = a v^T with a = sum m~ (x - c) ((x0 - c0) . v), and the rotation it takes
+/// maps v to a / |a| (for rank 1, csmRotation's smallest such rotation; the rotation about
+/// the line does not matter, the rest offsets lie along it). So a region's goals are
+/// c + ((x0_i - c0) . v) a / |a|, from 8 moment sums instead of 16 and without a polar
+/// factor. The goals agree with chainShapeMatchingGoals' to rounding (tested); the
+/// scratch's per-region arrays are not written. Throws as chainShapeMatchingGoals.
+void straightChainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass, std::size_t first,
+                                     std::size_t last, int w, const Vec3& direction, Vec3* goal, CsmScratch& scratch,
+                                     ThreadPool* pool = nullptr);
 
 /// The rotational part of a 3x3 matrix A (the R in A = R S, S symmetric, det R = +1) as
 /// used by chainShapeMatchingGoals: it maximises tr(R^T A). When A has rank <= 1 (all

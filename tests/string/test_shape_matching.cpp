@@ -11,6 +11,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <random>
 #include <utility>
 #include <vector>
@@ -23,6 +24,7 @@ using tearables::Vec3;
 using tearables::detail::chainShapeMatchingGoals;
 using tearables::detail::csmRotation;
 using tearables::detail::CsmScratch;
+using tearables::detail::straightChainShapeMatchingGoals;
 
 constexpr double kPi = 3.14159265358979323846;
 
@@ -358,6 +360,67 @@ TEST(ChainShapeMatching, LongPiecesDoneInChunksMatchBruteForce) {
             for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(threaded[i], serial[i]) << "n=" << n << " w=" << w << " i=" << i;
         }
     }
+}
+
+TEST(ChainShapeMatching, StraightRestKernelGivesTheGeneralKernelsGoals) {
+    // Straight rest shapes (uneven segments, along a random direction, away from the
+    // origin): the straight kernel's goals are the general kernel's to rounding, for
+    // random current shapes, small deformations of the rest shape, a chain collapsed to a
+    // point (A = 0: the identity) and one reversed along the line (R v = -v); it writes
+    // only the piece, and gives the same bits on the pool as on one thread.
+    using tearables::detail::kCsmChunkParticles;
+    std::mt19937_64 rng(31);
+    std::uniform_real_distribution<double> len(0.005, 0.02);
+    tearables::detail::ThreadPool pool;
+    pool.setThreads(2);
+    const Vec3 sentinel(1e300, -1e300, 42.0);
+    int trial = 0;
+    for (std::size_t n : {std::size_t{3}, std::size_t{4}, std::size_t{11}, std::size_t{200}, kCsmChunkParticles + 1,
+                          std::size_t{5000}}) {
+        for (int w = 1; w <= 8; ++w, ++trial) {
+            const Vec3 v = randomUnit(rng);
+            const std::size_t before = 3, total = n + 6;
+            std::vector<Vec3> rest(total);
+            rest[0] = Vec3(2.0, -1.0, 0.5);
+            for (std::size_t i = 1; i < total; ++i) rest[i] = rest[i - 1] + len(rng) * v;
+            std::vector<Vec3> x;
+            switch (trial % 4) {
+                case 0: x = randomChain(rng, total, Vec3(0.3, 0.2, -0.1)); break;
+                case 1:
+                    x = rest;
+                    for (Vec3& p : x) p += 0.002 * randomUnit(rng);
+                    break;
+                case 2: x.assign(total, Vec3(1.0, 1.0, 1.0)); break;
+                default:
+                    x = rest;
+                    std::reverse(x.begin(), x.end());
+                    break;
+            }
+            const std::vector<double> m = randomMasses(rng, total);
+            std::vector<Vec3> general(total, sentinel), straight(total, sentinel), threaded(total, sentinel);
+            CsmScratch a, b, c;
+            chainShapeMatchingGoals(x.data(), rest.data(), m.data(), before, before + n - 1, w, general.data(), a);
+            straightChainShapeMatchingGoals(x.data(), rest.data(), m.data(), before, before + n - 1, w, v, straight.data(), b);
+            straightChainShapeMatchingGoals(x.data(), rest.data(), m.data(), before, before + n - 1, w, v, threaded.data(), c,
+                                            &pool);
+            for (std::size_t i = 0; i < total; ++i) {
+                if (i < before || i >= before + n) {
+                    ASSERT_EQ(straight[i], sentinel) << "wrote outside the piece at " << i;
+                    continue;
+                }
+                ASSERT_TRUE(straight[i].allFinite());
+                // Reversed, the general kernel turns a half turn through Eigen's
+                // FromTwoVectors, good to ~1e-8 of the offsets; the straight one's R v = -v
+                // is exact.
+                const double tolerance = trial % 4 == 3 ? 1e-9 : 1e-12;
+                ASSERT_LT((straight[i] - general[i]).norm(), tolerance) << "trial=" << trial << " n=" << n << " w=" << w << " i=" << i;
+                ASSERT_EQ(threaded[i], straight[i]) << "n=" << n << " w=" << w << " i=" << i;
+            }
+        }
+    }
+    EXPECT_THROW(straightChainShapeMatchingGoals(nullptr, nullptr, nullptr, 0, 5, 0, Vec3::UnitX(), nullptr,
+                                                 *std::make_unique<CsmScratch>()),
+                 tearables::InvalidInput);
 }
 
 TEST(ChainShapeMatching, StretchedStraightChainGivesFiniteGoalsOnTheLine) {
