@@ -632,14 +632,20 @@ bool ChainTree::forwardDirection(std::uint32_t index, Vec3& along) const {
 void ChainTree::self(std::uint32_t index, std::vector<SegmentPair>& out, std::size_t& rejects, const Vec3* along) const {
     const Node& node = nodes_[index];
     if (node.left == 0) {
-        // Within a leaf, a pair that the separation along `along` settles (see cross).
+        // Within a leaf, a pair that the separation along `along` settles (see cross). The
+        // segments right after i along its chain, within the skip, are never pairs
+        // (test's `excluded`): j starts past them.
         const double needed = along ? sweep_.separation(keep_context_, bounds_[index], bounds_[index]) : 0.0;
         const std::vector<CollisionSegment>& segs = *segs_;
-        for (std::uint32_t i = node.first; i < node.first + node.count; ++i)
-            for (std::uint32_t j = i + 1; j < node.first + node.count; ++j) {
+        const std::uint32_t end = node.first + node.count;
+        for (std::uint32_t i = node.first; i < end; ++i) {
+            std::uint32_t start = i + 1;
+            while (start < end && start - i <= skip_ && segs[start].index_in_chain - segs[i].index_in_chain == start - i) ++start;
+            for (std::uint32_t j = start; j < end; ++j) {
                 if (along && (x_[segs[j].a] - x_[segs[i].b]).dot(*along) > needed) break;  // and every later j
                 test(i, j, out);
             }
+        }
         return;
     }
     Vec3 own;
