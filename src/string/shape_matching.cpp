@@ -469,6 +469,26 @@ struct PieceLayout {
           chunks((particles + chunk - 1) / chunk) {}
     std::size_t regionLo(std::size_t k) const { return k > hw ? k - hw : 0; }
     std::size_t regionHi(std::size_t k) const { return std::min(n - 1, k + hw); }
+    /// Region k's particles lo..hi as block sums, all about particle `reference` (the
+    /// first of hi's block): within one block, a region shorter than a block touches the
+    /// piece's start (a prefix, up to hi) or its end (the last block's suffix, from lo), a
+    /// full-size one is the whole block; across two blocks, a suffix of the first (from lo)
+    /// plus a prefix of the second (up to hi).
+    struct Region {
+        std::size_t lo, hi, reference;
+        bool prefix_only;  // the prefix up to hi alone
+        bool two_blocks;   // the suffix from lo plus the prefix up to hi
+    };
+    Region region(std::size_t k) const {
+        Region g;
+        g.lo = regionLo(k);
+        g.hi = regionHi(k);
+        const std::size_t blo = g.lo - g.lo % block;  // first particle of lo's block
+        g.reference = g.hi - g.hi % block;             // and of hi's
+        g.prefix_only = blo == g.reference && g.lo == blo;
+        g.two_blocks = blo != g.reference;
+        return g;
+    }
     Chunk at(std::size_t c) const {
         Chunk h;
         h.p0 = c * chunk;
@@ -480,6 +500,19 @@ struct PieceLayout {
         return h;
     }
 };
+
+/// Checks both kernels' arguments, moves their arrays to the piece's first particle and
+/// returns the piece's layout.
+PieceLayout enterPiece(const Vec3*& x, const Vec3*& rest, const double*& mass, Vec3*& goal, std::size_t first,
+                       std::size_t last, int w) {
+    if (w < 1) throw InvalidInput("w", "region half-width must be >= 1");
+    if (first > last) throw InvalidInput("first", "piece is empty (first > last)");
+    x += first;
+    rest += first;
+    mass += first;
+    goal += first;
+    return PieceLayout(last - first + 1, w);
+}
 
 /// Calls body(chunk, work) for every chunk of the piece; chunks go to the pool in
 /// contiguous ranges (a piece of kParallelItems particles or more), each range with work
@@ -497,14 +530,8 @@ void forChunks(const PieceLayout& layout, CsmScratch& scratch, ThreadPool* pool,
 
 void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass, std::size_t first,
                              std::size_t last, int w, Vec3* goal, CsmScratch& scratch, ThreadPool* pool) {
-    if (w < 1) throw InvalidInput("w", "region half-width must be >= 1");
-    if (first > last) throw InvalidInput("first", "piece is empty (first > last)");
-    const std::size_t n = last - first + 1;
-    x += first;
-    rest += first;
-    mass += first;
-    goal += first;
-    const PieceLayout layout(n, w);
+    const PieceLayout layout = enterPiece(x, rest, mass, goal, first, last, w);
+    const std::size_t n = layout.n;
     const std::size_t block = layout.block;
 
     if (scratch.rotation.size() < n) scratch.rotation.resize(n);
@@ -562,17 +589,10 @@ void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass
         // centre, so A = S - M c c0^T still loses only a couple of digits). A_k is kept in
         // rot(k) for pass 3.
         for (std::size_t k = h.r0; k < h.r1; ++k) {
-            const std::size_t lo = layout.regionLo(k);
-            const std::size_t hi = layout.regionHi(k);
-            const std::size_t blo = lo - lo % block;  // first particle of lo's block
-            const std::size_t bhi = hi - hi % block;
-            const std::size_t r = bhi;
-            // One block: a region shorter than a block touches the piece's start (a block
-            // prefix) or its end (the last block's suffix); a full-size one is the whole
-            // block. All about the block's first particle. Two blocks: a suffix of the first
-            // plus a prefix of the second.
-            FlatMoments f = flat(blo == bhi && lo == blo ? prefix(hi) : suffix(lo));
-            if (blo != bhi) add(f, flat(prefix(hi)));
+            const PieceLayout::Region g = layout.region(k);
+            const std::size_t r = g.reference;
+            FlatMoments f = flat(g.prefix_only ? prefix(g.hi) : suffix(g.lo));
+            if (g.two_blocks) add(f, flat(prefix(g.hi)));
             const Vec3 dc = Vec3(f.v[kMx], f.v[kMx + 1], f.v[kMx + 2]) / f.v[0];     // c - x_r
             const Vec3 dc0 = Vec3(f.v[kMx0], f.v[kMx0 + 1], f.v[kMx0 + 2]) / f.v[0];  // c0 - x0_r
             Mat3 a;
@@ -662,14 +682,8 @@ Vec3 unitOr(const Vec3& a, const Vec3& fallback) {
 void straightChainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass, std::size_t first,
                                      std::size_t last, int w, const Vec3& direction, Vec3* goal, CsmScratch& scratch,
                                      ThreadPool* pool) {
-    if (w < 1) throw InvalidInput("w", "region half-width must be >= 1");
-    if (first > last) throw InvalidInput("first", "piece is empty (first > last)");
-    const std::size_t n = last - first + 1;
-    x += first;
-    rest += first;
-    mass += first;
-    goal += first;
-    const PieceLayout layout(n, w);
+    const PieceLayout layout = enterPiece(x, rest, mass, goal, first, last, w);
+    const std::size_t n = layout.n;
     const std::size_t block = layout.block;
     const Vec3 v = direction;
     // N_i, the regions particle i belongs to (= the particles of region i).
@@ -712,16 +726,13 @@ void straightChainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const doub
         // Pass 2: every region's centroids and the direction R v = a / |a| its rotation
         // takes v to, with a = sum m (x - c) s about the region's reference particle r.
         for (std::size_t k = h.r0; k < h.r1; ++k) {
-            const std::size_t lo = layout.regionLo(k);
-            const std::size_t hi = layout.regionHi(k);
-            const std::size_t blo = lo - lo % block;  // first particle of lo's block
-            const std::size_t bhi = hi - hi % block;
-            const std::size_t r = bhi;
+            const PieceLayout::Region g = layout.region(k);
+            const std::size_t r = g.reference;
             // The sums straight from the buffers into registers (a copy into a local array
             // first was reloaded in other widths than it was stored in: store forwarding
             // failed, and this pass took three times as long).
-            const double* one = blo == bhi && lo == blo ? prefix(hi) : suffix(lo);
-            const double* other = blo != bhi ? prefix(hi) : nullptr;
+            const double* one = g.prefix_only ? prefix(g.hi) : suffix(g.lo);
+            const double* other = g.two_blocks ? prefix(g.hi) : nullptr;
             LineMoments f;
             for (int j = 0; j < 8; ++j) f.v[j] = other ? one[j] + other[j] : one[j];
             const Vec3 dc = Vec3(f.v[kLineMx], f.v[kLineMx + 1], f.v[kLineMx + 2]) / f.v[0];  // c - x_r
