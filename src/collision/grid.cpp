@@ -615,7 +615,7 @@ void ChainTree::test(std::uint32_t i, std::uint32_t j, std::vector<SegmentPair>&
 }
 
 bool ChainTree::forwardDirection(std::uint32_t index, Vec3& along) const {
-    if (!sweep_.separation) return false;
+    if (!bounded()) return false;
     // The middle of the tangents' box, and the least of t . u over the box (per
     // coordinate, the end that makes the product smallest): every tangent has at least
     // that much along u. Kept only with a clear margin (1e-6) over rounding.
@@ -676,18 +676,12 @@ void ChainTree::cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>
     // start of segment j only add to that, as do the segments between. The smallest of
     // these, over a's last and b's first segment, bounds every pair's.
     const std::vector<CollisionSegment>& segs = *segs_;
-    const double needed = sweep_.separation ? sweep_.separation(keep_context_, bounds_[a], bounds_[b]) : 0.0;
-    if (along && (x_[segs[nb.first].a] - x_[segs[na.first + na.count - 1].b]).dot(*along) > needed) {
-        ++rejects;
-        return;
-    }
     // The caller's proof that it drops every pair below these two nodes (a rope swinging
-    // as a whole: its segments' swept boxes overlap, their relative travel is small):
-    // with `separation`, the nodes' position boxes apart by more than it along a
-    // coordinate axis; else the caller's `reject`.
-    const bool dropped = sweep_.separation ? axisSeparation(bounds_[a], bounds_[b]) > needed
-                                           : sweep_.reject && sweep_.reject(keep_context_, bounds_[a], bounds_[b]);
-    if (dropped) {
+    // as a whole: its segments' swept boxes overlap, their relative travel is small): the
+    // nodes further apart than `needed` along the chain, or along a coordinate axis.
+    const double needed = bounded() ? sweep_.separation(keep_context_, bounds_[a], bounds_[b]) : 0.0;
+    const bool apart_along = along && (x_[segs[nb.first].a] - x_[segs[na.first + na.count - 1].b]).dot(*along) > needed;
+    if (apart_along || (bounded() && axisSeparation(bounds_[a], bounds_[b]) > needed)) {
         ++rejects;
         return;
     }
@@ -716,7 +710,7 @@ void ChainTree::findPairs(const Vec3* positions, const std::vector<CollisionSegm
     out.clear();
     keep_ = keep;
     reject_ = reject;
-    sweep_ = sweep && (sweep->reject || sweep->separation) && sweep->travel && sweep->thickness ? *sweep : Sweep{};
+    sweep_ = sweep && sweep->separation && sweep->travel && sweep->thickness ? *sweep : Sweep{};
     keep_context_ = context;
     x_ = positions;
     segs_ = &segments;

@@ -212,8 +212,8 @@ public:
     /// With a `reject` test as well, a candidate pair (segments i < j) for which
     /// reject(context, i, j) is true is dropped before its closest points are computed (the
     /// caller's proof that `keep` would drop it). With a `sweep` (travel per particle,
-    /// thickness per segment, a NodeReject or NodeSeparation test), every node also bounds
-    /// its segments' axes, travel and thickness, and a pair of nodes whose boxes overlap is
+    /// thickness per segment, a NodeSeparation test), every node also bounds its segments'
+    /// axes, travel, directions and thickness, and a pair of nodes whose boxes overlap is
     /// skipped whole when the sweep's test says so (for a swinging rope: segments whose
     /// swept capsules overlap but whose relative travel is small beside their separation).
     using Filter = bool (*)(const void* context, const SegmentPair& pair);
@@ -229,25 +229,19 @@ public:
         Vec3 tangent_lo = Vec3::Zero(), tangent_hi = Vec3::Zero();///< axes' unit directions
         double thickness = 0.0;                                   ///< largest per-segment value
     };
-    /// reject(context, a, b) true: the caller's proof that its `reject`/`keep` would drop
-    /// every pair of a segment under node a with one under node b. The tree then skips the
-    /// node pair whole: the output is exactly what it is without it (given that proof).
-    using NodeReject = bool (*)(const void* context, const NodeBounds& a, const NodeBounds& b);
     /// separation(context, a, b): a distance such that, when every point of the axes of
     /// node a's segments and every point of node b's are further apart than it along one
     /// unit direction, the caller's `reject`/`keep` would drop every pair of them (its
-    /// proof, as for NodeReject). The tree finds such directions along a chain that turns
-    /// by less than a right angle (see cross): a rope swinging as a whole, whose
-    /// neighbouring nodes' boxes overlap but whose segments further apart along it than a
-    /// few thicknesses are also that far apart in space.
+    /// proof). The tree then skips the node pair whole: the output is exactly what it is
+    /// without it. It tries the coordinate axis that separates the nodes' position boxes
+    /// most and, along a chain that turns by less than a right angle (see cross), the
+    /// chain's own direction: a rope swinging as a whole, whose neighbouring nodes' boxes
+    /// overlap but whose segments further apart along it than a few thicknesses are also
+    /// that far apart in space. One call per node pair.
     using NodeSeparation = double (*)(const void* context, const NodeBounds& a, const NodeBounds& b);
-    /// One of reject and separation is needed. With separation, the tree itself drops a
-    /// node pair whose position boxes are further apart than it along a coordinate axis
-    /// (one unit direction among others) and does not call reject: one call per node pair.
     struct Sweep {
         const Vec3* travel = nullptr;     ///< per particle (indexed like positions)
         const double* thickness = nullptr;///< per segment
-        NodeReject reject = nullptr;
         NodeSeparation separation = nullptr;
     };
 

@@ -432,7 +432,7 @@ struct World::Impl {
             return static_cast<const Impl*>(self)->nodesSeparationNeeded(a, b);
         };
         grid_rounding = 1e-15 * (2.0 * extent + 1.0);
-        const detail::ChainTree::Sweep sweep{grid_travel.data(), grid_thickness.data(), nullptr, separation_needed};
+        const detail::ChainTree::Sweep sweep{grid_travel.data(), grid_thickness.data(), separation_needed};
         tree.findPairs(grid_positions.data(), grid_segments, 0.0, grid_pairs, stringContactSkip(thickest, shortest_segment), &pool,
                        keep, this, reject, node_pruning ? &sweep : nullptr);
         pair_verdict.resize(grid_pairs.size());
