@@ -872,25 +872,6 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
     }
 }
 
-/// Moves a chain without contacts or body unknowns from its prediction by the last step's
-/// correction (in blk_rhs; zero for held particles), where that is a better start for its
-/// Newton iterations (see the file's header); returns whether it did. Not taken:
-///  - where the start has no less energy than the prediction (the energy limitStrain
-///    minimises: inertia about x' and the springs). A weight let go of would have the
-///    correction throw the tip up by the weight's pull; Newton, which takes its full steps
-///    in a chain, did not always come back from such a start within its iterations (a
-///    released cord flew up instead of hanging still).
-///  - where a segment is slack at the prediction or not stretched at the start: the
-///    correction is a load's pull, and a chain slack anywhere does not carry its load
-///    steadily. From a start that left some segments at or below their rest length,
-///    Newton's first step stretched one by 5% (a rope swinging down from the horizontal)
-///    and the iterations after spent their time undoing that (12 instead of 4; refusing
-///    only starts that left segments slack still gave 6 instead of 4 on 1000 ropes of
-///    100 segments swinging down). A slack twisted cord coiling up (the telephone cord)
-///    warm-started where it was taut coiled later and less than from its predictions
-///    (its final writhe below 2 turns in 3 of 15 runs with perturbed tolerances, against
-///    none of 15 without the warm start); taut everywhere or not at all, it coils as
-///    before.
 /// warmStart's sums over segments [j0, j1) and particles [p0, p1): the start's inertia
 /// (times 2 h^2), and the springs at the prediction (cold) and at the start (warm), their
 /// common factor 1 / (2 (1 + tau/h)) taken out; `refused` where a segment is slack at the
@@ -932,6 +913,25 @@ WarmSums warmSums(const StringState& s, double rate_gain, std::size_t j0, std::s
 constexpr std::size_t kWarmBlock = kParallelItems;
 constexpr std::size_t kWarmBlocks = 64;
 
+/// Moves a chain without contacts or body unknowns from its prediction by the last step's
+/// correction (in blk_rhs; zero for held particles), where that is a better start for its
+/// Newton iterations (see the file's header); returns whether it did. Not taken:
+///  - where the start has no less energy than the prediction (the energy limitStrain
+///    minimises: inertia about x' and the springs). A weight let go of would have the
+///    correction throw the tip up by the weight's pull; Newton, which takes its full steps
+///    in a chain, did not always come back from such a start within its iterations (a
+///    released cord flew up instead of hanging still).
+///  - where a segment is slack at the prediction or not stretched at the start: the
+///    correction is a load's pull, and a chain slack anywhere does not carry its load
+///    steadily. From a start that left some segments at or below their rest length,
+///    Newton's first step stretched one by 5% (a rope swinging down from the horizontal)
+///    and the iterations after spent their time undoing that (12 instead of 4; refusing
+///    only starts that left segments slack still gave 6 instead of 4 on 1000 ropes of
+///    100 segments swinging down). A slack twisted cord coiling up (the telephone cord)
+///    warm-started where it was taut coiled later and less than from its predictions
+///    (its final writhe below 2 turns in 3 of 15 runs with perturbed tolerances, against
+///    none of 15 without the warm start); taut everywhere or not at all, it coils as
+///    before.
 bool warmStart(StringState& s, const StepContext& ctx) {
     const std::size_t n = s.particles();
     const std::size_t m = s.segments();
