@@ -55,6 +55,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 namespace tearables::detail {
@@ -381,28 +382,6 @@ void solveFactored(const StringState& s, std::vector<Vec3>& rhs) {
 }
 
 
-/// The inverse of a symmetric positive definite 3x3 matrix (its lower triangle is read),
-/// from its root-free Cholesky factorisation A = L D L^T: A^-1 = L^-T D^-1 L^-1, three
-/// divisions. As accurate as the Cholesky solve (an adjugate inverse, one division, lost
-/// ~k h^2 / m of the digits in the Schur complements of a stiff light cord, and a twisted
-/// cord coiled differently).
-[[gnu::always_inline]] inline Mat3 inverseSymmetric(const Mat3& a) {
-    const double r0 = 1.0 / a(0, 0);
-    const double l10 = a(1, 0) * r0, l20 = a(2, 0) * r0;
-    const double r1 = 1.0 / (a(1, 1) - l10 * a(1, 0));
-    const double b21 = a(2, 1) - l20 * a(1, 0);
-    const double l21 = b21 * r1;
-    const double r2 = 1.0 / (a(2, 2) - l20 * a(2, 0) - l21 * b21);
-    const double m20 = l10 * l21 - l20;  // row 2 of L^-1: (m20, -l21, 1)
-    const double i20 = r2 * m20, i21 = -r2 * l21;
-    const double i10 = -r1 * l10 + i21 * m20;
-    Mat3 inv;
-    inv << r0 + r1 * l10 * l10 + i20 * m20, i10, i20,  //
-        i10, r1 + i21 * -l21, i21,                       //
-        i20, i21, r2;
-    return inv;
-}
-
 /// A segment's spring in the chain's Newton system: Hessian and force, and to which of its
 /// particles they apply (a fixed particle's row takes neither).
 struct SpringTerm {
@@ -426,114 +405,202 @@ struct SpringTerm {
     }
 }
 
-/// One sweep of solveChain, carried in registers: the gain W and y of the particle it
-/// eliminated last. A step is split in two around the pivot's inverse, so that the two
-/// sweeps' steps can be written interleaved: one step is ~250 instructions, more than the
-/// core's reorder window, and written one after the other the two chains did not overlap.
-struct ChainSweep {
-    Mat3 gain = Mat3::Zero();
-    Vec3 y = Vec3::Zero();
-    bool has_prev = false;  // coupled to the particle eliminated before, through `in`
+// The contact-free chain's solve (solveChain, and its halves on two threads in
+// parallelChainStep) runs two sweeps of the block Thomas algorithm at once, one from each
+// end. Their arithmetic is written once, for a lane type T: double for one sweep, Lanes2
+// (GCC's vector of two doubles, one SSE2 register) for both, the sweep from the top in lane
+// 0. A sweep's step is a dependency chain (one 3x3 inverse, three divisions, and small
+// products per particle); in lanes, both chains' steps are the same instructions, where the
+// two chains interleaved as scalar code (~500 instructions a step) filled the core's window
+// and overlapped little. On Strings' rope (747 particles) a solve in the step went from 58k
+// to 49k ticks of the TSC (-16%; alone, on a system dumped from the step, 1.4x). Each lane
+// computes exactly what the scalar code computes (no FMA: the default x86-64 target has
+// none), so the two threads' halves give the bits of the serial solve. Where the sweeps
+// held Eigen's 3x3 products, the summation order was Eigen's: the bits of a chain's solve
+// changed with this code, by rounding.
+namespace chain {
 
-    /// The next particle's pivot (its block `diag` less the last particle's Schur
-    /// complement), and its right-hand side into r.
-    [[gnu::always_inline]] Mat3 pivot(const Mat3& diag, const Vec3& rhs, const Mat3* in, Vec3& r) const {
-        Mat3 d = diag;
-        r = rhs;
-        if (has_prev) {  // *in: symmetric (minus a spring's Hessian)
-            d.noalias() -= *in * gain;
-            r.noalias() -= *in * y;
-        }
-        return d;
-    }
-    /// With the pivot's inverse: y into y_out, the gain D^-1 out towards the next particle
-    /// into gain_out.
-    [[gnu::always_inline]] void finish(const Mat3& inv, const Vec3& r, const Mat3& out, Vec3& y_out, Mat3& gain_out) {
-        y.noalias() = inv * r;
-        gain.noalias() = inv * out;
-        y_out = y;
-        gain_out = gain;
-        has_prev = !out.isZero(0.0);
-    }
+typedef double Lanes2 __attribute__((vector_size(16)));
+typedef long long LaneMask2 __attribute__((vector_size(16)));
+
+inline bool nonzero(double v) { return v != 0.0; }
+inline LaneMask2 nonzero(Lanes2 v) { return v != Lanes2{0.0, 0.0}; }
+/// v where m holds, else 0 (also where v is not finite).
+inline double keep(bool m, double v) { return m ? v : 0.0; }
+inline Lanes2 keep(LaneMask2 m, Lanes2 v) { return (Lanes2)((LaneMask2)v & m); }
+template <class T> struct MaskOf { using type = bool; };
+template <> struct MaskOf<Lanes2> { using type = LaneMask2; };
+
+/// A symmetric 3x3 matrix by its lower triangle: 00 10 20 11 21 22.
+template <class T> struct Sym {
+    T e[6];
+    T operator()(int r, int c) const { return e[kIndex[r][c]]; }
+    static constexpr int kIndex[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
+};
+inline Sym<double> lower(const Mat3& a) { return {{a(0, 0), a(1, 0), a(2, 0), a(1, 1), a(2, 1), a(2, 2)}}; }
+inline Sym<Lanes2> lower(const Mat3& a, const Mat3& b) {
+    Sym<Lanes2> m;
+    for (int c = 0, k = 0; c < 3; ++c)
+        for (int r = c; r < 3; ++r) m.e[k++] = Lanes2{a(r, c), b(r, c)};
+    return m;
+}
+
+/// What a sweep carries to the next particle: the Schur complement U^T D^-1 U of the
+/// particle it eliminated (D its pivot, U its coupling block) and U^T y, both zero where
+/// U is zero (nothing crosses it: a pin, a broken segment), whatever D^-1 holds.
+template <class T> struct Carry {
+    Sym<T> schur{};
+    T rhs[3] = {};
 };
 
-/// solveChain's middle particle: its block, with its share of segment mid (`after`) where
-/// that was held back from it (parallelChainStep), less both sides' Schur complements.
-void solveMiddle(StringState& s, std::size_t mid, const SpringTerm& after) {
-    const std::size_t n = s.particles();
-    Mat3 d = s.blk_diag[mid];
-    Vec3 r = s.blk_rhs[mid];
-    addSprings(SpringTerm{}, after, d, r);
-    if (mid > 0 && !s.blk_off[mid - 1].isZero(0.0)) {
-        d.noalias() -= s.blk_off[mid - 1] * s.blk_factor_gain[mid - 1];
-        r.noalias() -= s.blk_off[mid - 1] * s.blk_rhs[mid - 1];
-    }
-    if (mid + 1 < n && !s.blk_off[mid].isZero(0.0)) {
-        d.noalias() -= s.blk_off[mid] * s.blk_factor_gain[mid + 1];
-        r.noalias() -= s.blk_off[mid] * s.blk_rhs[mid + 1];
-    }
-    s.blk_rhs[mid] = inverseSymmetric(d) * r;
+/// The inverse of a symmetric positive definite 3x3 matrix from its root-free Cholesky
+/// factorisation A = L D L^T: A^-1 = L^-T D^-1 L^-1, three divisions. As accurate as the
+/// Cholesky solve (an adjugate inverse, one division, lost ~k h^2 / m of the digits in the
+/// Schur complements of a stiff light cord, and a twisted cord coiled differently).
+template <class T> [[gnu::always_inline]] inline Sym<T> inverseSymmetric(const Sym<T>& a) {
+    const T one = T{} + 1.0;
+    const T r0 = one / a.e[0];
+    const T l10 = a.e[1] * r0, l20 = a.e[2] * r0;
+    const T r1 = one / (a.e[3] - l10 * a.e[1]);
+    const T b21 = a.e[4] - l20 * a.e[1];
+    const T l21 = b21 * r1;
+    const T r2 = one / (a.e[5] - l20 * a.e[2] - l21 * b21);
+    const T m20 = l10 * l21 - l20;  // row 2 of L^-1: (m20, -l21, 1)
+    const T i20 = r2 * m20, i21 = -r2 * l21;
+    const T i10 = -r1 * l10 + i21 * m20;
+    return {{r0 + r1 * l10 * l10 + i20 * m20, i10, i20, r1 + i21 * -l21, i21, r2}};
 }
 
-/// solveChain's back substitution above the middle particle (x_i = y_i - W_i x_{i+1},
-/// i < mid) and below it (x_i = y_i - W_i x_{i-1}, i > mid); a zero coupling block
-/// (nothing crosses it) leaves y_i.
-void substituteAbove(StringState& s, std::size_t mid) {
-    for (std::size_t i = mid; i-- > 0;)
-        if (!s.blk_off[i].isZero(0.0)) s.blk_rhs[i].noalias() -= s.blk_factor_gain[i] * s.blk_rhs[i + 1];
+/// Eliminates one particle: its block `diag` and right-hand side `rhs`, less what the
+/// carry brings from the particle before, give the pivot D; y = D^-1 r and the gain
+/// W = D^-1 U (column-major) towards the next particle, coupled by the symmetric block
+/// `out` = U; the carry is then this particle's, for the next.
+template <class T>
+[[gnu::always_inline]] inline void eliminate(Carry<T>& carry, const Sym<T>& diag, const T (&rhs)[3], const Sym<T>& out, T (&y)[3], T (&gain)[9]) {
+    Sym<T> pivot;
+    for (int k = 0; k < 6; ++k) pivot.e[k] = diag.e[k] - carry.schur.e[k];
+    T r[3];
+    for (int i = 0; i < 3; ++i) r[i] = rhs[i] - carry.rhs[i];
+    const Sym<T> inv = inverseSymmetric(pivot);
+    for (int i = 0; i < 3; ++i) y[i] = inv(i, 0) * r[0] + inv(i, 1) * r[1] + inv(i, 2) * r[2];
+    for (int c = 0; c < 3; ++c)
+        for (int i = 0; i < 3; ++i) gain[i + 3 * c] = inv(i, 0) * out(0, c) + inv(i, 1) * out(1, c) + inv(i, 2) * out(2, c);
+    typename MaskOf<T>::type coupled = nonzero(out.e[0]);
+    for (int k = 1; k < 6; ++k) coupled = coupled | nonzero(out.e[k]);
+    for (int c = 0; c < 3; ++c)
+        for (int i = c; i < 3; ++i)
+            carry.schur.e[Sym<T>::kIndex[i][c]] = keep(coupled, out(i, 0) * gain[3 * c] + out(i, 1) * gain[1 + 3 * c] + out(i, 2) * gain[2 + 3 * c]);
+    for (int i = 0; i < 3; ++i) carry.rhs[i] = keep(coupled, out(i, 0) * y[0] + out(i, 1) * y[1] + out(i, 2) * y[2]);
 }
-void substituteBelow(StringState& s, std::size_t mid) {
-    for (std::size_t i = mid + 1; i < s.particles(); ++i)
-        if (!s.blk_off[i - 1].isZero(0.0)) s.blk_rhs[i].noalias() -= s.blk_factor_gain[i] * s.blk_rhs[i - 1];
+
+/// Back substitution of one particle: x = y - W x_next, where the gain W is not zero (a
+/// zero gain, nothing crossing, leaves y whatever x_next holds).
+template <class T> [[gnu::always_inline]] inline void substitute(const T (&gain)[9], const T (&next)[3], T (&x)[3]) {
+    typename MaskOf<T>::type coupled = nonzero(gain[0]);
+    for (int k = 1; k < 9; ++k) coupled = coupled | nonzero(gain[k]);
+    for (int i = 0; i < 3; ++i) x[i] = x[i] - keep(coupled, gain[i] * next[0] + gain[i + 3] * next[1] + gain[i + 6] * next[2]);
 }
+
+/// A particle's vector into a sweep's lanes (one, or the top's and the bottom's), and back.
+inline void load(const Vec3& v, double (&out)[3]) {
+    for (int i = 0; i < 3; ++i) out[i] = v[i];
+}
+inline void load(const Vec3& a, const Vec3& b, Lanes2 (&out)[3]) {
+    for (int i = 0; i < 3; ++i) out[i] = Lanes2{a[i], b[i]};
+}
+inline void store(const double (&v)[3], Vec3& out) {
+    for (int i = 0; i < 3; ++i) out[i] = v[i];
+}
+inline void store(const Lanes2 (&v)[3], Vec3& a, Vec3& b) {
+    for (int i = 0; i < 3; ++i) {
+        a[i] = v[i][0];
+        b[i] = v[i][1];
+    }
+}
+
+/// The middle particle, where the two sweeps meet: its block less both sides' Schur
+/// complements, solved into x.
+inline void solveMiddle(const Carry<double>& top, const Carry<double>& bottom, const Mat3& diag, Vec3& rhs) {
+    Carry<double> both;
+    for (int k = 0; k < 6; ++k) both.schur.e[k] = top.schur.e[k] + bottom.schur.e[k];
+    for (int i = 0; i < 3; ++i) both.rhs[i] = top.rhs[i] + bottom.rhs[i];
+    double r[3], x[3], unused[9];
+    load(rhs, r);
+    eliminate(both, lower(diag), r, Sym<double>{}, x, unused);
+    store(x, rhs);
+}
+
+}  // namespace chain
 
 /// Solves the chain's system (blk_diag, blk_off, blk_rhs) in place, for a chain without
 /// contacts or body unknowns: the block Thomas algorithm with each pivot inverted
-/// explicitly, run from both ends at once (a twisted factorisation). Each sweep folds
-/// factor, forward substitution and y_i = D_i^-1 r_i into one pass; the two meet at the
-/// middle particle, whose pivot takes both sides' Schur complements, and the back
-/// substitution x_i = y_i - W_i x_{i+-1} runs outward from there. W_i (the gain towards the
-/// middle: D_i^-1 U_i above it, D_i^-1 U_{i-1} below) goes into blk_factor_gain[i].
+/// explicitly, run from both ends at once (a twisted factorisation), the two sweeps in the
+/// two lanes of one register (chain::eliminate). Each sweep folds factor, forward
+/// substitution and y_i = D_i^-1 r_i into one pass; the two meet at the middle particle,
+/// whose pivot takes both sides' Schur complements, and the back substitution
+/// x_i = y_i - W_i x_{i+-1} runs outward from there. The coupling blocks are symmetric (their
+/// lower triangle is read). The gains W_i of the pair of particles (t, n-1-t) go, lane
+/// by lane, into blk_factor_gain's storage at doubles [18 t, 18 t + 18): the pairs take at
+/// most 9 (n - 1) doubles, of its 9 n.
 ///
-/// The dependency chain along the rope is one 3x3 inverse (three divisions) and two small
-/// products per particle; two independent chains of half the length overlap in the core
-/// (1.6x faster than one sweep on Strings' rope), where the Cholesky pivots of
-/// factorBlockTridiagonal chain three square roots and three divisions and the solve two
-/// triangular sweeps more. The pivots are inertia m/h^2 plus springs: conditioned ~k h^2 / m
-/// (1e6 for Strings' rope), so the explicit inverse is good to ~1e-10 relative, which the
-/// Newton iteration (exact gradient) does not notice. Contacts' blocks are 1e8 stiffer in
-/// one direction, where the explicit inverse lost that direction: they keep the Cholesky.
-/// A zero coupling block (a pin, a broken segment) is skipped, so nothing crosses it.
+/// The pivots are inertia m/h^2 plus springs: conditioned ~k h^2 / m (1e6 for Strings'
+/// rope), so the explicit inverse is good to ~1e-10 relative, which the Newton iteration
+/// (exact gradient) does not notice. Contacts' blocks are 1e8 stiffer in one direction,
+/// where the explicit inverse lost that direction: they keep the Cholesky
+/// (factorBlockTridiagonal).
 void solveChain(StringState& s) {
+    using chain::Lanes2;
     const std::size_t n = s.particles();
+    if (n == 0) return;
     const std::size_t mid = n / 2;
     const std::size_t below = n - 1 - mid;  // particles the sweep from the far end takes
     const Mat3* diag = s.blk_diag.data();
     const Mat3* off = s.blk_off.data();
     Vec3* rhs = s.blk_rhs.data();
-    Mat3* gain = s.blk_factor_gain.data();
-    // Both sweeps in one loop body, interleaved, so that their chains overlap.
-    ChainSweep top, bottom;
+    double* gains = s.blk_factor_gain.data()->data();
+    chain::Carry<Lanes2> both;
     std::size_t t = 0;
     for (; t < below; ++t) {
         const std::size_t i = n - 1 - t;
-        Vec3 r_top, r_bottom;
-        const Mat3 d_top = top.pivot(diag[t], rhs[t], t > 0 ? off + t - 1 : nullptr, r_top);
-        const Mat3 d_bottom = bottom.pivot(diag[i], rhs[i], off + i, r_bottom);
-        const Mat3 inv_top = inverseSymmetric(d_top), inv_bottom = inverseSymmetric(d_bottom);
-        top.finish(inv_top, r_top, off[t], rhs[t], gain[t]);
-        bottom.finish(inv_bottom, r_bottom, off[i - 1], rhs[i], gain[i]);
+        Lanes2 r[3], y[3], gain[9];
+        chain::load(rhs[t], rhs[i], r);
+        chain::eliminate(both, chain::lower(diag[t], diag[i]), r, chain::lower(off[t], off[i - 1]), y, gain);
+        chain::store(y, rhs[t], rhs[i]);
+        std::memcpy(gains + 18 * t, gain, sizeof gain);
     }
-    for (; t < mid; ++t) {  // an even count leaves the top sweep one more
-        Vec3 r_top;
-        const Mat3 d_top = top.pivot(diag[t], rhs[t], t > 0 ? off + t - 1 : nullptr, r_top);
-        top.finish(inverseSymmetric(d_top), r_top, off[t], rhs[t], gain[t]);
+    chain::Carry<double> top, bottom;
+    for (int k = 0; k < 6; ++k) {
+        top.schur.e[k] = both.schur.e[k][0];
+        bottom.schur.e[k] = both.schur.e[k][1];
     }
-    // The middle particle: both sides eliminated into its pivot; then the back
-    // substitution, outward from it.
-    solveMiddle(s, mid, SpringTerm{});
-    substituteAbove(s, mid);
-    substituteBelow(s, mid);
+    for (int k = 0; k < 3; ++k) {
+        top.rhs[k] = both.rhs[k][0];
+        bottom.rhs[k] = both.rhs[k][1];
+    }
+    double last_gain[9] = {};
+    if (t < mid) {  // an even count leaves the top sweep one more, t = mid - 1
+        double r[3], y[3];
+        chain::load(rhs[t], r);
+        chain::eliminate(top, chain::lower(diag[t]), r, chain::lower(off[t]), y, last_gain);
+        chain::store(y, rhs[t]);
+    }
+    chain::solveMiddle(top, bottom, diag[mid], rhs[mid]);
+    if (below < mid) {
+        double x[3], next[3];
+        chain::load(rhs[mid - 1], x);
+        chain::load(rhs[mid], next);
+        chain::substitute(last_gain, next, x);
+        chain::store(x, rhs[mid - 1]);
+    }
+    for (std::size_t p = below; p-- > 0;) {
+        const std::size_t i = n - 1 - p;
+        Lanes2 gain[9], next[3], x[3];
+        std::memcpy(gain, gains + 18 * p, sizeof gain);
+        chain::load(rhs[p + 1], rhs[i - 1], next);
+        chain::load(rhs[p], rhs[i], x);
+        chain::substitute(gain, next, x);
+        chain::store(x, rhs[p], rhs[i]);
+    }
 }
 
 /// Generalised mass of a body (translation, rotation about its centre), world frame.
@@ -737,13 +804,13 @@ void linearisedTension(StringState& s, const StepContext& ctx, std::size_t j0, s
 /// solveChain's sweep from the top alone, over particles [0, mid), with the springs of
 /// segments [0, mid) assembled as it goes (their sums in assembleChain's order: particle t
 /// takes segment t-1's share, then segment t's), and segment mid-1's share of particle mid
-/// added at the end. One sweep alone leaves the core idle while a pivot's divisions run;
-/// the assembly fills that time. parallelChainStep runs it on one thread and
-/// sweepFromBottom on another: the same operations as the serial iteration, so the same
-/// bits.
-void sweepFromTop(StringState& s, const StepContext& ctx, std::size_t mid, double* tension_estimate) {
-    const Mat3* off = s.blk_off.data();
-    ChainSweep top;
+/// added at the end; the gains per particle into blk_factor_gain. One sweep alone leaves
+/// the core idle while a pivot's divisions run; the assembly fills that time.
+/// parallelChainStep runs it on one thread and sweepFromBottom on another: the operations
+/// of the serial iteration's lanes, so the same bits. Returns what it carries to the
+/// middle particle.
+chain::Carry<double> sweepFromTop(StringState& s, const StepContext& ctx, std::size_t mid, double* tension_estimate) {
+    chain::Carry<double> carry;
     SpringTerm last;  // segment t-1
     for (std::size_t t = 0; t < mid; ++t) {
         const SpringTerm next = springTerm(s, ctx, t, tension_estimate);
@@ -751,19 +818,22 @@ void sweepFromTop(StringState& s, const StepContext& ctx, std::size_t mid, doubl
         Vec3 rhs = s.blk_rhs[t];
         addSprings(last, next, d, rhs);
         last = next;
-        Vec3 r;
-        const Mat3 pivot = top.pivot(d, rhs, t > 0 ? off + t - 1 : nullptr, r);
-        top.finish(inverseSymmetric(pivot), r, off[t], s.blk_rhs[t], s.blk_factor_gain[t]);
+        double r[3], y[3], gain[9];
+        chain::load(rhs, r);
+        chain::eliminate(carry, chain::lower(d), r, chain::lower(s.blk_off[t]), y, gain);
+        chain::store(y, s.blk_rhs[t]);
+        std::memcpy(s.blk_factor_gain[t].data(), gain, sizeof gain);
     }
     addSprings(last, SpringTerm{}, s.blk_diag[mid], s.blk_rhs[mid]);
+    return carry;
 }
 
 /// solveChain's sweep from the far end alone, over particles (mid, n), with the springs
 /// of segments [mid, m) assembled as it goes; segment mid's share of particle mid goes to
-/// the returned spring (the middle particle is not this thread's).
-SpringTerm sweepFromBottom(StringState& s, const StepContext& ctx, std::size_t mid, double* tension_estimate) {
-    const Mat3* off = s.blk_off.data();
-    ChainSweep bottom;
+/// `held` (the middle particle is not this thread's). Returns what it carries to the
+/// middle particle.
+chain::Carry<double> sweepFromBottom(StringState& s, const StepContext& ctx, std::size_t mid, double* tension_estimate, SpringTerm& held) {
+    chain::Carry<double> carry;
     SpringTerm last;  // segment i
     for (std::size_t i = s.particles() - 1; i > mid; --i) {
         const SpringTerm next = springTerm(s, ctx, i - 1, tension_estimate);
@@ -771,11 +841,32 @@ SpringTerm sweepFromBottom(StringState& s, const StepContext& ctx, std::size_t m
         Vec3 rhs = s.blk_rhs[i];
         addSprings(next, last, d, rhs);
         last = next;
-        Vec3 r;
-        const Mat3 pivot = bottom.pivot(d, rhs, off + i, r);
-        bottom.finish(inverseSymmetric(pivot), r, off[i - 1], s.blk_rhs[i], s.blk_factor_gain[i]);
+        double r[3], y[3], gain[9];
+        chain::load(rhs, r);
+        chain::eliminate(carry, chain::lower(d), r, chain::lower(s.blk_off[i - 1]), y, gain);
+        chain::store(y, s.blk_rhs[i]);
+        std::memcpy(s.blk_factor_gain[i].data(), gain, sizeof gain);
     }
-    return last;
+    held = last;
+    return carry;
+}
+
+/// The back substitution of parallelChainStep's halves, outward from the middle particle:
+/// x_t = y_t - W_t x_{t+1} above it (t < mid), x_i = y_i - W_i x_{i-1} below it (i > mid),
+/// with the gains the sweeps left per particle in blk_factor_gain.
+void substituteParticle(const Mat3& gain_matrix, const Vec3& next_x, Vec3& x_out) {
+    double gain[9], next[3], x[3];
+    std::memcpy(gain, gain_matrix.data(), sizeof gain);
+    chain::load(next_x, next);
+    chain::load(x_out, x);
+    chain::substitute(gain, next, x);
+    chain::store(x, x_out);
+}
+void substituteAbove(StringState& s, std::size_t mid) {
+    for (std::size_t t = mid; t-- > 0;) substituteParticle(s.blk_factor_gain[t], s.blk_rhs[t + 1], s.blk_rhs[t]);
+}
+void substituteBelow(StringState& s, std::size_t mid) {
+    for (std::size_t i = mid + 1; i < s.particles(); ++i) substituteParticle(s.blk_factor_gain[i], s.blk_rhs[i - 1], s.blk_rhs[i]);
 }
 
 /// Moves the free particles in [p0, p1) by their step in blk_rhs (a chain without glued
@@ -805,16 +896,18 @@ double parallelChainStep(StringState& s, RigidTable& rigids, const StepContext& 
     const std::size_t mid = n / 2;
     double* tension_estimate = s.geometric_tension.data();
     SpringTerm held;  // segment mid, whose share of the middle particle waits for it
+    chain::Carry<double> top, bottom;
     pool.forEach(2, [&](std::size_t half) {
         if (half == 0) {
             assembleInertia(s, rigids, ctx, 0, mid + 1);
-            sweepFromTop(s, ctx, mid, tension_estimate);
+            top = sweepFromTop(s, ctx, mid, tension_estimate);
         } else {
             assembleInertia(s, rigids, ctx, mid + 1, n);
-            held = sweepFromBottom(s, ctx, mid, tension_estimate);
+            bottom = sweepFromBottom(s, ctx, mid, tension_estimate, held);
         }
     });
-    solveMiddle(s, mid, held);
+    addSprings(SpringTerm{}, held, s.blk_diag[mid], s.blk_rhs[mid]);
+    chain::solveMiddle(top, bottom, s.blk_diag[mid], s.blk_rhs[mid]);
     double worst_squared[2] = {0.0, 0.0};
     pool.forEach(2, [&](std::size_t half) {
         if (half == 0) {
