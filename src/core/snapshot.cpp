@@ -1106,11 +1106,13 @@ void Snapshot::restore(World& world) const {
     *w.strings = data_->strings;
     // The block factorisation is rebuilt by every step; it is sized here, not copied
     // (a default-constructed Eigen::LLT has an uninitialised status that UBSan flags
-    // when copied: found by the sanitizer build). So is the chain solve's tension
-    // estimate (scratch, filled from spring_force at every solve).
+    // when copied: found by the sanitizer build). So are the chain solve's tension
+    // estimate (scratch, filled from spring_force at every solve) and its pivots'
+    // inverses (scratch, written by a solve before a chord iteration reads them).
     for (detail::StringState& s : *w.strings)
         if (s.alive) {
             s.blk_factor.resize(s.particles());
+            s.chain_inverse.assign(6 * s.particles() + 12, 0.0);
             s.geometric_tension.assign(s.segments(), 0.0);
         }
     *w.rigids = data_->rigids;

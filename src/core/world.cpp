@@ -131,6 +131,7 @@ struct World::Impl {
     double grid_rounding = 0.0;  // nodesSeparationNeeded's rounding margin (from the largest |x|_1)
     bool sparse_joint_steps = false;  // ClusterScratch::always_sparse (tests compare)
     bool cold_strain_starts = false;  // StepContext::cold_strain_starts (tests compare)
+    bool newton_strain_only = false;  // StepContext::newton_strain_only (tests compare)
     bool node_pruning = true;    // nodesSeparationNeeded in the search (off: tests compare)
     std::vector<detail::CollisionSegment> grid_segments;
     std::vector<detail::SegmentPair> grid_pairs;
@@ -807,6 +808,7 @@ StringId World::addString(const StringDesc& desc) {
     s.blk_rhs.assign(n, Vec3::Zero());
     s.blk_factor_gain.assign(n, Mat3::Zero());
     s.blk_factor.resize(n);
+    s.chain_inverse.assign(6 * n + 12, 0.0);
     s.row_projector.assign(n, Mat3::Identity());
     s.colliding.assign(n, 0);
     s.spring_force.assign(m, 0.0);
@@ -1023,6 +1025,7 @@ void World::step(double h) {
     ctx.step = w.steps + 1;
     ctx.pool = &w.pool;
     ctx.cold_strain_starts = w.cold_strain_starts;
+    ctx.newton_strain_only = w.newton_strain_only;
 
     RigidTable& rigids = w.rigids;
     for (std::size_t i = 0; i < rigids.bodies.size(); ++i) {
@@ -1259,6 +1262,7 @@ detail::WorldParts detail::WorldAccess::parts(World& world) {
 void detail::WorldAccess::setStringNodePruning(World& world, bool on) { world.impl_->node_pruning = on; }
 void detail::WorldAccess::setSparseJointSteps(World& world, bool on) { world.impl_->sparse_joint_steps = on; }
 void detail::WorldAccess::setColdStrainStarts(World& world, bool on) { world.impl_->cold_strain_starts = on; }
+void detail::WorldAccess::setNewtonStrainOnly(World& world, bool on) { world.impl_->newton_strain_only = on; }
 std::size_t detail::WorldAccess::lastStringNodeRejects(const World& world) { return world.impl_->tree.lastNodeRejects(); }
 const std::vector<detail::SegmentPair>& detail::WorldAccess::lastStringSearchPairs(const World& world) {
     return world.impl_->grid_pairs;

@@ -48,6 +48,9 @@ struct WorldAccess {
     // Chains' strain solves started at the prediction instead of the warm start
     // (StepContext::cold_strain_starts), for tests that compare the two.
     static void setColdStrainStarts(World& world, bool on);
+    // Chains' strain solves by Newton iterations only, without chord iterations
+    // (StepContext::newton_strain_only), for tests that compare the two.
+    static void setNewtonStrainOnly(World& world, bool on);
 };
 
 }  // namespace tearables::detail

@@ -38,6 +38,23 @@
 // segments, swinging: 3.6 -> 2.0 iterations a step; a rope hanging still: 2 -> 1). The
 // solution is the same (the energy is convex), only the iterations differ.
 //
+// Chord iterations. Once an iteration has converged quadratically (or is the first from a
+// warm start, whose move is small), a contact-free chain of free and pinned particles
+// solves its next step with the factorisation it has (the pivots' inverses kept by
+// solveChain): only the gradient is assembled, and the solve is products, with no pivot
+// chain of divisions (about a third of an iteration's time). The Hessian it reuses is
+// that of the last factorisation, so the iteration converges linearly, at a rate of about
+// 2 m_c / m_N (m_N the move of the Newton iteration before, m_c the chord move: the
+// Hessian changes by O(m_N) over that move, and m_c ~ C m_N^2 / 2 gives C), and the solve
+// stops where the next move, predicted as 2 m_c^2 / m_last with the margin of 100, is
+// within tolerance. A chord iteration is refused (and a Newton iteration from the same
+// state made) where a segment went slack or taut since the factorisation, or where its
+// step is not below kQuadraticRegime times the last move: a rope yanked by a huge force
+// made chord steps 18x the Newton step before them. On Strings' Table 1 rope, 746 segments
+// swinging: 2.1 factorisations a step -> 1.2, and 1.5 chord iterations; 166 -> 151 us a
+// step. Chains of kParallelChainParticles or more have none: their iterations must be the
+// same on one thread as on two (parallelChainStep).
+//
 // Clamped particles are fixed rows, which splits the system into independent pieces as
 // case 3 of the paper prescribes. A particle glued to a rigid body carries the body's
 // effective mass at the glue point, K^-1 with K = 1/M - [r]x I^-1 [r]x, so the rope holds
@@ -472,16 +489,16 @@ template <class T> [[gnu::always_inline]] inline Sym<T> inverseSymmetric(const S
 }
 
 /// Eliminates one particle: its block `diag` and right-hand side `rhs`, less what the
-/// carry brings from the particle before, give the pivot D; y = D^-1 r and the gain
-/// W = D^-1 U (column-major) towards the next particle, coupled by the symmetric block
-/// `out` = U; the carry is then this particle's, for the next.
+/// carry brings from the particle before, give the pivot D; y = D^-1 r, D^-1 into `inv`
+/// and the gain W = D^-1 U (column-major) towards the next particle, coupled by the
+/// symmetric block `out` = U; the carry is then this particle's, for the next.
 template <class T>
-[[gnu::always_inline]] inline void eliminate(Carry<T>& carry, const Sym<T>& diag, const T (&rhs)[3], const Sym<T>& out, T (&y)[3], T (&gain)[9]) {
+[[gnu::always_inline]] inline void eliminate(Carry<T>& carry, const Sym<T>& diag, const T (&rhs)[3], const Sym<T>& out, T (&y)[3], T (&gain)[9], Sym<T>& inv) {
     Sym<T> pivot;
     for (int k = 0; k < 6; ++k) pivot.e[k] = diag.e[k] - carry.schur.e[k];
     T r[3];
     for (int i = 0; i < 3; ++i) r[i] = rhs[i] - carry.rhs[i];
-    const Sym<T> inv = inverseSymmetric(pivot);
+    inv = inverseSymmetric(pivot);
     for (int i = 0; i < 3; ++i) y[i] = inv(i, 0) * r[0] + inv(i, 1) * r[1] + inv(i, 2) * r[2];
     for (int c = 0; c < 3; ++c)
         for (int i = 0; i < 3; ++i) gain[i + 3 * c] = inv(i, 0) * out(0, c) + inv(i, 1) * out(1, c) + inv(i, 2) * out(2, c);
@@ -490,6 +507,19 @@ template <class T>
     for (int c = 0; c < 3; ++c)
         for (int i = c; i < 3; ++i)
             carry.schur.e[Sym<T>::kIndex[i][c]] = keep(coupled, out(i, 0) * gain[3 * c] + out(i, 1) * gain[1 + 3 * c] + out(i, 2) * gain[2 + 3 * c]);
+    for (int i = 0; i < 3; ++i) carry.rhs[i] = keep(coupled, out(i, 0) * y[0] + out(i, 1) * y[1] + out(i, 2) * y[2]);
+}
+
+/// The forward step of a chord iteration (chordSolveChain): eliminate's, with the pivot's
+/// inverse `inv` kept from it, for a new right-hand side: y = D^-1 (rhs - carry), and the
+/// carry's U^T y.
+template <class T>
+[[gnu::always_inline]] inline void eliminateAgain(Carry<T>& carry, const Sym<T>& inv, const T (&rhs)[3], const Sym<T>& out, T (&y)[3]) {
+    T r[3];
+    for (int i = 0; i < 3; ++i) r[i] = rhs[i] - carry.rhs[i];
+    for (int i = 0; i < 3; ++i) y[i] = inv(i, 0) * r[0] + inv(i, 1) * r[1] + inv(i, 2) * r[2];
+    typename MaskOf<T>::type coupled = nonzero(out.e[0]);
+    for (int k = 1; k < 6; ++k) coupled = coupled | nonzero(out.e[k]);
     for (int i = 0; i < 3; ++i) carry.rhs[i] = keep(coupled, out(i, 0) * y[0] + out(i, 1) * y[1] + out(i, 2) * y[2]);
 }
 
@@ -520,17 +550,57 @@ inline void store(const Lanes2 (&v)[3], Vec3& a, Vec3& b) {
 
 /// The middle particle, where the two sweeps meet: its block less both sides' Schur
 /// complements, solved into x.
-inline void solveMiddle(const Carry<double>& top, const Carry<double>& bottom, const Mat3& diag, Vec3& rhs) {
+inline void solveMiddle(const Carry<double>& top, const Carry<double>& bottom, const Mat3& diag, Vec3& rhs, Sym<double>& inv) {
     Carry<double> both;
     for (int k = 0; k < 6; ++k) both.schur.e[k] = top.schur.e[k] + bottom.schur.e[k];
     for (int i = 0; i < 3; ++i) both.rhs[i] = top.rhs[i] + bottom.rhs[i];
     double r[3], x[3], unused[9];
     load(rhs, r);
-    eliminate(both, lower(diag), r, Sym<double>{}, x, unused);
+    eliminate(both, lower(diag), r, Sym<double>{}, x, unused, inv);
     store(x, rhs);
 }
 
+/// The lanes of a carry, as the two sweeps' own.
+inline void split(const Carry<Lanes2>& both, Carry<double>& top, Carry<double>& bottom) {
+    for (int k = 0; k < 6; ++k) {
+        top.schur.e[k] = both.schur.e[k][0];
+        bottom.schur.e[k] = both.schur.e[k][1];
+    }
+    for (int k = 0; k < 3; ++k) {
+        top.rhs[k] = both.rhs[k][0];
+        bottom.rhs[k] = both.rhs[k][1];
+    }
+}
+
 }  // namespace chain
+
+/// solveChain's back substitution, outward from the middle particle, with the gains it
+/// left in blk_factor_gain.
+void substituteChain(StringState& s) {
+    using chain::Lanes2;
+    const std::size_t n = s.particles();
+    const std::size_t mid = n / 2;
+    const std::size_t below = n - 1 - mid;
+    Vec3* rhs = s.blk_rhs.data();
+    const double* gains = s.blk_factor_gain.data()->data();
+    if (below < mid) {
+        double gain[9], x[3], next[3];
+        std::memcpy(gain, gains + 18 * below, sizeof gain);
+        chain::load(rhs[mid - 1], x);
+        chain::load(rhs[mid], next);
+        chain::substitute(gain, next, x);
+        chain::store(x, rhs[mid - 1]);
+    }
+    for (std::size_t p = below; p-- > 0;) {
+        const std::size_t i = n - 1 - p;
+        Lanes2 gain[9], next[3], x[3];
+        std::memcpy(gain, gains + 18 * p, sizeof gain);
+        chain::load(rhs[p + 1], rhs[i - 1], next);
+        chain::load(rhs[p], rhs[i], x);
+        chain::substitute(gain, next, x);
+        chain::store(x, rhs[p], rhs[i]);
+    }
+}
 
 /// Solves the chain's system (blk_diag, blk_off, blk_rhs) in place, for a chain without
 /// contacts or body unknowns: the block Thomas algorithm with each pivot inverted
@@ -538,17 +608,19 @@ inline void solveMiddle(const Carry<double>& top, const Carry<double>& bottom, c
 /// two lanes of one register (chain::eliminate). Each sweep folds factor, forward
 /// substitution and y_i = D_i^-1 r_i into one pass; the two meet at the middle particle,
 /// whose pivot takes both sides' Schur complements, and the back substitution
-/// x_i = y_i - W_i x_{i+-1} runs outward from there. The coupling blocks are symmetric (their
-/// lower triangle is read). The gains W_i of the pair of particles (t, n-1-t) go, lane
-/// by lane, into blk_factor_gain's storage at doubles [18 t, 18 t + 18): the pairs take at
-/// most 9 (n - 1) doubles, of its 9 n.
+/// x_i = y_i - W_i x_{i+-1} runs outward from there (substituteChain). The coupling blocks
+/// are symmetric (their lower triangle is read). The pair of particles (t, n-1-t), lane by
+/// lane: its gains W go into blk_factor_gain's storage at doubles [18 t, 18 t + 18) (the
+/// pairs and the top sweep's last particle take at most 9 n, its size), and where
+/// `inverses` is given (6 n + 12 doubles), its pivots' inverses at [12 t, 12 t + 12),
+/// the top sweep's last one and the middle one's after them, for chordSolveChain.
 ///
 /// The pivots are inertia m/h^2 plus springs: conditioned ~k h^2 / m (1e6 for Strings'
 /// rope), so the explicit inverse is good to ~1e-10 relative, which the Newton iteration
 /// (exact gradient) does not notice. Contacts' blocks are 1e8 stiffer in one direction,
 /// where the explicit inverse lost that direction: they keep the Cholesky
 /// (factorBlockTridiagonal).
-void solveChain(StringState& s) {
+void solveChain(StringState& s, double* inverses = nullptr) {
     using chain::Lanes2;
     const std::size_t n = s.particles();
     if (n == 0) return;
@@ -563,44 +635,73 @@ void solveChain(StringState& s) {
     for (; t < below; ++t) {
         const std::size_t i = n - 1 - t;
         Lanes2 r[3], y[3], gain[9];
+        chain::Sym<Lanes2> inv;
         chain::load(rhs[t], rhs[i], r);
-        chain::eliminate(both, chain::lower(diag[t], diag[i]), r, chain::lower(off[t], off[i - 1]), y, gain);
+        chain::eliminate(both, chain::lower(diag[t], diag[i]), r, chain::lower(off[t], off[i - 1]), y, gain, inv);
         chain::store(y, rhs[t], rhs[i]);
         std::memcpy(gains + 18 * t, gain, sizeof gain);
+        if (inverses) std::memcpy(inverses + 12 * t, inv.e, sizeof inv.e);
     }
     chain::Carry<double> top, bottom;
-    for (int k = 0; k < 6; ++k) {
-        top.schur.e[k] = both.schur.e[k][0];
-        bottom.schur.e[k] = both.schur.e[k][1];
-    }
-    for (int k = 0; k < 3; ++k) {
-        top.rhs[k] = both.rhs[k][0];
-        bottom.rhs[k] = both.rhs[k][1];
-    }
-    double last_gain[9] = {};
+    chain::split(both, top, bottom);
     if (t < mid) {  // an even count leaves the top sweep one more, t = mid - 1
-        double r[3], y[3];
+        double r[3], y[3], gain[9];
+        chain::Sym<double> inv;
         chain::load(rhs[t], r);
-        chain::eliminate(top, chain::lower(diag[t]), r, chain::lower(off[t]), y, last_gain);
+        chain::eliminate(top, chain::lower(diag[t]), r, chain::lower(off[t]), y, gain, inv);
+        chain::store(y, rhs[t]);
+        std::memcpy(gains + 18 * t, gain, sizeof gain);
+        if (inverses) std::memcpy(inverses + 12 * below, inv.e, sizeof inv.e);
+    }
+    chain::Sym<double> middle;
+    chain::solveMiddle(top, bottom, diag[mid], rhs[mid], middle);
+    if (inverses) std::memcpy(inverses + 12 * below + 6, middle.e, sizeof middle.e);
+    substituteChain(s);
+}
+
+/// A chord iteration's solve: the system solveChain factorised last (its coupling blocks
+/// still in blk_off, its gains in blk_factor_gain, its pivots' inverses in `inverses`)
+/// for a new right-hand side in blk_rhs, in place. Only products: no pivot, no division.
+void chordSolveChain(StringState& s, const double* inverses) {
+    using chain::Lanes2;
+    const std::size_t n = s.particles();
+    if (n == 0) return;
+    const std::size_t mid = n / 2;
+    const std::size_t below = n - 1 - mid;
+    const Mat3* off = s.blk_off.data();
+    Vec3* rhs = s.blk_rhs.data();
+    chain::Carry<Lanes2> both;
+    std::size_t t = 0;
+    for (; t < below; ++t) {
+        const std::size_t i = n - 1 - t;
+        Lanes2 r[3], y[3];
+        chain::Sym<Lanes2> inv;
+        std::memcpy(inv.e, inverses + 12 * t, sizeof inv.e);
+        chain::load(rhs[t], rhs[i], r);
+        chain::eliminateAgain(both, inv, r, chain::lower(off[t], off[i - 1]), y);
+        chain::store(y, rhs[t], rhs[i]);
+    }
+    chain::Carry<double> top, bottom;
+    chain::split(both, top, bottom);
+    if (t < mid) {
+        double r[3], y[3];
+        chain::Sym<double> inv;
+        std::memcpy(inv.e, inverses + 12 * below, sizeof inv.e);
+        chain::load(rhs[t], r);
+        chain::eliminateAgain(top, inv, r, chain::lower(off[t]), y);
         chain::store(y, rhs[t]);
     }
-    chain::solveMiddle(top, bottom, diag[mid], rhs[mid]);
-    if (below < mid) {
-        double x[3], next[3];
-        chain::load(rhs[mid - 1], x);
-        chain::load(rhs[mid], next);
-        chain::substitute(last_gain, next, x);
-        chain::store(x, rhs[mid - 1]);
+    {
+        chain::Carry<double> middle;
+        for (int k = 0; k < 3; ++k) middle.rhs[k] = top.rhs[k] + bottom.rhs[k];
+        chain::Sym<double> inv;
+        std::memcpy(inv.e, inverses + 12 * below + 6, sizeof inv.e);
+        double r[3], y[3];
+        chain::load(rhs[mid], r);
+        chain::eliminateAgain(middle, inv, r, chain::Sym<double>{}, y);
+        chain::store(y, rhs[mid]);
     }
-    for (std::size_t p = below; p-- > 0;) {
-        const std::size_t i = n - 1 - p;
-        Lanes2 gain[9], next[3], x[3];
-        std::memcpy(gain, gains + 18 * p, sizeof gain);
-        chain::load(rhs[p + 1], rhs[i - 1], next);
-        chain::load(rhs[p], rhs[i], x);
-        chain::substitute(gain, next, x);
-        chain::store(x, rhs[p], rhs[i]);
-    }
+    substituteChain(s);
 }
 
 /// Generalised mass of a body (translation, rotation about its centre), world frame.
@@ -711,13 +812,15 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
 /// (zero where the segment couples nothing) of the segment. `tension_estimate` (per
 /// segment, may be null): the tension the geometric term of the Hessian takes where it is
 /// below the spring's force now (see limitStrain); if the segment is active, its entry is
-/// replaced by its effective stretch now, which linearisedTension reads.
+/// replaced by its effective stretch now, which linearisedTension reads. Without
+/// `kHessian` (a chord iteration's gradient), the force only: hess and blk_off are left.
+template <bool kHessian = true>
 [[gnu::always_inline]] inline SpringTerm springTerm(StringState& s, const StepContext& ctx, std::size_t j,
                                                      double* tension_estimate) {
     SpringTerm term;
     s.active[j] = 0;
     s.spring_force[j] = 0.0;
-    s.blk_off[j].setZero();
+    if (kHessian) s.blk_off[j].setZero();
     if (s.broken[j]) return term;
     const Vec3 d = s.x[j + 1] - s.x[j];
     const double len = d.norm();
@@ -738,6 +841,13 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
     const double k = 1.0 / s.compliance[j];
     s.spring_force[j] = k * c;
     const Vec3& e = s.dir[j];
+    term.force = k * c * e;
+    term.to_a = !fixedRow(s, j);
+    term.to_b = !fixedRow(s, j + 1);
+    if (!kHessian) {
+        if (tension_estimate) tension_estimate[j] = effective;
+        return term;
+    }
     // hess = k ((1 + tau/h) e e^T + C/l (I - e e^T)), entry by entry with the same
     // operations as the matrix expression (so the same bits), the six distinct ones
     // only (e_i e_j = e_j e_i exactly).
@@ -760,9 +870,6 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
     term.hess << k * (g * e00 + q * (1.0 - e00)), h10, h20,  //
         h10, k * (g * e11 + q * (1.0 - e11)), h21,           //
         h20, h21, k * (g * e22 + q * (1.0 - e22));
-    term.force = k * c * e;
-    term.to_a = !fixedRow(s, j);
-    term.to_b = !fixedRow(s, j + 1);
     if (term.to_a && term.to_b) s.blk_off[j] = -term.hess;
     return term;
 }
@@ -781,6 +888,45 @@ void assembleSprings(StringState& s, const StepContext& ctx, std::size_t j0, std
 void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx, double* tension_estimate) {
     assembleInertia(s, rigids, ctx, 0, s.particles());
     assembleSprings(s, ctx, 0, s.segments(), tension_estimate);
+}
+
+/// A chord iteration's right-hand side: assembleChain's (the gradient of the step's energy
+/// now, for a chain of free and pinned particles), without the Hessian, whose blocks stay
+/// those solveChain factorised. False where a segment went slack or taut since: the
+/// factorised Hessian then lacks its spring or has one it no longer has. The effective
+/// stretches of the active segments, which linearisedTension reads, go into s.scratch
+/// (the tension stage's) and not into geometric_tension, which the Newton iteration that
+/// replaces a chord iteration that fails or is refused reads as it was (acceptChord).
+bool assembleChainGradient(StringState& s, const StepContext& ctx) {
+    const double inv_h2 = ctx.inv_h * ctx.inv_h;
+    for (std::size_t p = 0; p < s.particles(); ++p)
+        s.blk_rhs[p] = s.hold[p].kind == ParticleHold::Kind::Free ? Vec3(-(s.mass[p] * inv_h2) * (s.x[p] - s.x_pred[p])) : Vec3::Zero();
+    bool same = true;
+    for (std::size_t j = 0; j < s.segments(); ++j) {
+        const std::uint8_t was = s.active[j];
+        const SpringTerm term = springTerm<false>(s, ctx, j, s.scratch.data());
+        same = same && s.active[j] == was;
+        if (term.to_a) s.blk_rhs[j] += term.force;
+        if (term.to_b) s.blk_rhs[j + 1] -= term.force;
+    }
+    return same;
+}
+
+/// Whether the chord iteration's step in blk_rhs is taken: where it is below
+/// kQuadraticRegime times the last iteration's move (`last_move`), the effective
+/// stretches of assembleChainGradient go into geometric_tension for linearisedTension.
+/// A longer step means the factorised Hessian is too far from the Hessian here (a rope
+/// yanked by a huge force: chord steps 18x the Newton step before them), and a Newton
+/// iteration from the same state replaces it.
+bool acceptChord(StringState& s, double last_move) {
+    double worst_squared = 0.0;
+    for (std::size_t p = 0; p < s.particles(); ++p)
+        if (s.hold[p].kind == ParticleHold::Kind::Free) worst_squared = std::max(worst_squared, s.blk_rhs[p].squaredNorm());
+    const double limit = kQuadraticRegime * last_move;
+    if (!(worst_squared < limit * limit)) return false;
+    for (std::size_t j = 0; j < s.segments(); ++j)
+        if (s.active[j]) s.geometric_tension[j] = s.scratch[j];
+    return true;
 }
 
 /// The tension of each segment after the Newton step held in blk_rhs, to first order:
@@ -819,8 +965,9 @@ chain::Carry<double> sweepFromTop(StringState& s, const StepContext& ctx, std::s
         addSprings(last, next, d, rhs);
         last = next;
         double r[3], y[3], gain[9];
+        chain::Sym<double> inv;
         chain::load(rhs, r);
-        chain::eliminate(carry, chain::lower(d), r, chain::lower(s.blk_off[t]), y, gain);
+        chain::eliminate(carry, chain::lower(d), r, chain::lower(s.blk_off[t]), y, gain, inv);
         chain::store(y, s.blk_rhs[t]);
         std::memcpy(s.blk_factor_gain[t].data(), gain, sizeof gain);
     }
@@ -842,8 +989,9 @@ chain::Carry<double> sweepFromBottom(StringState& s, const StepContext& ctx, std
         addSprings(next, last, d, rhs);
         last = next;
         double r[3], y[3], gain[9];
+        chain::Sym<double> inv;
         chain::load(rhs, r);
-        chain::eliminate(carry, chain::lower(d), r, chain::lower(s.blk_off[i - 1]), y, gain);
+        chain::eliminate(carry, chain::lower(d), r, chain::lower(s.blk_off[i - 1]), y, gain, inv);
         chain::store(y, s.blk_rhs[i]);
         std::memcpy(s.blk_factor_gain[i].data(), gain, sizeof gain);
     }
@@ -907,7 +1055,8 @@ double parallelChainStep(StringState& s, RigidTable& rigids, const StepContext& 
         }
     });
     addSprings(SpringTerm{}, held, s.blk_diag[mid], s.blk_rhs[mid]);
-    chain::solveMiddle(top, bottom, s.blk_diag[mid], s.blk_rhs[mid]);
+    chain::Sym<double> middle_inverse;
+    chain::solveMiddle(top, bottom, s.blk_diag[mid], s.blk_rhs[mid], middle_inverse);
     double worst_squared[2] = {0.0, 0.0};
     pool.forEach(2, [&](std::size_t half) {
         if (half == 0) {
@@ -1096,6 +1245,7 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
     for (std::size_t j = 0; j < s.segments(); ++j)
         s.prev_stretch[j] = (s.x_prev[j + 1] - s.x_prev[j]).norm() - s.rest_length[j];
     s.strain_newton_iterations = 0;
+    s.strain_chord_iterations = 0;
     s.strain_warm_start = s.contacts.empty() && s.body_nodes.empty() && !ctx.cold_strain_starts && warmStart(s, ctx);
 }
 
@@ -1159,6 +1309,13 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     // two threads (parallelChainStep); glued particles move bodies, so not with those.
     bool parallel_chain = plain_chain && n >= kParallelChainParticles && ctx.pool && ctx.pool->parallel();
     for (std::size_t p = 0; p < n && parallel_chain; ++p) parallel_chain = s.hold[p].kind != ParticleHold::Kind::Glue;
+    // Chord iterations (see the file's header) in a chain of free and pinned particles
+    // shorter than kParallelChainParticles: a longer one's iterations are the same on one
+    // thread as on two (parallelChainStep), which has none.
+    bool chord_chain = plain_chain && n < kParallelChainParticles && s.chain_inverse.size() >= 6 * n + 12 && !ctx.newton_strain_only;
+    for (std::size_t p = 0; p < n && chord_chain; ++p) chord_chain = s.hold[p].kind != ParticleHold::Kind::Glue;
+    double* const inverses = chord_chain ? s.chain_inverse.data() : nullptr;
+    const bool warm_start = s.strain_warm_start;
     // Assembles the Newton system (the chain's, plus the contacts in the Hessian: those
     // marked active) and solves it: the particles' step into blk_rhs, the bodies' into
     // node_step.
@@ -1207,7 +1364,7 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         }
 
         if (plain_chain) {
-            solveChain(s);
+            solveChain(s, inverses);
             return;
         }
         factorBlockTridiagonal(s);
@@ -1259,14 +1416,20 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     for (int pass = 0; pass < (frictional ? kContactPasses : 1); ++pass) {
     bool converged = false;
     double last_move = -1.0;
+    bool chord_next = false;  // the next iteration may be a chord iteration
     for (int iter = 0; iter < iterations; ++iter) {
         double worst = 0.0;
         bool stalled = false;
+        bool chord = false;  // this iteration is one
         if (parallel_chain) {
             worst = parallelChainStep(s, rigids, ctx, *ctx.pool);
         } else {
             for (SegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
-            solveStep();
+            if (chord_next && assembleChainGradient(s, ctx)) {
+                chordSolveChain(s, inverses);
+                chord = acceptChord(s, last_move);
+            }
+            if (!chord) solveStep();
             for (int round = 0; round < kPredictRounds; ++round) {
                 bool added = false;
                 for (SegmentContact& c : s.contacts)
@@ -1325,15 +1488,25 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         }
         if (first_move < 0.0) first_move = worst;
         ++s.strain_newton_iterations;
+        s.strain_chord_iterations += chord;
         s.strain_warm_start = false;
         // Without contacts the iteration converges quadratically once it is close (each
         // move ~ C times the last one squared): where the moves fall that fast, the move
         // the next iteration would make, predicted with C from the last two, is checked
-        // against the tolerance (with a margin of 100) instead of being made.
-        const bool next_within = plain_chain && last_move > 0.0 && worst < kQuadraticRegime * last_move &&
-                                 kPredictionMargin * worst * worst * worst < tol * s.shortest_rest * last_move * last_move;
+        // against the tolerance (with a margin of 100) instead of being made. After a
+        // chord iteration the next move is predicted linearly, ~2 C m_last times this one
+        // (see the file's header), and a move within the tolerance ends the solve only
+        // where it fell that fast too.
+        const bool quadratic = last_move > 0.0 && worst < kQuadraticRegime * last_move;
+        const double margin = kPredictionMargin * worst * worst;
+        const bool next_within = plain_chain && quadratic &&
+                                 (chord ? 2.0 * margin < tol * s.shortest_rest * last_move
+                                        : margin * worst < tol * s.shortest_rest * last_move * last_move);
+        // A chord iteration follows the first Newton iteration of a warm start (whose move
+        // is small), or an iteration whose move fell by kQuadraticRegime or more.
+        chord_next = inverses && (iter == 0 ? warm_start : quadratic);
         last_move = worst;
-        if (stalled || worst < tol * s.shortest_rest || next_within) {
+        if (stalled || (worst < tol * s.shortest_rest && (!chord || quadratic)) || next_within) {
             converged = true;
             break;
         }

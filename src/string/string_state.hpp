@@ -182,6 +182,9 @@ struct StepContext {
     /// Chains start their strain solve at the prediction, never warm (strain_limit.cpp,
     /// warmStart): tests compare the two.
     bool cold_strain_starts = false;
+    /// Chains' strain solves make Newton iterations only, no chord iterations
+    /// (strain_limit.cpp): tests compare the two.
+    bool newton_strain_only = false;
 };
 
 /// Per-segment material constants after random variation (Strings, Sec. 7).
@@ -229,6 +232,9 @@ struct StringState {
     std::vector<Vec3> blk_rhs;
     std::vector<Mat3> blk_factor_gain;    ///< factorisation: U_{i-1}^T D'_{i-1}^-1 (per particle)
     std::vector<Cholesky3> blk_factor;    ///< factorisation: Cholesky of D'_i
+    /// The contact-free chain's factorisation: its pivots' inverses, 6 n + 12 doubles
+    /// (strain_limit.cpp, solveChain), kept for a chord iteration (scratch).
+    std::vector<double> chain_inverse;
     std::vector<std::uint8_t> blk_coupled;  ///< factorisation: particle i is coupled to i-1 (gain != 0)
 
     // --- rigid contacts (collision stage) -------------------------------------------------
@@ -237,7 +243,8 @@ struct StringState {
     /// The strain solve started warm this step (strain_limit.cpp, warmStart) and has not
     /// made its first Newton iteration yet (scratch).
     bool strain_warm_start = false;
-    int strain_newton_iterations = 0;     ///< Newton iterations of this step's strain solves (diagnostic)
+    int strain_newton_iterations = 0;     ///< iterations of this step's strain solves, chord ones included (diagnostic)
+    int strain_chord_iterations = 0;      ///< of which chord iterations (diagnostic)
     std::vector<double> geometric_tension;  ///< per segment: the tension estimate of the chain Hessian's geometric term, N (scratch)
     std::vector<Mat3> row_projector;      ///< per particle: I, or I minus the normals of the bodies pressing it
     std::vector<std::uint8_t> colliding;  ///< per particle: in a string-string contact last step (3x heavier in CSM)
