@@ -38,22 +38,26 @@
 // segments, swinging: 3.6 -> 2.0 iterations a step; a rope hanging still: 2 -> 1). The
 // solution is the same (the energy is convex), only the iterations differ.
 //
-// Chord iterations. Once an iteration has converged quadratically (or is the first from a
-// warm start, whose move is small), a contact-free chain of free and pinned particles
-// solves its next step with the factorisation it has (the pivots' inverses kept by
-// solveChain): only the gradient is assembled, and the solve is products, with no pivot
-// chain of divisions (about a third of an iteration's time). The Hessian it reuses is
-// that of the last factorisation, so the iteration converges linearly, at a rate of about
-// 2 m_c / m_N (m_N the move of the Newton iteration before, m_c the chord move: the
-// Hessian changes by O(m_N) over that move, and m_c ~ C m_N^2 / 2 gives C), and the solve
-// stops where the next move, predicted as 2 m_c^2 / m_last with the margin of 100, is
-// within tolerance. A chord iteration is refused (and a Newton iteration from the same
-// state made) where a segment went slack or taut since the factorisation, or where its
-// step is not below kQuadraticRegime times the last move: a rope yanked by a huge force
-// made chord steps 18x the Newton step before them. On Strings' Table 1 rope, 746 segments
-// swinging: 2.1 factorisations a step -> 1.2, and 1.5 chord iterations; 166 -> 151 us a
-// step. Chains of kParallelChainParticles or more have none: their iterations must be the
-// same on one thread as on two (parallelChainStep).
+// Chord iterations. After the first Newton iteration from a warm start, a contact-free
+// chain of free and pinned particles solves its next steps with the factorisation it has
+// (the pivots' inverses kept by solveChain): only the gradient is assembled, and the solve
+// is products, with no pivot chain of divisions (about a third of an iteration's time).
+// The Hessian it reuses is that of the first iteration, so the iterations converge
+// linearly, at a rate of about 2 m_c / m_N (m_N the Newton move, m_c the first chord move:
+// the Hessian changes by O(m_N) over that move, and m_c ~ C m_N^2 / 2 gives C), and the
+// solve stops where the next move, predicted as 2 m_c^2 / m_last with the margin of 100,
+// is within tolerance. Only from a warm start: its first Hessian's geometric term takes
+// the last step's converged tension. After cold iterations the term's tension is a
+// first-order estimate, off by the second-order stretch of the last move (a rope swinging
+// down: the move after a chord move was as long as the chord move, 3.7e-8 after 3.8e-8 m,
+// where the rate predicted 2%, and the solves took one more Newton iteration a step). A chord iteration follows another only
+// where that one's move fell by kQuadraticRegime or more, and it is refused (a Newton
+// iteration from the same state made instead) where a segment went slack or taut since
+// the factorisation, or where its step is not below kQuadraticRegime times the last move
+// (a rope yanked by a huge force made chord steps 18x the Newton step before them).
+// Strings' Table 1 rope, 746 segments swinging: 2.0 factorisations a step -> 1.0, and 1.2
+// chord iterations. Chains of kParallelChainParticles or more have none: their iterations
+// must be the same on one thread as on two (parallelChainStep).
 //
 // Clamped particles are fixed rows, which splits the system into independent pieces as
 // case 3 of the paper prescribes. A particle glued to a rigid body carries the body's
@@ -1502,9 +1506,9 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         const bool next_within = plain_chain && quadratic &&
                                  (chord ? 2.0 * margin < tol * s.shortest_rest * last_move
                                         : margin * worst < tol * s.shortest_rest * last_move * last_move);
-        // A chord iteration follows the first Newton iteration of a warm start (whose move
-        // is small), or an iteration whose move fell by kQuadraticRegime or more.
-        chord_next = inverses && (iter == 0 ? warm_start : quadratic);
+        // A chord iteration follows the first Newton iteration of a warm start, or a chord
+        // iteration whose move fell by kQuadraticRegime or more (see the file's header).
+        chord_next = inverses && (iter == 0 ? warm_start : chord && quadratic);
         last_move = worst;
         if (stalled || (worst < tol * s.shortest_rest && (!chord || quadratic)) || next_within) {
             converged = true;

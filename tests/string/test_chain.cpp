@@ -355,7 +355,7 @@ TEST(Chain, WarmStartChangesTheIterationsNotTheMotion) {
 // between two pins settling into a catenary (its segments go slack and taut, where a
 // chord iteration is refused), follow the path of Newton-only solves within the solver's
 // tolerance, and make fewer factorisations once past their first swing or sag (steps
-// 150-300; measured: 0.82 and 0.63 of the Newton-only solves').
+// 150-300; measured: 0.84 and 0.63 of the Newton-only solves').
 TEST(Chain, ChordIterationsChangeTheCostNotTheMotion) {
     for (const bool catenary : {false, true}) {
         World worlds[2];
