@@ -1006,7 +1006,7 @@ chain::Carry<double> sweepFromBottom(StringState& s, const StepContext& ctx, std
 /// The back substitution of parallelChainStep's halves, outward from the middle particle:
 /// x_t = y_t - W_t x_{t+1} above it (t < mid), x_i = y_i - W_i x_{i-1} below it (i > mid),
 /// with the gains the sweeps left per particle in blk_factor_gain.
-void substituteParticle(const Mat3& gain_matrix, const Vec3& next_x, Vec3& x_out) {
+[[gnu::always_inline]] inline void substituteParticle(const Mat3& gain_matrix, const Vec3& next_x, Vec3& x_out) {
     double gain[9], next[3], x[3];
     std::memcpy(gain, gain_matrix.data(), sizeof gain);
     chain::load(next_x, next);
