@@ -449,8 +449,22 @@ inline LaneMask2 nonzero(Lanes2 v) { return v != Lanes2{0.0, 0.0}; }
 /// v where m holds, else 0 (also where v is not finite).
 inline double keep(bool m, double v) { return m ? v : 0.0; }
 inline Lanes2 keep(LaneMask2 m, Lanes2 v) { return (Lanes2)((LaneMask2)v & m); }
-template <class T> struct MaskOf { using type = bool; };
-template <> struct MaskOf<Lanes2> { using type = LaneMask2; };
+/// Whether any of the n values is not zero, lane by lane. One sweep stops at the first
+/// (a predictable branch; a mask of every value cost the two-thread halves' sweeps 50
+/// instructions a particle and their registers).
+template <int n> inline bool anyNonzero(const double* v) {
+    for (int k = 0; k < n; ++k)
+        if (v[k] != 0.0) return true;
+    return false;
+}
+template <int n> inline LaneMask2 anyNonzero(const Lanes2* v) {
+    LaneMask2 m = nonzero(v[0]);
+    for (int k = 1; k < n; ++k) m = m | nonzero(v[k]);
+    return m;
+}
+/// Whether no lane of m holds.
+inline bool none(bool m) { return !m; }
+inline bool none(LaneMask2 m) { return (m[0] | m[1]) == 0; }
 
 /// A symmetric 3x3 matrix by its lower triangle: 00 10 20 11 21 22.
 template <class T> struct Sym {
@@ -506,8 +520,11 @@ template <class T>
     for (int i = 0; i < 3; ++i) y[i] = inv(i, 0) * r[0] + inv(i, 1) * r[1] + inv(i, 2) * r[2];
     for (int c = 0; c < 3; ++c)
         for (int i = 0; i < 3; ++i) gain[i + 3 * c] = inv(i, 0) * out(0, c) + inv(i, 1) * out(1, c) + inv(i, 2) * out(2, c);
-    typename MaskOf<T>::type coupled = nonzero(out.e[0]);
-    for (int k = 1; k < 6; ++k) coupled = coupled | nonzero(out.e[k]);
+    const auto coupled = anyNonzero<6>(out.e);
+    if (none(coupled)) {
+        carry = Carry<T>{};
+        return;
+    }
     for (int c = 0; c < 3; ++c)
         for (int i = c; i < 3; ++i)
             carry.schur.e[Sym<T>::kIndex[i][c]] = keep(coupled, out(i, 0) * gain[3 * c] + out(i, 1) * gain[1 + 3 * c] + out(i, 2) * gain[2 + 3 * c]);
@@ -522,16 +539,19 @@ template <class T>
     T r[3];
     for (int i = 0; i < 3; ++i) r[i] = rhs[i] - carry.rhs[i];
     for (int i = 0; i < 3; ++i) y[i] = inv(i, 0) * r[0] + inv(i, 1) * r[1] + inv(i, 2) * r[2];
-    typename MaskOf<T>::type coupled = nonzero(out.e[0]);
-    for (int k = 1; k < 6; ++k) coupled = coupled | nonzero(out.e[k]);
+    const auto coupled = anyNonzero<6>(out.e);
+    if (none(coupled)) {
+        carry = Carry<T>{};
+        return;
+    }
     for (int i = 0; i < 3; ++i) carry.rhs[i] = keep(coupled, out(i, 0) * y[0] + out(i, 1) * y[1] + out(i, 2) * y[2]);
 }
 
 /// Back substitution of one particle: x = y - W x_next, where the gain W is not zero (a
 /// zero gain, nothing crossing, leaves y whatever x_next holds).
 template <class T> [[gnu::always_inline]] inline void substitute(const T (&gain)[9], const T (&next)[3], T (&x)[3]) {
-    typename MaskOf<T>::type coupled = nonzero(gain[0]);
-    for (int k = 1; k < 9; ++k) coupled = coupled | nonzero(gain[k]);
+    const auto coupled = anyNonzero<9>(gain);
+    if (none(coupled)) return;
     for (int i = 0; i < 3; ++i) x[i] = x[i] - keep(coupled, gain[i] * next[0] + gain[i + 3] * next[1] + gain[i + 6] * next[2]);
 }
 
@@ -595,14 +615,17 @@ void substituteChain(StringState& s) {
         chain::substitute(gain, next, x);
         chain::store(x, rhs[mid - 1]);
     }
+    if (below == 0) return;
+    Lanes2 next[3];  // the pair's neighbours towards the middle: carried, not read back
+    chain::load(rhs[below], rhs[mid], next);
     for (std::size_t p = below; p-- > 0;) {
         const std::size_t i = n - 1 - p;
-        Lanes2 gain[9], next[3], x[3];
+        Lanes2 gain[9], x[3];
         std::memcpy(gain, gains + 18 * p, sizeof gain);
-        chain::load(rhs[p + 1], rhs[i - 1], next);
         chain::load(rhs[p], rhs[i], x);
         chain::substitute(gain, next, x);
         chain::store(x, rhs[p], rhs[i]);
+        std::copy(x, x + 3, next);
     }
 }
 
@@ -1005,20 +1028,22 @@ chain::Carry<double> sweepFromBottom(StringState& s, const StepContext& ctx, std
 
 /// The back substitution of parallelChainStep's halves, outward from the middle particle:
 /// x_t = y_t - W_t x_{t+1} above it (t < mid), x_i = y_i - W_i x_{i-1} below it (i > mid),
-/// with the gains the sweeps left per particle in blk_factor_gain.
-[[gnu::always_inline]] inline void substituteParticle(const Mat3& gain_matrix, const Vec3& next_x, Vec3& x_out) {
-    double gain[9], next[3], x[3];
-    std::memcpy(gain, gain_matrix.data(), sizeof gain);
-    chain::load(next_x, next);
-    chain::load(x_out, x);
-    chain::substitute(gain, next, x);
-    chain::store(x, x_out);
-}
-void substituteAbove(StringState& s, std::size_t mid) {
-    for (std::size_t t = mid; t-- > 0;) substituteParticle(s.blk_factor_gain[t], s.blk_rhs[t + 1], s.blk_rhs[t]);
-}
-void substituteBelow(StringState& s, std::size_t mid) {
-    for (std::size_t i = mid + 1; i < s.particles(); ++i) substituteParticle(s.blk_factor_gain[i], s.blk_rhs[i - 1], s.blk_rhs[i]);
+/// with the gains the sweeps left per particle in blk_factor_gain. The last x is carried
+/// in registers, not read back from blk_rhs, where its three stores had to reach the next
+/// particle's loads through memory (100 000 segments, two threads: 38 ticks of the TSC a
+/// particle read back, 16 carried).
+void substituteHalf(StringState& s, std::size_t mid, bool above) {
+    double next[3], gain[9], x[3];
+    chain::load(s.blk_rhs[mid], next);
+    const std::size_t count = above ? mid : s.particles() - 1 - mid;
+    for (std::size_t k = 1; k <= count; ++k) {
+        const std::size_t p = above ? mid - k : mid + k;
+        std::memcpy(gain, s.blk_factor_gain[p].data(), sizeof gain);
+        chain::load(s.blk_rhs[p], x);
+        chain::substitute(gain, next, x);
+        chain::store(x, s.blk_rhs[p]);
+        std::copy(x, x + 3, next);
+    }
 }
 
 /// Moves the free particles in [p0, p1) by their step in blk_rhs (a chain without glued
@@ -1064,11 +1089,11 @@ double parallelChainStep(StringState& s, RigidTable& rigids, const StepContext& 
     double worst_squared[2] = {0.0, 0.0};
     pool.forEach(2, [&](std::size_t half) {
         if (half == 0) {
-            substituteAbove(s, mid);
+            substituteHalf(s, mid, true);
             linearisedTension(s, ctx, 0, mid);
             worst_squared[0] = applyChainStep(s, 0, mid + 1);
         } else {
-            substituteBelow(s, mid);
+            substituteHalf(s, mid, false);
             linearisedTension(s, ctx, mid, m);
             worst_squared[1] = applyChainStep(s, mid + 1, n);
         }
