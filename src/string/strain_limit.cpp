@@ -444,7 +444,6 @@ namespace chain {
 typedef double Lanes2 __attribute__((vector_size(16)));
 typedef long long LaneMask2 __attribute__((vector_size(16)));
 
-inline bool nonzero(double v) { return v != 0.0; }
 inline LaneMask2 nonzero(Lanes2 v) { return v != Lanes2{0.0, 0.0}; }
 /// v where m holds, else 0 (also where v is not finite).
 inline double keep(bool m, double v) { return m ? v : 0.0; }
