@@ -66,6 +66,7 @@
 // pulls the rope (two-way). Strings that share a body are coupled by Gauss-Seidel sweeps
 // over the strings in World::step.
 #include "collision/capsule.hpp"
+#include "core/lanes.hpp"
 #include "core/thread_pool.hpp"
 #include "core/tridiagonal.hpp"
 #include "string/string_state.hpp"
@@ -441,9 +442,6 @@ struct SpringTerm {
 // changed with this code, by rounding.
 namespace chain {
 
-typedef double Lanes2 __attribute__((vector_size(16)));
-typedef long long LaneMask2 __attribute__((vector_size(16)));
-
 inline LaneMask2 nonzero(Lanes2 v) { return v != Lanes2{0.0, 0.0}; }
 /// v where m holds, else 0 (also where v is not finite).
 inline double keep(bool m, double v) { return m ? v : 0.0; }
@@ -600,7 +598,6 @@ inline void split(const Carry<Lanes2>& both, Carry<double>& top, Carry<double>& 
 /// solveChain's back substitution, outward from the middle particle, with the gains it
 /// left in blk_factor_gain.
 void substituteChain(StringState& s) {
-    using chain::Lanes2;
     const std::size_t n = s.particles();
     const std::size_t mid = n / 2;
     const std::size_t below = n - 1 - mid;
@@ -647,7 +644,6 @@ void substituteChain(StringState& s) {
 /// where the explicit inverse lost that direction: they keep the Cholesky
 /// (factorBlockTridiagonal).
 void solveChain(StringState& s, double* inverses = nullptr) {
-    using chain::Lanes2;
     const std::size_t n = s.particles();
     if (n == 0) return;
     const std::size_t mid = n / 2;
@@ -689,7 +685,6 @@ void solveChain(StringState& s, double* inverses = nullptr) {
 /// still in blk_off, its gains in blk_factor_gain, its pivots' inverses in `inverses`)
 /// for a new right-hand side in blk_rhs, in place. Only products: no pivot, no division.
 void chordSolveChain(StringState& s, const double* inverses) {
-    using chain::Lanes2;
     const std::size_t n = s.particles();
     if (n == 0) return;
     const std::size_t mid = n / 2;
