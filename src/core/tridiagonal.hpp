@@ -58,7 +58,6 @@ inline void solveSymmetricTridiagonal(const std::vector<double>& diag, const std
     const double under = mid + 1 < n ? off[mid] : 0.0;
     const double denom = diag[mid] - above * top_gain - under * gain[1];
     rhs[mid] = (rhs[mid] - above * top_y - under * y[1]) / denom;
-    scratch[mid] = 0.0;
     // Back substitution, outward: x_t = y_t - c_t x_{t+1} above, x_i = y_i - c_i x_{i-1} below.
     for (std::size_t r = mid; r-- > 0;) rhs[r] -= scratch[r] * rhs[r + 1];
     for (std::size_t r = mid + 1; r < n; ++r) rhs[r] -= scratch[r] * rhs[r - 1];

@@ -503,6 +503,25 @@ template <class T> [[gnu::always_inline]] inline Sym<T> inverseSymmetric(const S
     return {{r0 + r1 * l10 * l10 + i20 * m20, i10, i20, r1 + i21 * -l21, i21, r2}};
 }
 
+/// The forward substitution of one particle, its pivot's inverse `inv` given: y = D^-1 (rhs
+/// less the carry's U^T y), and the carry's U^T y for the next particle (zero, with the
+/// Schur complement, where the symmetric coupling block `out` = U is zero). Part of
+/// eliminate, and alone a chord iteration's forward step (chordSolveChain).
+/// Returns whether `out` couples, lane by lane.
+template <class T>
+[[gnu::always_inline]] inline auto eliminateAgain(Carry<T>& carry, const Sym<T>& inv, const T (&rhs)[3], const Sym<T>& out, T (&y)[3]) {
+    T r[3];
+    for (int i = 0; i < 3; ++i) r[i] = rhs[i] - carry.rhs[i];
+    for (int i = 0; i < 3; ++i) y[i] = inv(i, 0) * r[0] + inv(i, 1) * r[1] + inv(i, 2) * r[2];
+    const auto coupled = anyNonzero<6>(out.e);
+    if (none(coupled)) {
+        carry = Carry<T>{};
+        return coupled;
+    }
+    for (int i = 0; i < 3; ++i) carry.rhs[i] = keep(coupled, out(i, 0) * y[0] + out(i, 1) * y[1] + out(i, 2) * y[2]);
+    return coupled;
+}
+
 /// Eliminates one particle: its block `diag` and right-hand side `rhs`, less what the
 /// carry brings from the particle before, give the pivot D; y = D^-1 r, D^-1 into `inv`
 /// and the gain W = D^-1 U (column-major) towards the next particle, coupled by the
@@ -511,37 +530,14 @@ template <class T>
 [[gnu::always_inline]] inline void eliminate(Carry<T>& carry, const Sym<T>& diag, const T (&rhs)[3], const Sym<T>& out, T (&y)[3], T (&gain)[9], Sym<T>& inv) {
     Sym<T> pivot;
     for (int k = 0; k < 6; ++k) pivot.e[k] = diag.e[k] - carry.schur.e[k];
-    T r[3];
-    for (int i = 0; i < 3; ++i) r[i] = rhs[i] - carry.rhs[i];
     inv = inverseSymmetric(pivot);
-    for (int i = 0; i < 3; ++i) y[i] = inv(i, 0) * r[0] + inv(i, 1) * r[1] + inv(i, 2) * r[2];
     for (int c = 0; c < 3; ++c)
         for (int i = 0; i < 3; ++i) gain[i + 3 * c] = inv(i, 0) * out(0, c) + inv(i, 1) * out(1, c) + inv(i, 2) * out(2, c);
-    const auto coupled = anyNonzero<6>(out.e);
-    if (none(coupled)) {
-        carry = Carry<T>{};
-        return;
-    }
+    const auto coupled = eliminateAgain(carry, inv, rhs, out, y);
+    if (none(coupled)) return;
     for (int c = 0; c < 3; ++c)
         for (int i = c; i < 3; ++i)
             carry.schur.e[Sym<T>::kIndex[i][c]] = keep(coupled, out(i, 0) * gain[3 * c] + out(i, 1) * gain[1 + 3 * c] + out(i, 2) * gain[2 + 3 * c]);
-    for (int i = 0; i < 3; ++i) carry.rhs[i] = keep(coupled, out(i, 0) * y[0] + out(i, 1) * y[1] + out(i, 2) * y[2]);
-}
-
-/// The forward step of a chord iteration (chordSolveChain): eliminate's, with the pivot's
-/// inverse `inv` kept from it, for a new right-hand side: y = D^-1 (rhs - carry), and the
-/// carry's U^T y.
-template <class T>
-[[gnu::always_inline]] inline void eliminateAgain(Carry<T>& carry, const Sym<T>& inv, const T (&rhs)[3], const Sym<T>& out, T (&y)[3]) {
-    T r[3];
-    for (int i = 0; i < 3; ++i) r[i] = rhs[i] - carry.rhs[i];
-    for (int i = 0; i < 3; ++i) y[i] = inv(i, 0) * r[0] + inv(i, 1) * r[1] + inv(i, 2) * r[2];
-    const auto coupled = anyNonzero<6>(out.e);
-    if (none(coupled)) {
-        carry = Carry<T>{};
-        return;
-    }
-    for (int i = 0; i < 3; ++i) carry.rhs[i] = keep(coupled, out(i, 0) * y[0] + out(i, 1) * y[1] + out(i, 2) * y[2]);
 }
 
 /// Back substitution of one particle: x = y - W x_next, where the gain W is not zero (a
@@ -571,10 +567,14 @@ inline void store(const Lanes2 (&v)[3], Vec3& a, Vec3& b) {
 
 /// The middle particle, where the two sweeps meet: its block less both sides' Schur
 /// complements, solved into x.
-inline void solveMiddle(const Carry<double>& top, const Carry<double>& bottom, const Mat3& diag, Vec3& rhs, Sym<double>& inv) {
+inline Carry<double> meet(const Carry<double>& top, const Carry<double>& bottom) {
     Carry<double> both;
     for (int k = 0; k < 6; ++k) both.schur.e[k] = top.schur.e[k] + bottom.schur.e[k];
     for (int i = 0; i < 3; ++i) both.rhs[i] = top.rhs[i] + bottom.rhs[i];
+    return both;
+}
+inline void solveMiddle(const Carry<double>& top, const Carry<double>& bottom, const Mat3& diag, Vec3& rhs, Sym<double>& inv) {
+    Carry<double> both = meet(top, bottom);
     double r[3], x[3], unused[9];
     load(rhs, r);
     eliminate(both, lower(diag), r, Sym<double>{}, x, unused, inv);
@@ -713,8 +713,7 @@ void chordSolveChain(StringState& s, const double* inverses) {
         chain::store(y, rhs[t]);
     }
     {
-        chain::Carry<double> middle;
-        for (int k = 0; k < 3; ++k) middle.rhs[k] = top.rhs[k] + bottom.rhs[k];
+        chain::Carry<double> middle = chain::meet(top, bottom);
         chain::Sym<double> inv;
         std::memcpy(inv.e, inverses + 12 * below + 6, sizeof inv.e);
         double r[3], y[3];
@@ -793,6 +792,9 @@ double stepEnergy(const StringState& s, const RigidTable& rigids, const StepCont
     return e;
 }
 
+/// A free particle's inertia row's right-hand side: toward its prediction x'.
+inline Vec3 inertiaRhs(const StringState& s, std::size_t p, double inv_h2) { return -(s.mass[p] * inv_h2) * (s.x[p] - s.x_pred[p]); }
+
 /// The inertia rows of particles [p0, p1) of the chain's Newton system: free particles
 /// toward their prediction x', a glued particle with its body's effective mass, fixed rows
 /// for pins, into blk_diag and blk_rhs.
@@ -807,7 +809,7 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
         switch (hold.kind) {
             case ParticleHold::Kind::Free:
                 s.blk_diag[p] = (s.mass[p] * inv_h2) * Mat3::Identity();
-                s.blk_rhs[p] = -(s.mass[p] * inv_h2) * (s.x[p] - s.x_pred[p]);
+                s.blk_rhs[p] = inertiaRhs(s, p, inv_h2);
                 break;
             case ParticleHold::Kind::Glue:
                 s.x[p] = gluePoint(rigids.bodies[hold.body.index], hold.point);
@@ -921,7 +923,7 @@ void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx, d
 bool assembleChainGradient(StringState& s, const StepContext& ctx) {
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
     for (std::size_t p = 0; p < s.particles(); ++p)
-        s.blk_rhs[p] = s.hold[p].kind == ParticleHold::Kind::Free ? Vec3(-(s.mass[p] * inv_h2) * (s.x[p] - s.x_pred[p])) : Vec3::Zero();
+        s.blk_rhs[p] = s.hold[p].kind == ParticleHold::Kind::Free ? inertiaRhs(s, p, inv_h2) : Vec3::Zero();
     bool same = true;
     for (std::size_t j = 0; j < s.segments(); ++j) {
         const std::uint8_t was = s.active[j];
@@ -1330,13 +1332,14 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     if (plain_chain) std::copy(s.spring_force.begin(), s.spring_force.end(), s.geometric_tension.begin());
     // A long one, alone on the pool (not nested in a forEach over strings), is split over
     // two threads (parallelChainStep); glued particles move bodies, so not with those.
-    bool parallel_chain = plain_chain && n >= kParallelChainParticles && ctx.pool && ctx.pool->parallel();
-    for (std::size_t p = 0; p < n && parallel_chain; ++p) parallel_chain = s.hold[p].kind != ParticleHold::Kind::Glue;
+    const bool glued = plain_chain && std::any_of(s.hold.begin(), s.hold.end(), [](const ParticleHold& hold) {
+        return hold.kind == ParticleHold::Kind::Glue;
+    });
+    const bool parallel_chain = plain_chain && !glued && n >= kParallelChainParticles && ctx.pool && ctx.pool->parallel();
     // Chord iterations (see the file's header) in a chain of free and pinned particles
     // shorter than kParallelChainParticles: a longer one's iterations are the same on one
     // thread as on two (parallelChainStep), which has none.
-    bool chord_chain = plain_chain && n < kParallelChainParticles && s.chain_inverse.size() >= 6 * n + 12 && !ctx.newton_strain_only;
-    for (std::size_t p = 0; p < n && chord_chain; ++p) chord_chain = s.hold[p].kind != ParticleHold::Kind::Glue;
+    const bool chord_chain = plain_chain && !glued && n < kParallelChainParticles && s.chain_inverse.size() >= 6 * n + 12 && !ctx.newton_strain_only;
     double* const inverses = chord_chain ? s.chain_inverse.data() : nullptr;
     const bool warm_start = s.strain_warm_start;
     // Assembles the Newton system (the chain's, plus the contacts in the Hessian: those
