@@ -18,6 +18,7 @@
 //    string and step only the most overloaded segment breaks (a uniform rope would
 //    otherwise shatter into all its segments at once; after the first tear the rest
 //    is unloaded).
+#include "core/lanes.hpp"
 #include "string/material_curve.hpp"
 #include "string/string_state.hpp"
 
@@ -52,13 +53,11 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
     const double area0 = kPi * r0 * r0;
     int worst = -1;
     double worst_ratio = 0.0, worst_stress = 0.0;
-    for (std::size_t j = 0; j < m; ++j) {
-        if (s.broken[j]) continue;
+    // Segment j at engineering stress `stress`: a tear candidate (false: its geometry
+    // stays), or its yield and hardening; true where its geometry follows the stress.
+    const auto yieldAt = [&](std::size_t j, double stress) {
+        if (s.broken[j]) return false;
         const SegmentMaterial& mat = s.material[j];
-        // Engineering stress (force over the original section), as stress-strain
-        // curves and rupture stresses are measured; the thinned radius below is geometry.
-        const double stress = std::max(0.0, s.tension[j]) / area0;
-
         if (s.desc.tearable && stress >= mat.rupture) {
             // Tear the most overloaded segment only: once it is gone the others are
             // unloaded, and the next step's tension says whether they still tear.
@@ -68,7 +67,7 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
                 worst = static_cast<int>(j);
                 worst_stress = stress;
             }
-            continue;
+            return false;
         }
         if (stress > mat.yield) {
             if (!s.yielded[j]) {
@@ -84,9 +83,30 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
                 s.rest_length[j] = s.original_length[j] * (1.0 + permanent);
             }
         }
-        s.max_length[j] = s.rest_length[j] * (1.0 + stress / mat.young);
-        s.radius[j] = r0 * std::sqrt(s.original_length[j] / s.max_length[j]);
-        s.compliance[j] = s.rest_length[j] / (mat.young * area0);  // engineering: E on the original section
+        return true;
+    };
+    // The geometry two segments at a time: their four divisions and root in the two lanes
+    // of one register (one costs what a scalar one does; the same operations lane by lane,
+    // so the same bits). Engineering stress, force over the original section, as
+    // stress-strain curves and rupture stresses are measured; the thinned radius is
+    // geometry. Lanes of segments that keep their geometry are computed and dropped.
+    for (std::size_t j = 0; j < m; j += 2) {
+        const std::size_t k = j + 1 < m ? j + 1 : j;  // an odd count: the last one twice
+        const Lanes2 stress = Lanes2{std::max(0.0, s.tension[j]), std::max(0.0, s.tension[k])} / area0;
+        const bool follow[2] = {yieldAt(j, stress[0]), k != j && yieldAt(k, stress[1])};
+        if (!follow[0] && !follow[1]) continue;
+        const Lanes2 rest{s.rest_length[j], s.rest_length[k]};
+        const Lanes2 young{s.material[j].young, s.material[k].young};
+        const Lanes2 max_length = rest * (1.0 + stress / young);
+        const Lanes2 radius = r0 * sqrt(Lanes2{s.original_length[j], s.original_length[k]} / max_length);
+        const Lanes2 compliance = rest / (young * area0);  // engineering: E on the original section
+        for (int lane = 0; lane < 2; ++lane) {
+            if (!follow[lane]) continue;
+            const std::size_t i = lane == 0 ? j : k;
+            s.max_length[i] = max_length[lane];
+            s.radius[i] = radius[lane];
+            s.compliance[i] = compliance[lane];
+        }
     }
     // Torsion (Strings Sec. 5.4, Eq. 11 with the division by length): per joint between
     // segments k and k+1, gamma = r (theta_{k+1} - theta_k) / l. Past the yield strain the

@@ -837,17 +837,18 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
 /// below the spring's force now (see limitStrain); if the segment is active, its entry is
 /// replaced by its effective stretch now, which linearisedTension reads. Without
 /// `kHessian` (a chord iteration's gradient), the force only: hess and blk_off are left.
-template <bool kHessian = true>
-[[gnu::always_inline]] inline SpringTerm springTerm(StringState& s, const StepContext& ctx, std::size_t j,
-                                                     double* tension_estimate) {
-    SpringTerm term;
+/// springTerm's part after the segment's length, direction and stiffness (`len`, `e`
+/// candidate for dir, `k` = 1 / compliance): everything but the Hessian's one division.
+/// Returns whether the term needs its Hessian (not where the segment is broken or slack,
+/// nor without kHessian), with the stretch its geometric part takes in `geometric`.
+template <bool kHessian>
+[[gnu::always_inline]] inline bool springForce(StringState& s, const StepContext& ctx, std::size_t j, double* tension_estimate,
+                                               double len, const Vec3& e_new, double k, SpringTerm& term, double& geometric) {
     s.active[j] = 0;
     s.spring_force[j] = 0.0;
     if (kHessian) s.blk_off[j].setZero();
-    if (s.broken[j]) return term;
-    const Vec3 d = s.x[j + 1] - s.x[j];
-    const double len = d.norm();
-    if (len > 1e-15) s.dir[j] = d / len;
+    if (s.broken[j]) return false;
+    if (len > 1e-15) s.dir[j] = e_new;
     const double stretch = len - s.rest_length[j];
     // Kelvin-Voigt: the segment's force is k (C + tau dC/dt), tau the material's
     // retardation time; it damps the rope's axial (bungee) vibration, which a
@@ -858,23 +859,18 @@ template <bool kHessian = true>
     // kTautSlack of rest) join with their stiffness but no force, so that one
     // Newton step sees the whole taut chain a correction would stretch; a
     // segment the step compresses leaves again at the next iteration.
-    if (slackSegment(s, j, stretch, effective)) return term;
+    if (slackSegment(s, j, stretch, effective)) return false;
     const double c = std::max(effective, 0.0);
     s.active[j] = 1;
-    const double k = 1.0 / s.compliance[j];
     s.spring_force[j] = k * c;
-    const Vec3& e = s.dir[j];
-    term.force = k * c * e;
+    term.force = k * c * s.dir[j];
     term.to_a = !fixedRow(s, j);
     term.to_b = !fixedRow(s, j + 1);
     if (!kHessian) {
         if (tension_estimate) tension_estimate[j] = effective;
-        return term;
+        return false;
     }
-    // hess = k ((1 + tau/h) e e^T + C/l (I - e e^T)), entry by entry with the same
-    // operations as the matrix expression (so the same bits), the six distinct ones
-    // only (e_i e_j = e_j e_i exactly).
-    double geometric = c;
+    geometric = c;
     if (tension_estimate) {
         // From a warm start, whose stretch is the last step's final one to within the
         // start's error, the first iteration takes the last step's tension as it is:
@@ -885,7 +881,16 @@ template <bool kHessian = true>
         if (tension_estimate[j] > 0.0) geometric = s.strain_warm_start ? estimate : std::min(c, estimate);
         tension_estimate[j] = effective;
     }
-    const double g = 1.0 + rate_gain, q = geometric / len;
+    return true;
+}
+
+/// springTerm's Hessian, q = geometric / len given: k ((1 + tau/h) e e^T + q (I - e e^T)),
+/// entry by entry with the same operations as the matrix expression (so the same bits),
+/// the six distinct ones only (e_i e_j = e_j e_i exactly); and blk_off.
+[[gnu::always_inline]] inline void springHessian(StringState& s, const StepContext& ctx, std::size_t j, double k, double q,
+                                                 SpringTerm& term) {
+    const double g = 1.0 + s.desc.axial_damping * ctx.inv_h;
+    const Vec3& e = s.dir[j];
     const double e00 = e.x() * e.x(), e11 = e.y() * e.y(), e22 = e.z() * e.z();
     const double e10 = e.y() * e.x(), e20 = e.z() * e.x(), e21 = e.z() * e.y();
     const double h10 = k * (g * e10 + q * (0.0 - e10)), h20 = k * (g * e20 + q * (0.0 - e20));
@@ -894,16 +899,63 @@ template <bool kHessian = true>
         h10, k * (g * e11 + q * (1.0 - e11)), h21,           //
         h20, h21, k * (g * e22 + q * (1.0 - e22));
     if (term.to_a && term.to_b) s.blk_off[j] = -term.hess;
+}
+
+/// Segment j's spring of the material's stiffness k = E A / L_rest, if stretched: gradient
+/// k C e and Hessian k (e e^T + C/l (I - e e^T)) (the geometric term keeps Newton convergent
+/// when a heavy load pulls light particles). Sets active, spring_force, dir and blk_off
+/// (zero where the segment couples nothing) of the segment. `tension_estimate` (per
+/// segment, may be null): the tension the geometric term of the Hessian takes where it is
+/// below the spring's force now (see limitStrain); if the segment is active, its entry is
+/// replaced by its effective stretch now, which linearisedTension reads. Without
+/// `kHessian` (a chord iteration's gradient), the force only: hess and blk_off are left.
+template <bool kHessian = true>
+[[gnu::always_inline]] inline SpringTerm springTerm(StringState& s, const StepContext& ctx, std::size_t j,
+                                                     double* tension_estimate) {
+    SpringTerm term;
+    const Vec3 d = s.x[j + 1] - s.x[j];
+    const double len = d.norm();
+    const double k = 1.0 / s.compliance[j];
+    double geometric = 0.0;
+    if (springForce<kHessian>(s, ctx, j, tension_estimate, len, Vec3(d / len), k, term, geometric))
+        springHessian(s, ctx, j, k, geometric / len, term);
     return term;
+}
+
+/// springTerm of segments j and j + 1, their square roots and divisions in the two lanes
+/// of one register: a root or a division of two lanes costs what one of one lane does,
+/// and a spring's five divisions and root are most of its time (the divider is busy ~18
+/// ticks of the TSC a segment). The same operations lane by lane: the same bits.
+template <bool kHessian = true>
+[[gnu::always_inline]] inline void springTerms(StringState& s, const StepContext& ctx, std::size_t j, double* tension_estimate,
+                                               SpringTerm (&term)[2]) {
+    const Vec3 d0 = s.x[j + 1] - s.x[j], d1 = s.x[j + 2] - s.x[j + 1];
+    const Lanes2 len = sqrt(Lanes2{d0.squaredNorm(), d1.squaredNorm()});
+    const Lanes2 dx = Lanes2{d0.x(), d1.x()} / len, dy = Lanes2{d0.y(), d1.y()} / len, dz = Lanes2{d0.z(), d1.z()} / len;
+    const Lanes2 k = 1.0 / Lanes2{s.compliance[j], s.compliance[j + 1]};
+    double g0 = 0.0, g1 = 0.0;
+    const bool h0 = springForce<kHessian>(s, ctx, j, tension_estimate, len[0], Vec3(dx[0], dy[0], dz[0]), k[0], term[0], g0);
+    const bool h1 = springForce<kHessian>(s, ctx, j + 1, tension_estimate, len[1], Vec3(dx[1], dy[1], dz[1]), k[1], term[1], g1);
+    if (!h0 && !h1) return;
+    const Lanes2 q = Lanes2{g0, g1} / len;
+    if (h0) springHessian(s, ctx, j, k[0], q[0], term[0]);
+    if (h1) springHessian(s, ctx, j + 1, k[1], q[1], term[1]);
 }
 
 /// The springs of segments [j0, j1) (springTerm) added to blk_diag and blk_rhs.
 void assembleSprings(StringState& s, const StepContext& ctx, std::size_t j0, std::size_t j1, double* tension_estimate) {
-    for (std::size_t j = j0; j < j1; ++j) {
-        const SpringTerm term = springTerm(s, ctx, j, tension_estimate);
+    auto add = [&s](std::size_t j, const SpringTerm& term) {
         addSprings(SpringTerm{}, term, s.blk_diag[j], s.blk_rhs[j]);
         addSprings(term, SpringTerm{}, s.blk_diag[j + 1], s.blk_rhs[j + 1]);
+    };
+    std::size_t j = j0;
+    for (; j + 1 < j1; j += 2) {
+        SpringTerm term[2];
+        springTerms(s, ctx, j, tension_estimate, term);
+        add(j, term[0]);
+        add(j + 1, term[1]);
     }
+    if (j < j1) add(j, springTerm(s, ctx, j, tension_estimate));
 }
 
 /// The Newton system of the chain without contacts: the inertia rows (assembleInertia) and
@@ -925,12 +977,24 @@ bool assembleChainGradient(StringState& s, const StepContext& ctx) {
     for (std::size_t p = 0; p < s.particles(); ++p)
         s.blk_rhs[p] = s.hold[p].kind == ParticleHold::Kind::Free ? inertiaRhs(s, p, inv_h2) : Vec3::Zero();
     bool same = true;
-    for (std::size_t j = 0; j < s.segments(); ++j) {
-        const std::uint8_t was = s.active[j];
-        const SpringTerm term = springTerm<false>(s, ctx, j, s.scratch.data());
-        same = same && s.active[j] == was;
+    auto add = [&s](std::size_t j, const SpringTerm& term) {
         if (term.to_a) s.blk_rhs[j] += term.force;
         if (term.to_b) s.blk_rhs[j + 1] -= term.force;
+    };
+    const std::size_t m = s.segments();
+    std::size_t j = 0;
+    for (; j + 1 < m; j += 2) {
+        const std::uint8_t was[2] = {s.active[j], s.active[j + 1]};
+        SpringTerm term[2];
+        springTerms<false>(s, ctx, j, s.scratch.data(), term);
+        same = same && s.active[j] == was[0] && s.active[j + 1] == was[1];
+        add(j, term[0]);
+        add(j + 1, term[1]);
+    }
+    if (j < m) {
+        const std::uint8_t was = s.active[j];
+        add(j, springTerm<false>(s, ctx, j, s.scratch.data()));
+        same = same && s.active[j] == was;
     }
     return same;
 }
@@ -1156,8 +1220,9 @@ WarmSums warmSums(const StringState& s, double rate_gain, std::size_t j0, std::s
         if (s.broken[j]) continue;
         const Vec3 d = x[j + 1] - x[j];
         const Vec3 moved = d + (shift[j + 1] - shift[j]);
-        const double stretch_cold = std::sqrt(d.squaredNorm()) - s.rest_length[j];
-        const double stretch_warm = std::sqrt(moved.squaredNorm()) - s.rest_length[j];
+        const Lanes2 len = sqrt(Lanes2{d.squaredNorm(), moved.squaredNorm()});  // both roots at once
+        const double stretch_cold = len[0] - s.rest_length[j];
+        const double stretch_warm = len[1] - s.rest_length[j];
         const double effective_cold = effectiveStretch(s, j, stretch_cold, rate_gain);
         const double effective_warm = effectiveStretch(s, j, stretch_warm, rate_gain);
         // Every segment takes part in the solve from the prediction (none slack) and is
@@ -1267,8 +1332,15 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
         node.displacement.setZero();
         node.linearised_at.setZero();
     }
-    for (std::size_t j = 0; j < s.segments(); ++j)
-        s.prev_stretch[j] = (s.x_prev[j + 1] - s.x_prev[j]).norm() - s.rest_length[j];
+    // Two segments' roots at a time (one sqrtpd).
+    const std::size_t m = s.segments();
+    std::size_t j = 0;
+    for (; j + 1 < m; j += 2) {
+        const Lanes2 len = sqrt(Lanes2{(s.x_prev[j + 1] - s.x_prev[j]).squaredNorm(), (s.x_prev[j + 2] - s.x_prev[j + 1]).squaredNorm()});
+        s.prev_stretch[j] = len[0] - s.rest_length[j];
+        s.prev_stretch[j + 1] = len[1] - s.rest_length[j + 1];
+    }
+    if (j < m) s.prev_stretch[j] = (s.x_prev[j + 1] - s.x_prev[j]).norm() - s.rest_length[j];
     s.strain_newton_iterations = 0;
     s.strain_chord_iterations = 0;
     s.strain_warm_start = s.contacts.empty() && s.body_nodes.empty() && !ctx.cold_strain_starts && warmStart(s, ctx);
