@@ -1114,6 +1114,9 @@ void Snapshot::restore(World& world) const {
             s.blk_factor.resize(s.particles());
             s.chain_inverse.assign(6 * s.particles() + 12, 0.0);
             s.geometric_tension.assign(s.segments(), 0.0);
+            // Not in the snapshot's bytes: whether a row projector differs from I.
+            s.rows_pressed = std::any_of(s.row_projector.begin(), s.row_projector.end(),
+                                         [](const Mat3& r) { return r != Mat3::Identity(); });
         }
     *w.rigids = data_->rigids;
     *w.pending = data_->pending;

@@ -929,13 +929,12 @@ template <bool kHessian = true>
 template <bool kHessian = true>
 [[gnu::always_inline]] inline void springTerms(StringState& s, const StepContext& ctx, std::size_t j, double* tension_estimate,
                                                SpringTerm (&term)[2]) {
-    const Vec3 d0 = s.x[j + 1] - s.x[j], d1 = s.x[j + 2] - s.x[j + 1];
-    const Lanes2 len = sqrt(Lanes2{d0.squaredNorm(), d1.squaredNorm()});
-    const Lanes2 dx = Lanes2{d0.x(), d1.x()} / len, dy = Lanes2{d0.y(), d1.y()} / len, dz = Lanes2{d0.z(), d1.z()} / len;
+    const UnitPair d = unitPair(s.x[j + 1] - s.x[j], s.x[j + 2] - s.x[j + 1]);
+    const Lanes2 len = d.length;
     const Lanes2 k = 1.0 / Lanes2{s.compliance[j], s.compliance[j + 1]};
     double g0 = 0.0, g1 = 0.0;
-    const bool h0 = springForce<kHessian>(s, ctx, j, tension_estimate, len[0], Vec3(dx[0], dy[0], dz[0]), k[0], term[0], g0);
-    const bool h1 = springForce<kHessian>(s, ctx, j + 1, tension_estimate, len[1], Vec3(dx[1], dy[1], dz[1]), k[1], term[1], g1);
+    const bool h0 = springForce<kHessian>(s, ctx, j, tension_estimate, len[0], d.unit[0], k[0], term[0], g0);
+    const bool h1 = springForce<kHessian>(s, ctx, j + 1, tension_estimate, len[1], d.unit[1], k[1], term[1], g1);
     if (!h0 && !h1) return;
     const Lanes2 q = Lanes2{g0, g1} / len;
     if (h0) springHessian(s, ctx, j, k[0], q[0], term[0]);
@@ -1181,7 +1180,10 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
     }
     // Particles pressed by a body carry an unknown contact force along its normal: the
     // tension solve uses only their equations across the normal (tension.cpp).
-    for (std::size_t p = 0; p < n; ++p) s.row_projector[p].setIdentity();
+    // (All are I already where none was pressed since they were last reset.)
+    if (s.rows_pressed)
+        for (std::size_t p = 0; p < n; ++p) s.row_projector[p].setIdentity();
+    s.rows_pressed = false;
     for (const SegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         if (s.broken[j]) continue;
@@ -1199,6 +1201,7 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
                 const Vec3 dir = s.row_projector[q] * along;  // what is left of this direction
                 const double len = dir.norm();
                 if (len > 1e-6) s.row_projector[q] -= (dir / len) * (dir / len).transpose();
+                s.rows_pressed = true;
             }
     }
 }
@@ -1375,7 +1378,7 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     // equalities in active-set passes instead, the contacts a pass ignored were found
     // centimetres deep at the next pass, and the passes ran out unconverged).
     linearisePlanes(s, rigids);
-    const double stiffest = stiffestTerm(s, inv_h2);
+    const double stiffest = s.contacts.empty() ? 0.0 : stiffestTerm(s, inv_h2);  // two passes over the string: only for contacts
     for (SegmentContact& c : s.contacts) {
         // Stiff enough to dominate the rope's springs, the particles' and the body's
         // inertia: under a load F it gives way by F / k_c only. Fixed for the step, so
@@ -2467,6 +2470,7 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<Se
                 const Vec3 left = s.row_projector[u[i].particle] * dir;  // what is left of it
                 const double len = left.norm();
                 if (len > 1e-6) s.row_projector[u[i].particle] -= (left / len) * (left / len).transpose();
+                s.rows_pressed = true;
             }
         }
     }

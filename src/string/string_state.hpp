@@ -247,6 +247,7 @@ struct StringState {
     int strain_chord_iterations = 0;      ///< of which chord iterations (diagnostic)
     std::vector<double> geometric_tension;  ///< per segment: the tension estimate of the chain Hessian's geometric term, N (scratch)
     std::vector<Mat3> row_projector;      ///< per particle: I, or I minus the normals of the bodies pressing it
+    bool rows_pressed = false;            ///< whether any row_projector may differ from I (none does where false)
     std::vector<std::uint8_t> colliding;  ///< per particle: in a string-string contact last step (3x heavier in CSM)
     std::vector<BodyNode> body_nodes;
     std::vector<Eigen::Matrix<double, 6, 1>> node_step;  ///< per body node: this iteration's Newton step

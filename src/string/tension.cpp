@@ -22,6 +22,7 @@
 // rope hanging at rest, whose particles all fall by the same g h^2 before limiting, reads
 // about one particle's weight at its clamp and almost zero below it. Momentum balance
 // sees the weight below every segment; that is why it is the default.
+#include "core/lanes.hpp"
 #include "core/thread_pool.hpp"
 #include "core/tridiagonal.hpp"
 #include "string/string_state.hpp"
@@ -49,8 +50,9 @@ double rowWeight(const StringState& s, std::size_t p) {
 
 /// Whether particle p's equation is whole (no body presses it): its projector exactly I,
 /// compared entry by entry (Eigen's isIdentity(0) tests the same, at several times the
-/// cost; it was 1.6% of a 746-segment rope's step).
-bool wholeRow(const StringState& s, std::size_t p) { return s.row_projector[p] == Mat3::Identity(); }
+/// cost; it was 1.6% of a 746-segment rope's step), where any projector of the string
+/// may differ from I (rows_pressed).
+bool wholeRow(const StringState& s, std::size_t p) { return !s.rows_pressed || s.row_projector[p] == Mat3::Identity(); }
 
 /// u . (P_p v) for particle p's projector P_p, with `whole` = wholeRow(s, p): then P_p = I
 /// and the product is u . v (I v is v exactly, up to the sign of a zero).
@@ -71,7 +73,14 @@ void momentumTension(StringState& s, const StepContext& ctx) {
     // Each range of segments writes only its own entries, and the largest diagonal is the
     // largest of the ranges' (max is exact): the same bits on any number of threads.
     forRanges(ctx.pool, m, kParallelSegments, [&](std::size_t j0, std::size_t j1, std::size_t) {
-        for (std::size_t j = j0; j < j1; ++j) {
+        // Two segments at a time: their roots and divisions in lanes (unitPair).
+        std::size_t j = j0;
+        for (; j + 1 < j1; j += 2) {
+            const UnitPair d = unitPair(s.x[j + 1] - s.x[j], s.x[j + 2] - s.x[j + 1]);
+            if (d.length[0] > 1e-15) s.dir[j] = d.unit[0];
+            if (d.length[1] > 1e-15) s.dir[j + 1] = d.unit[1];
+        }
+        if (j < j1) {
             const Vec3 d = s.x[j + 1] - s.x[j];
             const double len = d.norm();
             if (len > 1e-15) s.dir[j] = d / len;
