@@ -256,9 +256,15 @@ TEST(RigidCollision, RopeOverASphereSlidesAsAPulleyAndHoldsByCapstanFriction) {
     const double expected = 0.1 * (std::cosh(std::sqrt(2.0 * 9.81 / length) * t) - 1.0);
     // Measured 2026-12-01: 0.102 m against 0.111 m (the implicit step's numerical damping);
     // held, the long end crept 4.4 mm in 1 s; at mu = 0.15 it ran 0.96 m.
+    // Held is measured against sliding. Friction is regularised (a stiff spring below a
+    // slip of kRigidSlip of the rope's radius a step, strain_limit.cpp), so a held rope
+    // creeps at a steady ~20 um a step, and how fast depends on rounding: moving the
+    // sphere by 1e-7 to 1e-5 m gave 2.3 to 8.4 mm in 1 s (2026-12-02; a bound of 10 mm
+    // was within that spread). Held means 30x less than where friction cannot hold.
     EXPECT_NEAR(run(0.0, 30), expected, 0.15 * expected);
-    EXPECT_LT(std::abs(run(0.3, 100)), 0.01);
-    EXPECT_GT(run(0.15, 100), 0.3);
+    const double held = run(0.3, 100), slid = run(0.15, 100);
+    EXPECT_GT(slid, 0.3);
+    EXPECT_LT(std::abs(held), slid / 30.0);
 }
 
 // Strings pressed by a movable body still collide with each other: a crate dropped on
