@@ -1067,7 +1067,8 @@ void World::step(double h) {
         StringState& s = w.strings[i];
         s.contacts.clear();
         s.body_nodes.clear();
-        std::fill(s.row_projector.begin(), s.row_projector.end(), Mat3::Identity());
+        if (s.rows_pressed) std::fill(s.row_projector.begin(), s.row_projector.end(), Mat3::Identity());
+        s.rows_pressed = false;
         std::fill(s.colliding.begin(), s.colliding.end(), 0);
     });
     w.contacts.clear();

@@ -32,10 +32,13 @@ void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
                     // The twist force of the previous step (Eq. 6) is explicit: cap the
                     // displacement it can cause in one step at a tenth of a segment, a
                     // safety limit that only acts on a string twisted far past its strength.
+                    // (Most of a rope is untwisted: no square root for a zero force.)
                     Vec3 twist = s.twist_force[p];
-                    const double cap = 0.1 * s.shortest_rest * s.mass[p] * ctx.inv_h * ctx.inv_h;
-                    const double f = twist.norm();
-                    if (f > cap) twist *= cap / f;
+                    if (twist != Vec3::Zero()) {
+                        const double cap = 0.1 * s.shortest_rest * s.mass[p] * ctx.inv_h * ctx.inv_h;
+                        const double f = twist.norm();
+                        if (f > cap) twist *= cap / f;
+                    }
                     const Vec3 v = damp * s.v[p] + h * (ctx.gravity + s.inv_mass[p] * (s.force[p] + twist));
                     s.v[p] = v;
                     s.x[p] += h * v + s.csm_goal[p];  // plus the bending correction (shape_matching.cpp)
