@@ -445,7 +445,7 @@ namespace chain {
 inline LaneMask2 nonzero(Lanes2 v) { return v != Lanes2{0.0, 0.0}; }
 /// v where m holds, else 0 (also where v is not finite).
 inline double keep(bool m, double v) { return m ? v : 0.0; }
-inline Lanes2 keep(LaneMask2 m, Lanes2 v) { return (Lanes2)((LaneMask2)v & m); }
+inline Lanes2 keep(LaneMask2 m, Lanes2 v) { return maskLanes(m, v); }
 /// Whether any of the n values is not zero, lane by lane. One sweep stops at the first
 /// (a predictable branch; a mask of every value cost the two-thread halves' sweeps 50
 /// instructions a particle and their registers).
@@ -461,7 +461,7 @@ template <int n> inline LaneMask2 anyNonzero(const Lanes2* v) {
 }
 /// Whether no lane of m holds.
 inline bool none(bool m) { return !m; }
-inline bool none(LaneMask2 m) { return (m[0] | m[1]) == 0; }
+inline bool none(LaneMask2 m) { return noLane(m); }
 
 /// A symmetric 3x3 matrix by its lower triangle: 00 10 20 11 21 22.
 template <class T> struct Sym {
