@@ -58,9 +58,18 @@ inline void solveSymmetricTridiagonal(const std::vector<double>& diag, const std
     const double under = mid + 1 < n ? off[mid] : 0.0;
     const double denom = diag[mid] - above * top_gain - under * gain[1];
     rhs[mid] = (rhs[mid] - above * top_y - under * y[1]) / denom;
-    // Back substitution, outward: x_t = y_t - c_t x_{t+1} above, x_i = y_i - c_i x_{i-1} below.
-    for (std::size_t r = mid; r-- > 0;) rhs[r] -= scratch[r] * rhs[r + 1];
-    for (std::size_t r = mid + 1; r < n; ++r) rhs[r] -= scratch[r] * rhs[r - 1];
+    // Back substitution, outward: x_t = y_t - c_t x_{t+1} above, x_i = y_i - c_i x_{i-1}
+    // below, the two in lanes too (rows mid - 1 - k and mid + 1 + k; as two loops, the
+    // second's chain waited for the first's).
+    Lanes2 x = {rhs[mid], rhs[mid]};
+    std::size_t k = 0;
+    for (; k < below; ++k) {
+        const std::size_t up = mid - 1 - k, down = mid + 1 + k;
+        x = Lanes2{rhs[up], rhs[down]} - Lanes2{scratch[up], scratch[down]} * x;
+        rhs[up] = x[0];
+        rhs[down] = x[1];
+    }
+    if (k < mid) rhs[0] -= scratch[0] * rhs[1];  // an even count: the top's last row
 }
 
 }  // namespace tearables::detail
