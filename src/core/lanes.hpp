@@ -39,6 +39,42 @@ inline Lanes2 maskLanes(LaneMask2 m, Lanes2 v) {
 #endif
 }
 
+/// The lanes of v that are not zero (NaN is not zero), and the lanes where either mask
+/// holds: SSE2's cmpneqpd and orpd, for the same reason as maskLanes.
+inline LaneMask2 nonzeroLanes(Lanes2 v) {
+#if defined(__SSE2__)
+    return (LaneMask2)_mm_cmpneq_pd((__m128d)v, _mm_setzero_pd());
+#else
+    return v != Lanes2{0.0, 0.0};
+#endif
+}
+inline LaneMask2 eitherLane(LaneMask2 a, LaneMask2 b) {
+#if defined(__SSE2__)
+    return (LaneMask2)_mm_or_pd((__m128d)a, (__m128d)b);
+#else
+    return a | b;
+#endif
+}
+
+/// Two doubles from memory (no alignment needed) into lanes.
+inline Lanes2 loadLanes(const double* p) {
+#if defined(__SSE2__)
+    return (Lanes2)_mm_loadu_pd(p);
+#else
+    return Lanes2{p[0], p[1]};
+#endif
+}
+
+/// The lanes of the mask m as bits (bit 0 lane 0, bit 1 lane 1), and back.
+inline int laneBits(LaneMask2 m) {
+#if defined(__SSE2__)
+    return _mm_movemask_pd((__m128d)m);
+#else
+    return (m[0] != 0 ? 1 : 0) | (m[1] != 0 ? 2 : 0);
+#endif
+}
+inline LaneMask2 bitLanes(int bits) { return LaneMask2{-static_cast<long long>(bits & 1), -static_cast<long long>((bits >> 1) & 1)}; }
+
 /// Whether no lane of the mask m holds (one movmskpd with SSE2).
 inline bool noLane(LaneMask2 m) {
 #if defined(__SSE2__)

@@ -1113,6 +1113,7 @@ void Snapshot::restore(World& world) const {
         if (s.alive) {
             s.blk_factor.resize(s.particles());
             s.chain_inverse.assign(6 * s.particles() + 12, 0.0);
+            s.chain_coupled.assign(s.particles(), 0);
             s.geometric_tension.assign(s.segments(), 0.0);
             // Not in the snapshot's bytes: whether a row projector differs from I.
             s.rows_pressed = std::any_of(s.row_projector.begin(), s.row_projector.end(),

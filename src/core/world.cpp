@@ -809,6 +809,7 @@ StringId World::addString(const StringDesc& desc) {
     s.blk_factor_gain.assign(n, Mat3::Zero());
     s.blk_factor.resize(n);
     s.chain_inverse.assign(6 * n + 12, 0.0);
+    s.chain_coupled.assign(n, 0);
     s.row_projector.assign(n, Mat3::Identity());
     s.colliding.assign(n, 0);
     s.spring_force.assign(m, 0.0);

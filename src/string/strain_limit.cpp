@@ -442,7 +442,7 @@ struct SpringTerm {
 // changed with this code, by rounding.
 namespace chain {
 
-inline LaneMask2 nonzero(Lanes2 v) { return v != Lanes2{0.0, 0.0}; }
+inline LaneMask2 nonzero(Lanes2 v) { return nonzeroLanes(v); }
 /// v where m holds, else 0 (also where v is not finite).
 inline double keep(bool m, double v) { return m ? v : 0.0; }
 inline Lanes2 keep(LaneMask2 m, Lanes2 v) { return maskLanes(m, v); }
@@ -456,7 +456,7 @@ template <int n> inline bool anyNonzero(const double* v) {
 }
 template <int n> inline LaneMask2 anyNonzero(const Lanes2* v) {
     LaneMask2 m = nonzero(v[0]);
-    for (int k = 1; k < n; ++k) m = m | nonzero(v[k]);
+    for (int k = 1; k < n; ++k) m = eitherLane(m, nonzero(v[k]));
     return m;
 }
 /// Whether no lane of m holds.
@@ -527,17 +527,18 @@ template <class T>
 /// and the gain W = D^-1 U (column-major) towards the next particle, coupled by the
 /// symmetric block `out` = U; the carry is then this particle's, for the next.
 template <class T>
-[[gnu::always_inline]] inline void eliminate(Carry<T>& carry, const Sym<T>& diag, const T (&rhs)[3], const Sym<T>& out, T (&y)[3], T (&gain)[9], Sym<T>& inv) {
+[[gnu::always_inline]] inline auto eliminate(Carry<T>& carry, const Sym<T>& diag, const T (&rhs)[3], const Sym<T>& out, T (&y)[3], T (&gain)[9], Sym<T>& inv) {
     Sym<T> pivot;
     for (int k = 0; k < 6; ++k) pivot.e[k] = diag.e[k] - carry.schur.e[k];
     inv = inverseSymmetric(pivot);
     for (int c = 0; c < 3; ++c)
         for (int i = 0; i < 3; ++i) gain[i + 3 * c] = inv(i, 0) * out(0, c) + inv(i, 1) * out(1, c) + inv(i, 2) * out(2, c);
     const auto coupled = eliminateAgain(carry, inv, rhs, out, y);
-    if (none(coupled)) return;
+    if (none(coupled)) return coupled;
     for (int c = 0; c < 3; ++c)
         for (int i = c; i < 3; ++i)
             carry.schur.e[Sym<T>::kIndex[i][c]] = keep(coupled, out(i, 0) * gain[3 * c] + out(i, 1) * gain[1 + 3 * c] + out(i, 2) * gain[2 + 3 * c]);
+    return coupled;
 }
 
 /// Back substitution of one particle: x = y - W x_next, where the gain W is not zero (a
@@ -616,10 +617,19 @@ void substituteChain(StringState& s) {
     chain::load(rhs[below], rhs[mid], next);
     for (std::size_t p = below; p-- > 0;) {
         const std::size_t i = n - 1 - p;
-        Lanes2 gain[9], x[3];
-        std::memcpy(gain, gains + 18 * p, sizeof gain);
+        // Lane by lane, x = y where the pair's coupling block was zero (solveChain's
+        // flags: then so are its gains, and the neighbour is not read, whatever it holds).
+        // The gains straight from memory: held in registers for a test of all nine, they
+        // pushed the carried neighbour out to the stack, on the loop's dependency chain.
+        Lanes2 x[3];
         chain::load(rhs[p], rhs[i], x);
-        chain::substitute(gain, next, x);
+        if (const int coupled = s.chain_coupled[p]) {
+            const LaneMask2 m = bitLanes(coupled);
+            const double* g = gains + 18 * p;
+            for (int r = 0; r < 3; ++r)
+                x[r] = x[r] - maskLanes(m, loadLanes(g + 2 * r) * next[0] + loadLanes(g + 2 * (r + 3)) * next[1] +
+                                              loadLanes(g + 2 * (r + 6)) * next[2]);
+        }
         chain::store(x, rhs[p], rhs[i]);
         std::copy(x, x + 3, next);
     }
@@ -659,7 +669,8 @@ void solveChain(StringState& s, double* inverses = nullptr) {
         Lanes2 r[3], y[3], gain[9];
         chain::Sym<Lanes2> inv;
         chain::load(rhs[t], rhs[i], r);
-        chain::eliminate(both, chain::lower(diag[t], diag[i]), r, chain::lower(off[t], off[i - 1]), y, gain, inv);
+        s.chain_coupled[t] = static_cast<std::uint8_t>(
+            laneBits(chain::eliminate(both, chain::lower(diag[t], diag[i]), r, chain::lower(off[t], off[i - 1]), y, gain, inv)));
         chain::store(y, rhs[t], rhs[i]);
         std::memcpy(gains + 18 * t, gain, sizeof gain);
         if (inverses) std::memcpy(inverses + 12 * t, inv.e, sizeof inv.e);

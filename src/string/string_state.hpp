@@ -235,6 +235,9 @@ struct StringState {
     /// The contact-free chain's factorisation: its pivots' inverses, 6 n + 12 doubles
     /// (strain_limit.cpp, solveChain), kept for a chord iteration (scratch).
     std::vector<double> chain_inverse;
+    /// solveChain's pairs (t, n - 1 - t): bit 0 where t couples to t + 1, bit 1 where
+    /// n - 1 - t couples to n - 2 - t, for the back substitution (scratch, n entries).
+    std::vector<std::uint8_t> chain_coupled;
     std::vector<std::uint8_t> blk_coupled;  ///< factorisation: particle i is coupled to i-1 (gain != 0)
 
     // --- rigid contacts (collision stage) -------------------------------------------------
