@@ -44,6 +44,23 @@ constexpr double kPi = 3.14159265358979323846;
 
 bool clamped(const StringState& s, std::size_t particle) { return s.hold[particle].kind == ParticleHold::Kind::Pin; }
 
+/// Whether every value is +0 (bit for bit: -0 is not).
+bool positiveZeros(const std::vector<double>& v) {
+    for (double x : v)
+        if (x != 0.0 || std::signbit(x)) return false;
+    return true;
+}
+
+/// See solveTwist: nothing twists the string and nothing of it is twisted.
+bool untwisted(const StringState& s) {
+    const std::size_t n = s.particles();
+    for (const std::size_t p : {std::size_t{0}, n - 1})
+        if (s.hold[p].kind == ParticleHold::Kind::Glue) return false;
+    for (int end = 0; end < 2; ++end)
+        if (clamped(s, end == 0 ? 0 : n - 1) && (s.end_twist[end] != 0.0 || std::signbit(s.end_twist[end]))) return false;
+    return positiveZeros(s.twist) && positiveZeros(s.twist_velocity) && positiveZeros(s.rest_twist);
+}
+
 }  // namespace
 
 void updateTwistStiffness(StringState& s) {
@@ -71,6 +88,16 @@ void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         return;
     }
     updateTwistStiffness(s);
+    // An untwisted string that nothing twists (the common rope): every angle, velocity,
+    // rest twist and clamped end angle +0 and no end glued to a body. The solve would
+    // give +0 everywhere (rows with +0 right-hand sides), so it is skipped with its
+    // result: the same bits, without the assembly and the tridiagonal solve (5 us of a
+    // 746-segment rope's step).
+    if (untwisted(s)) {
+        std::copy(s.twist.begin(), s.twist.end(), s.twist_old.begin());
+        s.twist_glued_axis_inertia[0] = s.twist_glued_axis_inertia[1] = 0.0;
+        return;
+    }
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
     // Rows: inertia about the axis (or fixed for a clamped end), springs between joints.
     for (std::size_t j = 0; j < m; ++j) {

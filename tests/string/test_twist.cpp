@@ -61,6 +61,27 @@ TEST(Twist, HeldTwistIsLinearAlongAUniformString) {
     }
 }
 
+// An untwisted string that nothing twists skips its twist solve (solveTwist's fast path):
+// its angles stay exactly zero while it hangs and swings, and the first turn of an end
+// is answered at once, the clamped end at the turned angle and its neighbour after it.
+TEST(Twist, UntwistedStringStaysUntwistedAndAnswersTheFirstTurn) {
+    tearables::WorldSettings settings;
+    World world(settings);
+    StringDesc d = straight(40);
+    const StringId id = world.addString(d);
+    world.attachToPoint(id, 0, d.points.front());  // swings down under gravity
+    for (int i = 0; i < 50; ++i) {
+        world.step(0.01);
+        for (double t : *world.view(id).twist) ASSERT_EQ(t, 0.0) << "step " << i;
+    }
+    world.turnEnd(id, 0, 0.1);
+    world.step(0.01);
+    const auto& t = *world.view(id).twist;
+    EXPECT_NEAR(t.front(), 0.1, 1e-12);
+    EXPECT_GT(t[1], 0.0);
+    EXPECT_LT(t[1], 0.1);
+}
+
 // A range of higher torsional rigidity (twice the region width) twists less, by the
 // rigidity ratio within 10% (Fig. 6e).
 TEST(Twist, RigidRangeTwistsLessByTheRigidityRatio) {
