@@ -286,7 +286,7 @@ struct StringState {
     std::vector<double> twist_inertia;    ///< per segment, m r^2 / 2, kg m^2
     std::vector<double> twist_width;      ///< per segment w_twist (rigidity factor w/2)
     std::vector<double> rest_twist;       ///< per joint (segments k, k+1), rad (torsion plasticity)
-    std::vector<double> joint_stiffness;  ///< per joint, G J w / (2 l), N m / rad
+    std::vector<double> joint_stiffness;  ///< per joint, G J w / (2 l), N m / rad (refreshed by twist solves; see solveTwist)
     std::vector<double> torsion_peak;     ///< per joint, peak torsional strain past yield
     std::vector<double> joint_strain;     ///< per joint, |gamma| this step
     std::vector<std::uint8_t> torsion_yielded;  ///< per joint

@@ -87,17 +87,19 @@ void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         for (std::size_t j = 0; j < m; ++j) s.twist[j] += ctx.h * s.twist_velocity[j];
         return;
     }
-    updateTwistStiffness(s);
     // An untwisted string that nothing twists (the common rope): every angle, velocity,
     // rest twist and clamped end angle +0 and no end glued to a body. The solve would
     // give +0 everywhere (rows with +0 right-hand sides), so it is skipped with its
-    // result: the same bits, without the assembly and the tridiagonal solve (5 us of a
-    // 746-segment rope's step).
+    // result: the same bits, without the assembly and the tridiagonal solve (6 us of a
+    // 746-segment rope's step). The joints' stiffnesses are refreshed by the next solve
+    // that runs; until then nothing reads them but computeTwistForces, whose moments are
+    // zero whatever they hold.
     if (untwisted(s)) {
         std::copy(s.twist.begin(), s.twist.end(), s.twist_old.begin());
         s.twist_glued_axis_inertia[0] = s.twist_glued_axis_inertia[1] = 0.0;
         return;
     }
+    updateTwistStiffness(s);
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
     // Rows: inertia about the axis (or fixed for a clamped end), springs between joints.
     for (std::size_t j = 0; j < m; ++j) {
