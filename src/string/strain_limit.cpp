@@ -1032,16 +1032,25 @@ bool acceptChord(StringState& s, double last_move) {
 /// what assembleChain left there.
 void linearisedTension(StringState& s, const StepContext& ctx, std::size_t j0, std::size_t j1) {
     const double rate_gain = s.desc.axial_damping * ctx.inv_h;
-    for (std::size_t j = j0; j < j1; ++j) {
-        if (!s.active[j]) {
-            s.geometric_tension[j] = 0.0;
-            continue;
-        }
-        const Vec3 da = fixedRow(s, j) ? Vec3::Zero() : s.blk_rhs[j];
+    // Segment j's linearised effective stretch (0 where it took no part: then its tension
+    // is max(0, 0) / compliance = +0, as set); each particle's step found once, carried
+    // to the next segment.
+    Vec3 da = fixedRow(s, j0) ? Vec3::Zero() : s.blk_rhs[j0];
+    auto stretch = [&](std::size_t j) {
         const Vec3 db = fixedRow(s, j + 1) ? Vec3::Zero() : s.blk_rhs[j + 1];
-        const double effective = s.geometric_tension[j] + (1.0 + rate_gain) * s.dir[j].dot(db - da);
-        s.geometric_tension[j] = std::max(0.0, effective) / s.compliance[j];
+        const double effective = s.active[j] ? s.geometric_tension[j] + (1.0 + rate_gain) * s.dir[j].dot(db - da) : 0.0;
+        da = db;
+        return effective;
+    };
+    // The divisions two segments at a time, in lanes.
+    std::size_t j = j0;
+    for (; j + 1 < j1; j += 2) {
+        const double e0 = stretch(j), e1 = stretch(j + 1);
+        const Lanes2 t = Lanes2{std::max(0.0, e0), std::max(0.0, e1)} / Lanes2{s.compliance[j], s.compliance[j + 1]};
+        s.geometric_tension[j] = t[0];
+        s.geometric_tension[j + 1] = t[1];
     }
+    if (j < j1) s.geometric_tension[j] = std::max(0.0, stretch(j)) / s.compliance[j];
 }
 
 /// solveChain's sweep from the top alone, over particles [0, mid), with the springs of
@@ -1184,11 +1193,16 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
     }
     // The springs' forces in the final state (the tension where bodies press the string).
     const double rate_gain = s.desc.axial_damping * ctx.inv_h;
-    for (std::size_t j = 0; j < m; ++j) {
-        if (s.broken[j]) continue;
-        const double stretch = (s.x[j + 1] - s.x[j]).norm() - s.rest_length[j];
-        s.spring_force[j] = std::max(0.0, effectiveStretch(s, j, stretch, rate_gain)) / s.compliance[j];
+    // Two segments at a time, their roots and divisions in lanes (the same bits).
+    auto force = [&](std::size_t j, double length) { return std::max(0.0, effectiveStretch(s, j, length - s.rest_length[j], rate_gain)); };
+    std::size_t k = 0;
+    for (; k + 1 < m; k += 2) {
+        const Lanes2 length = sqrt(Lanes2{(s.x[k + 1] - s.x[k]).squaredNorm(), (s.x[k + 2] - s.x[k + 1]).squaredNorm()});
+        const Lanes2 f = Lanes2{force(k, length[0]), force(k + 1, length[1])} / Lanes2{s.compliance[k], s.compliance[k + 1]};
+        if (!s.broken[k]) s.spring_force[k] = f[0];
+        if (!s.broken[k + 1]) s.spring_force[k + 1] = f[1];
     }
+    if (k < m && !s.broken[k]) s.spring_force[k] = force(k, (s.x[k + 1] - s.x[k]).norm()) / s.compliance[k];
     // Particles pressed by a body carry an unknown contact force along its normal: the
     // tension solve uses only their equations across the normal (tension.cpp).
     // (All are I already where none was pressed since they were last reset.)
