@@ -116,6 +116,12 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
     const std::size_t joints = s.rest_twist.size();
     for (std::size_t k = 0; k < joints; ++k) {
         if (s.broken[k] || s.broken[k + 1]) continue;
+        // An untwisted joint (most of a rope that nothing twists): zero strain, without
+        // the two divisions (r 0 / l is a zero, and its magnitude is what is kept).
+        if (s.twist[k + 1] - s.twist[k] == 0.0 && s.rest_twist[k] == 0.0) {
+            s.joint_strain[k] = 0.0;
+            continue;
+        }
         const double l = 0.5 * (s.rest_length[k] + s.rest_length[k + 1]);
         const double r = 0.5 * (s.radius[k] + s.radius[k + 1]);
         const double total = r * (s.twist[k + 1] - s.twist[k]) / l;
@@ -143,7 +149,7 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
             int count = 0;
             if (j > 0 && !s.broken[j - 1]) sum += s.joint_strain[j - 1], ++count;
             if (j < joints && !s.broken[j + 1]) sum += s.joint_strain[j], ++count;
-            if (count == 0) continue;
+            if (count == 0 || sum == 0.0) continue;  // no torsional strain: ratio 0
             const double gamma = sum / count;
             const double ratio = gamma / s.material[j].torsion_rupture;
             if (ratio >= 1.0 && ratio > worst_ratio) {
