@@ -780,9 +780,14 @@ void updateRestShape(StringState& s) {
     // the string was created with. Shape matching fits rigid motions, so it resists
     // stretching as well as bending; with the loaded lengths in its rest shape it leaves
     // the stretch to the material and only bends.
-    s.rest_shape[0] = s.desc.points[0];
-    for (std::size_t j = 0; j < s.segments(); ++j)
-        s.rest_shape[j + 1] = s.rest_shape[j] + s.rest_direction[j] * s.max_length[j];
+    // The running point carried in registers (read back from rest_shape, each point's
+    // stores reached the next one's loads through memory, on the sum's dependency chain).
+    Vec3 point = s.desc.points[0];
+    s.rest_shape[0] = point;
+    for (std::size_t j = 0; j < s.segments(); ++j) {
+        point = point + s.rest_direction[j] * s.max_length[j];
+        s.rest_shape[j + 1] = point;
+    }
 }
 
 // Deviation from the paper's order (prediction, then CSM): we match the shape the string
