@@ -75,6 +75,16 @@ inline int laneBits(LaneMask2 m) {
 }
 inline LaneMask2 bitLanes(int bits) { return LaneMask2{-static_cast<long long>(bits & 1), -static_cast<long long>((bits >> 1) & 1)}; }
 
+/// Lanes into two doubles of memory (no alignment needed).
+inline void storeLanes(double* p, Lanes2 v) {
+#if defined(__SSE2__)
+    _mm_storeu_pd(p, (__m128d)v);
+#else
+    p[0] = v[0];
+    p[1] = v[1];
+#endif
+}
+
 /// Whether no lane of the mask m holds (one movmskpd with SSE2).
 inline bool noLane(LaneMask2 m) {
 #if defined(__SSE2__)

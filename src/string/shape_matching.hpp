@@ -73,7 +73,8 @@ void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass
 /// the line does not matter, the rest offsets lie along it). So a region's goals are
 /// c + ((x0_i - c0) . v) a / |a|, from 8 moment sums instead of 16 and without a polar
 /// factor. The goals agree with chainShapeMatchingGoals' to rounding (tested); the
-/// scratch's per-region arrays are not written. Throws as chainShapeMatchingGoals.
+/// scratch's per-region arrays are not written. Throws as chainShapeMatchingGoals, and
+/// InvalidInput if w > 8 (the largest half-width a string takes, StringDesc::csm_half_width).
 void straightChainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass, std::size_t first,
                                      std::size_t last, int w, const Vec3& direction, Vec3* goal, CsmScratch& scratch,
                                      ThreadPool* pool = nullptr);

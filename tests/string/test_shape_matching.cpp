@@ -421,6 +421,9 @@ TEST(ChainShapeMatching, StraightRestKernelGivesTheGeneralKernelsGoals) {
     EXPECT_THROW(straightChainShapeMatchingGoals(nullptr, nullptr, nullptr, 0, 5, 0, Vec3::UnitX(), nullptr,
                                                  *std::make_unique<CsmScratch>()),
                  tearables::InvalidInput);
+    EXPECT_THROW(straightChainShapeMatchingGoals(nullptr, nullptr, nullptr, 0, 5, 9, Vec3::UnitX(), nullptr,
+                                                 *std::make_unique<CsmScratch>()),
+                 tearables::InvalidInput);
 }
 
 TEST(ChainShapeMatching, StretchedStraightChainGivesFiniteGoalsOnTheLine) {
