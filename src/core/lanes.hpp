@@ -1,7 +1,10 @@
 // Two doubles in one SSE2 register (GCC's and Clang's vector extension): the lane type of
 // kernels that run two independent dependency chains as the same instructions, such as
-// the two sweeps of a twisted factorisation. Each lane computes exactly what scalar code
-// computes (no FMA on the default x86-64 target).
+// the two sweeps of a twisted factorisation, and of loops that take two segments' square
+// roots and divisions at once (the divider takes a pair in the time of one). Each lane
+// computes exactly what scalar code computes (no FMA on the default x86-64 target). The
+// helpers below write some operations as SSE2 intrinsics where GCC 12 compiled the vector
+// extension's own forms badly; each has a portable fallback.
 #pragma once
 
 #include "tearables/types.hpp"
@@ -18,7 +21,7 @@ typedef long long LaneMask2 __attribute__((vector_size(16)));
 
 /// The square roots of both lanes, correctly rounded as std::sqrt's (one sqrtpd, which
 /// costs what one sqrtsd does: where a loop takes two independent roots, half the time).
-inline Lanes2 sqrt(Lanes2 v) {
+inline Lanes2 sqrtLanes(Lanes2 v) {
 #if defined(__SSE2__)
     return (Lanes2)_mm_sqrt_pd((__m128d)v);
 #else
@@ -102,7 +105,7 @@ struct UnitPair {
     Vec3 unit[2];
 };
 inline UnitPair unitPair(const Vec3& a, const Vec3& b) {
-    const Lanes2 len = sqrt(Lanes2{a.squaredNorm(), b.squaredNorm()});
+    const Lanes2 len = sqrtLanes(Lanes2{a.squaredNorm(), b.squaredNorm()});
     const Lanes2 x = Lanes2{a.x(), b.x()} / len, y = Lanes2{a.y(), b.y()} / len, z = Lanes2{a.z(), b.z()} / len;
     return {len, {Vec3(x[0], y[0], z[0]), Vec3(x[1], y[1], z[1])}};
 }

@@ -98,7 +98,7 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
         const Lanes2 rest{s.rest_length[j], s.rest_length[k]};
         const Lanes2 young{s.material[j].young, s.material[k].young};
         const Lanes2 max_length = rest * (1.0 + stress / young);
-        const Lanes2 radius = r0 * sqrt(Lanes2{s.original_length[j], s.original_length[k]} / max_length);
+        const Lanes2 radius = r0 * sqrtLanes(Lanes2{s.original_length[j], s.original_length[k]} / max_length);
         const Lanes2 compliance = rest / (young * area0);  // engineering: E on the original section
         for (int lane = 0; lane < 2; ++lane) {
             if (!follow[lane]) continue;

@@ -1197,7 +1197,7 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
     auto force = [&](std::size_t j, double length) { return std::max(0.0, effectiveStretch(s, j, length - s.rest_length[j], rate_gain)); };
     std::size_t k = 0;
     for (; k + 1 < m; k += 2) {
-        const Lanes2 length = sqrt(Lanes2{(s.x[k + 1] - s.x[k]).squaredNorm(), (s.x[k + 2] - s.x[k + 1]).squaredNorm()});
+        const Lanes2 length = sqrtLanes(Lanes2{(s.x[k + 1] - s.x[k]).squaredNorm(), (s.x[k + 2] - s.x[k + 1]).squaredNorm()});
         const Lanes2 f = Lanes2{force(k, length[0]), force(k + 1, length[1])} / Lanes2{s.compliance[k], s.compliance[k + 1]};
         if (!s.broken[k]) s.spring_force[k] = f[0];
         if (!s.broken[k + 1]) s.spring_force[k + 1] = f[1];
@@ -1248,7 +1248,7 @@ WarmSums warmSums(const StringState& s, double rate_gain, std::size_t j0, std::s
         if (s.broken[j]) continue;
         const Vec3 d = x[j + 1] - x[j];
         const Vec3 moved = d + (shift[j + 1] - shift[j]);
-        const Lanes2 len = sqrt(Lanes2{d.squaredNorm(), moved.squaredNorm()});  // both roots at once
+        const Lanes2 len = sqrtLanes(Lanes2{d.squaredNorm(), moved.squaredNorm()});  // both roots at once
         const double stretch_cold = len[0] - s.rest_length[j];
         const double stretch_warm = len[1] - s.rest_length[j];
         const double effective_cold = effectiveStretch(s, j, stretch_cold, rate_gain);
@@ -1364,7 +1364,7 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
     const std::size_t m = s.segments();
     std::size_t j = 0;
     for (; j + 1 < m; j += 2) {
-        const Lanes2 len = sqrt(Lanes2{(s.x_prev[j + 1] - s.x_prev[j]).squaredNorm(), (s.x_prev[j + 2] - s.x_prev[j + 1]).squaredNorm()});
+        const Lanes2 len = sqrtLanes(Lanes2{(s.x_prev[j + 1] - s.x_prev[j]).squaredNorm(), (s.x_prev[j + 2] - s.x_prev[j + 1]).squaredNorm()});
         s.prev_stretch[j] = len[0] - s.rest_length[j];
         s.prev_stretch[j + 1] = len[1] - s.rest_length[j + 1];
     }
