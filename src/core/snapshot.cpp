@@ -1114,6 +1114,7 @@ void Snapshot::restore(World& world) const {
             s.blk_factor.resize(s.particles());
             s.chain_inverse.assign(6 * s.particles() + 12, 0.0);
             s.chain_coupled.assign(s.particles(), 0);
+            s.twist_skipped = s.twist_force_zero = false;  // scratch: the next step computes them
             s.geometric_tension.assign(s.segments(), 0.0);
             // Not in the snapshot's bytes: whether a row projector differs from I.
             s.rows_pressed = std::any_of(s.row_projector.begin(), s.row_projector.end(),

@@ -294,6 +294,10 @@ struct StringState {
     double end_twist[2] = {0.0, 0.0};     ///< held angle of clamped ends (first, last segment), rad
     double twist_glued_pred[2] = {0.0, 0.0};
     double twist_glued_axis_inertia[2] = {0.0, 0.0};
+    /// This step's twist solve was skipped: the string is untwisted (solveTwist), so every
+    /// twist moment is zero; and twist_force is all zero (computeTwistForces). Scratch.
+    bool twist_skipped = false;
+    bool twist_force_zero = false;
     double shortest_rest = 0.0;           ///< m, for the convergence tolerance
 
     std::mt19937_64 rng;

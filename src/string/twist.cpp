@@ -89,6 +89,7 @@ void updateTwistStiffness(StringState& s) {
 void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     const std::size_t m = s.segments();
     const std::size_t n = s.particles();
+    s.twist_skipped = false;
     if (m < 2 && !(clamped(s, 0) || clamped(s, n - 1))) {
         // A single free segment: nothing resists its spin but its own inertia.
         for (std::size_t j = 0; j < m; ++j) s.twist[j] += ctx.h * s.twist_velocity[j];
@@ -101,7 +102,8 @@ void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     // 746-segment rope's step). The joints' stiffnesses are refreshed by the next solve
     // that runs; until then nothing reads them but computeTwistForces, whose moments are
     // zero whatever they hold.
-    if (untwisted(s)) {
+    s.twist_skipped = untwisted(s);
+    if (s.twist_skipped) {
         std::copy(s.twist.begin(), s.twist.end(), s.twist_old.begin());
         s.twist_glued_axis_inertia[0] = s.twist_glued_axis_inertia[1] = 0.0;
         return;
@@ -188,6 +190,14 @@ void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx) {
 
 void computeTwistForces(StringState& s) {
     const std::size_t n = s.particles();
+    // After a skipped twist solve every moment is zero: the forces are zero, and already
+    // are where they were cleared before.
+    if (s.twist_skipped) {
+        if (!s.twist_force_zero) std::fill(s.twist_force.begin(), s.twist_force.end(), Vec3::Zero());
+        s.twist_force_zero = true;
+        return;
+    }
+    s.twist_force_zero = false;
     std::fill(s.twist_force.begin(), s.twist_force.end(), Vec3::Zero());
     for (std::size_t p = 1; p + 1 < n; ++p) {
         const std::size_t a = p - 1, b = p;  // segments meeting at particle p (joint a)
