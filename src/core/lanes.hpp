@@ -89,23 +89,21 @@ inline void storeLanes(double* p, Lanes2 v) {
 }
 
 /// Whether no lane of the mask m holds (one movmskpd with SSE2).
-inline bool noLane(LaneMask2 m) {
-#if defined(__SSE2__)
-    return _mm_movemask_pd((__m128d)m) == 0;
-#else
-    return (m[0] | m[1]) == 0;
-#endif
-}
+inline bool noLane(LaneMask2 m) { return laneBits(m) == 0; }
 
-/// The lengths of two vectors (|a|, |b|, as Eigen's norm()) and their quotients a / |a|,
-/// b / |b| (as Eigen's quotient by a scalar), the roots and divisions in lanes: the same
-/// bits as the scalar expressions, at half their cost in the divider.
+/// The lengths of two vectors, |a| and |b| as Eigen's norm() gives them, both roots in one
+/// instruction.
+inline Lanes2 lengthPair(const Vec3& a, const Vec3& b) { return sqrtLanes(Lanes2{a.squaredNorm(), b.squaredNorm()}); }
+
+/// The lengths of two vectors (lengthPair) and their quotients a / |a|, b / |b| (as
+/// Eigen's quotient by a scalar), the roots and divisions in lanes: the same bits as the
+/// scalar expressions, at half their cost in the divider.
 struct UnitPair {
     Lanes2 length;
     Vec3 unit[2];
 };
 inline UnitPair unitPair(const Vec3& a, const Vec3& b) {
-    const Lanes2 len = sqrtLanes(Lanes2{a.squaredNorm(), b.squaredNorm()});
+    const Lanes2 len = lengthPair(a, b);
     const Lanes2 x = Lanes2{a.x(), b.x()} / len, y = Lanes2{a.y(), b.y()} / len, z = Lanes2{a.z(), b.z()} / len;
     return {len, {Vec3(x[0], y[0], z[0]), Vec3(x[1], y[1], z[1])}};
 }

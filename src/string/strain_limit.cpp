@@ -442,7 +442,6 @@ struct SpringTerm {
 // changed with this code, by rounding.
 namespace chain {
 
-inline LaneMask2 nonzero(Lanes2 v) { return nonzeroLanes(v); }
 /// v where m holds, else 0 (also where v is not finite).
 inline double keep(bool m, double v) { return m ? v : 0.0; }
 inline Lanes2 keep(LaneMask2 m, Lanes2 v) { return maskLanes(m, v); }
@@ -455,8 +454,8 @@ template <int n> inline bool anyNonzero(const double* v) {
     return false;
 }
 template <int n> inline LaneMask2 anyNonzero(const Lanes2* v) {
-    LaneMask2 m = nonzero(v[0]);
-    for (int k = 1; k < n; ++k) m = eitherLane(m, nonzero(v[k]));
+    LaneMask2 m = nonzeroLanes(v[0]);
+    for (int k = 1; k < n; ++k) m = eitherLane(m, nonzeroLanes(v[k]));
     return m;
 }
 /// Whether no lane of m holds.
@@ -840,14 +839,6 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
     }
 }
 
-/// Segment j's spring of the material's stiffness k = E A / L_rest, if stretched: gradient
-/// k C e and Hessian k (e e^T + C/l (I - e e^T)) (the geometric term keeps Newton convergent
-/// when a heavy load pulls light particles). Sets active, spring_force, dir and blk_off
-/// (zero where the segment couples nothing) of the segment. `tension_estimate` (per
-/// segment, may be null): the tension the geometric term of the Hessian takes where it is
-/// below the spring's force now (see limitStrain); if the segment is active, its entry is
-/// replaced by its effective stretch now, which linearisedTension reads. Without
-/// `kHessian` (a chord iteration's gradient), the force only: hess and blk_off are left.
 /// springTerm's part after the segment's length, direction and stiffness (`len`, `e`
 /// candidate for dir, `k` = 1 / compliance): everything but the Hessian's one division.
 /// Returns whether the term needs its Hessian (not where the segment is broken or slack,
@@ -1197,7 +1188,7 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
     auto force = [&](std::size_t j, double length) { return std::max(0.0, effectiveStretch(s, j, length - s.rest_length[j], rate_gain)); };
     std::size_t k = 0;
     for (; k + 1 < m; k += 2) {
-        const Lanes2 length = sqrtLanes(Lanes2{(s.x[k + 1] - s.x[k]).squaredNorm(), (s.x[k + 2] - s.x[k + 1]).squaredNorm()});
+        const Lanes2 length = lengthPair(s.x[k + 1] - s.x[k], s.x[k + 2] - s.x[k + 1]);
         const Lanes2 f = Lanes2{force(k, length[0]), force(k + 1, length[1])} / Lanes2{s.compliance[k], s.compliance[k + 1]};
         if (!s.broken[k]) s.spring_force[k] = f[0];
         if (!s.broken[k + 1]) s.spring_force[k + 1] = f[1];
@@ -1248,7 +1239,7 @@ WarmSums warmSums(const StringState& s, double rate_gain, std::size_t j0, std::s
         if (s.broken[j]) continue;
         const Vec3 d = x[j + 1] - x[j];
         const Vec3 moved = d + (shift[j + 1] - shift[j]);
-        const Lanes2 len = sqrtLanes(Lanes2{d.squaredNorm(), moved.squaredNorm()});  // both roots at once
+        const Lanes2 len = lengthPair(d, moved);
         const double stretch_cold = len[0] - s.rest_length[j];
         const double stretch_warm = len[1] - s.rest_length[j];
         const double effective_cold = effectiveStretch(s, j, stretch_cold, rate_gain);
@@ -1364,7 +1355,7 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
     const std::size_t m = s.segments();
     std::size_t j = 0;
     for (; j + 1 < m; j += 2) {
-        const Lanes2 len = sqrtLanes(Lanes2{(s.x_prev[j + 1] - s.x_prev[j]).squaredNorm(), (s.x_prev[j + 2] - s.x_prev[j + 1]).squaredNorm()});
+        const Lanes2 len = lengthPair(s.x_prev[j + 1] - s.x_prev[j], s.x_prev[j + 2] - s.x_prev[j + 1]);
         s.prev_stretch[j] = len[0] - s.rest_length[j];
         s.prev_stretch[j + 1] = len[1] - s.rest_length[j + 1];
     }
