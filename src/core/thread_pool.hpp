@@ -20,6 +20,8 @@
 // strings, where the cores are already busy.
 #pragma once
 
+#include "core/float_mode.hpp"
+
 #include <condition_variable>
 #include <cstddef>
 #include <mutex>
@@ -87,6 +89,7 @@ public:
 
 private:
     void run(std::size_t part) const {
+        const FlushSubnormals mode;  // the step's mode (float_mode.hpp), on every thread
         const std::size_t lo = count_ * part / parts_, hi = count_ * (part + 1) / parts_;
         const bool was_inside = inside_;
         inside_ = true;

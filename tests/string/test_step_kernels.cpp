@@ -232,3 +232,59 @@ TEST(StepKernels, ChainTreeSplitsALongChainOverThePoolWithTheSamePairs) {
     }
     EXPECT_EQ(keys(b), keys(detail::bruteForcePairs(x.data(), x.size(), segs, 0.0, 3)));
 }
+
+#if defined(__SSE2__)
+#include <xmmintrin.h>
+
+namespace {
+
+constexpr unsigned kFlushBits = 0x8040;  // MXCSR: flush-to-zero and denormals-are-zero
+
+/// Counts the subnormal numbers among n doubles.
+std::size_t subnormals(const double* v, std::size_t n) {
+    return static_cast<std::size_t>(std::count_if(v, v + n, [](double d) { return std::fpclassify(d) == FP_SUBNORMAL; }));
+}
+
+}  // namespace
+
+// A long rope laid out straight: its chain solve carries the pin's transverse coupling
+// down the rope, decaying geometrically (1e-47 after 1000 particles), and without the
+// step's float mode (core/float_mode.hpp) thousands of its gains were subnormal, each
+// operation on them a ~100-cycle microcode assist on Intel cores. With it, none is; and
+// the step hands the caller's mode back as it was, whichever it was.
+TEST(StepKernels, StepFlushesSubnormalsAndRestoresTheCallersMode) {
+    const unsigned caller = _mm_getcsr();
+    ASSERT_EQ(caller & kFlushBits, 0u) << "the test process starts in IEEE mode";
+    tearables::WorldSettings settings;
+    settings.threads = 1;
+    tearables::World world(settings);
+    auto d = tearables::StringDesc::straight({0, 0, 0}, {100.0, 0, 0}, 10000);
+    d.particle_masses = {{-1, 10.0}};
+    const auto id = world.addString(d);
+    world.attachToPoint(id, 0, {0, 0, 0});
+    for (int step = 0; step < 5; ++step) {
+        world.step(0.01);
+        EXPECT_EQ(_mm_getcsr(), caller) << "step " << step;
+        const auto& s = (*detail::WorldAccess::parts(world).strings)[0];
+        EXPECT_EQ(subnormals(s.blk_factor_gain.data()->data(), 9 * s.blk_factor_gain.size()), 0u) << "step " << step;
+        EXPECT_EQ(subnormals(s.blk_rhs.data()->data(), 3 * s.blk_rhs.size()), 0u) << "step " << step;
+    }
+    // A caller that flushes already keeps its mode too.
+    _mm_setcsr(caller | kFlushBits);
+    world.step(0.01);
+    EXPECT_EQ(_mm_getcsr(), caller | kFlushBits);
+    _mm_setcsr(caller);
+}
+
+// Every thread of the pool runs its calls in the step's float mode (the same bits on any
+// thread count), and the calling thread's own mode is back after the call.
+TEST(StepKernels, ThreadPoolCallsFlushSubnormalsOnEveryThread) {
+    const unsigned caller = _mm_getcsr();
+    detail::ThreadPool pool;
+    pool.setThreads(2);
+    std::vector<unsigned> seen(2, 0);
+    pool.forEach(2, [&](std::size_t i) { seen[i] = _mm_getcsr(); });
+    for (unsigned csr : seen) EXPECT_EQ(csr & kFlushBits, kFlushBits);
+    EXPECT_EQ(_mm_getcsr(), caller);
+}
+#endif
