@@ -805,6 +805,18 @@ double stepEnergy(const StringState& s, const RigidTable& rigids, const StepCont
 /// A free particle's inertia row's right-hand side: toward its prediction x'.
 inline Vec3 inertiaRhs(const StringState& s, std::size_t p, double inv_h2) { return -(s.mass[p] * inv_h2) * (s.x[p] - s.x_pred[p]); }
 
+/// The inertia row of a free or pinned particle p, as assembleInertia writes it, into d
+/// and rhs (a sweep's registers: parallelChainStep's halves assemble it as they go).
+inline void inertiaRow(const StringState& s, std::size_t p, double inv_h2, Mat3& d, Vec3& rhs) {
+    if (s.hold[p].kind == ParticleHold::Kind::Free) {
+        d = (s.mass[p] * inv_h2) * Mat3::Identity();
+        rhs = inertiaRhs(s, p, inv_h2);
+    } else {
+        d = Mat3::Identity();
+        rhs.setZero();
+    }
+}
+
 /// The inertia rows of particles [p0, p1) of the chain's Newton system: free particles
 /// toward their prediction x', a glued particle with its body's effective mass, fixed rows
 /// for pins, into blk_diag and blk_rhs.
@@ -818,8 +830,7 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
         s.blk_rhs[p].setZero();
         switch (hold.kind) {
             case ParticleHold::Kind::Free:
-                s.blk_diag[p] = (s.mass[p] * inv_h2) * Mat3::Identity();
-                s.blk_rhs[p] = inertiaRhs(s, p, inv_h2);
+                inertiaRow(s, p, inv_h2, s.blk_diag[p], s.blk_rhs[p]);
                 break;
             case ParticleHold::Kind::Glue:
                 s.x[p] = gluePoint(rigids.bodies[hold.body.index], hold.point);
@@ -1054,11 +1065,13 @@ void linearisedTension(StringState& s, const StepContext& ctx, std::size_t j0, s
 /// middle particle.
 chain::Carry<double> sweepFromTop(StringState& s, const StepContext& ctx, std::size_t mid, double* tension_estimate) {
     chain::Carry<double> carry;
+    const double inv_h2 = ctx.inv_h * ctx.inv_h;
     SpringTerm last;  // segment t-1
     for (std::size_t t = 0; t < mid; ++t) {
         const SpringTerm next = springTerm(s, ctx, t, tension_estimate);
-        Mat3 d = s.blk_diag[t];
-        Vec3 rhs = s.blk_rhs[t];
+        Mat3 d;
+        Vec3 rhs;
+        inertiaRow(s, t, inv_h2, d, rhs);
         addSprings(last, next, d, rhs);
         last = next;
         double r[3], y[3], gain[9];
@@ -1078,11 +1091,13 @@ chain::Carry<double> sweepFromTop(StringState& s, const StepContext& ctx, std::s
 /// middle particle.
 chain::Carry<double> sweepFromBottom(StringState& s, const StepContext& ctx, std::size_t mid, double* tension_estimate, SpringTerm& held) {
     chain::Carry<double> carry;
+    const double inv_h2 = ctx.inv_h * ctx.inv_h;
     SpringTerm last;  // segment i
     for (std::size_t i = s.particles() - 1; i > mid; --i) {
         const SpringTerm next = springTerm(s, ctx, i - 1, tension_estimate);
-        Mat3 d = s.blk_diag[i];
-        Vec3 rhs = s.blk_rhs[i];
+        Mat3 d;
+        Vec3 rhs;
+        inertiaRow(s, i, inv_h2, d, rhs);
         addSprings(next, last, d, rhs);
         last = next;
         double r[3], y[3], gain[9];
@@ -1146,10 +1161,9 @@ double parallelChainStep(StringState& s, RigidTable& rigids, const StepContext& 
     chain::Carry<double> top, bottom;
     pool.forEach(2, [&](std::size_t half) {
         if (half == 0) {
-            assembleInertia(s, rigids, ctx, 0, mid + 1);
+            assembleInertia(s, rigids, ctx, mid, mid + 1);  // the others' rows: in the sweeps' registers
             top = sweepFromTop(s, ctx, mid, tension_estimate);
         } else {
-            assembleInertia(s, rigids, ctx, mid + 1, n);
             bottom = sweepFromBottom(s, ctx, mid, tension_estimate, held);
         }
     });
