@@ -818,18 +818,32 @@ constexpr double kStraightRest = 1e-12;
 
 void shapeMatch(StringState& s, ThreadPool* pool) {
     const std::size_t n = s.particles();
-    std::fill(s.csm_goal.begin(), s.csm_goal.end(), Vec3::Zero());
-    if (n < 3 || s.desc.bending <= 0.0) return;  // nothing to bend
+    if (n < 3 || s.desc.bending <= 0.0) {  // nothing to bend
+        std::fill(s.csm_goal.begin(), s.csm_goal.end(), Vec3::Zero());
+        return;
+    }
     updateRestShape(s);
     const double alpha = s.desc.bending;
+    // The passes over the particles below run on the pool for a long string (each item
+    // writes its own entries; the maxima and the straightness test do not depend on the
+    // cut): the same bits on any thread count.
     // Held particles do not move, so in the fits they weigh as if immovable: a clamp then
     // holds the direction of the string (a cantilever), instead of being rotated along.
     // Particles that collided with another string last step weigh three times their mass
     // (Strings Sec. 6), so that bending barely moves them back into the contact.
-    double heaviest = 0.0;
-    for (double m : s.mass) heaviest = std::max(heaviest, m);
-    for (std::size_t p = 0; p < n; ++p)
-        s.csm_mass[p] = s.hold[p].kind == ParticleHold::Kind::Free ? s.mass[p] * (s.colliding[p] ? 3.0 : 1.0) : 1e6 * heaviest;
+    double heaviest_part[kMaxRanges] = {};
+    forRanges(pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t part) {
+        double heaviest = 0.0;
+        for (std::size_t p = p0; p < p1; ++p) heaviest = std::max(heaviest, s.mass[p]);
+        heaviest_part[part] = heaviest;
+    });
+    const double heaviest = *std::max_element(heaviest_part, heaviest_part + kMaxRanges);
+    forRanges(pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {
+        for (std::size_t p = p0; p < p1; ++p) {
+            s.csm_mass[p] = s.hold[p].kind == ParticleHold::Kind::Free ? s.mass[p] * (s.colliding[p] ? 3.0 : 1.0) : 1e6 * heaviest;
+            s.csm_goal[p] = Vec3::Zero();  // where no piece is matched
+        }
+    });
     std::size_t first = 0;
     for (std::size_t p = 0; p < n; ++p) {
         const bool piece_ends = p + 1 == n || s.broken[p];
@@ -839,9 +853,12 @@ void shapeMatch(StringState& s, ThreadPool* pool) {
             // lengthens its segments): the straight kernel, without polar factors. Its
             // directions are those of points laid out along one line, equal to rounding.
             const Vec3& along = s.rest_direction[first];
-            bool straight = true;
-            for (std::size_t j = first + 1; j < p && straight; ++j)
-                straight = (s.rest_direction[j] - along).cwiseAbs().maxCoeff() <= kStraightRest;
+            bool curved_part[kMaxRanges] = {};
+            forRanges(pool, p - first - 1, kParallelItems, [&](std::size_t k0, std::size_t k1, std::size_t part) {
+                for (std::size_t j = first + 1 + k0; j < first + 1 + k1 && !curved_part[part]; ++j)
+                    curved_part[part] = !((s.rest_direction[j] - along).cwiseAbs().maxCoeff() <= kStraightRest);
+            });
+            const bool straight = std::none_of(curved_part, curved_part + kMaxRanges, [](bool c) { return c; });
             if (straight)
                 straightChainShapeMatchingGoals(s.x.data(), s.rest_shape.data(), s.csm_mass.data(), first, p,
                                                 s.desc.csm_half_width, along, s.csm_goal.data(), s.csm_scratch, pool);
@@ -851,8 +868,10 @@ void shapeMatch(StringState& s, ThreadPool* pool) {
             // Particles move all the way to their goals (the paper's full step): the goal
             // displacement is kept for the prediction. Held particles stay where their hold
             // puts them and only anchor the regions they belong to.
-            for (std::size_t q = first; q <= p; ++q)
-                s.csm_goal[q] = s.hold[q].kind == ParticleHold::Kind::Free ? Vec3(alpha * (s.csm_goal[q] - s.x[q])) : Vec3::Zero();
+            forRanges(pool, p - first + 1, kParallelItems, [&](std::size_t k0, std::size_t k1, std::size_t) {
+                for (std::size_t q = first + k0; q < first + k1; ++q)
+                    s.csm_goal[q] = s.hold[q].kind == ParticleHold::Kind::Free ? Vec3(alpha * (s.csm_goal[q] - s.x[q])) : Vec3::Zero();
+            });
         }
         first = p + 1;
     }
