@@ -19,6 +19,7 @@
 //    otherwise shatter into all its segments at once; after the first tear the rest
 //    is unloaded).
 #include "core/lanes.hpp"
+#include "core/thread_pool.hpp"
 #include "string/material_curve.hpp"
 #include "string/string_state.hpp"
 
@@ -51,61 +52,83 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
     const std::size_t m = s.segments();
     const double r0 = s.desc.radius;
     const double area0 = kPi * r0 * r0;
+    // The segments' tensile response, on the pool for a long string (forRanges): each
+    // range keeps its own most overloaded segment and its own yield events, merged in
+    // range order after, as one loop would have found them (the first of equal ratios;
+    // the events by segment).
+    struct Worst {
+        int index = -1;
+        double ratio = 0.0, stress = 0.0;
+    };
+    Worst worst_part[kMaxRanges];
+    std::vector<Event> part_events[kMaxRanges];  // the ranges after the first (the first writes to events)
+    forRanges(ctx.pool, m, kParallelItems, [&](std::size_t j0, std::size_t j1, std::size_t part) {
+        Worst& worst = worst_part[part];
+        std::vector<Event>& range_events = part == 0 ? events : part_events[part];
+        // Segment j at engineering stress `stress`: a tear candidate (false: its geometry
+        // stays), or its yield and hardening; true where its geometry follows the stress.
+        const auto yieldAt = [&](std::size_t j, double stress) {
+            if (s.broken[j]) return false;
+            const SegmentMaterial& mat = s.material[j];
+            if (s.desc.tearable && stress >= mat.rupture) {
+                // Tear the most overloaded segment only: once it is gone the others are
+                // unloaded, and the next step's tension says whether they still tear.
+                const double ratio = stress / mat.rupture;
+                if (ratio > worst.ratio) {
+                    worst.ratio = ratio;
+                    worst.index = static_cast<int>(j);
+                    worst.stress = stress;
+                }
+                return false;
+            }
+            if (stress > mat.yield) {
+                if (!s.yielded[j]) {
+                    s.yielded[j] = 1;
+                    range_events.push_back(makeEvent(s, id, EventType::Yield, EventCause::Tension, static_cast<int>(j), stress, ctx));
+                }
+                // A string that cannot tear stops flowing at its rupture stress (otherwise
+                // the thinning of a yielding segment would run away).
+                const double flow = std::min(stress, mat.rupture);
+                if (flow > s.peak_stress[j]) {
+                    s.peak_stress[j] = flow;
+                    const double permanent = strainOnCurve(mat, flow) - flow / mat.young;
+                    s.rest_length[j] = s.original_length[j] * (1.0 + permanent);
+                }
+            }
+            return true;
+        };
+        // The geometry two segments at a time: their four divisions and root in the two lanes
+        // of one register (one costs what a scalar one does; the same operations lane by lane,
+        // so the same bits). Engineering stress, force over the original section, as
+        // stress-strain curves and rupture stresses are measured; the thinned radius is
+        // geometry. Lanes of segments that keep their geometry are computed and dropped.
+        for (std::size_t j = j0; j < j1; j += 2) {
+            const std::size_t k = j + 1 < j1 ? j + 1 : j;  // an odd count: the last one twice
+            const Lanes2 stress = Lanes2{std::max(0.0, s.tension[j]), std::max(0.0, s.tension[k])} / area0;
+            const bool follow[2] = {yieldAt(j, stress[0]), k != j && yieldAt(k, stress[1])};
+            if (!follow[0] && !follow[1]) continue;
+            const Lanes2 rest{s.rest_length[j], s.rest_length[k]};
+            const Lanes2 young{s.material[j].young, s.material[k].young};
+            const Lanes2 max_length = rest * (1.0 + stress / young);
+            const Lanes2 radius = r0 * sqrtLanes(Lanes2{s.original_length[j], s.original_length[k]} / max_length);
+            const Lanes2 compliance = rest / (young * area0);  // engineering: E on the original section
+            for (int lane = 0; lane < 2; ++lane) {
+                if (!follow[lane]) continue;
+                const std::size_t i = lane == 0 ? j : k;
+                s.max_length[i] = max_length[lane];
+                s.radius[i] = radius[lane];
+                s.compliance[i] = compliance[lane];
+            }
+        }
+    });
     int worst = -1;
     double worst_ratio = 0.0, worst_stress = 0.0;
-    // Segment j at engineering stress `stress`: a tear candidate (false: its geometry
-    // stays), or its yield and hardening; true where its geometry follows the stress.
-    const auto yieldAt = [&](std::size_t j, double stress) {
-        if (s.broken[j]) return false;
-        const SegmentMaterial& mat = s.material[j];
-        if (s.desc.tearable && stress >= mat.rupture) {
-            // Tear the most overloaded segment only: once it is gone the others are
-            // unloaded, and the next step's tension says whether they still tear.
-            const double ratio = stress / mat.rupture;
-            if (ratio > worst_ratio) {
-                worst_ratio = ratio;
-                worst = static_cast<int>(j);
-                worst_stress = stress;
-            }
-            return false;
-        }
-        if (stress > mat.yield) {
-            if (!s.yielded[j]) {
-                s.yielded[j] = 1;
-                events.push_back(makeEvent(s, id, EventType::Yield, EventCause::Tension, static_cast<int>(j), stress, ctx));
-            }
-            // A string that cannot tear stops flowing at its rupture stress (otherwise
-            // the thinning of a yielding segment would run away).
-            const double flow = std::min(stress, mat.rupture);
-            if (flow > s.peak_stress[j]) {
-                s.peak_stress[j] = flow;
-                const double permanent = strainOnCurve(mat, flow) - flow / mat.young;
-                s.rest_length[j] = s.original_length[j] * (1.0 + permanent);
-            }
-        }
-        return true;
-    };
-    // The geometry two segments at a time: their four divisions and root in the two lanes
-    // of one register (one costs what a scalar one does; the same operations lane by lane,
-    // so the same bits). Engineering stress, force over the original section, as
-    // stress-strain curves and rupture stresses are measured; the thinned radius is
-    // geometry. Lanes of segments that keep their geometry are computed and dropped.
-    for (std::size_t j = 0; j < m; j += 2) {
-        const std::size_t k = j + 1 < m ? j + 1 : j;  // an odd count: the last one twice
-        const Lanes2 stress = Lanes2{std::max(0.0, s.tension[j]), std::max(0.0, s.tension[k])} / area0;
-        const bool follow[2] = {yieldAt(j, stress[0]), k != j && yieldAt(k, stress[1])};
-        if (!follow[0] && !follow[1]) continue;
-        const Lanes2 rest{s.rest_length[j], s.rest_length[k]};
-        const Lanes2 young{s.material[j].young, s.material[k].young};
-        const Lanes2 max_length = rest * (1.0 + stress / young);
-        const Lanes2 radius = r0 * sqrtLanes(Lanes2{s.original_length[j], s.original_length[k]} / max_length);
-        const Lanes2 compliance = rest / (young * area0);  // engineering: E on the original section
-        for (int lane = 0; lane < 2; ++lane) {
-            if (!follow[lane]) continue;
-            const std::size_t i = lane == 0 ? j : k;
-            s.max_length[i] = max_length[lane];
-            s.radius[i] = radius[lane];
-            s.compliance[i] = compliance[lane];
+    for (std::size_t part = 0; part < kMaxRanges; ++part) {
+        if (part > 0) events.insert(events.end(), part_events[part].begin(), part_events[part].end());
+        if (worst_part[part].ratio > worst_ratio) {
+            worst_ratio = worst_part[part].ratio;
+            worst = worst_part[part].index;
+            worst_stress = worst_part[part].stress;
         }
     }
     // Torsion (Strings Sec. 5.4, Eq. 11 with the division by length): per joint between
