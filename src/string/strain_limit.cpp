@@ -1200,14 +1200,17 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
     const double rate_gain = s.desc.axial_damping * ctx.inv_h;
     // Two segments at a time, their roots and divisions in lanes (the same bits).
     auto force = [&](std::size_t j, double length) { return std::max(0.0, effectiveStretch(s, j, length - s.rest_length[j], rate_gain)); };
-    std::size_t k = 0;
-    for (; k + 1 < m; k += 2) {
-        const Lanes2 length = lengthPair(s.x[k + 1] - s.x[k], s.x[k + 2] - s.x[k + 1]);
-        const Lanes2 f = Lanes2{force(k, length[0]), force(k + 1, length[1])} / Lanes2{s.compliance[k], s.compliance[k + 1]};
-        if (!s.broken[k]) s.spring_force[k] = f[0];
-        if (!s.broken[k + 1]) s.spring_force[k + 1] = f[1];
-    }
-    if (k < m && !s.broken[k]) s.spring_force[k] = force(k, (s.x[k + 1] - s.x[k]).norm()) / s.compliance[k];
+    // A long string's on the pool (forRanges: each segment's force is its own).
+    forRanges(ctx.pool, m, kParallelItems, [&](std::size_t j0, std::size_t j1, std::size_t) {
+        std::size_t k = j0;
+        for (; k + 1 < j1; k += 2) {
+            const Lanes2 length = lengthPair(s.x[k + 1] - s.x[k], s.x[k + 2] - s.x[k + 1]);
+            const Lanes2 f = Lanes2{force(k, length[0]), force(k + 1, length[1])} / Lanes2{s.compliance[k], s.compliance[k + 1]};
+            if (!s.broken[k]) s.spring_force[k] = f[0];
+            if (!s.broken[k + 1]) s.spring_force[k + 1] = f[1];
+        }
+        if (k < j1 && !s.broken[k]) s.spring_force[k] = force(k, (s.x[k + 1] - s.x[k]).norm()) / s.compliance[k];
+    });
     // Particles pressed by a body carry an unknown contact force along its normal: the
     // tension solve uses only their equations across the normal (tension.cpp).
     // (All are I already where none was pressed since they were last reset.)
