@@ -1339,44 +1339,58 @@ bool warmStart(StringState& s, const StepContext& ctx) {
 
 void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     const std::size_t n = s.particles();
-    for (std::size_t p = 0; p < n; ++p) {
-        s.glue_impulse[p].setZero();
-        const ParticleHold& hold = s.hold[p];
-        s.glue_movable[p] = hold.kind == ParticleHold::Kind::Glue && rigids.movable(hold.body);
-        if (s.glue_movable[p]) {
+    const std::size_t m = s.segments();
+    // The passes over a long string's particles and segments run on the pool (forRanges:
+    // per-item writes); only the glued particles' loads on their bodies are applied here,
+    // in particle order.
+    bool glued_part[kMaxRanges] = {};
+    forRanges(ctx.pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t part) {
+        for (std::size_t p = p0; p < p1; ++p) {
+            s.glue_impulse[p].setZero();
+            const ParticleHold& hold = s.hold[p];
+            s.glue_movable[p] = hold.kind == ParticleHold::Kind::Glue && rigids.movable(hold.body);
+            glued_part[part] = glued_part[part] || s.glue_movable[p];
+        }
+    });
+    if (std::any_of(glued_part, glued_part + kMaxRanges, [](bool glued) { return glued; }))
+        for (std::size_t p = 0; p < n; ++p) {
+            if (!s.glue_movable[p]) continue;
             // The glued particle is part of the body now: its weight and force act on it.
+            const ParticleHold& hold = s.hold[p];
             RigidState& b = rigids.bodies[hold.body.index];
             const Vec3 load = (s.mass[p] * ctx.gravity + s.force[p]) * (ctx.h * ctx.h);
             applyBodyImpulse(b, s.x[p] - b.position, load);
             s.x[p] = gluePoint(b, hold.point);
         }
-    }
     // The last step's correction of the free particles (its end less its prediction),
-    // for warmStart, in blk_rhs (limitStrain writes it before it reads it).
+    // for warmStart, in blk_rhs (limitStrain writes it before it reads it); then the
+    // prediction is where the particles start.
     forRanges(ctx.pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {
         for (std::size_t p = p0; p < p1; ++p) {
             const Vec3 correction = s.x_prev[p] - s.x_pred[p];
             const bool free = s.hold[p].kind == ParticleHold::Kind::Free;
             s.blk_rhs[p] = free && correction.allFinite() ? correction : Vec3::Zero();
+            s.x_pred[p] = s.x[p];
         }
     });
-    s.x_pred = s.x;
-    std::fill(s.impulse.begin(), s.impulse.end(), 0.0);
     for (BodyNode& node : s.body_nodes) {
         node.mass = bodyMass(rigids.bodies[node.body.index]);
         node.impulse.setZero();
         node.displacement.setZero();
         node.linearised_at.setZero();
     }
-    // Two segments' roots at a time (one sqrtpd).
-    const std::size_t m = s.segments();
-    std::size_t j = 0;
-    for (; j + 1 < m; j += 2) {
-        const Lanes2 len = lengthPair(s.x_prev[j + 1] - s.x_prev[j], s.x_prev[j + 2] - s.x_prev[j + 1]);
-        s.prev_stretch[j] = len[0] - s.rest_length[j];
-        s.prev_stretch[j + 1] = len[1] - s.rest_length[j + 1];
-    }
-    if (j < m) s.prev_stretch[j] = (s.x_prev[j + 1] - s.x_prev[j]).norm() - s.rest_length[j];
+    // The segments' impulses reset and their stretch at the step's start, two roots at a
+    // time (one sqrtpd).
+    forRanges(ctx.pool, m, kParallelItems, [&](std::size_t j0, std::size_t j1, std::size_t) {
+        std::fill(s.impulse.begin() + static_cast<std::ptrdiff_t>(j0), s.impulse.begin() + static_cast<std::ptrdiff_t>(j1), 0.0);
+        std::size_t j = j0;
+        for (; j + 1 < j1; j += 2) {
+            const Lanes2 len = lengthPair(s.x_prev[j + 1] - s.x_prev[j], s.x_prev[j + 2] - s.x_prev[j + 1]);
+            s.prev_stretch[j] = len[0] - s.rest_length[j];
+            s.prev_stretch[j + 1] = len[1] - s.rest_length[j + 1];
+        }
+        if (j < j1) s.prev_stretch[j] = (s.x_prev[j + 1] - s.x_prev[j]).norm() - s.rest_length[j];
+    });
     s.strain_newton_iterations = 0;
     s.strain_chord_iterations = 0;
     s.strain_warm_start = s.contacts.empty() && s.body_nodes.empty() && !ctx.cold_strain_starts && warmStart(s, ctx);
