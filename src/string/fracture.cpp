@@ -137,51 +137,69 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
     // segment whose torsional strain (the mean of its joints') reaches rupture breaks.
     EventCause worst_cause = EventCause::Tension;
     const std::size_t joints = s.rest_twist.size();
-    for (std::size_t k = 0; k < joints; ++k) {
-        if (s.broken[k] || s.broken[k + 1]) continue;
-        // An untwisted joint (most of a rope that nothing twists): zero strain, without
-        // the two divisions (r 0 / l is a zero, and its magnitude is what is kept).
-        if (s.twist[k + 1] - s.twist[k] == 0.0 && s.rest_twist[k] == 0.0) {
-            s.joint_strain[k] = 0.0;
-            continue;
-        }
-        const double l = 0.5 * (s.rest_length[k] + s.rest_length[k + 1]);
-        const double r = 0.5 * (s.radius[k] + s.radius[k + 1]);
-        const double total = r * (s.twist[k + 1] - s.twist[k]) / l;
-        const double elastic = total - r * s.rest_twist[k] / l;
-        const SegmentMaterial& mat = s.material[k];
-        if (std::abs(elastic) > mat.torsion_yield) {
-            if (!s.torsion_yielded[k]) {
-                s.torsion_yielded[k] = 1;
-                events.push_back(makeEvent(s, id, EventType::Yield, EventCause::Torsion, static_cast<int>(k), std::abs(total), ctx));
+    // Joints, then segments, in ranges on the pool as above (events and the most overloaded
+    // segment merged in range order).
+    for (std::vector<Event>& e : part_events) e.clear();
+    forRanges(ctx.pool, joints, kParallelItems, [&](std::size_t k0, std::size_t k1, std::size_t part) {
+        std::vector<Event>& range_events = part == 0 ? events : part_events[part];
+        for (std::size_t k = k0; k < k1; ++k) {
+            if (s.broken[k] || s.broken[k + 1]) continue;
+            // An untwisted joint (most of a rope that nothing twists): zero strain, without
+            // the two divisions (r 0 / l is a zero, and its magnitude is what is kept).
+            if (s.twist[k + 1] - s.twist[k] == 0.0 && s.rest_twist[k] == 0.0) {
+                s.joint_strain[k] = 0.0;
+                continue;
             }
-            const double strain = std::min(std::abs(total), mat.torsion_rupture);
-            if (strain > s.torsion_peak[k]) {
-                s.torsion_peak[k] = strain;
-                const double stress = mat.shear_modulus * mat.torsion_yield + mat.torsion_plastic * (strain - mat.torsion_yield);
-                const double permanent = strain - stress / mat.shear_modulus;
-                s.rest_twist[k] = std::copysign(permanent, total) * l / r;
+            const double l = 0.5 * (s.rest_length[k] + s.rest_length[k + 1]);
+            const double r = 0.5 * (s.radius[k] + s.radius[k + 1]);
+            const double total = r * (s.twist[k + 1] - s.twist[k]) / l;
+            const double elastic = total - r * s.rest_twist[k] / l;
+            const SegmentMaterial& mat = s.material[k];
+            if (std::abs(elastic) > mat.torsion_yield) {
+                if (!s.torsion_yielded[k]) {
+                    s.torsion_yielded[k] = 1;
+                    range_events.push_back(
+                        makeEvent(s, id, EventType::Yield, EventCause::Torsion, static_cast<int>(k), std::abs(total), ctx));
+                }
+                const double strain = std::min(std::abs(total), mat.torsion_rupture);
+                if (strain > s.torsion_peak[k]) {
+                    s.torsion_peak[k] = strain;
+                    const double stress = mat.shear_modulus * mat.torsion_yield + mat.torsion_plastic * (strain - mat.torsion_yield);
+                    const double permanent = strain - stress / mat.shear_modulus;
+                    s.rest_twist[k] = std::copysign(permanent, total) * l / r;
+                }
             }
+            s.joint_strain[k] = std::abs(total);
         }
-        s.joint_strain[k] = std::abs(total);
-    }
+    });
+    for (std::size_t part = 1; part < kMaxRanges; ++part) events.insert(events.end(), part_events[part].begin(), part_events[part].end());
     if (s.desc.tearable && joints > 0) {
-        for (std::size_t j = 0; j < m; ++j) {
-            if (s.broken[j]) continue;
-            double sum = 0.0;
-            int count = 0;
-            if (j > 0 && !s.broken[j - 1]) sum += s.joint_strain[j - 1], ++count;
-            if (j < joints && !s.broken[j + 1]) sum += s.joint_strain[j], ++count;
-            if (count == 0 || sum == 0.0) continue;  // no torsional strain: ratio 0
-            const double gamma = sum / count;
-            const double ratio = gamma / s.material[j].torsion_rupture;
-            if (ratio >= 1.0 && ratio > worst_ratio) {
-                worst_ratio = ratio;
-                worst = static_cast<int>(j);
-                worst_stress = gamma;
+        Worst torsion_part[kMaxRanges];
+        forRanges(ctx.pool, m, kParallelItems, [&](std::size_t j0, std::size_t j1, std::size_t part) {
+            Worst& best = torsion_part[part];
+            for (std::size_t j = j0; j < j1; ++j) {
+                if (s.broken[j]) continue;
+                double sum = 0.0;
+                int count = 0;
+                if (j > 0 && !s.broken[j - 1]) sum += s.joint_strain[j - 1], ++count;
+                if (j < joints && !s.broken[j + 1]) sum += s.joint_strain[j], ++count;
+                if (count == 0 || sum == 0.0) continue;  // no torsional strain: ratio 0
+                const double gamma = sum / count;
+                const double ratio = gamma / s.material[j].torsion_rupture;
+                if (ratio >= 1.0 && ratio > best.ratio) {
+                    best.ratio = ratio;
+                    best.index = static_cast<int>(j);
+                    best.stress = gamma;
+                }
+            }
+        });
+        for (const Worst& best : torsion_part)
+            if (best.ratio > worst_ratio) {
+                worst_ratio = best.ratio;
+                worst = best.index;
+                worst_stress = best.stress;
                 worst_cause = EventCause::Torsion;
             }
-        }
     }
     if (worst >= 0) {
         s.broken[worst] = 1;

@@ -125,8 +125,10 @@ void momentumTension(StringState& s, const StepContext& ctx) {
     });
     const double max_diag = *std::max_element(range_max, range_max + kMaxRanges);
     const double reg = kRegularisation * (max_diag > 0.0 ? max_diag : 1.0) / static_cast<double>(m);
-    for (std::size_t j = 0; j < m; ++j)
-        if (!s.broken[j]) s.diag[j] += reg;
+    forRanges(ctx.pool, m, kParallelSegments, [&](std::size_t j0, std::size_t j1, std::size_t) {
+        for (std::size_t j = j0; j < j1; ++j)
+            if (!s.broken[j]) s.diag[j] += reg;
+    });
     solveSymmetricTridiagonal(s.diag, s.off, s.rhs, s.scratch);
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
     // Where a body presses the string, its motion cannot tell tension from contact force:

@@ -262,3 +262,49 @@ TEST(Determinism, LongRopeYieldAndTearEventsDoNotDependOnThreads) {
         }
     }
 }
+
+namespace {
+
+// A 5000-segment rope clamped at both ends and turned at one until it tears by torsion:
+// every event (the joints' torsional yields, then the tear), step by step.
+std::vector<tearables::Event> twistedLongRopeEvents(int threads) {
+    tearables::WorldSettings settings;
+    settings.threads = threads;
+    tearables::World world(settings);
+    auto desc = tearables::StringDesc::straight({0, 0, 0}, {50.0, 0.0, 0.0}, 5000);
+    desc.material.torsion.yield = 1e-4;
+    desc.material.torsion.rupture = 2e-4;  // r theta / L with r = 2 mm, L = 50 m: 5 rad
+    const auto id = world.addString(desc);
+    world.attachToPoint(id, 0, {0, 0, 0});
+    world.attachToPoint(id, -1, {50.0, 0.0, 0.0});
+    std::vector<tearables::Event> events;
+    for (int step = 0; step < 40; ++step) {
+        world.turnEnd(id, -1, 0.5);
+        world.step(0.01);
+        events.insert(events.end(), world.events().begin(), world.events().end());
+        if (!events.empty() && events.back().type == tearables::EventType::Tear) break;
+    }
+    return events;
+}
+
+}  // namespace
+
+// The material stage's torsion loops run in ranges on the pool as its tension loop does:
+// the same yields and the same torsional tear on 1, 2 and 3 threads.
+TEST(Determinism, LongRopeTorsionEventsDoNotDependOnThreads) {
+    const std::vector<tearables::Event> one = twistedLongRopeEvents(1);
+    ASSERT_GT(one.size(), 1u);
+    EXPECT_EQ(one.back().type, tearables::EventType::Tear);
+    EXPECT_EQ(one.back().cause, tearables::EventCause::Torsion);
+    for (int threads : {2, 3}) {
+        const std::vector<tearables::Event> many = twistedLongRopeEvents(threads);
+        ASSERT_EQ(one.size(), many.size()) << threads << " threads";
+        for (std::size_t i = 0; i < one.size(); ++i) {
+            EXPECT_EQ(one[i].type, many[i].type) << i;
+            EXPECT_EQ(one[i].cause, many[i].cause) << i;
+            EXPECT_EQ(one[i].segment, many[i].segment) << i;
+            EXPECT_EQ(one[i].step, many[i].step) << i;
+            EXPECT_EQ(0, std::memcmp(&one[i].stress, &many[i].stress, sizeof(double))) << i;
+        }
+    }
+}
