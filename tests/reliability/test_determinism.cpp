@@ -220,6 +220,18 @@ TEST(Determinism, LongRopeSplitOverThreadsDoesNotChangeOneBit) {
 
 namespace {
 
+// Two runs' events field by field (the stress bit for bit); `threads`: the second run's.
+void expectSameEvents(const std::vector<tearables::Event>& one, const std::vector<tearables::Event>& many, int threads) {
+    ASSERT_EQ(one.size(), many.size()) << threads << " threads";
+    for (std::size_t i = 0; i < one.size(); ++i) {
+        EXPECT_EQ(one[i].type, many[i].type) << i;
+        EXPECT_EQ(one[i].cause, many[i].cause) << i;
+        EXPECT_EQ(one[i].segment, many[i].segment) << i;
+        EXPECT_EQ(one[i].step, many[i].step) << i;
+        EXPECT_EQ(0, std::memcmp(&one[i].stress, &many[i].stress, sizeof(double))) << i;
+    }
+}
+
 // The long rope pulled at particle 2600 by 5 kN (about its rupture load) for a step after
 // three of settling: every event of the four steps, field by field.
 std::vector<tearables::Event> longRopeEvents(int threads) {
@@ -252,14 +264,7 @@ TEST(Determinism, LongRopeYieldAndTearEventsDoNotDependOnThreads) {
     ASSERT_EQ(tears, 1u);
     for (int threads : {2, 3}) {
         const std::vector<tearables::Event> many = longRopeEvents(threads);
-        ASSERT_EQ(one.size(), many.size()) << threads << " threads";
-        for (std::size_t i = 0; i < one.size(); ++i) {
-            EXPECT_EQ(one[i].type, many[i].type) << i;
-            EXPECT_EQ(one[i].cause, many[i].cause) << i;
-            EXPECT_EQ(one[i].segment, many[i].segment) << i;
-            EXPECT_EQ(one[i].step, many[i].step) << i;
-            EXPECT_EQ(0, std::memcmp(&one[i].stress, &many[i].stress, sizeof(double))) << i;
-        }
+        expectSameEvents(one, many, threads);
     }
 }
 
@@ -298,13 +303,6 @@ TEST(Determinism, LongRopeTorsionEventsDoNotDependOnThreads) {
     EXPECT_EQ(one.back().cause, tearables::EventCause::Torsion);
     for (int threads : {2, 3}) {
         const std::vector<tearables::Event> many = twistedLongRopeEvents(threads);
-        ASSERT_EQ(one.size(), many.size()) << threads << " threads";
-        for (std::size_t i = 0; i < one.size(); ++i) {
-            EXPECT_EQ(one[i].type, many[i].type) << i;
-            EXPECT_EQ(one[i].cause, many[i].cause) << i;
-            EXPECT_EQ(one[i].segment, many[i].segment) << i;
-            EXPECT_EQ(one[i].step, many[i].step) << i;
-            EXPECT_EQ(0, std::memcmp(&one[i].stress, &many[i].stress, sizeof(double))) << i;
-        }
+        expectSameEvents(one, many, threads);
     }
 }
