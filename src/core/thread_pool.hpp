@@ -182,4 +182,22 @@ void forRanges(ThreadPool* pool, std::size_t count, std::size_t min_count, Body&
     pool->forEach(parts, [&](std::size_t part) { body(count * part / parts, count * (part + 1) / parts, part); });
 }
 
+/// forRanges with a result per range, body(lo, hi) -> bool: whether any range's is true.
+/// (Each range's is its own, so the answer does not depend on the cut.)
+template <class Body>
+bool forRangesAny(ThreadPool* pool, std::size_t count, std::size_t min_count, Body&& body) {
+    bool any[kMaxRanges] = {};
+    forRanges(pool, count, min_count, [&](std::size_t lo, std::size_t hi, std::size_t part) { any[part] = body(lo, hi); });
+    return std::any_of(any, any + kMaxRanges, [](bool b) { return b; });
+}
+
+/// forRanges with a result per range, body(lo, hi) -> double: the largest, or 0 (max is
+/// exact: the same on any cut).
+template <class Body>
+double forRangesMax(ThreadPool* pool, std::size_t count, std::size_t min_count, Body&& body) {
+    double most[kMaxRanges] = {};
+    forRanges(pool, count, min_count, [&](std::size_t lo, std::size_t hi, std::size_t part) { most[part] = body(lo, hi); });
+    return *std::max_element(most, most + kMaxRanges);
+}
+
 }  // namespace tearables::detail

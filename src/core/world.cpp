@@ -1166,14 +1166,12 @@ void World::step(double h) {
         detail::computeTwistForces(s);
         detail::updateVelocities(s, ctx);
         // A long string alone checks and clears its particles on the pool (forRanges).
-        bool bad_part[detail::kMaxRanges] = {};
-        detail::forRanges(&w.pool, s.particles(), detail::kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t part) {
+        w.bad_state[k] = detail::forRangesAny(&w.pool, s.particles(), detail::kParallelItems, [&](std::size_t p0, std::size_t p1) {
             bool ok = true;
             for (std::size_t p = p0; p < p1 && ok; ++p) ok = finite(s.x[p]) && finite(s.v[p]);
-            bad_part[part] = !ok;
             std::fill(s.force.begin() + static_cast<std::ptrdiff_t>(p0), s.force.begin() + static_cast<std::ptrdiff_t>(p1), Vec3::Zero());
+            return !ok;
         });
-        w.bad_state[k] = std::any_of(bad_part, bad_part + detail::kMaxRanges, [](bool bad) { return bad; });
     });
     for (std::size_t k = 0; k < w.live_strings.size(); ++k)
         if (w.bad_state[k]) w.freeze(w.strings[w.live_strings[k]], StringId{w.live_strings[k]}, ctx);

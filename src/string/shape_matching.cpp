@@ -831,13 +831,11 @@ void shapeMatch(StringState& s, ThreadPool* pool) {
     // holds the direction of the string (a cantilever), instead of being rotated along.
     // Particles that collided with another string last step weigh three times their mass
     // (Strings Sec. 6), so that bending barely moves them back into the contact.
-    double heaviest_part[kMaxRanges] = {};
-    forRanges(pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t part) {
-        double heaviest = 0.0;
-        for (std::size_t p = p0; p < p1; ++p) heaviest = std::max(heaviest, s.mass[p]);
-        heaviest_part[part] = heaviest;
+    const double heaviest = forRangesMax(pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1) {
+        double most = 0.0;
+        for (std::size_t p = p0; p < p1; ++p) most = std::max(most, s.mass[p]);
+        return most;
     });
-    const double heaviest = *std::max_element(heaviest_part, heaviest_part + kMaxRanges);
     forRanges(pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {
         for (std::size_t p = p0; p < p1; ++p) {
             s.csm_mass[p] = s.hold[p].kind == ParticleHold::Kind::Free ? s.mass[p] * (s.colliding[p] ? 3.0 : 1.0) : 1e6 * heaviest;
@@ -853,12 +851,11 @@ void shapeMatch(StringState& s, ThreadPool* pool) {
             // lengthens its segments): the straight kernel, without polar factors. Its
             // directions are those of points laid out along one line, equal to rounding.
             const Vec3& along = s.rest_direction[first];
-            bool curved_part[kMaxRanges] = {};
-            forRanges(pool, p - first - 1, kParallelItems, [&](std::size_t k0, std::size_t k1, std::size_t part) {
-                for (std::size_t j = first + 1 + k0; j < first + 1 + k1 && !curved_part[part]; ++j)
-                    curved_part[part] = !((s.rest_direction[j] - along).cwiseAbs().maxCoeff() <= kStraightRest);
+            const bool straight = !forRangesAny(pool, p - first - 1, kParallelItems, [&](std::size_t k0, std::size_t k1) {
+                for (std::size_t j = first + 1 + k0; j < first + 1 + k1; ++j)
+                    if (!((s.rest_direction[j] - along).cwiseAbs().maxCoeff() <= kStraightRest)) return true;  // curved
+                return false;
             });
-            const bool straight = std::none_of(curved_part, curved_part + kMaxRanges, [](bool c) { return c; });
             if (straight)
                 straightChainShapeMatchingGoals(s.x.data(), s.rest_shape.data(), s.csm_mass.data(), first, p,
                                                 s.desc.csm_half_width, along, s.csm_goal.data(), s.csm_scratch, pool);

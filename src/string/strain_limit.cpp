@@ -1343,16 +1343,17 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
     // The passes over a long string's particles and segments run on the pool (forRanges:
     // per-item writes); only the glued particles' loads on their bodies are applied here,
     // in particle order.
-    bool glued_part[kMaxRanges] = {};
-    forRanges(ctx.pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t part) {
+    const bool glued = forRangesAny(ctx.pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1) {
+        bool any = false;
         for (std::size_t p = p0; p < p1; ++p) {
             s.glue_impulse[p].setZero();
             const ParticleHold& hold = s.hold[p];
             s.glue_movable[p] = hold.kind == ParticleHold::Kind::Glue && rigids.movable(hold.body);
-            glued_part[part] = glued_part[part] || s.glue_movable[p];
+            any = any || s.glue_movable[p];
         }
+        return any;
     });
-    if (std::any_of(glued_part, glued_part + kMaxRanges, [](bool glued) { return glued; }))
+    if (glued)
         for (std::size_t p = 0; p < n; ++p) {
             if (!s.glue_movable[p]) continue;
             // The glued particle is part of the body now: its weight and force act on it.

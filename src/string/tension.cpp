@@ -86,7 +86,6 @@ void momentumTension(StringState& s, const StepContext& ctx) {
             if (len > 1e-15) s.dir[j] = d / len;
         }
     });
-    double range_max[kMaxRanges] = {};
     // Each particle's weight, whether its row is whole, and its impulse are found once and
     // carried from the segment it ends to the segment it starts (the same values, so the
     // same bits, as finding them per segment: they were a third of the stage).
@@ -100,8 +99,8 @@ void momentumTension(StringState& s, const StepContext& ctx) {
         if (r.weight > 0.0) r.impulse = rowImpulse(s, p);
         return r;
     };
-    forRanges(ctx.pool, m, kParallelSegments, [&](std::size_t j0, std::size_t j1, std::size_t part) {
-        double max_diag = 0.0;
+    const double max_diag = forRangesMax(ctx.pool, m, kParallelSegments, [&](std::size_t j0, std::size_t j1) {
+        double most = 0.0;
         Row a = row(j0);
         for (std::size_t j = j0; j < j1; ++j) {
             const Row b = row(j + 1);
@@ -118,12 +117,11 @@ void momentumTension(StringState& s, const StepContext& ctx) {
                        (b.weight > 0.0 ? b.weight * projectedDot(s, j + 1, b.whole, e, b.impulse) : 0.0);
             s.off[j] = 0.0;
             if (j + 1 < m && !s.broken[j + 1]) s.off[j] = -b.weight * projectedDot(s, j + 1, b.whole, e, s.dir[j + 1]);
-            max_diag = std::max(max_diag, s.diag[j]);
+            most = std::max(most, s.diag[j]);
             a = b;
         }
-        range_max[part] = max_diag;
+        return most;
     });
-    const double max_diag = *std::max_element(range_max, range_max + kMaxRanges);
     const double reg = kRegularisation * (max_diag > 0.0 ? max_diag : 1.0) / static_cast<double>(m);
     forRanges(ctx.pool, m, kParallelSegments, [&](std::size_t j0, std::size_t j1, std::size_t) {
         for (std::size_t j = j0; j < j1; ++j)
