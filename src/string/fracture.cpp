@@ -59,6 +59,15 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
     struct Worst {
         int index = -1;
         double ratio = 0.0, stress = 0.0;
+        EventCause cause = EventCause::Tension;
+        /// Takes segment j where its ratio is the largest yet (strictly: the first of equals).
+        void offer(int j, double r, double st, EventCause c) {
+            if (!(r > ratio)) return;
+            index = j;
+            ratio = r;
+            stress = st;
+            cause = c;
+        }
     };
     Worst worst_part[kMaxRanges];
     std::vector<Event> part_events[kMaxRanges];  // the ranges after the first (the first writes to events)
@@ -73,12 +82,7 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
             if (s.desc.tearable && stress >= mat.rupture) {
                 // Tear the most overloaded segment only: once it is gone the others are
                 // unloaded, and the next step's tension says whether they still tear.
-                const double ratio = stress / mat.rupture;
-                if (ratio > worst.ratio) {
-                    worst.ratio = ratio;
-                    worst.index = static_cast<int>(j);
-                    worst.stress = stress;
-                }
+                worst.offer(static_cast<int>(j), stress / mat.rupture, stress, EventCause::Tension);
                 return false;
             }
             if (stress > mat.yield) {
@@ -121,21 +125,15 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
             }
         }
     });
-    int worst = -1;
-    double worst_ratio = 0.0, worst_stress = 0.0;
+    Worst worst;
     for (std::size_t part = 0; part < kMaxRanges; ++part) {
         if (part > 0) events.insert(events.end(), part_events[part].begin(), part_events[part].end());
-        if (worst_part[part].ratio > worst_ratio) {
-            worst_ratio = worst_part[part].ratio;
-            worst = worst_part[part].index;
-            worst_stress = worst_part[part].stress;
-        }
+        worst.offer(worst_part[part].index, worst_part[part].ratio, worst_part[part].stress, worst_part[part].cause);
     }
     // Torsion (Strings Sec. 5.4, Eq. 11 with the division by length): per joint between
     // segments k and k+1, gamma = r (theta_{k+1} - theta_k) / l. Past the yield strain the
     // joint's rest twist grows (hardening as in tension, unloading parallel to G); a
     // segment whose torsional strain (the mean of its joints') reaches rupture breaks.
-    EventCause worst_cause = EventCause::Tension;
     const std::size_t joints = s.rest_twist.size();
     // Joints, then segments, in ranges on the pool as above (events and the most overloaded
     // segment merged in range order).
@@ -186,25 +184,15 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
                 if (count == 0 || sum == 0.0) continue;  // no torsional strain: ratio 0
                 const double gamma = sum / count;
                 const double ratio = gamma / s.material[j].torsion_rupture;
-                if (ratio >= 1.0 && ratio > best.ratio) {
-                    best.ratio = ratio;
-                    best.index = static_cast<int>(j);
-                    best.stress = gamma;
-                }
+                if (ratio >= 1.0) best.offer(static_cast<int>(j), ratio, gamma, EventCause::Torsion);
             }
         });
-        for (const Worst& best : torsion_part)
-            if (best.ratio > worst_ratio) {
-                worst_ratio = best.ratio;
-                worst = best.index;
-                worst_stress = best.stress;
-                worst_cause = EventCause::Torsion;
-            }
+        for (const Worst& best : torsion_part) worst.offer(best.index, best.ratio, best.stress, best.cause);
     }
-    if (worst >= 0) {
-        s.broken[worst] = 1;
-        s.tension[worst] = 0.0;
-        events.push_back(makeEvent(s, id, EventType::Tear, worst_cause, worst, worst_stress, ctx));
+    if (worst.index >= 0) {
+        s.broken[worst.index] = 1;
+        s.tension[worst.index] = 0.0;
+        events.push_back(makeEvent(s, id, EventType::Tear, worst.cause, worst.index, worst.stress, ctx));
     }
 }
 
