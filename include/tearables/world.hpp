@@ -35,9 +35,10 @@ struct WorldSettings {
     bool rigid_contacts = true;
     /// Strings collide with each other and themselves (capsules per segment, exact 27-cell
     /// grid on the swept segments; the strings that touch are solved together, so they
-    /// exchange momentum and never pass through each other). Costs about 0.35 ms per step
-    /// on a fast-swinging 746-segment rope (BENCHMARKS.md); turn off for ropes that never
-    /// meet.
+    /// exchange momentum and never pass through each other). A string that hangs or swings
+    /// nearly straight is proved free of self contacts from its shape in one pass over its
+    /// particles; a curved one is searched (tens of microseconds a step for a 746-segment
+    /// rope, BENCHMARKS.md). Turn off for ropes that never meet.
     bool string_collisions = true;
     /// Threads that step independent strings in parallel, 0..64: 1 steps on the calling
     /// thread only, 0 uses every core the machine reports. Where a stage has one string

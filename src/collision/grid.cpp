@@ -566,7 +566,7 @@ void ChainTree::join(std::uint32_t index, std::uint32_t first, std::uint32_t cou
     nodes_[index] = node;
 }
 
-void ChainTree::splitChain(std::size_t c, ThreadPool& pool) {
+void ChainTree::splitChain(std::size_t c, ThreadPool& pool, bool self_free) {
     // The root's children are built on two threads, each numbering its nodes from where
     // the serial pre-order would (the left subtree right after the root, the right one
     // after it); then the root's self pairs as three parts, self(left), self(right) and
@@ -583,6 +583,9 @@ void ChainTree::splitChain(std::size_t c, ThreadPool& pool) {
     });
     join(root, first, count, left, right);
     roots_[c] = root;
+    chain_out_[c].clear();
+    chain_rejects_[c] = 0;
+    if (self_free) return;
     std::size_t rejects[3] = {0, 0, 0};
     Vec3 along;
     const Vec3* forward = forwardDirection(root, along) ? &along : nullptr;
@@ -592,7 +595,6 @@ void ChainTree::splitChain(std::size_t c, ThreadPool& pool) {
         if (k == 1) self(right, split_out_[k], rejects[k], forward);
         if (k == 2) cross(left, right, split_out_[k], rejects[k], forward);
     });
-    chain_out_[c].clear();
     for (const std::vector<SegmentPair>& part : split_out_) chain_out_[c].insert(chain_out_[c].end(), part.begin(), part.end());
     chain_rejects_[c] = rejects[0] + rejects[1] + rejects[2];
 }
@@ -706,7 +708,7 @@ void ChainTree::cross(std::uint32_t a, std::uint32_t b, std::vector<SegmentPair>
 
 void ChainTree::findPairs(const Vec3* positions, const std::vector<CollisionSegment>& segments, double margin,
                           std::vector<SegmentPair>& out, std::uint32_t skip_neighbours, ThreadPool* pool, Filter keep,
-                          const void* context, Reject reject, const Sweep* sweep) {
+                          const void* context, Reject reject, const Sweep* sweep, const std::uint8_t* self_free) {
     out.clear();
     keep_ = keep;
     reject_ = reject;
@@ -777,10 +779,10 @@ void ChainTree::findPairs(const Vec3* positions, const std::vector<CollisionSegm
         roots_[c] = build(chain_first_[c], chain_count_[c], next);
         chain_out_[c].clear();
         chain_rejects_[c] = 0;
-        self(roots_[c], chain_out_[c], chain_rejects_[c]);
+        if (!(self_free && self_free[c])) self(roots_[c], chain_out_[c], chain_rejects_[c]);
     });
     for (std::size_t c = 0; c < chains; ++c)
-        if (big(c)) splitChain(c, *pool);
+        if (big(c)) splitChain(c, *pool, self_free && self_free[c]);
     for (std::size_t c = 0; c < chains; ++c) out.insert(out.end(), chain_out_[c].begin(), chain_out_[c].end());
     // Chains against each other: sweep the root boxes along the axis on which their
     // centres spread most (strings side by side all overlap along their own length: swept

@@ -216,6 +216,9 @@ public:
     /// axes, travel, directions and thickness, and a pair of nodes whose boxes overlap is
     /// skipped whole when the sweep's test says so (for a swinging rope: segments whose
     /// swept capsules overlap but whose relative travel is small beside their separation).
+    /// With `self_free` (one flag per chain), the chains flagged are not searched for self
+    /// pairs (the caller's proof that `keep` would drop every one); their trees are still
+    /// built for the pairs with other chains.
     using Filter = bool (*)(const void* context, const SegmentPair& pair);
     using Reject = bool (*)(const void* context, std::uint32_t i, std::uint32_t j);
 
@@ -248,7 +251,7 @@ public:
     void findPairs(const Vec3* positions, const std::vector<CollisionSegment>& segments, double margin,
                    std::vector<SegmentPair>& out, std::uint32_t skip_neighbours = 1, ThreadPool* pool = nullptr,
                    Filter keep = nullptr, const void* context = nullptr, Reject reject = nullptr,
-                   const Sweep* sweep = nullptr);
+                   const Sweep* sweep = nullptr, const std::uint8_t* self_free = nullptr);
 
     /// Node pairs the last findPairs skipped whole through its Sweep (for tests, benchmarks).
     std::size_t lastNodeRejects() const;
@@ -263,8 +266,8 @@ private:
     std::uint32_t build(std::uint32_t first, std::uint32_t count, std::uint32_t& next);
     /// Node `index` over segments [first, first + count) with children left and right.
     void join(std::uint32_t index, std::uint32_t first, std::uint32_t count, std::uint32_t left, std::uint32_t right);
-    /// Chain c's tree and self pairs, on two threads of `pool`.
-    void splitChain(std::size_t c, ThreadPool& pool);
+    /// Chain c's tree and (unless `self_free`) self pairs, on two threads of `pool`.
+    void splitChain(std::size_t c, ThreadPool& pool, bool self_free);
     /// `along`: a unit direction along which every segment of the node (and so of its
     /// children) points forward, or null (see cross).
     void self(std::uint32_t node, std::vector<SegmentPair>& out, std::size_t& rejects, const Vec3* along = nullptr) const;

@@ -134,6 +134,10 @@ struct World::Impl {
     bool cold_strain_starts = false;  // StepContext::cold_strain_starts (tests compare)
     bool newton_strain_only = false;  // StepContext::newton_strain_only (tests compare)
     bool node_pruning = true;    // nodesSeparationNeeded in the search (off: tests compare)
+    bool straight_strings_skip = true;  // selfPairFree in the search (off: tests compare)
+    bool tree_searched = false;  // the last findStringPairs ran the tree (its counters are this step's)
+    std::vector<std::uint8_t> self_free;  // per live string of pair_strings: selfPairFree held
+    std::size_t self_free_count = 0;      // how many, in the last findStringPairs
     std::vector<detail::CollisionSegment> grid_segments;
     std::vector<detail::SegmentPair> grid_pairs;
     // findStringPairs' scratch: per live string where its particles and segments start in
@@ -145,6 +149,11 @@ struct World::Impl {
         double thickest;
         double extent;  // largest |x|_1 and |x_prev|_1 of its particles
         bool finite;
+        // selfPairFree's sums: the least advance of a segment along the string's chord at
+        // the start of the step (less a rounding margin; -1 where the chord has no
+        // direction), and the largest change of travel from one particle to the next.
+        double advance = -1.0;
+        double shear = 0.0;
     };
     std::vector<PairString> pair_strings;
     std::vector<std::uint8_t> pair_verdict;  // per pair
@@ -334,7 +343,9 @@ struct World::Impl {
     /// (also one that passed through) is found (27-cell grid, exact); the start direction
     /// of each pair says which side is which when the axes touch or have crossed. A pair
     /// that starts the step deeper than half the thickness is not one the solver let
-    /// happen (kStringDeepStart) and is left to come apart by itself.
+    /// happen (kStringDeepStart) and is left to come apart by itself. A string that hangs
+    /// or swings nearly straight is proved free of self pairs from its shape (selfPairFree,
+    /// one pass over its particles) and its self search is skipped: the same pairs, none.
     ///
     /// Momentum-balance tension: the particles a string contact presses lose the contact
     /// force's directions (normal, friction) from their tension equations (row_projector,
@@ -351,9 +362,33 @@ struct World::Impl {
         for (std::size_t i = 0; i < strings.size(); ++i) {
             const StringState& s = strings[i];
             if (!s.alive || s.frozen) continue;
-            pair_strings.push_back({static_cast<std::uint32_t>(i), particle_count, segment_count, 0.0, 0.0, true});
+            pair_strings.push_back({static_cast<std::uint32_t>(i), particle_count, segment_count, 0.0, 0.0, true, -1.0, 0.0});
             particle_count += s.particles();
             segment_count += s.segments();
+        }
+        // selfPairFree's sums per string first: a single string proved free of self pairs
+        // needs nothing more (the search would keep none).
+        pool.forEach(pair_strings.size(), [&](std::size_t k) { selfPairSums(pair_strings[k]); });
+        double thickest = 0.0, shortest_segment = 1e300, extent = 0.0;
+        for (const PairString& ps : pair_strings) {
+            thickest = std::max(thickest, ps.thickest);
+            extent = std::max(extent, ps.extent);
+            shortest_segment = std::min(shortest_segment, strings[ps.string].shortest_rest);
+        }
+        tree_searched = false;
+        self_free_count = 0;
+        grid_pairs.clear();
+        grid_rounding = 1e-15 * (2.0 * extent + 1.0);
+        const std::uint32_t skip = stringContactSkip(thickest, shortest_segment);
+        self_free.assign(pair_strings.size(), 0);
+        if (straight_strings_skip)
+            for (std::size_t k = 0; k < pair_strings.size(); ++k) {
+                self_free[k] = selfPairFree(pair_strings[k], skip);
+                self_free_count += self_free[k];
+            }
+        if (pair_strings.size() == 1 && self_free[0]) {
+            deep_pairs.clear();
+            return;
         }
         grid_positions.resize(particle_count);
         grid_travel.resize(particle_count);
@@ -373,7 +408,6 @@ struct World::Impl {
             for (std::size_t p = 0; p < s.particles(); ++p) {
                 positions[p] = s.x_prev[p];  // pairs from the start of the step (swept)
                 moved[p] = s.x[p] - s.x_prev[p];
-                ps.extent = std::max(ps.extent, std::max(s.x[p].cwiseAbs().sum(), s.x_prev[p].cwiseAbs().sum()));
                 // (sqrt is monotone and correctly rounded: the larger of the two norms, bit
                 // for bit, with one square root.)
                 const double travel =
@@ -392,19 +426,12 @@ struct World::Impl {
                     seg.skip = s.broken[j] != 0;
                     thickness[j] = s.radius[j];
                     ps.finite = ps.finite && std::isfinite(seg.radius);
-                    ps.thickest = std::max(ps.thickest, s.radius[j]);
                 }
                 previous = travel;
             }
         });
-        double thickest = 0.0, shortest_segment = 1e300, extent = 0.0;
         bool finite_state = true;
-        for (const PairString& ps : pair_strings) {
-            thickest = std::max(thickest, ps.thickest);
-            extent = std::max(extent, ps.extent);
-            shortest_segment = std::min(shortest_segment, strings[ps.string].shortest_rest);
-            finite_state = finite_state && ps.finite;
-        }
+        for (const PairString& ps : pair_strings) finite_state = finite_state && ps.finite;
         if (grid_segments.size() < 2 || !finite_state) {
             deep_pairs.clear();
             return;
@@ -433,10 +460,10 @@ struct World::Impl {
                                     const detail::ChainTree::NodeBounds& b) {
             return static_cast<const Impl*>(self)->nodesSeparationNeeded(a, b);
         };
-        grid_rounding = 1e-15 * (2.0 * extent + 1.0);
         const detail::ChainTree::Sweep sweep{grid_travel.data(), grid_thickness.data(), separation_needed};
-        tree.findPairs(grid_positions.data(), grid_segments, 0.0, grid_pairs, stringContactSkip(thickest, shortest_segment), &pool,
-                       keep, this, reject, node_pruning ? &sweep : nullptr);
+        tree.findPairs(grid_positions.data(), grid_segments, 0.0, grid_pairs, skip, &pool, keep, this, reject,
+                       node_pruning ? &sweep : nullptr, self_free.data());
+        tree_searched = true;
         pair_verdict.resize(grid_pairs.size());
         pair_contact.resize(grid_pairs.size());
         const std::size_t chunks = std::min<std::size_t>(grid_pairs.size(), 64);
@@ -456,6 +483,77 @@ struct World::Impl {
                   [&](const detail::SegmentContact& l, const detail::SegmentContact& r) { return key(l) < key(r); });
         std::sort(deep_next.begin(), deep_next.end());
         deep_pairs.swap(deep_next);
+    }
+
+    /// A live string's largest |x|_1 and |x_prev|_1 (ps.extent), thickest radius, and
+    /// selfPairFree's sums: the least advance of a segment along the unit chord u of the
+    /// start positions, d . u - 1e-14 |d|_1 (d = x_prev[j+1] - x_prev[j]; -1 where the chord
+    /// has no direction or a segment does not advance), and the largest |t_{j+1} - t_j| of
+    /// the travels t = x - x_prev, times 1 + 1e-12. A long string's particles in ranges on
+    /// the pool (the least and largest do not depend on the cut). A NaN makes the sums fail
+    /// the test, not vanish from it.
+    void selfPairSums(PairString& ps) {
+        const StringState& s = strings[ps.string];
+        const Vec3 chord = s.x_prev.back() - s.x_prev.front();
+        const double chord_length = chord.norm();
+        const bool along_chord = chord_length > 0.0 && std::isfinite(chord_length);
+        const Vec3 u = along_chord ? Vec3(chord / chord_length) : Vec3::Zero();
+        struct Sums {
+            double extent = 0.0, thickest = 0.0;
+            double advance = std::numeric_limits<double>::infinity(), shear2 = 0.0;
+            void least(double v) { if (!(v >= advance)) advance = v; }
+            void most(double v) { if (!(v <= shear2)) shear2 = v; }
+        };
+        Sums range_sums[detail::kMaxRanges];
+        detail::forRanges(&pool, s.particles(), detail::kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t part) {
+            Sums sums;
+            for (std::size_t p = p0; p < p1; ++p) {
+                sums.extent = std::max(sums.extent, std::max(s.x[p].cwiseAbs().sum(), s.x_prev[p].cwiseAbs().sum()));
+                if (p + 1 == s.particles()) break;
+                sums.thickest = std::max(sums.thickest, s.radius[p]);
+                const Vec3 d = s.x_prev[p + 1] - s.x_prev[p];
+                sums.least(d.dot(u) - 1e-14 * d.cwiseAbs().sum());
+                sums.most(((s.x[p + 1] - s.x_prev[p + 1]) - (s.x[p] - s.x_prev[p])).squaredNorm());
+            }
+            range_sums[part] = sums;
+        });
+        Sums total;
+        for (const Sums& sums : range_sums) {  // (ranges not run hold the identities)
+            total.extent = std::max(total.extent, sums.extent);
+            total.thickest = std::max(total.thickest, sums.thickest);
+            total.least(sums.advance);
+            total.most(sums.shear2);
+        }
+        ps.extent = total.extent;
+        ps.thickest = total.thickest;
+        ps.advance = along_chord && total.advance > 0.0 ? total.advance : -1.0;
+        ps.shear = std::sqrt(total.shear2) * (1.0 + 1e-12);
+    }
+
+    /// True when judgePair would drop every pair of a string's own segments this step, by
+    /// the string's shape alone (ps's sums, selfPairSums): a rope that
+    /// swings or hangs nearly straight, whose self search otherwise descends its whole
+    /// tree along the diagonal (its neighbouring nodes' boxes overlap) to drop every pair.
+    ///
+    /// With u the unit chord of the string's start positions, every segment advancing along
+    /// u by at least `advance` > 0 (less a rounding margin of 1e-14 |d|_1 per segment, far
+    /// above the dot product's), segments i < j with g = j - i are separated along u, at
+    /// the start, by at least (g - 1) advance (the segments between them, each forward);
+    /// and the relative travel of any end of one and any end of the other is at most
+    /// (g + 1) `shear` (shear: the largest |t_{k+1} - t_k| of the travels t = x - x_prev
+    /// judgePair reads, with a relative 1e-12 for the norms' rounding). surelyDropped's
+    /// argument (any unit direction will do) drops a pair separated by sep along u when
+    /// sep > c + k r (k = 1 + 2 (1 + 1e-6)); this takes 4 for k, and for c the string's
+    /// largest gap, 2 (1 + kStringNear) (1 + 1e-6) times its thickest radius, plus
+    /// grid_rounding. The pairs that exist have g > skip (closer ones are never pairs), and
+    /// (g - 1) advance - 4 (g + 1) shear grows with g where advance > 4 shear: so the
+    /// pairs with g = skip + 1 decide for all. Such a pair is not deep either: its start
+    /// distance exceeds c > the gap.
+    bool selfPairFree(const PairString& ps, std::uint32_t skip) const {
+        const double c = 2.0 * (1.0 + kStringNear) * ps.thickest * (1.0 + 1e-6) + grid_rounding;
+        const double travel = 4.0 * ps.shear;
+        const double g = static_cast<double>(skip) + 1.0;
+        return ps.advance > travel && (g - 1.0) * ps.advance - (g + 1.0) * travel > c;
     }
 
     /// What findStringPairs makes of a pair of the swept search: no contact, a pair that
@@ -1270,7 +1368,11 @@ void detail::WorldAccess::setStringNodePruning(World& world, bool on) { world.im
 void detail::WorldAccess::setSparseJointSteps(World& world, bool on) { world.impl_->sparse_joint_steps = on; }
 void detail::WorldAccess::setColdStrainStarts(World& world, bool on) { world.impl_->cold_strain_starts = on; }
 void detail::WorldAccess::setNewtonStrainOnly(World& world, bool on) { world.impl_->newton_strain_only = on; }
-std::size_t detail::WorldAccess::lastStringNodeRejects(const World& world) { return world.impl_->tree.lastNodeRejects(); }
+std::size_t detail::WorldAccess::lastStringNodeRejects(const World& world) {
+    return world.impl_->tree_searched ? world.impl_->tree.lastNodeRejects() : 0;
+}
+void detail::WorldAccess::setStraightStringsSkip(World& world, bool on) { world.impl_->straight_strings_skip = on; }
+std::size_t detail::WorldAccess::lastSelfFreeStrings(const World& world) { return world.impl_->self_free_count; }
 const std::vector<detail::SegmentPair>& detail::WorldAccess::lastStringSearchPairs(const World& world) {
     return world.impl_->grid_pairs;
 }

@@ -41,6 +41,11 @@ struct WorldAccess {
     // the last step's swept search that were not dropped (contacts and deep pairs).
     static void setStringNodePruning(World& world, bool on);
     static std::size_t lastStringNodeRejects(const World& world);
+    // The search's proof that a nearly straight string has no self pairs (selfPairFree):
+    // off, every string's self pairs are searched; and how many strings it held for in
+    // the last step.
+    static void setStraightStringsSkip(World& world, bool on);
+    static std::size_t lastSelfFreeStrings(const World& world);
     static const std::vector<SegmentPair>& lastStringSearchPairs(const World& world);
     // Every joint string solve's Newton steps by the sparse factorisation of the whole
     // cluster (ClusterScratch::always_sparse), for tests that compare it with Woodbury's.

@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <random>
 #include <tuple>
 #include <vector>
@@ -79,19 +80,24 @@ TEST(StepKernels, ChainTreeFindsTheBruteForcePairs) {
 }
 
 // Two worlds in lockstep, one with the tree's node-level rejection (the default), one
-// without (every swept pair then goes to surelyDropped / judgePair one by one): every step
-// the search keeps the same pairs (the same segments, closest points and normals, in the
-// same order) and the strings end in the same state, bit for bit. Returns the node pairs
-// the pruning dropped over all steps (so that a test can check it was exercised). The
-// pruned world runs on `threads` (its search's chains and chain pairs on the pool), the
-// other on one.
+// without (every swept pair then goes to surelyDropped / judgePair one by one) and without
+// the proof that a straight string has no self pairs: every step the search keeps the same
+// pairs (the same segments, closest points and normals, in the same order) and the strings
+// end in the same state, bit for bit. Returns the node pairs the pruning dropped over all
+// steps (so that a test can check it was exercised); with `straight_skip`, the pruned world
+// also skips the self search of the strings it proves straight enough, and `self_free`
+// counts them over the steps. The pruned world runs on `threads` (its search's chains and
+// chain pairs on the pool), the other on one.
 std::size_t expectSamePairsWithNodePruning(const std::vector<tearables::StringDesc>& descs,
                                            const std::vector<std::vector<std::pair<int, Vec3>>>& pins, int steps,
-                                           std::size_t* kept_pairs, int threads = 1) {
+                                           std::size_t* kept_pairs, int threads = 1, bool straight_skip = false,
+                                           std::size_t* self_free = nullptr) {
     tearables::WorldSettings settings;
     settings.threads = threads;
     tearables::World pruned(settings), plain;
     detail::WorldAccess::setStringNodePruning(plain, false);
+    detail::WorldAccess::setStraightStringsSkip(plain, false);
+    detail::WorldAccess::setStraightStringsSkip(pruned, straight_skip);
     std::vector<tearables::StringId> ids;
     for (std::size_t k = 0; k < descs.size(); ++k) {
         ids.push_back(pruned.addString(descs[k]));
@@ -106,7 +112,9 @@ std::size_t expectSamePairsWithNodePruning(const std::vector<tearables::StringDe
         pruned.step(0.01);
         plain.step(0.01);
         EXPECT_EQ(detail::WorldAccess::lastStringNodeRejects(plain), 0u);
+        EXPECT_EQ(detail::WorldAccess::lastSelfFreeStrings(plain), 0u);
         rejects += detail::WorldAccess::lastStringNodeRejects(pruned);
+        if (self_free) *self_free += detail::WorldAccess::lastSelfFreeStrings(pruned);
         const auto& a = detail::WorldAccess::lastStringSearchPairs(pruned);
         const auto& b = detail::WorldAccess::lastStringSearchPairs(plain);
         *kept_pairs += a.size();
@@ -167,6 +175,66 @@ TEST(StepKernels, NodePruningKeepsEveryPairOfRopesFallingOnEachOther) {
         {{{0, Vec3(-0.5, 0, 0)}, {-1, Vec3(0.5, 0, 0)}}, {}, {{0, Vec3(0.2, 0.4, 0.1)}}}, 250, &kept, 2);
     EXPECT_GT(kept, 100u);    // they touched
     EXPECT_GT(rejects, 100u); // and the pruning was exercised
+}
+
+// The proof that a string swinging or hanging nearly straight has no self pairs
+// (selfPairFree) skips its self search and keeps every pair: the scenes above with it on,
+// where it holds for some strings in some steps and not for others (the arms that meet,
+// the ropes that fall onto each other and bend), and a single rope swinging down, which
+// it spares the whole search. The same pairs and the same bits as the plain search.
+TEST(StepKernels, StraightStringsSkipTheirSelfSearchAndKeepEveryPair) {
+    std::size_t kept = 0, self_free = 0;
+    expectSamePairsWithNodePruning(
+        {ropeDesc(Vec3(0, 0, 0), Vec3(3.0, 0, 0), 300, 10.0), ropeDesc(Vec3(0, 0, 0.5), Vec3(1.0, 0, 0.5), 100, 3.0)},
+        {{{0, Vec3(0, 0, 0)}}, {{50, Vec3(0.5, 0, 0.5)}}}, 150, &kept, 1, true, &self_free);
+    EXPECT_GT(kept, 100u);           // the arms touched
+    EXPECT_GE(self_free, 150u);      // the swinging rope in every step
+    EXPECT_LT(self_free, 2u * 150u); // the one pinned at its middle not once its arms hang and meet
+    kept = 0;
+    self_free = 0;
+    expectSamePairsWithNodePruning(
+        {ropeDesc(Vec3(-0.5, 0, 0), Vec3(0.5, 0, 0), 80, 0.0), ropeDesc(Vec3(0, 0.05, -0.5), Vec3(0, 0.05, 0.5), 80, 0.0),
+         ropeDesc(Vec3(0.2, 0.4, 0.1), Vec3(-0.6, 0.4, 0.1), 160, 3.0)},
+        {{{0, Vec3(-0.5, 0, 0)}, {-1, Vec3(0.5, 0, 0)}}, {}, {{0, Vec3(0.2, 0.4, 0.1)}}}, 250, &kept, 2, true, &self_free);
+    EXPECT_GT(kept, 100u);
+    EXPECT_GT(self_free, 0u);
+    EXPECT_LT(self_free, 3u * 250u);
+    kept = 0;
+    self_free = 0;
+    expectSamePairsWithNodePruning({ropeDesc(Vec3(0, 0, 0), Vec3(7.46, 0, 0), 746, 10.0)}, {{{0, Vec3(0, 0, 0)}}}, 200, &kept, 1,
+                                   true, &self_free);
+    EXPECT_EQ(kept, 0u);
+    EXPECT_EQ(self_free, 200u);
+}
+
+// A string that is not straight keeps its self search: a rope coiled in a flat spiral
+// (every segment turns), and one folded back on itself in a hairpin, are never proved
+// free of self pairs, and the hairpin's arms, held close together, do come into contact.
+TEST(StepKernels, CurvedStringsKeepTheirSelfSearch) {
+    tearables::World world;
+    std::vector<Vec3> spiral, hairpin;
+    for (int i = 0; i <= 200; ++i) {
+        const double a = 0.1 * i, r = 0.05 + 0.004 * a;
+        spiral.push_back(Vec3(r * std::cos(a), 1.0, r * std::sin(a)));
+    }
+    for (int i = 0; i <= 60; ++i) hairpin.push_back(Vec3(0.01 * i, 0.0, 0.5));
+    for (int i = 0; i <= 60; ++i) hairpin.push_back(Vec3(0.6 - 0.01 * i, 0.0, 0.509));  // axes 9 mm apart
+    tearables::StringDesc a, b;
+    a.points = spiral;
+    b.points = hairpin;
+    a.radius = b.radius = 0.004;
+    const auto ida = world.addString(a);
+    const auto idb = world.addString(b);
+    world.attachToPoint(idb, 0, b.points.front());
+    world.attachToPoint(idb, static_cast<int>(b.points.size()) - 1, b.points.back());
+    std::size_t pairs = 0;
+    for (int step = 0; step < 50; ++step) {
+        world.step(0.01);
+        EXPECT_EQ(detail::WorldAccess::lastSelfFreeStrings(world), 0u) << "step " << step;
+        pairs += detail::WorldAccess::lastStringSearchPairs(world).size();
+    }
+    EXPECT_GT(pairs, 0u);
+    (void)ida;
 }
 
 // The pool splits a forEach over its threads, and a forEach made inside another one's
