@@ -366,9 +366,20 @@ struct World::Impl {
             particle_count += s.particles();
             segment_count += s.segments();
         }
-        // selfPairFree's sums per string first: a single string proved free of self pairs
-        // needs nothing more (the search would keep none).
-        pool.forEach(pair_strings.size(), [&](std::size_t k) { selfPairSums(pair_strings[k]); });
+        grid_positions.resize(particle_count);
+        grid_travel.resize(particle_count);
+        grid_thickness.resize(segment_count);
+        grid_segments.resize(segment_count);
+        // A single string is scanned for selfPairFree alone first: proved free of self
+        // pairs, it needs nothing more (the search would keep none). Otherwise each
+        // string's scan fills its run of the search's arrays as well.
+        const bool alone = pair_strings.size() == 1;
+        pool.forEach(pair_strings.size(), [&](std::size_t k) {
+            if (alone)
+                scanString<false>(pair_strings[k]);
+            else
+                scanString<true>(pair_strings[k]);
+        });
         double thickest = 0.0, shortest_segment = 1e300, extent = 0.0;
         for (const PairString& ps : pair_strings) {
             thickest = std::max(thickest, ps.thickest);
@@ -386,50 +397,11 @@ struct World::Impl {
                 self_free[k] = selfPairFree(pair_strings[k], skip);
                 self_free_count += self_free[k];
             }
-        if (pair_strings.size() == 1 && self_free[0]) {
+        if (alone && self_free[0]) {
             deep_pairs.clear();
             return;
         }
-        grid_positions.resize(particle_count);
-        grid_travel.resize(particle_count);
-        grid_thickness.resize(segment_count);
-        grid_segments.resize(segment_count);
-        pool.forEach(pair_strings.size(), [&](std::size_t k) {
-            PairString& ps = pair_strings[k];
-            const StringState& s = strings[ps.string];
-            Vec3* positions = grid_positions.data() + ps.particle_base;
-            Vec3* moved = grid_travel.data() + ps.particle_base;
-            detail::CollisionSegment* segments = grid_segments.data() + ps.segment_base;
-            double* thickness = grid_thickness.data() + ps.segment_base;
-            const auto base = static_cast<std::uint32_t>(ps.particle_base);
-            // How far a particle travelled this step, to its prediction or in its string's
-            // own solve (once per particle; both its segments use it).
-            double previous = 0.0;
-            for (std::size_t p = 0; p < s.particles(); ++p) {
-                positions[p] = s.x_prev[p];  // pairs from the start of the step (swept)
-                moved[p] = s.x[p] - s.x_prev[p];
-                // (sqrt is monotone and correctly rounded: the larger of the two norms, bit
-                // for bit, with one square root.)
-                const double travel =
-                    std::sqrt(std::max((s.x[p] - s.x_prev[p]).squaredNorm(), (s.x_pred[p] - s.x_prev[p]).squaredNorm()));
-                if (p > 0) {
-                    const std::size_t j = p - 1;
-                    detail::CollisionSegment& seg = segments[j];
-                    seg.a = base + static_cast<std::uint32_t>(j);
-                    seg.b = seg.a + 1;
-                    seg.chain = ps.string;
-                    seg.index_in_chain = static_cast<std::uint32_t>(j);
-                    // The capsule at the start of the step, swept: grown by the travel of
-                    // its ends, and by kStringReach of its radius for what the joint solve
-                    // changes.
-                    seg.radius = s.radius[j] * (1.0 + kStringReach) + std::max(previous, travel);
-                    seg.skip = s.broken[j] != 0;
-                    thickness[j] = s.radius[j];
-                    ps.finite = ps.finite && std::isfinite(seg.radius);
-                }
-                previous = travel;
-            }
-        });
+        if (alone) scanString<true>(pair_strings[0]);
         bool finite_state = true;
         for (const PairString& ps : pair_strings) finite_state = finite_state && ps.finite;
         if (grid_segments.size() < 2 || !finite_state) {
@@ -485,15 +457,20 @@ struct World::Impl {
         deep_pairs.swap(deep_next);
     }
 
-    /// A live string's largest |x|_1 and |x_prev|_1 (ps.extent), thickest radius, and
-    /// selfPairFree's sums: the least advance of a segment along the unit chord u of the
-    /// start positions, d . u - 1e-14 |d|_1 (d = x_prev[j+1] - x_prev[j]; -1 where the chord
-    /// has no direction or a segment does not advance), and the largest |t_{j+1} - t_j| of
-    /// the travels t = x - x_prev, times 1 + 1e-12. A long string's particles in ranges on
-    /// the pool (the least and largest do not depend on the cut). A NaN makes the sums fail
+    /// Scans a live string for the search: its largest |x|_1 and |x_prev|_1 (ps.extent),
+    /// thickest radius, and selfPairFree's sums: the least advance of a segment along the
+    /// unit chord u of the start positions, d . u - 1e-14 |d|_1 (d = x_prev[j+1] - x_prev[j];
+    /// -1 where the chord has no direction or a segment does not advance), and the largest
+    /// |t_{j+1} - t_j| of the travels t = x - x_prev, times 1 + 1e-12. With `fill`, also its
+    /// run of grid_positions (the start positions), grid_travel (t), grid_segments (each
+    /// capsule at the start, grown by its ends' travel) and grid_thickness, and ps.finite.
+    /// A long string's particles in ranges on the pool (each writes its own entries; the
+    /// least, largest and finiteness do not depend on the cut). A NaN makes the sums fail
     /// the test, not vanish from it.
-    void selfPairSums(PairString& ps) {
+    template <bool fill>
+    void scanString(PairString& ps) {
         const StringState& s = strings[ps.string];
+        const std::size_t n = s.particles();
         const Vec3 chord = s.x_prev.back() - s.x_prev.front();
         const double chord_length = chord.norm();
         const bool along_chord = chord_length > 0.0 && std::isfinite(chord_length);
@@ -501,19 +478,56 @@ struct World::Impl {
         struct Sums {
             double extent = 0.0, thickest = 0.0;
             double advance = std::numeric_limits<double>::infinity(), shear2 = 0.0;
+            bool finite = true;
             void least(double v) { if (!(v >= advance)) advance = v; }
             void most(double v) { if (!(v <= shear2)) shear2 = v; }
         };
+        Vec3* positions = grid_positions.data() + ps.particle_base;
+        Vec3* moved = grid_travel.data() + ps.particle_base;
+        detail::CollisionSegment* segments = grid_segments.data() + ps.segment_base;
+        double* thickness = grid_thickness.data() + ps.segment_base;
+        const auto base = static_cast<std::uint32_t>(ps.particle_base);
+        // How far particle p travelled this step, to its prediction or in its string's own
+        // solve (sqrt is monotone and correctly rounded: the larger of the two norms, bit
+        // for bit, with one square root).
+        auto travel = [&s](std::size_t p) {
+            return std::sqrt(std::max((s.x[p] - s.x_prev[p]).squaredNorm(), (s.x_pred[p] - s.x_prev[p]).squaredNorm()));
+        };
         Sums range_sums[detail::kMaxRanges];
-        detail::forRanges(&pool, s.particles(), detail::kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t part) {
+        detail::forRanges(&pool, n, detail::kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t part) {
             Sums sums;
+            double previous = 0.0;
+            if constexpr (fill) previous = p0 > 0 ? travel(p0 - 1) : 0.0;  // (each particle's once; both its segments use it)
             for (std::size_t p = p0; p < p1; ++p) {
                 sums.extent = std::max(sums.extent, std::max(s.x[p].cwiseAbs().sum(), s.x_prev[p].cwiseAbs().sum()));
-                if (p + 1 == s.particles()) break;
-                sums.thickest = std::max(sums.thickest, s.radius[p]);
-                const Vec3 d = s.x_prev[p + 1] - s.x_prev[p];
-                sums.least(d.dot(u) - 1e-14 * d.cwiseAbs().sum());
-                sums.most(((s.x[p + 1] - s.x_prev[p + 1]) - (s.x[p] - s.x_prev[p])).squaredNorm());
+                double now = 0.0;
+                if constexpr (fill) {
+                    now = travel(p);
+                    positions[p] = s.x_prev[p];  // pairs from the start of the step (swept)
+                    moved[p] = s.x[p] - s.x_prev[p];
+                }
+                if (p > 0) {
+                    const std::size_t j = p - 1;
+                    sums.thickest = std::max(sums.thickest, s.radius[j]);
+                    const Vec3 d = s.x_prev[p] - s.x_prev[j];
+                    sums.least(d.dot(u) - 1e-14 * d.cwiseAbs().sum());
+                    sums.most(((s.x[p] - s.x_prev[p]) - (s.x[j] - s.x_prev[j])).squaredNorm());
+                    if constexpr (fill) {
+                        detail::CollisionSegment& seg = segments[j];
+                        seg.a = base + static_cast<std::uint32_t>(j);
+                        seg.b = seg.a + 1;
+                        seg.chain = ps.string;
+                        seg.index_in_chain = static_cast<std::uint32_t>(j);
+                        // The capsule at the start of the step, swept: grown by the travel
+                        // of its ends, and by kStringReach of its radius for what the joint
+                        // solve changes.
+                        seg.radius = s.radius[j] * (1.0 + kStringReach) + std::max(previous, now);
+                        seg.skip = s.broken[j] != 0;
+                        thickness[j] = s.radius[j];
+                        sums.finite = sums.finite && std::isfinite(seg.radius);
+                    }
+                }
+                previous = now;
             }
             range_sums[part] = sums;
         });
@@ -523,15 +537,17 @@ struct World::Impl {
             total.thickest = std::max(total.thickest, sums.thickest);
             total.least(sums.advance);
             total.most(sums.shear2);
+            total.finite = total.finite && sums.finite;
         }
         ps.extent = total.extent;
         ps.thickest = total.thickest;
         ps.advance = along_chord && total.advance > 0.0 ? total.advance : -1.0;
         ps.shear = std::sqrt(total.shear2) * (1.0 + 1e-12);
+        ps.finite = total.finite;
     }
 
     /// True when judgePair would drop every pair of a string's own segments this step, by
-    /// the string's shape alone (ps's sums, selfPairSums): a rope that
+    /// the string's shape alone (ps's sums, scanString): a rope that
     /// swings or hangs nearly straight, whose self search otherwise descends its whole
     /// tree along the diagonal (its neighbouring nodes' boxes overlap) to drop every pair.
     ///
