@@ -487,31 +487,35 @@ struct World::Impl {
         detail::CollisionSegment* segments = grid_segments.data() + ps.segment_base;
         double* thickness = grid_thickness.data() + ps.segment_base;
         const auto base = static_cast<std::uint32_t>(ps.particle_base);
-        // How far particle p travelled this step, to its prediction or in its string's own
-        // solve (sqrt is monotone and correctly rounded: the larger of the two norms, bit
-        // for bit, with one square root).
-        auto travel = [&s](std::size_t p) {
-            return std::sqrt(std::max((s.x[p] - s.x_prev[p]).squaredNorm(), (s.x_pred[p] - s.x_prev[p]).squaredNorm()));
+        // How far particle p travelled this step (t = x - x_prev given), to its prediction or
+        // in its string's own solve (sqrt is monotone and correctly rounded: the larger of
+        // the two norms, bit for bit, with one square root).
+        auto travel = [&s](std::size_t p, const Vec3& t) {
+            return std::sqrt(std::max(t.squaredNorm(), (s.x_pred[p] - s.x_prev[p]).squaredNorm()));
         };
         Sums range_sums[detail::kMaxRanges];
         detail::forRanges(&pool, n, detail::kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t part) {
             Sums sums;
+            // The particle before's travel vector and (with `fill`) travel, carried: each
+            // particle's found once, both its segments use them.
+            Vec3 before = p0 > 0 ? Vec3(s.x[p0 - 1] - s.x_prev[p0 - 1]) : Vec3::Zero();
             double previous = 0.0;
-            if constexpr (fill) previous = p0 > 0 ? travel(p0 - 1) : 0.0;  // (each particle's once; both its segments use it)
+            if constexpr (fill) previous = p0 > 0 ? travel(p0 - 1, before) : 0.0;
             for (std::size_t p = p0; p < p1; ++p) {
                 sums.extent = std::max(sums.extent, std::max(s.x[p].cwiseAbs().sum(), s.x_prev[p].cwiseAbs().sum()));
+                const Vec3 t = s.x[p] - s.x_prev[p];
                 double now = 0.0;
                 if constexpr (fill) {
-                    now = travel(p);
+                    now = travel(p, t);
                     positions[p] = s.x_prev[p];  // pairs from the start of the step (swept)
-                    moved[p] = s.x[p] - s.x_prev[p];
+                    moved[p] = t;
                 }
                 if (p > 0) {
                     const std::size_t j = p - 1;
                     sums.thickest = std::max(sums.thickest, s.radius[j]);
                     const Vec3 d = s.x_prev[p] - s.x_prev[j];
                     sums.least(d.dot(u) - 1e-14 * d.cwiseAbs().sum());
-                    sums.most(((s.x[p] - s.x_prev[p]) - (s.x[j] - s.x_prev[j])).squaredNorm());
+                    sums.most((t - before).squaredNorm());
                     if constexpr (fill) {
                         detail::CollisionSegment& seg = segments[j];
                         seg.a = base + static_cast<std::uint32_t>(j);
@@ -528,6 +532,7 @@ struct World::Impl {
                     }
                 }
                 previous = now;
+                before = t;
             }
             range_sums[part] = sums;
         });
