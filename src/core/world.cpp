@@ -137,7 +137,6 @@ struct World::Impl {
     bool straight_strings_skip = true;  // selfPairFree in the search (off: tests compare)
     bool tree_searched = false;  // the last findStringPairs ran the tree (its counters are this step's)
     std::vector<std::uint8_t> self_free;  // per live string of pair_strings: selfPairFree held
-    std::size_t self_free_count = 0;      // how many, in the last findStringPairs
     std::vector<detail::CollisionSegment> grid_segments;
     std::vector<detail::SegmentPair> grid_pairs;
     // findStringPairs' scratch: per live string where its particles and segments start in
@@ -387,16 +386,12 @@ struct World::Impl {
             shortest_segment = std::min(shortest_segment, strings[ps.string].shortest_rest);
         }
         tree_searched = false;
-        self_free_count = 0;
         grid_pairs.clear();
         grid_rounding = 1e-15 * (2.0 * extent + 1.0);
         const std::uint32_t skip = stringContactSkip(thickest, shortest_segment);
         self_free.assign(pair_strings.size(), 0);
         if (straight_strings_skip)
-            for (std::size_t k = 0; k < pair_strings.size(); ++k) {
-                self_free[k] = selfPairFree(pair_strings[k], skip);
-                self_free_count += self_free[k];
-            }
+            for (std::size_t k = 0; k < pair_strings.size(); ++k) self_free[k] = selfPairFree(pair_strings[k], skip);
         if (alone && self_free[0]) {
             deep_pairs.clear();
             return;
@@ -1393,7 +1388,10 @@ std::size_t detail::WorldAccess::lastStringNodeRejects(const World& world) {
     return world.impl_->tree_searched ? world.impl_->tree.lastNodeRejects() : 0;
 }
 void detail::WorldAccess::setStraightStringsSkip(World& world, bool on) { world.impl_->straight_strings_skip = on; }
-std::size_t detail::WorldAccess::lastSelfFreeStrings(const World& world) { return world.impl_->self_free_count; }
+std::size_t detail::WorldAccess::lastSelfFreeStrings(const World& world) {
+    const std::vector<std::uint8_t>& flags = world.impl_->self_free;
+    return static_cast<std::size_t>(std::count(flags.begin(), flags.end(), std::uint8_t{1}));
+}
 const std::vector<detail::SegmentPair>& detail::WorldAccess::lastStringSearchPairs(const World& world) {
     return world.impl_->grid_pairs;
 }
