@@ -112,6 +112,9 @@ struct ClothState {
     std::vector<int> newton_pattern_outer, newton_pattern_inner;
     bool newton_analysed = false;
     std::vector<Vec3> x_trial;
+    std::vector<double> yarn_estimate;        ///< per edge: the stretch the Newton Hessian's geometric term takes (strain_limit.cpp)
+    int strain_newton_iterations = 0;         ///< the last strain solve's Newton iterations taken
+    double strain_last_move = 0.0;            ///< and its last iteration's largest move, m
     std::vector<std::uint32_t> vertex_order;  ///< nested-dissection order of the vertices (the Newton unknowns'), built once
 
     // --- tension solve (Yarn Sec. 3.2) ----------------------------------------------------

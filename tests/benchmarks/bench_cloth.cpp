@@ -3,10 +3,12 @@
 // 50 x 50 and 100 x 100 vertex cloths, and the full cloth step for comparison.
 // Run: build/tests/benchmarks/tearables_bench --benchmark_filter=Cloth
 #include "cloth/cloth_state.hpp"
+#include "core/world_access.hpp"
 #include "tearables/world.hpp"
 
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <cmath>
 
 namespace {
@@ -71,12 +73,22 @@ void BM_ClothStep(benchmark::State& state) {
     d.pins = {{0, 0}, {-1, 0}};
     const tearables::ClothId id = world.addCloth(d);
     for (int i = 0; i < 20; ++i) world.step(0.01);
+    const auto parts = tearables::detail::WorldAccess::parts(world);
+    double iterations = 0.0, last_move = 0.0, steps = 0.0;
     for (auto _ : state) {
         world.step(0.01);
         benchmark::DoNotOptimize(world.viewCloth(id).tension->data());
+        const tearables::detail::ClothState& c = (*parts.cloths)[id.index];
+        iterations += c.strain_newton_iterations;
+        last_move = std::max(last_move, c.strain_last_move);
+        steps += 1.0;
     }
     state.counters["tension_ms"] = world.lastStageTimes().tension * 1e3;
     state.counters["strain_limit_ms"] = world.lastStageTimes().strain_limit * 1e3;
+    // The strain solve's Newton iterations a step, and the largest last move of a step's
+    // solve (what was left of its convergence at the budget).
+    state.counters["newton_iterations"] = iterations / steps;
+    state.counters["worst_last_move_um"] = last_move * 1e6;
 }
 BENCHMARK(BM_ClothStep)->Arg(20)->Arg(50)->Unit(benchmark::kMillisecond);
 
