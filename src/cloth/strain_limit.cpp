@@ -91,7 +91,7 @@ struct Solver {
     const StepContext& ctx;
     double inv_h2;
     std::vector<Vec6> u, u_trial;
-    bool use_estimate = true;
+    bool use_estimate = true;  ///< the yarns take yarn_estimate in their geometric terms (not after a cut step)
 
     double energy(const std::vector<Vec3>& x, const std::vector<Vec6>& us) const {
         double e = 0.0;
