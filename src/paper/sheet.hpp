@@ -4,6 +4,7 @@
 // mesh.cpp: topology helpers and the validity check). No Bullet here.
 #pragma once
 
+#include "cloth/supernodal.hpp"
 #include "tearables/events.hpp"
 #include "tearables/paper.hpp"
 #include "tearables/world.hpp"
@@ -87,6 +88,30 @@ struct PaperSheet {
     std::vector<Mat3> added_mass;     ///< per vertex, movable bodies' mass lent to it this step (contact normal, glue), kg
     std::vector<Vec3> v_start;        ///< per vertex, velocity at the step start (momentum balance)
     std::vector<double> tension;      ///< per spring, N (structural; 0 otherwise)
+    /// Scratch of the momentum tension (tension.cpp), kept so that a running step does not
+    /// allocate: per vertex its row flag, b_i and A T; per spring its unknown; per unknown
+    /// its spring, direction and the conjugate gradients' vectors.
+    struct TensionScratch {
+        std::vector<std::uint8_t> row;
+        std::vector<Vec3> b, image;
+        std::vector<int> unknown;
+        std::vector<std::uint32_t> springs;
+        std::vector<Vec3> dir;
+        std::vector<double> rhs, diagonal, solution, residual, z, direction, product;
+        // The direct solve (tension.cpp): the normal matrix's pattern, built for the live
+        // structural springs and their ends in `pattern_ends` (rebuilt when they change).
+        std::vector<std::array<std::uint32_t, 3>> pattern_ends;  ///< per unknown: spring, a, b
+        std::vector<int> column;                 ///< per unknown: its column (fill-reducing order)
+        std::vector<std::uint32_t> incident_start;  ///< per vertex + 1: its entries in `incident`
+        std::vector<int> incident;               ///< unknowns at the vertex (that name it as an end), signed: ~u where it is b
+        std::vector<std::uint32_t> pair_start;   ///< per vertex + 1: its entries in `pair_value`
+        std::vector<int> pair_value;             ///< per vertex, per pair (a, k <= a) of its incident unknowns: index into the values
+        Eigen::SparseMatrix<double> normal;      ///< lower triangle of A^T A + lambda I, columns in `column` order
+        SupernodalLLT factor;
+        Eigen::VectorXd right;                   ///< right-hand side and solution, in column order
+        int iterations = 0;       ///< the last solve's conjugate gradient iterations
+        double residual_norm = 0.0;  ///< and its relative residual |rhs - N T| / |rhs| at the end
+    } tension_scratch;
 
     std::size_t vertices() const { return x.size(); }
 };

@@ -4,9 +4,12 @@
 // breakable springs (creases form while it swings), and with Yarn's momentum-balance
 // tension (a sparse least squares per step).
 // Run: build/tests/benchmarks/tearables_bench --benchmark_filter=Paper
+#include "core/world_access.hpp"
 #include "tearables/world.hpp"
 
 #include <benchmark/benchmark.h>
+
+#include <algorithm>
 
 namespace {
 
@@ -24,11 +27,18 @@ void paperStep(benchmark::State& state, bool breakable, tearables::PaperTension 
     d.attachments.push_back(tearables::PaperAttachment{static_cast<std::uint32_t>(n - 1), {}, tearables::Vec3::Zero(), {}});
     const auto id = world.addPaper(d);
     for (int i = 0; i < 30; ++i) world.step(1.0 / 60.0);  // falling and swinging
+    const auto parts = tearables::detail::WorldAccess::parts(world);
+    double cg_iterations = 0.0, worst_residual = 0.0;
     for (auto _ : state) {
         world.step(1.0 / 60.0);
         benchmark::DoNotOptimize(world.viewPaper(id).positions->data());
+        cg_iterations += (*parts.papers)[id.index].tension_scratch.iterations;
+        worst_residual = std::max(worst_residual, (*parts.papers)[id.index].tension_scratch.residual_norm);
     }
     state.SetItemsProcessed(state.iterations() * n * n);
+    // The momentum tension's conjugate gradient iterations a step (0 without it).
+    state.counters["tension_cg_iterations"] = cg_iterations / static_cast<double>(state.iterations());
+    state.counters["tension_residual"] = worst_residual;  // the largest relative residual at the solve's end
     state.counters["vertices"] = static_cast<double>(world.viewPaper(id).vertexCount());
 }
 
