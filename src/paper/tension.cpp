@@ -22,6 +22,7 @@
 // diagonal: a 64 x 64 sheet ended its 60 iterations with 6% of |rhs| left; they remain,
 // matrix-free, only for a factorisation that fails (a pivot not finite).
 // Directions and forces are those of the step's start (what the solve linearised about).
+#include "cloth/cloth_state.hpp"  // gridDissection
 #include "paper/sheet.hpp"
 
 #include <Eigen/OrderingMethods>
@@ -81,23 +82,44 @@ void buildTensionPattern(const PaperSheet& s, PaperSheet::TensionScratch& w) {
     Eigen::AMDOrdering<int> amd;
     Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> inverse;
     amd(Eigen::SparseMatrix<double>(graph.selfadjointView<Eigen::Lower>()), inverse);
-    w.column.resize(count);
-    for (Eigen::Index k = 0; k < size; ++k) w.column[static_cast<std::size_t>(inverse.indices()[k])] = static_cast<int>(k);
-    // The pattern in that order, and where each vertex's pairs (a, k <= a) go.
-    triplets.clear();
-    for (std::size_t u = 0; u < count; ++u) triplets.emplace_back(w.column[u], w.column[u], 1.0);
-    pairs([&](int ua, int uk) {
-        const int ca = w.column[static_cast<std::size_t>(ua)], ck = w.column[static_cast<std::size_t>(uk)];
-        triplets.emplace_back(std::max(ca, ck), std::min(ca, ck), 1.0);
-    });
-    w.normal.resize(size, size);
-    w.normal.setFromTriplets(triplets.begin(), triplets.end());
-    w.normal.makeCompressed();
+    // The pattern in an order (order[k]: the unknown in column k), analysed; its cost.
+    auto patternIn = [&](const auto& order) {
+        w.column.resize(count);
+        for (std::size_t k = 0; k < count; ++k) w.column[static_cast<std::size_t>(order[k])] = static_cast<int>(k);
+        triplets.clear();
+        for (std::size_t u = 0; u < count; ++u) triplets.emplace_back(w.column[u], w.column[u], 1.0);
+        pairs([&](int ua, int uk) {
+            const int ca = w.column[static_cast<std::size_t>(ua)], ck = w.column[static_cast<std::size_t>(uk)];
+            triplets.emplace_back(std::max(ca, ck), std::min(ca, ck), 1.0);
+        });
+        w.normal.resize(size, size);
+        w.normal.setFromTriplets(triplets.begin(), triplets.end());
+        w.normal.makeCompressed();
+        w.factor.analyze(w.normal);
+        return w.factor.flops();
+    };
+    const double amd_flops = patternIn(inverse.indices());
+    // A rectangle's sheet still on its grid: nested dissection of the edges at their doubled
+    // midpoints, as the cloth's yarns (cloth/tension.cpp): an odd line of it (the edges
+    // crossing between two columns or rows of vertices, diagonals included) separates the
+    // edges on either side. Kept where it costs fewer operations than AMD's order (at 32 x
+    // 32, 64 x 64 and 128 x 128 vertices: 8%, 27% and 40% fewer).
+    const int nx = s.desc.resolution[0], nz = s.desc.resolution[1];
+    const auto grid = static_cast<std::uint32_t>(nx * nz);
+    bool on_grid = s.desc.vertices.empty() && s.vertices() == grid;
+    std::vector<std::array<int, 2>> midpoint(on_grid ? count : 0);
+    for (std::size_t u = 0; u < count && on_grid; ++u) {
+        const auto& end = w.pattern_ends[u];
+        on_grid = end[1] < grid && end[2] < grid;
+        midpoint[u] = {static_cast<int>(end[1] % nx + end[2] % nx), static_cast<int>(end[1] / nx + end[2] / nx)};
+    }
+    if (on_grid && patternIn(gridDissection(midpoint, 1, 2, 1)) > amd_flops) patternIn(inverse.indices());
+    // Where each vertex's pairs (a, k <= a) go in the values.
     const int* outer = w.normal.outerIndexPtr();
     const int* inner = w.normal.innerIndexPtr();
     auto entry = [&](int row, int col) {
-        const int* at = std::lower_bound(inner + outer[col], inner + outer[col + 1], row);
-        return static_cast<int>(at - inner);
+        const int* found = std::lower_bound(inner + outer[col], inner + outer[col + 1], row);
+        return static_cast<int>(found - inner);
     };
     w.pair_start.assign(n + 1, 0);
     w.pair_value.clear();
@@ -111,7 +133,6 @@ void buildTensionPattern(const PaperSheet& s, PaperSheet::TensionScratch& w) {
             }
         w.pair_start[i + 1] = static_cast<std::uint32_t>(w.pair_value.size());
     }
-    w.factor.analyze(w.normal);
     w.right.resize(size);
 }
 
