@@ -41,7 +41,8 @@ enum class PaperIntegrator {
 enum class PaperTension {
     Stretch,   ///< the spring's own force k (l - l0): exact for this mass-spring model, O(edges)
     Momentum,  ///< Yarn Sec. 3.2: the tensions that explain each free vertex's momentum change,
-               ///< by least squares regularised toward the spring force (lambda = 1e-6), sparse CG
+               ///< by least squares regularised toward the spring force (lambda = 1e-6), solved
+               ///< exactly (sparse Cholesky of the normal equations) every step
 };
 
 /// Describes a paper sheet: a rectangle at a resolution, or any triangle mesh.
