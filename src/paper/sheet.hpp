@@ -97,10 +97,13 @@ struct PaperSheet {
         std::vector<int> unknown;
         std::vector<std::uint32_t> springs;
         std::vector<Vec3> dir;
+        std::vector<std::uint32_t> edge_start, edge_unknown;  ///< per row vertex + 1 / per entry: its unknowns
+        std::vector<Vec3> edge_dir;              ///< per entry: the unit vector along the edge, away from the vertex
         std::vector<double> rhs, diagonal, solution, residual, z, direction, product;
         // The direct solve (tension.cpp): the normal matrix's pattern, built for the live
         // structural springs and their ends in `pattern_ends` (rebuilt when they change).
         std::vector<std::array<std::uint32_t, 3>> pattern_ends;  ///< per unknown: spring, a, b
+        std::vector<std::array<std::uint32_t, 3>> seen_ends;     ///< the same, as the last step that changed them left them
         std::vector<int> column;                 ///< per unknown: its column (fill-reducing order)
         std::vector<std::uint32_t> incident_start;  ///< per vertex + 1: its entries in `incident`
         std::vector<int> incident;               ///< unknowns at the vertex (that name it as an end), signed: ~u where it is b

@@ -20,7 +20,9 @@
 // reported (~1e-14). Conjugate gradients with a diagonal preconditioner (what this code
 // used until 2026-12-02, through Eigen) are ill-conditioned here, lambda being 1e-6 of the
 // diagonal: a 64 x 64 sheet ended its 60 iterations with 6% of |rhs| left; they remain,
-// matrix-free, only for a factorisation that fails (a pivot not finite).
+// matrix-free, for the steps in which the springs changed (a crease or a tear: the
+// pattern is built again once they stay the same for a step, so that a sheet creasing
+// every step does not pay the analysis every step) and for a factorisation that fails.
 // Directions and forces are those of the step's start (what the solve linearised about).
 #include "cloth/cloth_state.hpp"  // gridDissection
 #include "paper/sheet.hpp"
@@ -136,23 +138,38 @@ void buildTensionPattern(const PaperSheet& s, PaperSheet::TensionScratch& w) {
     w.right.resize(size);
 }
 
-/// True when the pattern was built for the live structural springs in w.springs, as they
-/// are joined now.
-bool samePattern(const PaperSheet& s, const PaperSheet::TensionScratch& w) {
-    if (w.pattern_ends.size() != w.springs.size() || !w.factor.analysed()) return false;
+/// True when `ends` lists the live structural springs in w.springs as they are joined now
+/// (spring, a, b per unknown).
+bool sameEnds(const PaperSheet& s, const PaperSheet::TensionScratch& w, const std::vector<std::array<std::uint32_t, 3>>& ends) {
+    if (ends.size() != w.springs.size()) return false;
     for (std::size_t u = 0; u < w.springs.size(); ++u) {
         const PaperSpring& sp = s.springs[w.springs[u]];
-        if (w.pattern_ends[u] != std::array<std::uint32_t, 3>{w.springs[u], sp.a, sp.b}) return false;
+        if (ends[u] != std::array<std::uint32_t, 3>{w.springs[u], sp.a, sp.b}) return false;
     }
     return true;
 }
 
 /// The normal equations solved directly: assembled into the pattern, factorised
 /// (SupernodalLLT), one back-substitution. Leaves the tensions in w.solution (unknown
-/// order) and returns true, or false where the factorisation fails (not finite).
+/// order) and returns true; false where the springs changed this step (see below) or the
+/// factorisation fails (not finite).
 bool solveDirect(const PaperSheet& s, PaperSheet::TensionScratch& w) {
     const std::size_t n = s.vertices(), count = w.springs.size();
-    if (!samePattern(s, w)) buildTensionPattern(s, w);
+    if (!w.factor.analysed() || !sameEnds(s, w, w.pattern_ends)) {
+        // The springs changed since the pattern was built. It is built anew once they have
+        // stayed the same for a step; until then the conjugate gradients answer. A sheet
+        // that creases or tears every step would otherwise pay the analysis every step (a
+        // 64 x 64 sheet creasing as it swings: 125 ms a step).
+        if (!sameEnds(s, w, w.seen_ends)) {
+            w.seen_ends.resize(w.springs.size());
+            for (std::size_t u = 0; u < w.springs.size(); ++u) {
+                const PaperSpring& sp = s.springs[w.springs[u]];
+                w.seen_ends[u] = {w.springs[u], sp.a, sp.b};
+            }
+            return false;
+        }
+        buildTensionPattern(s, w);
+    }
     double* values = w.normal.valuePtr();
     std::fill(values, values + w.normal.nonZeros(), 0.0);
     const int* outer = w.normal.outerIndexPtr();  // a column's first entry is its diagonal
@@ -247,15 +264,27 @@ void estimateTension(PaperSheet& s, const std::vector<PointContact>& contacts, c
         dir[u] = e.norm() > 0.0 ? Vec3(e.normalized()) : Vec3(Vec3::Zero());  // from a to b
     }
     // The edges at row vertex i (unit vectors pointing away from it): f(u, e) for each.
+    // Gathered once into flat lists (w.edge_start per vertex + 1, w.edge_unknown,
+    // w.edge_dir): the products below pass over them 120 times in a step that falls back
+    // to the conjugate gradients.
+    w.edge_start.assign(n + 1, 0);
+    w.edge_unknown.clear();
+    w.edge_dir.clear();
+    for (std::size_t i = 0; i < n; ++i) {
+        if (row[i])
+            for (std::uint32_t k : s.vertex_springs[i]) {
+                const int u = unknown[k];
+                if (u < 0) continue;
+                const PaperSpring& sp = s.springs[k];
+                if (sp.a != i && sp.b != i) continue;  // names i only as what it spans
+                const Vec3& d = dir[static_cast<std::size_t>(u)];
+                w.edge_unknown.push_back(static_cast<std::uint32_t>(u));
+                w.edge_dir.push_back(sp.a == i ? d : Vec3(-d));
+            }
+        w.edge_start[i + 1] = static_cast<std::uint32_t>(w.edge_unknown.size());
+    }
     auto forEdgeAt = [&](std::size_t i, auto&& f) {
-        for (std::uint32_t k : s.vertex_springs[i]) {
-            const int u = unknown[k];
-            if (u < 0) continue;
-            const PaperSpring& sp = s.springs[k];
-            if (sp.a != i && sp.b != i) continue;  // names i only as what it spans
-            const Vec3& d = dir[static_cast<std::size_t>(u)];
-            f(static_cast<std::size_t>(u), sp.a == i ? d : Vec3(-d));
-        }
+        for (std::uint32_t at = w.edge_start[i]; at < w.edge_start[i + 1]; ++at) f(w.edge_unknown[at], w.edge_dir[at]);
     };
     // The normal equations (A^T A + lambda I) T = A^T b + lambda T_k: the right-hand side
     // and the diagonal, and the matrix's product without forming it (A T per row vertex,
@@ -311,10 +340,11 @@ void estimateTension(PaperSheet& s, const std::vector<PointContact>& contacts, c
     if (solveDirect(s, w)) {
         w.residual_norm = residual();
     } else {
-        // Where the factorisation fails (a pivot not finite): conjugate gradients with the
-        // diagonal (Jacobi) preconditioner, warm-started at T_k, stopping at
-        // |r| <= kCgTolerance |rhs| or after kCgIterations. Ill-conditioned (a 64 x 64
-        // sheet: 6% of |rhs| left after the 60), hence the direct solve.
+        // In a step whose springs changed (a crease, a tear), or where the factorisation
+        // fails (a pivot not finite): conjugate gradients with the diagonal (Jacobi)
+        // preconditioner, warm-started at T_k, stopping at |r| <= kCgTolerance |rhs| or
+        // after kCgIterations. Ill-conditioned (a 64 x 64 sheet: 6% of |rhs| left after the
+        // 60), hence the direct solve wherever the pattern holds.
         for (std::size_t u = 0; u < count; ++u) t[u] = s.tension[springs[u]];
         std::vector<double>& z = w.z;
         std::vector<double>& p = w.direction;
