@@ -14,7 +14,8 @@
 // an edge the balance cannot see (both ends held) keeps its elastic tension instead of
 // reading zero. The normal equations (A^T A + lambda I) T = A^T b + lambda T_k are sparse
 // (edges that share a vertex) and solved directly: the cloth's supernodal Cholesky
-// (cloth/supernodal.hpp), the unknowns in AMD order, the pattern and its analysis kept
+// (cloth/supernodal.hpp), the unknowns in AMD order (or nested dissection, on a
+// rectangle's sheet still on its grid, where cheaper), the pattern and its analysis kept
 // while the sheet's structural springs and their ends are the same (the vertices without
 // a row this step add zeros to it), one back-substitution; the relative residual is
 // reported (~1e-14). Conjugate gradients with a diagonal preconditioner (what this code
@@ -41,11 +42,20 @@ constexpr double kLambda = 1e-6;
 constexpr int kCgIterations = 60;
 constexpr double kCgTolerance = 1e-8;
 
+/// An entry of TensionScratch::incident: its unknown, and the unit vector along its spring
+/// away from the vertex (the spring's direction where the vertex is its end a).
+int unknownOf(int entry) { return entry < 0 ? ~entry : entry; }
+Vec3 awayFrom(int entry, const std::vector<Vec3>& dir) {
+    const Vec3& d = dir[static_cast<std::size_t>(unknownOf(entry))];
+    return entry < 0 ? Vec3(-d) : d;
+}
+
 /// Builds the direct solve's pattern for the unknowns in w.springs (w.unknown per spring):
 /// per vertex its incident unknowns, the lower triangle of A^T A + lambda I over every
 /// vertex (a vertex without a row this step adds zeros: the pattern does not change with
-/// the contacts), its columns in a fill-reducing order (AMD), and where each vertex's pairs
-/// go in the values. Runs when the live structural springs or their ends changed.
+/// the contacts), its columns in a fill-reducing order (AMD, or nested dissection on a
+/// rectangle's grid), analysed, and where each vertex's pairs go in the values. Runs when
+/// the live structural springs or their ends changed (and then stayed so for a step).
 void buildTensionPattern(const PaperSheet& s, PaperSheet::TensionScratch& w) {
     const std::size_t n = s.vertices(), count = w.springs.size();
     w.pattern_ends.resize(count);
@@ -71,8 +81,8 @@ void buildTensionPattern(const PaperSheet& s, PaperSheet::TensionScratch& w) {
         for (std::size_t i = 0; i < n; ++i)
             for (std::uint32_t a = w.incident_start[i]; a < w.incident_start[i + 1]; ++a)
                 for (std::uint32_t k = w.incident_start[i]; k < a; ++k) {
-                    const int ua = w.incident[a] < 0 ? ~w.incident[a] : w.incident[a];
-                    const int uk = w.incident[k] < 0 ? ~w.incident[k] : w.incident[k];
+                    const int ua = unknownOf(w.incident[a]);
+                    const int uk = unknownOf(w.incident[k]);
                     f(ua, uk);
                 }
     };
@@ -128,8 +138,8 @@ void buildTensionPattern(const PaperSheet& s, PaperSheet::TensionScratch& w) {
     for (std::size_t i = 0; i < n; ++i) {
         for (std::uint32_t a = w.incident_start[i]; a < w.incident_start[i + 1]; ++a)
             for (std::uint32_t k = w.incident_start[i]; k <= a; ++k) {
-                const int ua = w.incident[a] < 0 ? ~w.incident[a] : w.incident[a];
-                const int uk = w.incident[k] < 0 ? ~w.incident[k] : w.incident[k];
+                const int ua = unknownOf(w.incident[a]);
+                const int uk = unknownOf(w.incident[k]);
                 const int ca = w.column[static_cast<std::size_t>(ua)], ck = w.column[static_cast<std::size_t>(uk)];
                 w.pair_value.push_back(entry(std::max(ca, ck), std::min(ca, ck)));
             }
@@ -183,14 +193,10 @@ bool solveDirect(const PaperSheet& s, PaperSheet::TensionScratch& w) {
         const std::uint32_t first = w.incident_start[i], last = w.incident_start[i + 1];
         const int* pair = w.pair_value.data() + w.pair_start[i];
         for (std::uint32_t a = first; a < last; ++a) {
-            const int ua = w.incident[a] < 0 ? ~w.incident[a] : w.incident[a];
-            const Vec3 ea = w.incident[a] < 0 ? Vec3(-w.dir[static_cast<std::size_t>(ua)]) : w.dir[static_cast<std::size_t>(ua)];
+            const int ua = unknownOf(w.incident[a]);
+            const Vec3 ea = awayFrom(w.incident[a], w.dir);
             w.right[w.column[static_cast<std::size_t>(ua)]] += ea.dot(w.b[i]);
-            for (std::uint32_t k = first; k <= a; ++k) {
-                const int uk = w.incident[k] < 0 ? ~w.incident[k] : w.incident[k];
-                const Vec3 ek = w.incident[k] < 0 ? Vec3(-w.dir[static_cast<std::size_t>(uk)]) : w.dir[static_cast<std::size_t>(uk)];
-                values[*pair++] += ea.dot(ek);
-            }
+            for (std::uint32_t k = first; k <= a; ++k) values[*pair++] += ea.dot(awayFrom(w.incident[k], w.dir));
         }
     }
     if (!w.factor.factorize(w.normal)) return false;
