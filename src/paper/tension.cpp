@@ -50,6 +50,30 @@ Vec3 awayFrom(int entry, const std::vector<Vec3>& dir) {
     return entry < 0 ? Vec3(-d) : d;
 }
 
+/// f(u, from_a) for each live structural spring at vertex i that has i as an end (a spring
+/// may name a vertex it spans, a crease's): u its unknown (`unknown` per spring), from_a
+/// whether i is its end a. In the order of the vertex's spring list.
+template <class F>
+void forStructuralEnds(const PaperSheet& s, const std::vector<int>& unknown, std::size_t i, F&& f) {
+    for (std::uint32_t k : s.vertex_springs[i]) {
+        const int u = unknown[k];
+        if (u < 0) continue;
+        const PaperSpring& sp = s.springs[k];
+        if (sp.a != i && sp.b != i) continue;
+        f(u, sp.a == i);
+    }
+}
+
+/// Lists the live structural springs in w.springs as they are joined now (spring, a, b per
+/// unknown) into `out`.
+void recordEnds(const PaperSheet& s, const PaperSheet::TensionScratch& w, std::vector<std::array<std::uint32_t, 3>>& out) {
+    out.resize(w.springs.size());
+    for (std::size_t u = 0; u < w.springs.size(); ++u) {
+        const PaperSpring& sp = s.springs[w.springs[u]];
+        out[u] = {w.springs[u], sp.a, sp.b};
+    }
+}
+
 /// Builds the direct solve's pattern for the unknowns in w.springs (w.unknown per spring):
 /// per vertex its incident unknowns, the lower triangle of A^T A + lambda I over every
 /// vertex (a vertex without a row this step adds zeros: the pattern does not change with
@@ -58,21 +82,11 @@ Vec3 awayFrom(int entry, const std::vector<Vec3>& dir) {
 /// the live structural springs or their ends changed (and then stayed so for a step).
 void buildTensionPattern(const PaperSheet& s, PaperSheet::TensionScratch& w) {
     const std::size_t n = s.vertices(), count = w.springs.size();
-    w.pattern_ends.resize(count);
-    for (std::size_t u = 0; u < count; ++u) {
-        const PaperSpring& sp = s.springs[w.springs[u]];
-        w.pattern_ends[u] = {w.springs[u], sp.a, sp.b};
-    }
+    recordEnds(s, w, w.pattern_ends);
     w.incident_start.assign(n + 1, 0);
     w.incident.clear();
     for (std::size_t i = 0; i < n; ++i) {
-        for (std::uint32_t k : s.vertex_springs[i]) {
-            const int u = w.unknown[k];
-            if (u < 0) continue;
-            const PaperSpring& sp = s.springs[k];
-            if (sp.a != i && sp.b != i) continue;  // names i only as what it spans
-            w.incident.push_back(sp.a == i ? u : ~u);
-        }
+        forStructuralEnds(s, w.unknown, i, [&](int u, bool from_a) { w.incident.push_back(from_a ? u : ~u); });
         w.incident_start[i + 1] = static_cast<std::uint32_t>(w.incident.size());
     }
     // The unknowns' graph in natural order, then AMD's order of it.
@@ -171,11 +185,7 @@ bool solveDirect(const PaperSheet& s, PaperSheet::TensionScratch& w) {
         // that creases or tears every step would otherwise pay the analysis every step (a
         // 64 x 64 sheet creasing as it swings: 125 ms a step).
         if (!sameEnds(s, w, w.seen_ends)) {
-            w.seen_ends.resize(w.springs.size());
-            for (std::size_t u = 0; u < w.springs.size(); ++u) {
-                const PaperSpring& sp = s.springs[w.springs[u]];
-                w.seen_ends[u] = {w.springs[u], sp.a, sp.b};
-            }
+            recordEnds(s, w, w.seen_ends);
             return false;
         }
         buildTensionPattern(s, w);
@@ -278,15 +288,11 @@ void estimateTension(PaperSheet& s, const std::vector<PointContact>& contacts, c
     w.edge_dir.clear();
     for (std::size_t i = 0; i < n; ++i) {
         if (row[i])
-            for (std::uint32_t k : s.vertex_springs[i]) {
-                const int u = unknown[k];
-                if (u < 0) continue;
-                const PaperSpring& sp = s.springs[k];
-                if (sp.a != i && sp.b != i) continue;  // names i only as what it spans
+            forStructuralEnds(s, unknown, i, [&](int u, bool from_a) {
                 const Vec3& d = dir[static_cast<std::size_t>(u)];
                 w.edge_unknown.push_back(static_cast<std::uint32_t>(u));
-                w.edge_dir.push_back(sp.a == i ? d : Vec3(-d));
-            }
+                w.edge_dir.push_back(from_a ? d : Vec3(-d));
+            });
         w.edge_start[i + 1] = static_cast<std::uint32_t>(w.edge_unknown.size());
     }
     auto forEdgeAt = [&](std::size_t i, auto&& f) {
@@ -350,8 +356,8 @@ void estimateTension(PaperSheet& s, const std::vector<PointContact>& contacts, c
         // fails (a pivot not finite): conjugate gradients with the diagonal (Jacobi)
         // preconditioner, warm-started at T_k, stopping at |r| <= kCgTolerance |rhs| or
         // after kCgIterations. Ill-conditioned (a 64 x 64 sheet: 6% of |rhs| left after the
-        // 60), hence the direct solve wherever the pattern holds.
-        for (std::size_t u = 0; u < count; ++u) t[u] = s.tension[springs[u]];
+        // 60), hence the direct solve wherever the pattern holds. (t still holds T_k: the
+        // direct solve writes it only when it succeeds.)
         std::vector<double>& z = w.z;
         std::vector<double>& p = w.direction;
         z.resize(count);
