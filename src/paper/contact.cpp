@@ -126,8 +126,8 @@ void countCouplings(const PaperSheet& s, const std::vector<PointContact>& contac
 void coupleBodies(PaperSheet& s, const std::vector<PointContact>& contacts, const std::vector<double>& count_of,
                   const RigidTable& rigids, const PaperStep& ctx, std::vector<BodyCoupling>& out) {
     out.clear();
-    s.added_mass.assign(s.vertices(), Mat3::Zero());
-    s.added_force.assign(s.vertices(), Vec3::Zero());
+    assignGrowing(s.added_mass, s.vertices(), Mat3::Zero());
+    assignGrowing(s.added_force, s.vertices(), Vec3::Zero());
     for (std::size_t i = 0; i < s.vertices(); ++i) {
         const VertexHold& hold = s.hold[i];
         if (hold.kind != VertexHold::Kind::Glue || !rigids.movable(hold.body)) continue;

@@ -88,15 +88,15 @@ void buildRows(PaperSheet& s) {
     s.link_ends.clear();
     for (const PaperSpring& sp : s.springs)
         if (!sp.broken) s.link_ends.push_back({sp.a, sp.b});
-    s.vertex_link_start.assign(n + 1, 0);
+    assignGrowing(s.vertex_link_start, n + 1, 0);
     for (const auto& [a, b] : s.link_ends) {
         ++s.vertex_link_start[a + 1];
         ++s.vertex_link_start[b + 1];
     }
     for (std::size_t i = 0; i < n; ++i) s.vertex_link_start[i + 1] += s.vertex_link_start[i] + (s.vertex_link_start[i + 1] & 1u);
     const std::size_t entries = s.vertex_link_start[n];
-    s.row_quads.assign((entries + 3) / 4, JacobiQuad{});
-    s.row_force.assign(entries, Vec3::Zero());
+    assignGrowing(s.row_quads, (entries + 3) / 4, JacobiQuad{});
+    assignGrowing(s.row_force, entries, Vec3::Zero());
     s.link_slot.resize(s.link_ends.size());
     s.link_length.resize(s.link_ends.size());
     std::vector<std::uint32_t> fill(s.vertex_link_start.begin(), s.vertex_link_start.end() - 1);

@@ -219,7 +219,7 @@ bool solveDirect(const PaperSheet& s, PaperSheet::TensionScratch& w) {
 
 void estimateTension(PaperSheet& s, const std::vector<PointContact>& contacts, const PaperStep& ctx) {
     const std::size_t m = s.springs.size();
-    s.tension.assign(m, 0.0);
+    assignGrowing(s.tension, m, 0.0);
     // The lengths are the solve's (solveVelocities keeps them per live spring; the
     // positions have not moved since), computed anew only without one.
     std::size_t live = 0;
@@ -240,7 +240,7 @@ void estimateTension(PaperSheet& s, const std::vector<PointContact>& contacts, c
     PaperSheet::TensionScratch& w = s.tension_scratch;
     // Rows: free vertices without a body's mass.
     std::vector<std::uint8_t>& row = w.row;
-    row.assign(n, 0);
+    assignGrowing(row, n, 0);
     for (std::size_t i = 0; i < n; ++i)
         row[i] = !s.fixed[i] && (s.added_mass.size() != n || s.added_mass[i].isZero(0.0));
     for (const PointContact& c : contacts) {
@@ -251,7 +251,7 @@ void estimateTension(PaperSheet& s, const std::vector<PointContact>& contacts, c
     }
     // b_i = m (v'' - v) / h - m g - f_user - f_other_springs.
     std::vector<Vec3>& b = w.b;
-    b.assign(n, Vec3::Zero());
+    assignGrowing(b, n, Vec3::Zero());
     for (std::size_t i = 0; i < n; ++i)
         if (row[i]) b[i] = s.mass[i] * (s.v[i] - s.v_start[i]) * ctx.inv_h - s.mass[i] * ctx.gravity - s.force[i];
     for (const PaperSpring& sp : s.springs) {
@@ -263,7 +263,7 @@ void estimateTension(PaperSheet& s, const std::vector<PointContact>& contacts, c
     // Unknowns: live structural springs.
     std::vector<int>& unknown = w.unknown;
     std::vector<std::uint32_t>& springs = w.springs;
-    unknown.assign(m, -1);
+    assignGrowing(unknown, m, -1);
     springs.clear();
     for (std::size_t k = 0; k < m; ++k)
         if (!s.springs[k].broken && s.springs[k].kind == PaperSpringKind::Structural) {
@@ -283,7 +283,7 @@ void estimateTension(PaperSheet& s, const std::vector<PointContact>& contacts, c
     // Gathered once into flat lists (w.edge_start per vertex + 1, w.edge_unknown,
     // w.edge_dir): the products below pass over them 120 times in a step that falls back
     // to the conjugate gradients.
-    w.edge_start.assign(n + 1, 0);
+    assignGrowing(w.edge_start, n + 1, 0);
     w.edge_unknown.clear();
     w.edge_dir.clear();
     for (std::size_t i = 0; i < n; ++i) {
@@ -306,7 +306,7 @@ void estimateTension(PaperSheet& s, const std::vector<PointContact>& contacts, c
     std::vector<double>& diagonal = w.diagonal;
     t.resize(count);
     rhs.resize(count);
-    diagonal.assign(count, kLambda);
+    assignGrowing(diagonal, count, kLambda);
     for (std::size_t u = 0; u < count; ++u) {
         t[u] = s.tension[springs[u]];
         rhs[u] = kLambda * t[u];
