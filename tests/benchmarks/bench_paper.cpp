@@ -2,7 +2,11 @@
 // Jacobi iterations, creasing checks, no rigid bodies): a sheet held at two corners, hanging
 // and swinging, at 32x32, 64x64 and 128x128 vertices (h = 1/60 s), with and without
 // breakable springs (creases form while it swings), and with Yarn's momentum-balance
-// tension (a sparse least squares per step).
+// tension (a sparse least squares per step). The breakable sheet is timed over a fixed
+// window, steps 31-130, in one run: it gains vertices and springs as it creases, so a
+// step's cost depends on when it is taken, and the library's own choice of count ran it
+// several times, whose first runs left the heap grown for the measured one (which then
+// never met a growing allocation, as an application's one sheet does).
 // Run: build/tests/benchmarks/tearables_bench --benchmark_filter=Paper
 #include "core/world_access.hpp"
 #include "tearables/world.hpp"
@@ -47,6 +51,6 @@ void BM_PaperStepBreakable(benchmark::State& state) { paperStep(state, true); }
 void BM_PaperStepMomentumTension(benchmark::State& state) { paperStep(state, false, tearables::PaperTension::Momentum); }
 BENCHMARK(BM_PaperStepMomentumTension)->Arg(32)->Arg(64)->Arg(128)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_PaperStep)->Arg(32)->Arg(64)->Arg(128)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_PaperStepBreakable)->Arg(32)->Arg(64)->Arg(128)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_PaperStepBreakable)->Arg(32)->Arg(64)->Arg(128)->Iterations(100)->Unit(benchmark::kMillisecond);
 
 }  // namespace
