@@ -1,6 +1,7 @@
 // Paper Sec. III.B-C: breakable hinge springs. Breaking follows Eq. 7's distribution,
 // the inserted vertex is lifted by Eq. 8, phi and psi do what Fig. 8-9 show, and the mesh
 // stays valid through any sequence of breaks, inserts and tears.
+#include "core/world_access.hpp"
 #include "paper/sheet.hpp"
 #include "paper_helpers.hpp"
 #include "tearables/world.hpp"
@@ -233,6 +234,37 @@ TEST(PaperHinge, DeterministicPerSeed) {
     for (std::size_t i = 0; i < std::min(va.vertexCount(), vc.vertexCount()) && !differs; ++i)
         differs = (*va.positions)[i] != (*vc.positions)[i];
     EXPECT_TRUE(differs);
+}
+
+/// A breakable sheet creasing as it swings (BM_PaperStepBreakable's, 64 x 64) gains
+/// vertices and springs at nearly every step, and its Jacobi rows are rebuilt for them.
+/// They grow by half again where they must (assignGrowing), so they are made anew in a few
+/// steps only: an exact assign made a new 2 MB allocation at every step that grew them,
+/// mapped and zeroed afresh by the kernel (twice the step's time).
+TEST(PaperHinge, CreasingSheetGrowsItsRowsWithoutANewAllocationEveryStep) {
+    const int n = 64;
+    World world;
+    PaperDesc d;
+    d.size[0] = 0.3;
+    d.size[1] = 0.3;
+    d.resolution[0] = n;
+    d.resolution[1] = n;
+    d.breakable = true;
+    d.attachments.push_back(PaperAttachment{0, {}, Vec3::Zero(), {}});
+    d.attachments.push_back(PaperAttachment{static_cast<std::uint32_t>(n - 1), {}, Vec3::Zero(), {}});
+    const PaperId id = world.addPaper(d);
+    const detail::PaperSheet& sheet = (*detail::WorldAccess::parts(world).papers)[id.index];
+    int grew = 0, allocated = 0;
+    for (int i = 0; i < 100; ++i) {
+        const std::size_t size = sheet.row_quads.size();
+        const detail::JacobiQuad* data = sheet.row_quads.data();
+        world.step(1.0 / 60.0);
+        grew += sheet.row_quads.size() > size;
+        allocated += sheet.row_quads.data() != data;
+    }
+    EXPECT_GE(grew, 50);  // the sheet creases, and its rows grow, at most steps
+    EXPECT_LE(allocated, 5);
+    EXPECT_GT(world.viewPaper(id).vertexCount(), static_cast<std::size_t>(n * n));
 }
 
 }  // namespace
