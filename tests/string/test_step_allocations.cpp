@@ -19,6 +19,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <new>
+#include <string>
 #include <vector>
 
 #if defined(__SANITIZE_ADDRESS__)
@@ -199,6 +200,12 @@ long countedSteps(World& world) {
     return counter.count();
 }
 
+/// What a counting test ran into: the allocations of its kCounted steps, and how to see where.
+std::string allocationReport(long allocations) {
+    return std::to_string(allocations) + " heap allocations in " + std::to_string(kCounted) +
+           " steps (run with TEARABLES_ALLOC_BACKTRACE=1 to see where)";
+}
+
 }  // namespace
 
 // The counter itself works (so that zero below means something).
@@ -233,8 +240,7 @@ TEST(StepAllocations, SwingingRopesStepWithoutAllocating) {
         const StringId b = world.addString(rope({0, 0, 0.3}, {0, -0.4, 0.3}, 40));
         world.attachToPoint(b, 0, {0, 0, 0.3});
         const long allocations = countedSteps(world);
-        EXPECT_EQ(allocations, 0) << threads << " threads: heap allocations in " << kCounted
-                                  << " steps (run with TEARABLES_ALLOC_BACKTRACE=1 to see where)";
+        EXPECT_EQ(allocations, 0) << threads << " threads: " << allocationReport(allocations);
         EXPECT_GT(closestApproach(world, a, b), 0.1);  // they never touched
     }
 }
@@ -251,7 +257,7 @@ TEST(StepAllocations, LongRopeSplitOverTwoThreadsStepsWithoutAllocating) {
     const StringId a = world.addString(rope({0, 0, 0}, {50, 0, 0}, 5000, 5.0));
     world.attachToPoint(a, 0, {0, 0, 0});
     const long allocations = countedSteps(world);
-    EXPECT_EQ(allocations, 0) << "heap allocations in " << kCounted << " steps (run with TEARABLES_ALLOC_BACKTRACE=1 to see where)";
+    EXPECT_EQ(allocations, 0) << allocationReport(allocations);
 }
 
 // The same with string-string contacts: a rope pinned at one end swings down onto a rope
@@ -273,8 +279,7 @@ TEST(StepAllocations, RopeDrapedOverAnotherStepsWithoutAllocating) {
     // The ropes touch (axes 1 cm apart, the two radii, within the 10% the world counts as
     // touching) at the end of the counted steps.
     EXPECT_LT(closestApproach(world, hanging, across), 0.011);
-    EXPECT_EQ(allocations, 0) << "heap allocations in " << kCounted
-                              << " steps with string contacts (run with TEARABLES_ALLOC_BACKTRACE=1 to see where)";
+    EXPECT_EQ(allocations, 0) << "with string contacts: " << allocationReport(allocations);
 }
 
 // Rigid contacts: a rope pinned at both ends sagging onto a movable ball (1 kg: the body's
@@ -306,19 +311,8 @@ TEST(StepAllocations, RopeDrapedOverAMovableBallStepsWithoutAllocating) {
     bool touching = false;
     for (const auto& c : world.lastContacts()) touching = touching || c.string == a;
     EXPECT_TRUE(touching);
-    EXPECT_EQ(allocations, 0) << "heap allocations in " << kCounted
-                              << " steps (run with TEARABLES_ALLOC_BACKTRACE=1 to see where)";
+    EXPECT_EQ(allocations, 0) << allocationReport(allocations);
 }
-
-namespace {
-
-/// What the allocation tests below ran into; empty when nothing allocated.
-std::string allocationReport(long allocations) {
-    return std::to_string(allocations) + " heap allocations in " + std::to_string(kCounted) +
-           " steps (run with TEARABLES_ALLOC_BACKTRACE=1 to see where)";
-}
-
-}  // namespace
 
 // A cloth of 12 x 12 vertices swinging from two corners (prediction, the strain limit's
 // Newton iterations with their sparse factorisations, the least-squares tension solve,
