@@ -98,7 +98,6 @@ void buildRows(PaperSheet& s) {
     assignGrowing(s.row_quads, (entries + 3) / 4, JacobiQuad{});
     assignGrowing(s.row_force, entries, Vec3::Zero());
     s.link_slot.resize(s.link_ends.size());
-    s.link_length.resize(s.link_ends.size());
     std::vector<std::uint32_t> fill(s.vertex_link_start.begin(), s.vertex_link_start.end() - 1);
     for (std::size_t i = 0; i < n; ++i)  // pads: a zero coupling to the vertex itself
         for (std::uint32_t j = s.vertex_link_start[i]; j < s.vertex_link_start[i + 1]; ++j)
@@ -270,13 +269,15 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
     // of its two vertices. No spring adds to a vertex: consecutive springs that share a
     // vertex do not wait on each other's stores, and pass 2 and the sweeps read the rows
     // in order.
+    s.link_length.resize(s.springs.size());
     std::size_t k = 0;
-    for (const PaperSpring& sp : s.springs) {
+    for (std::size_t spring = 0; spring < s.springs.size(); ++spring) {
+        const PaperSpring& sp = s.springs[spring];
         if (sp.broken) continue;
-        const auto [slot_a, slot_b] = s.link_slot[k];
+        const auto [slot_a, slot_b] = s.link_slot[k++];
         const Vec3 e = s.x[sp.b] - s.x[sp.a];
         const double l = e.norm();
-        s.link_length[k++] = l;
+        s.link_length[spring] = l;
         if (!(l > 1e-12)) {  // no direction: no force, no coupling
             setCoupling(s, slot_a, 0.0, 0.0, Vec3::Zero());
             setCoupling(s, slot_b, 0.0, 0.0, Vec3::Zero());

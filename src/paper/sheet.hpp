@@ -90,7 +90,7 @@ struct PaperSheet {
     std::vector<std::uint32_t> vertex_link_start;  ///< per vertex + 1, first entry of its row (even: rows are padded to pairs)
     std::vector<JacobiQuad> row_quads;             ///< per four row entries, the springs' blocks and other vertices (a pad: zero)
     std::vector<Vec3> row_force;                   ///< per row entry, h f + h^2 K (v_other - v_this) on this vertex, N s
-    std::vector<double> link_length;               ///< per live spring, its length at the step's start, m (the tension reuses it)
+    std::vector<double> link_length;               ///< per spring, its length at the step's start if live, m (the tension reuses it)
     std::size_t row_vertices = 0;                  ///< vertex count the rows were built for
     std::size_t row_reach = 0;                     ///< largest |other - this| over the row entries (the sweeps' pipeline lag)
     std::vector<std::uint8_t> fixed;  ///< per vertex, its velocity is prescribed (pinned, glued)

@@ -220,17 +220,13 @@ bool solveDirect(const PaperSheet& s, PaperSheet::TensionScratch& w) {
 void estimateTension(PaperSheet& s, const std::vector<PointContact>& contacts, const PaperStep& ctx) {
     const std::size_t m = s.springs.size();
     assignGrowing(s.tension, m, 0.0);
-    // The lengths are the solve's (solveVelocities keeps them per live spring; the
-    // positions have not moved since), computed anew only without one.
-    std::size_t live = 0;
-    for (const PaperSpring& sp : s.springs) live += sp.broken ? 0 : 1;
-    const bool lengths = s.link_length.size() == live;
-    live = 0;
+    // The lengths are the solve's (solveVelocities keeps them per spring; the positions
+    // have not moved since), computed anew only without them.
+    const bool lengths = s.link_length.size() == m;
     for (std::size_t k = 0; k < m; ++k) {
         const PaperSpring& sp = s.springs[k];
         if (sp.broken) continue;
-        const double length = lengths ? s.link_length[live] : (s.x[sp.b] - s.x[sp.a]).norm();
-        ++live;
+        const double length = lengths ? s.link_length[k] : (s.x[sp.b] - s.x[sp.a]).norm();
         if (sp.kind != PaperSpringKind::Structural) continue;
         s.tension[k] = sp.stiffness * (length - sp.rest);
     }
