@@ -62,6 +62,8 @@ namespace {
 typedef double Lanes __attribute__((vector_size(16)));
 /// Four doubles: one AVX register where the sweep is compiled for AVX2 (jacobiPassAvx2).
 typedef double Lanes4 __attribute__((vector_size(32)));
+/// Lane indices of __builtin_shuffle on two Lanes4 (0-3 the first, 4-7 the second).
+typedef long long LaneIndex4 __attribute__((vector_size(32)));
 
 /// Lanes `lane` and `lane + 1` of a block's array.
 inline Lanes load2(const double (&quad)[4], unsigned lane) {
@@ -137,7 +139,7 @@ constexpr int kPipelineDepth = 2;
 /// the same order, so both kernels give the same bits (and those of the scalar sweeps
 /// before them).
 template <bool kWide>
-__attribute__((always_inline)) inline void jacobiVertex(const PaperSheet& s, std::size_t i, const Vec3* dv, Vec3* next) {
+__attribute__((always_inline)) inline void jacobiVertex(const PaperSheet& s, std::size_t i, const JacobiEntry* dv, JacobiEntry* next) {
     if (s.fixed[i]) {
         next[i] = dv[i];
         return;
@@ -150,9 +152,9 @@ __attribute__((always_inline)) inline void jacobiVertex(const PaperSheet& s, std
     auto pair = [&](std::uint32_t at) {  // entries at, at + 1 (at even)
         const JacobiQuad& c = quads[at >> 2];
         const unsigned lane = at & 3u;
-        const Vec3& o0 = dv[c.other[lane]];
-        const Vec3& o1 = dv[c.other[lane + 1]];
-        const Lanes ox = {o0.x(), o1.x()}, oy = {o0.y(), o1.y()}, oz = {o0.z(), o1.z()};
+        const double* o0 = dv[c.other[lane]].v;
+        const double* o1 = dv[c.other[lane + 1]].v;
+        const Lanes ox = {o0[0], o1[0]}, oy = {o0[1], o1[1]}, oz = {o0[2], o1[2]};
         const Lanes dx = load2(c.dir_x, lane), dy = load2(c.dir_y, lane), dz = load2(c.dir_z, lane);
         const Lanes along = load2(c.along, lane) * (dx * ox + dy * oy + dz * oz);
         const Lanes iso = load2(c.iso, lane);
@@ -167,12 +169,19 @@ __attribute__((always_inline)) inline void jacobiVertex(const PaperSheet& s, std
         }
         for (; j + 4 <= end; j += 4) {
             const JacobiQuad& c = quads[j >> 2];
-            const Vec3& o0 = dv[c.other[0]];
-            const Vec3& o1 = dv[c.other[1]];
-            const Vec3& o2 = dv[c.other[2]];
-            const Vec3& o3 = dv[c.other[3]];
-            const Lanes4 ox = {o0.x(), o1.x(), o2.x(), o3.x()}, oy = {o0.y(), o1.y(), o2.y(), o3.y()},
-                         oz = {o0.z(), o1.z(), o2.z(), o3.z()};
+            // The four neighbours' entries, one load each, transposed into x, y and z lanes.
+            Lanes4 r0, r1, r2, r3;
+            std::memcpy(&r0, dv[c.other[0]].v, sizeof r0);
+            std::memcpy(&r1, dv[c.other[1]].v, sizeof r1);
+            std::memcpy(&r2, dv[c.other[2]].v, sizeof r2);
+            std::memcpy(&r3, dv[c.other[3]].v, sizeof r3);
+            const Lanes4 t0 = __builtin_shuffle(r0, r1, LaneIndex4{0, 4, 2, 6});  // x0 x1 z0 z1
+            const Lanes4 t1 = __builtin_shuffle(r0, r1, LaneIndex4{1, 5, 3, 7});  // y0 y1 0 0
+            const Lanes4 t2 = __builtin_shuffle(r2, r3, LaneIndex4{0, 4, 2, 6});  // x2 x3 z2 z3
+            const Lanes4 t3 = __builtin_shuffle(r2, r3, LaneIndex4{1, 5, 3, 7});  // y2 y3 0 0
+            const Lanes4 ox = __builtin_shuffle(t0, t2, LaneIndex4{0, 1, 4, 5});
+            const Lanes4 oy = __builtin_shuffle(t1, t3, LaneIndex4{0, 1, 4, 5});
+            const Lanes4 oz = __builtin_shuffle(t0, t2, LaneIndex4{2, 3, 6, 7});
             Lanes4 dx, dy, dz, along, iso;
             std::memcpy(&dx, c.dir_x, sizeof dx);
             std::memcpy(&dy, c.dir_y, sizeof dy);
@@ -191,14 +200,14 @@ __attribute__((always_inline)) inline void jacobiVertex(const PaperSheet& s, std
     }
     for (; j < end; j += 2) pair(j);
     const Vec3 even(sum_x[0], sum_y[0], sum_z[0]), odd(sum_x[1], sum_y[1], sum_z[1]);
-    next[i] = (1.0 - kJacobiWeight) * dv[i] + kJacobiWeight * (s.diag_inv[i] * (even + odd));
+    next[i] = JacobiEntry(Vec3((1.0 - kJacobiWeight) * dv[i].vec() + kJacobiWeight * (s.diag_inv[i] * (even + odd))));
 }
 
 /// Up to kPipelineDepth iterations, first + 1 ..., in one pass over the rows (jacobiSweeps).
 template <bool kWide>
 __attribute__((always_inline)) inline void jacobiPassBody(PaperSheet& s, int first, int depth) {
     const std::size_t n = s.vertices();
-    Vec3* buffer[2] = {s.dv.data(), s.dv_next.data()};
+    JacobiEntry* buffer[2] = {s.dv.data(), s.dv_next.data()};
     const std::size_t lag = std::max<std::size_t>(s.row_reach, 1);
     const std::size_t steps = n + static_cast<std::size_t>(depth - 1) * lag;
     for (std::size_t t = 0; t < steps; ++t)
@@ -366,15 +375,15 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
     } else {
         for (std::size_t i = 0; i < n; ++i) {
             if (s.fixed[i]) {
-                s.dv[i] = heldVelocity(s, i, rigids, ctx) - s.v[i];
+                s.dv[i] = JacobiEntry(heldVelocity(s, i, rigids, ctx) - s.v[i]);
                 continue;
             }
             s.diag_inv[i] = s.diag_inv[i].inverse().eval();
-            s.dv[i] = s.diag_inv[i] * s.rhs[i];  // Eq. 6, k = 0
+            s.dv[i] = JacobiEntry(s.diag_inv[i] * s.rhs[i]);  // Eq. 6, k = 0
         }
         // Eq. 6, weighted, jacobi_iterations times (jacobiSweeps).
         jacobiSweeps(s);
-        for (std::size_t i = 0; i < n; ++i) s.v[i] += s.dv[i];
+        for (std::size_t i = 0; i < n; ++i) s.v[i] += s.dv[i].vec();
     }
     for (std::size_t i = 0; i < n; ++i) {
         const double speed = s.v[i].norm();

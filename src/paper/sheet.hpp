@@ -51,6 +51,16 @@ struct JacobiQuad {
     std::uint32_t other[4] = {0, 0, 0, 0};   ///< the spring's other vertex
 };
 
+/// A vertex's entry of a Jacobi iterate (implicit.cpp): a velocity change, m/s, x y z
+/// padded to 32 aligned bytes, so that the AVX2 sweep loads a neighbour's in one load and
+/// four of them are transposed into x, y and z lanes in registers.
+struct alignas(32) JacobiEntry {
+    double v[4] = {0.0, 0.0, 0.0, 0.0};  ///< x, y, z, and 0
+    JacobiEntry() = default;
+    explicit JacobiEntry(const Vec3& a) : v{a.x(), a.y(), a.z(), 0.0} {}
+    Vec3 vec() const { return Vec3(v[0], v[1], v[2]); }
+};
+
 /// One sheet. Vertices are structure of arrays; springs and triangles are appended only.
 struct PaperSheet {
     PaperDesc desc;
@@ -83,7 +93,7 @@ struct PaperSheet {
     // solver scratch (sized to the mesh; grows only when the topology grows)
     std::vector<Mat3> diag_inv;   ///< per vertex, inverse of W_ii
     std::vector<Vec3> rhs;        ///< per vertex, h f + h^2 J v
-    std::vector<Vec3> dv, dv_next;    ///< per vertex, the Jacobi iterate (velocity change, m/s) and the next one
+    std::vector<JacobiEntry> dv, dv_next;  ///< per vertex, the Jacobi iterate (velocity change, m/s) and the next one
     // rows of the Jacobi gather (implicit.cpp, buildRows), rebuilt when the live springs change
     std::vector<std::array<std::uint32_t, 2>> link_ends;  ///< per live spring, in order: its vertices
     std::vector<std::array<std::uint32_t, 2>> link_slot;  ///< per live spring: its entries in the rows of a and b
