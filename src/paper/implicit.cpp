@@ -126,9 +126,14 @@ void setCoupling(PaperSheet& s, std::uint32_t slot, double iso, double along, co
     quad.dir_z[lane] = d.z();
 }
 
-/// Iterations per pass of jacobiSweeps over the rows (measured at 64 x 64: 2 about 4%
-/// faster than 1; 4 no better; 8 slower at 128 x 128, whose rows in flight leave the L2).
-constexpr int kPipelineDepth = 2;
+/// Iterations per pass of jacobiSweeps over the rows. Measured at 64 x 64 on the hosts of
+/// 2026-11: 2 about 4% faster than 1; 4 no better; 8 slower at 128 x 128, whose rows in
+/// flight leave the L2. Since the iterates are padded (JacobiEntry: a neighbour is one
+/// load), 1 is the fastest on the host of 2026-12-02: 0.960-0.966 ms a step against
+/// 0.985-0.992 with 2 at 64 x 64 (3 and 4: 1.00 and 1.02), 4.46-4.64 against 4.75-4.79 ms
+/// at 128 x 128, 0.229-0.231 against 0.235-0.238 ms at 32 x 32. The sweep's own work, not
+/// the rows' reloads, bounds it now. Any depth gives the same bits.
+constexpr int kPipelineDepth = 1;
 
 /// One vertex of one weighted Jacobi iteration (Eq. 6): b_i - sum_j W_ij dv_j
 /// (W_ij = -block, so + block dv_j) gathered over its row in registers, then W_ii^-1 and
