@@ -303,41 +303,41 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
             chunk_length[count] = l;
             chunk_inverse[count++] = 1.0 / l;  // one division per spring, not four (unused where l is 0)
         }
-    for (std::size_t c = 0; c < count; ++c) {
-        const std::uint32_t spring = chunk_spring[c];
-        const PaperSpring& sp = s.springs[spring];
-        const auto [slot_a, slot_b] = s.link_slot[k++];
-        const Vec3 e = s.x[sp.b] - s.x[sp.a];
-        const double l = chunk_length[c];
-        s.link_length[spring] = l;
-        if (!(l > 1e-12)) {  // no direction: no force, no coupling
-            setCoupling(s, slot_a, 0.0, 0.0, Vec3::Zero());
-            setCoupling(s, slot_b, 0.0, 0.0, Vec3::Zero());
-            s.row_force[slot_a].setZero();
-            s.row_force[slot_b].setZero();
-            continue;
+        for (std::size_t c = 0; c < count; ++c) {
+            const std::uint32_t spring = chunk_spring[c];
+            const PaperSpring& sp = s.springs[spring];
+            const auto [slot_a, slot_b] = s.link_slot[k++];
+            const Vec3 e = s.x[sp.b] - s.x[sp.a];
+            const double l = chunk_length[c];
+            s.link_length[spring] = l;
+            if (!(l > 1e-12)) {  // no direction: no force, no coupling
+                setCoupling(s, slot_a, 0.0, 0.0, Vec3::Zero());
+                setCoupling(s, slot_b, 0.0, 0.0, Vec3::Zero());
+                s.row_force[slot_a].setZero();
+                s.row_force[slot_b].setZero();
+                continue;
+            }
+            const double inv_l = chunk_inverse[c];
+            const Vec3 d = e * inv_l;
+            const Vec3 relative = s.v[sp.b] - s.v[sp.a];
+            // springForce: elastic and damping force on a.
+            Vec3 f = h * (sp.stiffness * (l - sp.rest) + damping * sp.stiffness * d.dot(relative)) * d;
+            // K = k (d d^T + t (I - d d^T)), t = max(0, 1 - l0 / l): the block
+            // h c d d^T + h^2 K = iso I + along d d^T needs two numbers and d, not nine.
+            // max(0, 1 - l0 / l) without a branch (it was one, taken at random as springs
+            // swing between stretched and compressed): x + |x| is 2x or 0 exactly.
+            const double stretch = 1.0 - sp.rest * inv_l;
+            const double t = 0.5 * (stretch + std::abs(stretch));
+            const double iso = h2 * sp.stiffness * t;
+            const double axial = h2 * sp.stiffness * (1.0 - t);
+            const double along = h * damping * sp.stiffness + axial;
+            // h^2 J v: row a gets -h^2 K (v_a - v_b) = h^2 K (v_b - v_a); row b the opposite.
+            if (implicit) f += iso * relative + (axial * d.dot(relative)) * d;
+            setCoupling(s, slot_a, iso, along, d);
+            setCoupling(s, slot_b, iso, along, d);
+            s.row_force[slot_a] = f;
+            s.row_force[slot_b] = -f;
         }
-        const double inv_l = chunk_inverse[c];
-        const Vec3 d = e * inv_l;
-        const Vec3 relative = s.v[sp.b] - s.v[sp.a];
-        // springForce: elastic and damping force on a.
-        Vec3 f = h * (sp.stiffness * (l - sp.rest) + damping * sp.stiffness * d.dot(relative)) * d;
-        // K = k (d d^T + t (I - d d^T)), t = max(0, 1 - l0 / l): the block
-        // h c d d^T + h^2 K = iso I + along d d^T needs two numbers and d, not nine.
-        // max(0, 1 - l0 / l) without a branch (it was one, taken at random as springs
-        // swing between stretched and compressed): x + |x| is 2x or 0 exactly.
-        const double stretch = 1.0 - sp.rest * inv_l;
-        const double t = 0.5 * (stretch + std::abs(stretch));
-        const double iso = h2 * sp.stiffness * t;
-        const double axial = h2 * sp.stiffness * (1.0 - t);
-        const double along = h * damping * sp.stiffness + axial;
-        // h^2 J v: row a gets -h^2 K (v_a - v_b) = h^2 K (v_b - v_a); row b the opposite.
-        if (implicit) f += iso * relative + (axial * d.dot(relative)) * d;
-        setCoupling(s, slot_a, iso, along, d);
-        setCoupling(s, slot_b, iso, along, d);
-        s.row_force[slot_a] = f;
-        s.row_force[slot_b] = -f;
-    }
     }
 
     // Pass 2, per vertex: rhs = h f + h^2 J v (gravity, the user's force, the bodies'
