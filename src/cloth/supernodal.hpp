@@ -5,12 +5,14 @@
 // On a weave numbered in nested-dissection order (gridDissection) the columns of L come in
 // runs with the same structure below the diagonal (supernodes: the separators, and the 3
 // unknowns of a vertex); a supernode's columns are stored as one dense column-major panel,
-// and every update from a descendant is one dense product scattered into the panel (our
-// own kernel, updateProduct: Eigen's GEMM runs SSE2 in this build and its dispatch costs
-// more than the arithmetic of the many narrow panels; the AVX2 variant is chosen at run
-// time and gives the same bits), the panel's diagonal block a dense LLT and the rest a
-// dense triangular solve (Eigen's):
-// the standard left-looking supernodal method (Ng and Peyton 1993; Davis, "Direct Methods
+// and every update from a descendant is a dense product subtracted straight from the
+// panel where its rows land (updateScatter), then the panel is factorised in place, its
+// diagonal block and the rows below in one column sweep (panelCholesky). Both are our own
+// kernels, not Eigen's: Eigen's GEMM, LLT and triangular solve run SSE2 in this build (no
+// -march) and their dispatch cost more than the arithmetic of the many narrow panels (a
+// 100 x 100 cloth's tension matrix has ~7 600 supernodes of 2.6 columns on average, and an
+// update from a descendant averages 3.5 of its columns and 8 rows). An AVX2 variant of
+// each is chosen at run time and gives the same bits. This is the standard left-looking supernodal method (Ng and Peyton 1993; Davis, "Direct Methods
 // for Sparse Linear Systems", 2006, ch. 4 for the elimination tree and the row patterns).
 //
 // The symbolic analysis (elimination tree, pattern of L, supernodes, where each entry of A
@@ -34,17 +36,80 @@ namespace supernodal {
 
 typedef double Lanes4 __attribute__((vector_size(32)));
 
-/// c (r x r1, column-major) = a b^T with a = the r x w block at `a` and b its first r1
-/// rows (column-major, leading dimension `lda`). Every entry is the sum over the w
-/// columns in column order, one multiply and one add at a time (no FMA), whatever the
-/// kernel: the AVX2 one (four rows at once) and the portable one give the same bits.
+/// Dense Cholesky of a supernode's panel in place: its top w x w block becomes L11 (lower),
+/// the rows below L21 = A21 L11^-T; inverse[j] = 1 / L_jj. Left-looking, a column at a
+/// time: column j less its products with the columns before it (four at a time, subtracted
+/// in column order), then the root of its diagonal and a multiply of the rest by its
+/// reciprocal. False at a pivot that is not positive or a root that is not finite.
 template <bool kWide>
-__attribute__((always_inline)) inline void updateProductBody(const double* a, int lda, int w, int r, int r1, double* c) {
-    int i = 0;
+__attribute__((always_inline)) inline bool panelCholeskyBody(double* p, int h, int w, double* inverse) {
+    for (int j = 0; j < w; ++j) {
+        double* cj = p + static_cast<std::ptrdiff_t>(j) * h;
+        int k = 0;
+        for (; k + 4 <= j; k += 4) {
+            const double* c0 = p + static_cast<std::ptrdiff_t>(k) * h;
+            const double *c1 = c0 + h, *c2 = c1 + h, *c3 = c2 + h;
+            const double a0 = c0[j], a1 = c1[j], a2 = c2[j], a3 = c3[j];
+            int r = j;
+            if constexpr (kWide) {
+                for (; r + 4 <= h; r += 4) {
+                    Lanes4 x, y0, y1, y2, y3;
+                    std::memcpy(&x, cj + r, sizeof x);
+                    std::memcpy(&y0, c0 + r, sizeof y0);
+                    std::memcpy(&y1, c1 + r, sizeof y1);
+                    std::memcpy(&y2, c2 + r, sizeof y2);
+                    std::memcpy(&y3, c3 + r, sizeof y3);
+                    x = (((x - y0 * a0) - y1 * a1) - y2 * a2) - y3 * a3;
+                    std::memcpy(cj + r, &x, sizeof x);
+                }
+            }
+            for (; r < h; ++r) cj[r] = (((cj[r] - c0[r] * a0) - c1[r] * a1) - c2[r] * a2) - c3[r] * a3;
+        }
+        for (; k < j; ++k) {
+            const double* ck = p + static_cast<std::ptrdiff_t>(k) * h;
+            const double a = ck[j];
+            int r = j;
+            if constexpr (kWide) {
+                for (; r + 4 <= h; r += 4) {
+                    Lanes4 x, y;
+                    std::memcpy(&x, cj + r, sizeof x);
+                    std::memcpy(&y, ck + r, sizeof y);
+                    x = x - y * a;
+                    std::memcpy(cj + r, &x, sizeof x);
+                }
+            }
+            for (; r < h; ++r) cj[r] -= ck[r] * a;
+        }
+        if (!(cj[j] > 0.0)) return false;
+        const double root = std::sqrt(cj[j]);
+        if (!std::isfinite(root)) return false;
+        cj[j] = root;
+        const double inv = 1.0 / root;
+        inverse[j] = inv;
+        for (int r = j + 1; r < h; ++r) cj[r] *= inv;
+    }
+    return true;
+}
+
+inline bool panelCholeskyPortable(double* p, int h, int w, double* inverse) {
+    return panelCholeskyBody<false>(p, h, w, inverse);
+}
+
+
+/// The update of a descendant, subtracted from the panel where it lands: for the r rows
+/// i and first r1 rows j (i >= j) of the r x w block at `a` (column-major, leading
+/// dimension lda), panel[rel[i]] of target column cols[j] less sum_k a_ik a_jk. Each sum
+/// runs over the w columns in order, one multiply and one add at a time from zero (the AVX2 kernel and the portable one give the same bits), four rows by four columns in registers, and goes
+/// straight to the panel (no scratch product).
+template <bool kWide>
+__attribute__((always_inline)) inline void updateScatterBody(const double* a, int lda, int w, int r, int r1, const int* rel,
+                                                             double* const* cols) {
+    int j = 0;
     if constexpr (kWide) {
-        for (; i + 4 <= r; i += 4) {
-            int j = 0;
-            for (; j + 4 <= r1; j += 4) {  // a 4 x 4 tile in four registers
+        for (; j + 4 <= r1; j += 4) {
+            double *t0 = cols[j], *t1 = cols[j + 1], *t2 = cols[j + 2], *t3 = cols[j + 3];
+            int i = j;
+            for (; i + 4 <= r; i += 4) {
                 Lanes4 c0 = {0, 0, 0, 0}, c1 = c0, c2 = c0, c3 = c0;
                 for (int k = 0; k < w; ++k) {
                     const double* column = a + static_cast<std::ptrdiff_t>(k) * lda;
@@ -55,12 +120,40 @@ __attribute__((always_inline)) inline void updateProductBody(const double* a, in
                     c2 += x * column[j + 2];
                     c3 += x * column[j + 3];
                 }
-                std::memcpy(c + static_cast<std::ptrdiff_t>(j) * r + i, &c0, sizeof c0);
-                std::memcpy(c + static_cast<std::ptrdiff_t>(j + 1) * r + i, &c1, sizeof c1);
-                std::memcpy(c + static_cast<std::ptrdiff_t>(j + 2) * r + i, &c2, sizeof c2);
-                std::memcpy(c + static_cast<std::ptrdiff_t>(j + 3) * r + i, &c3, sizeof c3);
+                if (i >= j + 3) {
+                    for (int l = 0; l < 4; ++l) {
+                        const int at = rel[i + l];
+                        t0[at] -= c0[l];
+                        t1[at] -= c1[l];
+                        t2[at] -= c2[l];
+                        t3[at] -= c3[l];
+                    }
+                } else {  // the tile on the diagonal: its lower triangle
+                    for (int l = 0; l < 4; ++l) {
+                        const int at = rel[i + l];
+                        t0[at] -= c0[l];
+                        if (i + l >= j + 1) t1[at] -= c1[l];
+                        if (i + l >= j + 2) t2[at] -= c2[l];
+                        if (i + l >= j + 3) t3[at] -= c3[l];
+                    }
+                }
             }
-            for (; j < r1; ++j) {
+            for (; i < r; ++i)
+                for (int m = 0; m < 4 && j + m <= i; ++m) {
+                    double acc = 0.0;
+                    for (int k = 0; k < w; ++k) {
+                        const double* column = a + static_cast<std::ptrdiff_t>(k) * lda;
+                        acc += column[i] * column[j + m];
+                    }
+                    cols[j + m][rel[i]] -= acc;
+                }
+        }
+    }
+    for (; j < r1; ++j) {
+        double* t = cols[j];
+        int i = j;
+        if constexpr (kWide) {
+            for (; i + 4 <= r; i += 4) {
                 Lanes4 acc = {0, 0, 0, 0};
                 for (int k = 0; k < w; ++k) {
                     const double* column = a + static_cast<std::ptrdiff_t>(k) * lda;
@@ -68,48 +161,60 @@ __attribute__((always_inline)) inline void updateProductBody(const double* a, in
                     std::memcpy(&x, column + i, sizeof x);
                     acc += x * column[j];
                 }
-                std::memcpy(c + static_cast<std::ptrdiff_t>(j) * r + i, &acc, sizeof acc);
+                for (int l = 0; l < 4; ++l) t[rel[i + l]] -= acc[l];
             }
         }
-    }
-    for (; i < r; ++i)
-        for (int j = 0; j < r1; ++j) {
+        for (; i < r; ++i) {
             double acc = 0.0;
             for (int k = 0; k < w; ++k) {
                 const double* column = a + static_cast<std::ptrdiff_t>(k) * lda;
                 acc += column[i] * column[j];
             }
-            c[static_cast<std::ptrdiff_t>(j) * r + i] = acc;
+            t[rel[i]] -= acc;
         }
+    }
 }
 
-inline void updateProductPortable(const double* a, int lda, int w, int r, int r1, double* c) {
-    updateProductBody<false>(a, lda, w, r, r1, c);
+inline void updateScatterPortable(const double* a, int lda, int w, int r, int r1, const int* rel, double* const* cols) {
+    updateScatterBody<false>(a, lda, w, r, r1, rel, cols);
 }
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-__attribute__((target("avx2"))) inline void updateProductAvx2(const double* a, int lda, int w, int r, int r1, double* c) {
-    updateProductBody<true>(a, lda, w, r, r1, c);
+__attribute__((target("avx2"))) inline bool panelCholeskyAvx2(double* p, int h, int w, double* inverse) {
+    return panelCholeskyBody<true>(p, h, w, inverse);
+}
+__attribute__((target("avx2"))) inline void updateScatterAvx2(const double* a, int lda, int w, int r, int r1, const int* rel,
+                                                               double* const* cols) {
+    updateScatterBody<true>(a, lda, w, r, r1, rel, cols);
 }
 inline bool haveAvx2() {
     static const bool have = __builtin_cpu_supports("avx2");
     return have;
 }
 #else
-inline void updateProductAvx2(const double* a, int lda, int w, int r, int r1, double* c) {
-    updateProductBody<false>(a, lda, w, r, r1, c);
+inline bool panelCholeskyAvx2(double* p, int h, int w, double* inverse) {
+    return panelCholeskyBody<false>(p, h, w, inverse);
+}
+inline void updateScatterAvx2(const double* a, int lda, int w, int r, int r1, const int* rel, double* const* cols) {
+    updateScatterBody<false>(a, lda, w, r, r1, rel, cols);
 }
 inline bool haveAvx2() { return false; }
 #endif
 
 }  // namespace supernodal
 
-/// See supernodal::updateProductBody.
-inline void updateProduct(const double* a, int lda, int w, int r, int r1, double* c) {
+/// See supernodal::updateScatterBody.
+inline void updateScatter(const double* a, int lda, int w, int r, int r1, const int* rel, double* const* cols) {
     if (supernodal::haveAvx2())
-        supernodal::updateProductAvx2(a, lda, w, r, r1, c);
+        supernodal::updateScatterAvx2(a, lda, w, r, r1, rel, cols);
     else
-        supernodal::updateProductPortable(a, lda, w, r, r1, c);
+        supernodal::updateScatterPortable(a, lda, w, r, r1, rel, cols);
+}
+
+/// See supernodal::panelCholeskyBody.
+inline bool panelCholesky(double* p, int h, int w, double* inverse) {
+    return supernodal::haveAvx2() ? supernodal::panelCholeskyAvx2(p, h, w, inverse)
+                                  : supernodal::panelCholeskyPortable(p, h, w, inverse);
 }
 
 class SupernodalLLT {
@@ -222,12 +327,10 @@ public:
                 map_[p] = static_cast<std::ptrdiff_t>(value_start_[s] + static_cast<std::size_t>(j - f) * height + where[i]);
             });
         }
-        std::size_t scratch = 0;
-        for (int s = 0; s < supernodes; ++s) {
-            const std::size_t height = static_cast<std::size_t>(rows_start_[s + 1] - rows_start_[s]);
-            scratch = std::max(scratch, height * height);
-        }
-        update_.resize(scratch);
+        std::size_t tallest = 0;
+        for (int s = 0; s < supernodes; ++s) tallest = std::max(tallest, static_cast<std::size_t>(rows_start_[s + 1] - rows_start_[s]));
+        rel_.assign(tallest, 0);
+        target_.assign(tallest, nullptr);
         solve_scratch_.assign(n, 0.0);
         inverse_diagonal_.assign(n, 0.0);
         where_.assign(n, 0);
@@ -272,8 +375,8 @@ public:
                 ConstPanel dpanel(values_.data() + value_start_[d], dheight, dw);
                 if (dw == 1) {
                     // A one-column descendant (most of the tension's): every entry of its
-                    // product is a single multiply, subtracted in place without the scratch
-                    // (the kernel gives 0 + a_i a_j: the same bits, up to the sign of a zero).
+                    // product is a single multiply (updateScatter would give 0 + a_i a_j: the
+                    // same bits, up to the sign of a zero), without the kernel's tiles.
                     const double* from = dpanel.data() + p1;
                     const int* at = drows + p1;
                     for (int jj = 0; jj < r1; ++jj) {
@@ -282,13 +385,9 @@ public:
                         for (int ii = jj; ii < r; ++ii) column[where_[at[ii]]] -= from[ii] * aj;
                     }
                 } else {
-                    Eigen::Map<Eigen::MatrixXd> c(update_.data(), r, r1);
-                    updateProduct(dpanel.data() + p1, dheight, dw, r, r1, c.data());
-                    for (int jj = 0; jj < r1; ++jj) {
-                        double* column = panel.data() + static_cast<std::ptrdiff_t>(drows[p1 + jj] - f) * height;
-                        const double* from = c.data() + static_cast<std::ptrdiff_t>(jj) * r;
-                        for (int ii = jj; ii < r; ++ii) column[where_[drows[p1 + ii]]] -= from[ii];
-                    }
+                    for (int ii = 0; ii < r; ++ii) rel_[ii] = where_[drows[p1 + ii]];
+                    for (int jj = 0; jj < r1; ++jj) target_[jj] = panel.data() + static_cast<std::ptrdiff_t>(drows[p1 + jj] - f) * height;
+                    updateScatter(dpanel.data() + p1, dheight, dw, r, r1, rel_.data(), target_.data());
                 }
                 cursor_[d] = p2;
                 if (p2 < dheight) {
@@ -299,12 +398,12 @@ public:
                 d = next_d;
             }
             // The panel: dense Cholesky of its diagonal block, then L21 = A21 L11^-T.
-            if (w == 1) {  // most panels of the tension's matrix: what Eigen's kernels do, without their dispatch
+            if (w == 1) {  // most panels of the tension's matrix: panelCholesky's arithmetic, without its loops
                 double* column = panel.data();
                 if (!(column[0] > 0.0)) return false;
                 column[0] = std::sqrt(column[0]);
                 if (!std::isfinite(column[0])) return false;
-                const double inverse = 1.0 / column[0];  // as Eigen's triangular solve: a multiply by the reciprocal
+                const double inverse = 1.0 / column[0];  // the rest: a multiply by the reciprocal
                 inverse_diagonal_[f] = inverse;
                 for (int r = 1; r < height; ++r) column[r] *= inverse;
                 if (height > 1) {
@@ -315,15 +414,8 @@ public:
                 }
                 continue;
             }
-            auto diagonal = panel.topRows(w);
-            if (Eigen::internal::llt_inplace<double, Eigen::Lower>::blocked(diagonal) >= 0) return false;
-            for (int j = 0; j < w; ++j) {
-                if (!(diagonal(j, j) > 0.0) || !std::isfinite(diagonal(j, j))) return false;
-                inverse_diagonal_[f + j] = 1.0 / diagonal(j, j);
-            }
+            if (!panelCholesky(panel.data(), height, w, inverse_diagonal_.data() + f)) return false;
             if (height > w) {
-                auto below = panel.bottomRows(height - w);
-                diagonal.adjoint().template triangularView<Eigen::Upper>().template solveInPlace<Eigen::OnTheRight>(below);
                 cursor_[s] = w;
                 const int t = snode_of_[rows[w]];
                 link_[s] = head_[t];
@@ -432,9 +524,10 @@ private:
     std::vector<std::size_t> value_start_;  ///< per supernode + 1: its panel in values_
     std::vector<double> values_;      ///< the panels of L, column-major
     std::vector<std::ptrdiff_t> map_; ///< per entry of A: its place in values_, or -1 (other triangle)
-    std::vector<double> update_;      ///< scratch of one update product
     std::vector<double> inverse_diagonal_;  ///< per column: 1 / L_jj (solveInPlace)
     mutable std::vector<double> solve_scratch_;  ///< a panel's rows below its diagonal block (solveInPlace)
+    std::vector<int> rel_;            ///< a descendant's rows: their positions in the current panel
+    std::vector<double*> target_;     ///< a descendant's first rows: their columns in the current panel
     std::vector<int> where_;          ///< per row: its position in the current panel
     std::vector<int> link_, head_, cursor_;  ///< left-looking: descendants waiting per supernode
 };

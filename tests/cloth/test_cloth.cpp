@@ -203,26 +203,77 @@ TEST(ClothSolver, SupernodalCholeskyMatchesSimplicialLDLT) {
     EXPECT_FALSE(llt.factorize(indefinite));
 }
 
-// The update kernel of the supernodal Cholesky gives the same bits on the AVX2 path and
-// the portable one (results must not depend on the machine), and the product a b^T.
-TEST(ClothSolver, UpdateKernelsAgreeBitForBit) {
+// The dense kernels of the supernodal Cholesky give the same bits on the AVX2 path and the
+// portable one (results must not depend on the machine), and the right numbers: the update
+// subtracts a a^T from the lower triangle only, where its rows land, and the panel's
+// factor reproduces the panel.
+TEST(ClothSolver, DenseKernelsAgreeBitForBit) {
+    namespace sn = tearables::detail::supernodal;
     std::mt19937_64 rng(11);
     std::uniform_real_distribution<double> u(-1.0, 1.0);
-    for (const auto [rows, width, r1] : {std::array<int, 3>{1, 1, 1}, {7, 3, 2}, {37, 9, 13}, {130, 40, 61}}) {
+    for (const auto [rows, width, r1] : {std::array<int, 3>{1, 1, 1}, {7, 3, 2}, {8, 4, 4}, {37, 9, 13}, {130, 40, 61}}) {
         const int lda = rows + 3;
         std::vector<double> a(static_cast<std::size_t>(lda) * width);
         for (double& x : a) x = u(rng);
-        std::vector<double> portable(static_cast<std::size_t>(rows) * r1), wide(portable.size());
-        tearables::detail::supernodal::updateProductPortable(a.data(), lda, width, rows, r1, portable.data());
-        tearables::detail::supernodal::updateProductAvx2(a.data(), lda, width, rows, r1, wide.data());  // portable where no AVX2
+        // The target: a panel of height rows + 5 with r1 columns; row i lands at i + 2 (a gap
+        // above, as where a descendant's rows fall in an ancestor's panel).
+        const int height = rows + 5;
+        std::vector<int> rel(rows);
+        for (int i = 0; i < rows; ++i) rel[i] = i + 2;
+        std::vector<double> start(static_cast<std::size_t>(height) * r1);
+        for (double& x : start) x = u(rng);
+        std::vector<double> portable = start, wide = start;
+        std::vector<double*> cols_p(r1), cols_w(r1);
+        for (int j = 0; j < r1; ++j) {
+            cols_p[j] = portable.data() + static_cast<std::size_t>(j) * height;
+            cols_w[j] = wide.data() + static_cast<std::size_t>(j) * height;
+        }
+        sn::updateScatterPortable(a.data(), lda, width, rows, r1, rel.data(), cols_p.data());
+        sn::updateScatterAvx2(a.data(), lda, width, rows, r1, rel.data(), cols_w.data());  // portable where no AVX2
         EXPECT_EQ(0, std::memcmp(portable.data(), wide.data(), portable.size() * sizeof(double))) << rows << " x " << r1;
         for (int j = 0; j < r1; ++j)
-            for (int i = 0; i < rows; ++i) {
-                double expected = 0.0;
-                for (int k = 0; k < width; ++k) expected += a[static_cast<std::size_t>(k) * lda + i] * a[static_cast<std::size_t>(k) * lda + j];
-                EXPECT_EQ(portable[static_cast<std::size_t>(j) * rows + i], expected);
+            for (int i = 0; i < height; ++i) {
+                const std::size_t at = static_cast<std::size_t>(j) * height + i;
+                const int row = i - 2;
+                if (row < j || row >= rows) {  // above the diagonal or outside the rows: untouched
+                    EXPECT_EQ(portable[at], start[at]) << i << ", " << j;
+                    continue;
+                }
+                double product = 0.0;
+                for (int k = 0; k < width; ++k) product += a[static_cast<std::size_t>(k) * lda + row] * a[static_cast<std::size_t>(k) * lda + j];
+                EXPECT_EQ(portable[at], start[at] - product) << i << ", " << j;
             }
     }
+    for (const auto [height, width] : {std::array<int, 2>{1, 1}, {5, 2}, {9, 9}, {40, 13}, {160, 150}}) {
+        // An SPD panel: the columns of B B^T + height I (its top width columns).
+        std::vector<double> b(static_cast<std::size_t>(height) * height);
+        for (double& x : b) x = u(rng);
+        std::vector<double> panel(static_cast<std::size_t>(height) * width);
+        for (int j = 0; j < width; ++j)
+            for (int i = 0; i < height; ++i) {
+                double sum = i == j ? height : 0.0;
+                for (int k = 0; k < height; ++k) sum += b[static_cast<std::size_t>(k) * height + i] * b[static_cast<std::size_t>(k) * height + j];
+                panel[static_cast<std::size_t>(j) * height + i] = sum;
+            }
+        std::vector<double> portable = panel, wide = panel, inverse_p(width), inverse_w(width);
+        ASSERT_TRUE(sn::panelCholeskyPortable(portable.data(), height, width, inverse_p.data()));
+        ASSERT_TRUE(sn::panelCholeskyAvx2(wide.data(), height, width, inverse_w.data()));
+        EXPECT_EQ(0, std::memcmp(portable.data(), wide.data(), portable.size() * sizeof(double))) << height << " x " << width;
+        EXPECT_EQ(0, std::memcmp(inverse_p.data(), inverse_w.data(), inverse_p.size() * sizeof(double)));
+        double worst = 0.0;  // L L^T against the panel, on and below the diagonal
+        for (int j = 0; j < width; ++j) {
+            EXPECT_EQ(inverse_p[j], 1.0 / portable[static_cast<std::size_t>(j) * height + j]);
+            for (int i = j; i < height; ++i) {
+                double sum = 0.0;
+                for (int k = 0; k <= j; ++k) sum += portable[static_cast<std::size_t>(k) * height + i] * portable[static_cast<std::size_t>(k) * height + j];
+                worst = std::max(worst, std::abs(sum - panel[static_cast<std::size_t>(j) * height + i]) / height);
+            }
+        }
+        EXPECT_LT(worst, 1e-12) << height << " x " << width;
+    }
+    std::vector<double> indefinite = {1.0, 2.0, 2.0, 1.0};  // [[1, 2], [2, 1]]: the second pivot is -3
+    double inverse[2];
+    EXPECT_FALSE(sn::panelCholeskyPortable(indefinite.data(), 2, 2, inverse));
 }
 
 // A yarn hanging from its top at rest in a world: each yarn carries the weight below it.
