@@ -99,8 +99,10 @@ inline bool panelCholeskyPortable(double* p, int h, int w, double* inverse) {
 /// The update of a descendant, subtracted from the panel where it lands: for the r rows
 /// i and first r1 rows j (i >= j) of the r x w block at `a` (column-major, leading
 /// dimension lda), panel[rel[i]] of target column cols[j] less sum_k a_ik a_jk. Each sum
-/// runs over the w columns in order, one multiply and one add at a time from zero (the AVX2 kernel and the portable one give the same bits), four rows by four columns in registers, and goes
-/// straight to the panel (no scratch product).
+/// runs over the w columns in order, one multiply and one add at a time from zero (the AVX2
+/// kernel and the portable one give the same bits). Four columns at a time: the tile on
+/// their diagonal, then eight rows at a time in eight registers, then four; the products
+/// go straight to the panel (no scratch product).
 template <bool kWide>
 __attribute__((always_inline)) inline void updateScatterBody(const double* a, int lda, int w, int r, int r1, const int* rel,
                                                              double* const* cols) {
@@ -109,6 +111,55 @@ __attribute__((always_inline)) inline void updateScatterBody(const double* a, in
         for (; j + 4 <= r1; j += 4) {
             double *t0 = cols[j], *t1 = cols[j + 1], *t2 = cols[j + 2], *t3 = cols[j + 3];
             int i = j;
+            if (j + 4 <= r) {  // the tile on the diagonal
+                Lanes4 c0 = {0, 0, 0, 0}, c1 = c0, c2 = c0, c3 = c0;
+                for (int k = 0; k < w; ++k) {
+                    const double* column = a + static_cast<std::ptrdiff_t>(k) * lda;
+                    Lanes4 x;
+                    std::memcpy(&x, column + i, sizeof x);
+                    c0 += x * column[j];
+                    c1 += x * column[j + 1];
+                    c2 += x * column[j + 2];
+                    c3 += x * column[j + 3];
+                }
+                for (int l = 0; l < 4; ++l) {
+                    const int at = rel[i + l];
+                    t0[at] -= c0[l];
+                    if (i + l >= j + 1) t1[at] -= c1[l];
+                    if (i + l >= j + 2) t2[at] -= c2[l];
+                    if (i + l >= j + 3) t3[at] -= c3[l];
+                }
+                i += 4;
+            }
+            for (; i + 8 <= r; i += 8) {  // eight rows below it: eight registers
+                Lanes4 c0 = {0, 0, 0, 0}, c1 = c0, c2 = c0, c3 = c0, d0 = c0, d1 = c0, d2 = c0, d3 = c0;
+                for (int k = 0; k < w; ++k) {
+                    const double* column = a + static_cast<std::ptrdiff_t>(k) * lda;
+                    Lanes4 x, y;
+                    std::memcpy(&x, column + i, sizeof x);
+                    std::memcpy(&y, column + i + 4, sizeof y);
+                    const double b0 = column[j], b1 = column[j + 1], b2 = column[j + 2], b3 = column[j + 3];
+                    c0 += x * b0;
+                    c1 += x * b1;
+                    c2 += x * b2;
+                    c3 += x * b3;
+                    d0 += y * b0;
+                    d1 += y * b1;
+                    d2 += y * b2;
+                    d3 += y * b3;
+                }
+                for (int l = 0; l < 4; ++l) {
+                    const int at = rel[i + l], bt = rel[i + 4 + l];
+                    t0[at] -= c0[l];
+                    t1[at] -= c1[l];
+                    t2[at] -= c2[l];
+                    t3[at] -= c3[l];
+                    t0[bt] -= d0[l];
+                    t1[bt] -= d1[l];
+                    t2[bt] -= d2[l];
+                    t3[bt] -= d3[l];
+                }
+            }
             for (; i + 4 <= r; i += 4) {
                 Lanes4 c0 = {0, 0, 0, 0}, c1 = c0, c2 = c0, c3 = c0;
                 for (int k = 0; k < w; ++k) {
