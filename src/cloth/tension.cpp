@@ -56,6 +56,7 @@
 // nested-dissection order (clothEdgeOrder); 100 x 100 vertices (19800 yarns) take a few
 // milliseconds (BENCHMARKS.md).
 #include "cloth/cloth_state.hpp"
+#include "core/lanes.hpp"
 
 #include <Eigen/OrderingMethods>
 
@@ -433,24 +434,48 @@ void solveTensionLeastSquares(ClothState& c) {
 }
 
 void softSpringForces(const ClothState& c, std::vector<Vec3>& out) {
-    for (const SoftSpring& s : c.springs) {
-        if (!s.alive) continue;
-        const Vec3 d = c.x[s.b] - c.x[s.a];
-        const double len = d.norm();
-        if (!(len > 1e-15)) continue;
-        const Vec3 f = s.stiffness * (len - s.rest) * (d / len);  // pulls a toward b when stretched
+    auto apply = [&](const SoftSpring& s, double len, const Vec3& unit) {
+        if (!s.alive || !(len > 1e-15)) return;
+        const Vec3 f = s.stiffness * (len - s.rest) * unit;  // pulls a toward b when stretched
         out[s.a] += f;
         out[s.b] -= f;
+    };
+    // Two springs at a time, their roots and divisions in the two lanes of one register
+    // (unitPair: the bits of the scalar expressions; the divider bounds this loop),
+    // applied in spring order.
+    const std::size_t n = c.springs.size();
+    std::size_t i = 0;
+    for (; i + 1 < n; i += 2) {
+        const SoftSpring &s0 = c.springs[i], &s1 = c.springs[i + 1];
+        const UnitPair u = unitPair(c.x[s0.b] - c.x[s0.a], c.x[s1.b] - c.x[s1.a]);
+        apply(s0, u.length[0], u.unit[0]);
+        apply(s1, u.length[1], u.unit[1]);
+    }
+    if (i < n) {
+        const SoftSpring& s = c.springs[i];
+        const Vec3 d = c.x[s.b] - c.x[s.a];
+        const double len = d.norm();
+        apply(s, len, len > 1e-15 ? Vec3(d / len) : Vec3::Zero());
     }
 }
 
 void solveClothTension(ClothState& c, const StepContext& ctx) {
     // Directions, and the prior and warm start: the stiff springs' forces at x''.
-    for (std::size_t e = 0; e < c.edgeCount(); ++e) {
+    auto yarn = [&](std::size_t e, double len, const Vec3& unit) {
+        if (len > 1e-15) c.dir[e] = unit;
+        if (!c.broken[e]) c.tension[e] = c.stiffness[e] * std::max(0.0, len - c.rest_length[e]);
+    };
+    const std::size_t m = c.edgeCount();
+    std::size_t e = 0;
+    for (; e + 1 < m; e += 2) {  // two yarns at a time, as softSpringForces
+        const UnitPair u = unitPair(c.x[c.edges[e][1]] - c.x[c.edges[e][0]], c.x[c.edges[e + 1][1]] - c.x[c.edges[e + 1][0]]);
+        yarn(e, u.length[0], u.unit[0]);
+        yarn(e + 1, u.length[1], u.unit[1]);
+    }
+    if (e < m) {
         const Vec3 d = c.x[c.edges[e][1]] - c.x[c.edges[e][0]];
         const double len = d.norm();
-        if (len > 1e-15) c.dir[e] = d / len;
-        if (!c.broken[e]) c.tension[e] = c.stiffness[e] * std::max(0.0, len - c.rest_length[e]);
+        yarn(e, len, len > 1e-15 ? Vec3(d / len) : Vec3::Zero());
     }
     pressProjector(c);
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
