@@ -215,11 +215,11 @@ TEST(ClothSolver, DenseKernelsAgreeBitForBit) {
         const int lda = rows + 3;
         std::vector<double> a(static_cast<std::size_t>(lda) * width);
         for (double& x : a) x = u(rng);
-        // The target: a panel of height rows + 5 with r1 columns; row i lands at i + 2 (a gap
-        // above, as where a descendant's rows fall in an ancestor's panel).
-        const int height = rows + 5;
+        // The target: a panel with r1 columns where row i lands at 2 + i + i / 3 (gaps, as
+        // where a descendant's rows fall in an ancestor's panel).
         std::vector<int> rel(rows);
-        for (int i = 0; i < rows; ++i) rel[i] = i + 2;
+        for (int i = 0; i < rows; ++i) rel[i] = 2 + i + i / 3;
+        const int height = rel.back() + 3;
         std::vector<double> start(static_cast<std::size_t>(height) * r1);
         for (double& x : start) x = u(rng);
         std::vector<double> portable = start, wide = start;
@@ -231,11 +231,13 @@ TEST(ClothSolver, DenseKernelsAgreeBitForBit) {
         sn::updateScatterPortable(a.data(), lda, width, rows, r1, rel.data(), cols_p.data());
         sn::updateScatterAvx2(a.data(), lda, width, rows, r1, rel.data(), cols_w.data());  // portable where no AVX2
         EXPECT_EQ(0, std::memcmp(portable.data(), wide.data(), portable.size() * sizeof(double))) << rows << " x " << r1;
+        std::vector<int> row_at(height, -1);  // the descendant's row landing at each panel row
+        for (int i = 0; i < rows; ++i) row_at[rel[i]] = i;
         for (int j = 0; j < r1; ++j)
             for (int i = 0; i < height; ++i) {
                 const std::size_t at = static_cast<std::size_t>(j) * height + i;
-                const int row = i - 2;
-                if (row < j || row >= rows) {  // above the diagonal or outside the rows: untouched
+                const int row = row_at[i];
+                if (row < j) {  // no row lands here, or above the diagonal: untouched
                     EXPECT_EQ(portable[at], start[at]) << i << ", " << j;
                     continue;
                 }
