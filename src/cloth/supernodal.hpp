@@ -96,6 +96,21 @@ inline bool panelCholeskyPortable(double* p, int h, int w, double* inverse) {
 }
 
 
+/// c[m] = the sums over the w columns of a_(i..i+3) a_(j+m), m < 4 (updateScatterBody's
+/// 4 x 4 tile: from zero, one multiply and one add at a time, in column order).
+__attribute__((always_inline)) inline void tile4x4(const double* a, int lda, int w, int i, int j, Lanes4 (&c)[4]) {
+    c[0] = c[1] = c[2] = c[3] = Lanes4{0, 0, 0, 0};
+    for (int k = 0; k < w; ++k) {
+        const double* column = a + static_cast<std::ptrdiff_t>(k) * lda;
+        Lanes4 x;
+        std::memcpy(&x, column + i, sizeof x);
+        c[0] += x * column[j];
+        c[1] += x * column[j + 1];
+        c[2] += x * column[j + 2];
+        c[3] += x * column[j + 3];
+    }
+}
+
 /// The update of a descendant, subtracted from the panel where it lands: for the r rows
 /// i and first r1 rows j (i >= j) of the r x w block at `a` (column-major, leading
 /// dimension lda), panel[rel[i]] of target column cols[j] less sum_k a_ik a_jk. Each sum
@@ -111,23 +126,15 @@ __attribute__((always_inline)) inline void updateScatterBody(const double* a, in
         for (; j + 4 <= r1; j += 4) {
             double *t0 = cols[j], *t1 = cols[j + 1], *t2 = cols[j + 2], *t3 = cols[j + 3];
             int i = j;
-            if (j + 4 <= r) {  // the tile on the diagonal
-                Lanes4 c0 = {0, 0, 0, 0}, c1 = c0, c2 = c0, c3 = c0;
-                for (int k = 0; k < w; ++k) {
-                    const double* column = a + static_cast<std::ptrdiff_t>(k) * lda;
-                    Lanes4 x;
-                    std::memcpy(&x, column + i, sizeof x);
-                    c0 += x * column[j];
-                    c1 += x * column[j + 1];
-                    c2 += x * column[j + 2];
-                    c3 += x * column[j + 3];
-                }
+            if (j + 4 <= r) {  // the tile on the diagonal: its lower triangle
+                Lanes4 c[4];
+                tile4x4(a, lda, w, i, j, c);
                 for (int l = 0; l < 4; ++l) {
                     const int at = rel[i + l];
-                    t0[at] -= c0[l];
-                    if (i + l >= j + 1) t1[at] -= c1[l];
-                    if (i + l >= j + 2) t2[at] -= c2[l];
-                    if (i + l >= j + 3) t3[at] -= c3[l];
+                    t0[at] -= c[0][l];
+                    if (l >= 1) t1[at] -= c[1][l];
+                    if (l >= 2) t2[at] -= c[2][l];
+                    if (l >= 3) t3[at] -= c[3][l];
                 }
                 i += 4;
             }
@@ -160,33 +167,15 @@ __attribute__((always_inline)) inline void updateScatterBody(const double* a, in
                     t3[bt] -= d3[l];
                 }
             }
-            for (; i + 4 <= r; i += 4) {
-                Lanes4 c0 = {0, 0, 0, 0}, c1 = c0, c2 = c0, c3 = c0;
-                for (int k = 0; k < w; ++k) {
-                    const double* column = a + static_cast<std::ptrdiff_t>(k) * lda;
-                    Lanes4 x;
-                    std::memcpy(&x, column + i, sizeof x);
-                    c0 += x * column[j];
-                    c1 += x * column[j + 1];
-                    c2 += x * column[j + 2];
-                    c3 += x * column[j + 3];
-                }
-                if (i >= j + 3) {
-                    for (int l = 0; l < 4; ++l) {
-                        const int at = rel[i + l];
-                        t0[at] -= c0[l];
-                        t1[at] -= c1[l];
-                        t2[at] -= c2[l];
-                        t3[at] -= c3[l];
-                    }
-                } else {  // the tile on the diagonal: its lower triangle
-                    for (int l = 0; l < 4; ++l) {
-                        const int at = rel[i + l];
-                        t0[at] -= c0[l];
-                        if (i + l >= j + 1) t1[at] -= c1[l];
-                        if (i + l >= j + 2) t2[at] -= c2[l];
-                        if (i + l >= j + 3) t3[at] -= c3[l];
-                    }
+            for (; i + 4 <= r; i += 4) {  // below it, four rows
+                Lanes4 c[4];
+                tile4x4(a, lda, w, i, j, c);
+                for (int l = 0; l < 4; ++l) {
+                    const int at = rel[i + l];
+                    t0[at] -= c[0][l];
+                    t1[at] -= c[1][l];
+                    t2[at] -= c[2][l];
+                    t3[at] -= c[3][l];
                 }
             }
             for (; i < r; ++i)
