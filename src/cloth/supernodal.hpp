@@ -12,8 +12,9 @@
 // -march) and their dispatch cost more than the arithmetic of the many narrow panels (a
 // 100 x 100 cloth's tension matrix has ~7 600 supernodes of 2.6 columns on average, and an
 // update from a descendant averages 3.5 of its columns and 8 rows). An AVX2 variant of
-// each is chosen at run time and gives the same bits. This is the standard left-looking supernodal method (Ng and Peyton 1993; Davis, "Direct Methods
-// for Sparse Linear Systems", 2006, ch. 4 for the elimination tree and the row patterns).
+// each is chosen at run time and gives the same bits. This is the standard left-looking
+// supernodal method (Ng and Peyton 1993; Davis, "Direct Methods for Sparse Linear
+// Systems", 2006, ch. 4 for the elimination tree and the row patterns).
 //
 // The symbolic analysis (elimination tree, pattern of L, supernodes, where each entry of A
 // goes) depends on the pattern of A only and is kept while the pattern is the same. The
@@ -94,7 +95,6 @@ __attribute__((always_inline)) inline bool panelCholeskyBody(double* p, int h, i
 inline bool panelCholeskyPortable(double* p, int h, int w, double* inverse) {
     return panelCholeskyBody<false>(p, h, w, inverse);
 }
-
 
 /// c[m] = the sums over the w columns of a_(i..i+3) a_(j+m), m < 4 (updateScatterBody's
 /// 4 x 4 tile: from zero, one multiply and one add at a time, in column order).
@@ -438,22 +438,6 @@ public:
                 d = next_d;
             }
             // The panel: dense Cholesky of its diagonal block, then L21 = A21 L11^-T.
-            if (w == 1) {  // most panels of the tension's matrix: panelCholesky's arithmetic, without its loops
-                double* column = panel.data();
-                if (!(column[0] > 0.0)) return false;
-                column[0] = std::sqrt(column[0]);
-                if (!std::isfinite(column[0])) return false;
-                const double inverse = 1.0 / column[0];  // the rest: a multiply by the reciprocal
-                inverse_diagonal_[f] = inverse;
-                for (int r = 1; r < height; ++r) column[r] *= inverse;
-                if (height > 1) {
-                    cursor_[s] = 1;
-                    const int t = snode_of_[rows[1]];
-                    link_[s] = head_[t];
-                    head_[t] = s;
-                }
-                continue;
-            }
             if (!panelCholesky(panel.data(), height, w, inverse_diagonal_.data() + f)) return false;
             if (height > w) {
                 cursor_[s] = w;
