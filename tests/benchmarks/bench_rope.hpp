@@ -16,6 +16,12 @@ constexpr double kSegmentLength = 0.01;  // m
 constexpr double kSegmentMass = 0.001;   // kg
 constexpr double kDt = 0.01;             // s
 constexpr int kSettle = 200;             // steps before measuring
+/// Steps timed on the ropes side by side with Bullet's (bench_bullet.cpp): 8 s after the
+/// 2 s of settling. Bullet's soft-body rope costs least late in that window and most early
+/// (at 2 position iterations ~170 us a step in steps 200-300, ~71 in steps 700-1000, where
+/// it has stretched 60x), tearables' rope the same throughout; a window of 100 steps
+/// judged Bullet by its dearest part.
+constexpr int kTimedSteps = 800;
 
 /// A Bullet rigid-body world with gravity, as a user would make it.
 struct RigidWorld {

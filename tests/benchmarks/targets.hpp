@@ -152,16 +152,22 @@ inline std::string segments(int per_string, int threads) {
            "/iterations:10/real_time";
 }
 inline const std::vector<std::string>& tearablesRopes() {
-    static const std::vector<std::string> v = {"BM_Rope746_Tearables/iterations:200",
-                                               "BM_Rope746_TearablesAt1Percent/self_collision:1/iterations:200",
-                                               "BM_Rope746_TearablesAt1Percent/self_collision:0/iterations:200"};
+    static const std::vector<std::string> v = {"BM_Rope746_Tearables/iterations:800",
+                                               "BM_Rope746_TearablesAt1Percent/self_collision:1/iterations:800",
+                                               "BM_Rope746_TearablesAt1Percent/self_collision:0/iterations:800"};
     return v;
 }
+/// Bullet's ropes as bench_bullet.cpp registers them: btSoftBody at each position
+/// iteration count of its sweep, then the capsule chain.
 inline const std::vector<std::string>& bulletRopes() {
-    static const std::vector<std::string> v = {
-        "BM_Rope746_BulletSoftBody/1/iterations:100",   "BM_Rope746_BulletSoftBody/8/iterations:100",
-        "BM_Rope746_BulletSoftBody/64/iterations:100",  "BM_Rope746_BulletCapsuleChain/10/iterations:20",
-        "BM_Rope746_BulletCapsuleChain/50/iterations:20"};
+    static const std::vector<std::string> v = [] {
+        std::vector<std::string> names;
+        for (const int iterations : {1, 2, 3, 4, 5, 6, 8, 64})
+            names.push_back("BM_Rope746_BulletSoftBody/" + std::to_string(iterations) + "/iterations:800");
+        names.push_back("BM_Rope746_BulletCapsuleChain/10/iterations:20");
+        names.push_back("BM_Rope746_BulletCapsuleChain/50/iterations:20");
+        return names;
+    }();
     return v;
 }
 inline const std::string kPaper64 = "BM_PaperStep/64";
