@@ -169,7 +169,7 @@ void softSpringForces(const ClothState& c, std::vector<Vec3>& out);
 /// edges at doubled midpoint coordinates with width 1 on odd lines (the warp edges crossing
 /// between two vertex columns separate the edges on either side: no vertex is on both).
 /// On a grid this gives the least fill a sparse Cholesky can have, up to a constant (on
-/// the cloth's yarns AMD gives 23% more; BENCHMARKS.md).
+/// the cloth's yarns AMD gives 23% more; docs/benchmarks-history.md).
 std::vector<std::uint32_t> gridDissection(const std::vector<std::array<int, 2>>& at, int width, int modulus, int phase);
 /// The nested-dissection orders of a cloth's vertices and edges (built once per weave;
 /// a cloth that is not a full nu x nv grid gets the natural order).
