@@ -16,6 +16,7 @@
 // - Damping is stiffness-proportional along each spring, c = damping * k (Rayleigh):
 //   rigid motion is not damped, and the in-plane vibrations that the stiff springs would
 //   ring with are.
+#include "core/lanes.hpp"
 #include "paper/sheet.hpp"
 #include "string/string_state.hpp"
 
@@ -284,10 +285,12 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
     // vertex do not wait on each other's stores, and pass 2 and the sweeps read the rows
     // in order.
     //
-    // In chunks of kLengthChunk live springs: first their lengths and inverse lengths, in a
-    // short loop (a root and a division, ~35 cycles of latency, that the long loop's body
+    // In chunks of kLengthChunk live springs: first their lengths and inverse lengths, in
+    // short loops (a root and a division, ~35 cycles of latency, that the long loop's body
     // left the core too few springs in flight to overlap: the comparison with 1e-12 that
-    // waits on the root was its hottest instruction), then the rest.
+    // waits on the root was its hottest instruction), then the rest. The roots and the
+    // divisions two springs at a time, in lanes (one sqrtpd, one divpd: the divider takes a
+    // pair in the time of one; the same bits as norm() and 1.0 / l).
     s.link_length.resize(s.springs.size());
     constexpr std::size_t kLengthChunk = 32;
     std::uint32_t chunk_spring[kLengthChunk];
@@ -298,10 +301,18 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
         for (; next < s.springs.size() && count < kLengthChunk; ++next) {
             const PaperSpring& sp = s.springs[next];
             if (sp.broken) continue;
-            const double l = (s.x[sp.b] - s.x[sp.a]).norm();
             chunk_spring[count] = static_cast<std::uint32_t>(next);
-            chunk_length[count] = l;
-            chunk_inverse[count++] = 1.0 / l;  // one division per spring, not four (unused where l is 0)
+            chunk_length[count++] = (s.x[sp.b] - s.x[sp.a]).squaredNorm();
+        }
+        std::size_t pair = 0;
+        for (; pair + 1 < count; pair += 2) {
+            const Lanes2 l = sqrtLanes(loadLanes(chunk_length + pair));
+            storeLanes(chunk_length + pair, l);
+            storeLanes(chunk_inverse + pair, 1.0 / l);  // one division per spring, not four (unused where l is 0)
+        }
+        if (pair < count) {
+            chunk_length[pair] = std::sqrt(chunk_length[pair]);
+            chunk_inverse[pair] = 1.0 / chunk_length[pair];
         }
         for (std::size_t c = 0; c < count; ++c) {
             const std::uint32_t spring = chunk_spring[c];
