@@ -6,12 +6,12 @@
 // rope laid out straight did exactly that: the chain solve's gains carried the pin's
 // transverse coupling down the rope, 1.7e-47 after 1000 particles and 2.3e-316 after
 // 20 000, and ~70 000 of the solve's 900 000 gain entries were subnormal. Its step took
-// twice as long as with them flushed (docs/benchmarks-history.md, tenth round). Such values are far
-// below anything the simulation resolves (a position's rounding is ~1e-16 of its size),
-// so the step flushes them: flush-to-zero (results) and denormals-are-zero (operands) in
-// MXCSR, set for the step and restored after it, and set by the pool's workers for each
-// call (ThreadPool::run), so every thread computes the same bits. Other platforms keep
-// their mode: ARM cores handle subnormals at full speed.
+// twice as long as with them flushed (docs/benchmarks-history.md, tenth round). Such
+// values are far below anything the simulation resolves (a position's rounding is ~1e-16
+// of its size), so the step flushes them: flush-to-zero (results) and denormals-are-zero
+// (operands) in MXCSR, set for the step and restored after it, and set by the pool's
+// workers for each call (ThreadPool::run), so every thread computes the same bits. Other
+// platforms keep their mode: ARM cores handle subnormals at full speed.
 #pragma once
 
 #if defined(__SSE2__)

@@ -83,8 +83,9 @@
 //     fails its check), JacobiSVD.
 // A = 0 or non-finite A gives identity.
 // These paths are not bit for bit the SVD: R changes in the last bits, and so do the
-// results of every scene with strings (where a scene is chaotic, more: see docs/benchmarks-history.md,
-// issue 9, the CSM stage, for the tests that rounding used to decide).
+// results of every scene with strings (where a scene is chaotic, more: see
+// docs/benchmarks-history.md, issue 9, the CSM stage, for the tests that rounding used
+// to decide).
 //
 // Straight rest shapes (straightChainShapeMatchingGoals). A string created along one line
 // (StringDesc::straight, the common rope) has every region of rank 1, A = a v^T with v the
