@@ -599,17 +599,21 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
     result.simulated_seconds = static_cast<double>(steps) * dt;
     result.wall_seconds = wall;
     for (const auto& [type, n] : counts) result.event_counts.emplace_back(type, n);
+    // Everything the views show (tensions, twist, plastic lengths; the sheet's springs
+    // with their kinds, hinges and broken flags, its masses and counters), so that a run
+    // that differs only in damage, twist or tension has another digest.
     Digest digest;
     for (StringId id : ids) {
         const StringView v = ropes.core().view(id);
         for (const Vec3& p : *v.positions) digest.add(p);
         for (const Vec3& p : *v.velocities) digest.add(p);
         for (double l : *v.rest_length) digest.add(l);
+        for (double l : *v.max_length) digest.add(l);
+        for (double t : *v.tension) digest.add(t);
+        for (double t : *v.twist) digest.add(t);
         digest.add(v.broken->data(), v.broken->size());
+        digest.add(static_cast<double>(v.frozen));
     }
-    // Cloths and sheets: everything their views show (tensions, plastic lengths, the
-    // sheet's springs with their kinds, hinges and broken flags, its masses and counters),
-    // so that a run that differs only in damage or tension has another digest.
     for (ClothId id : cloth_ids) {
         const ClothView v = ropes.core().viewCloth(id);
         for (const Vec3& p : *v.positions) digest.add(p);
