@@ -17,7 +17,7 @@ namespace tearables {
 
 namespace detail {
 class ClothSystem;
-struct WorldAccess;  // snapshots (src/core/snapshot.cpp) read and replace the whole state
+struct WorldAccess;  // snapshots (src/world/snapshot.cpp) read and replace the whole state
 }
 
 /// World-wide solver settings.

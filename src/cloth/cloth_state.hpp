@@ -2,8 +2,12 @@
 // small system that World::Impl owns and calls from World::step.
 #pragma once
 
-#include "cloth/supernodal.hpp"
-#include "string/string_state.hpp"
+#include "linalg/dissection.hpp"
+#include "linalg/supernodal.hpp"
+#include "sim/hold.hpp"
+#include "sim/material_curve.hpp"
+#include "sim/rigid_table.hpp"
+#include "sim/step_context.hpp"
 #include "tearables/cloth.hpp"
 #include "tearables/world.hpp"
 
@@ -20,7 +24,7 @@ namespace tearables::detail {
 
 using SparseMatrix = Eigen::SparseMatrix<double>;
 /// The fallback of both cloth solves when the supernodal LL^T finds a pivot that is not
-/// positive (supernodal.hpp): a sparse LDL^T. The unknowns are numbered in a
+/// positive (linalg/supernodal.hpp): a sparse LDL^T. The unknowns are numbered in a
 /// nested-dissection order of the weave (gridDissection) before assembly, so both
 /// factorisations keep that order (no ordering of their own).
 using ClothLDLT = Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::NaturalOrdering<int>>;
@@ -162,15 +166,6 @@ void respondClothMaterial(ClothState& c, const StepContext& ctx, std::vector<Eve
 /// Soft spring forces at the current positions, accumulated into `out` (per vertex, N).
 void softSpringForces(const ClothState& c, std::vector<Vec3>& out);
 
-/// Nested-dissection order (George 1973) of items at integer grid coordinates `at`: the
-/// items of a box are split by a line of the box's longer axis, coordinates [X, X + width)
-/// with X = `phase` modulo `modulus`, into the two sides (ordered first, recursively) and
-/// the line (last). For a weave: vertices with width 2 (bending springs reach two cells),
-/// edges at doubled midpoint coordinates with width 1 on odd lines (the warp edges crossing
-/// between two vertex columns separate the edges on either side: no vertex is on both).
-/// On a grid this gives the least fill a sparse Cholesky can have, up to a constant (on
-/// the cloth's yarns AMD gives 23% more; docs/benchmarks-history.md).
-std::vector<std::uint32_t> gridDissection(const std::vector<std::array<int, 2>>& at, int width, int modulus, int phase);
 /// The nested-dissection orders of a cloth's vertices and edges (built once per weave;
 /// a cloth that is not a full nu x nv grid gets the natural order).
 const std::vector<std::uint32_t>& clothVertexOrder(ClothState& c);
@@ -207,7 +202,7 @@ public:
                  std::vector<Event>& pending);
 
 private:
-    friend struct WorldAccess;  // snapshots read and replace the cloths (src/core/snapshot.cpp)
+    friend struct WorldAccess;  // snapshots read and replace the cloths (src/world/snapshot.cpp)
     std::vector<ClothState> cloths_;
     PointQuery query_;
     std::vector<PointContact> found_;

@@ -1,5 +1,5 @@
 // ClothDesc validation: check at creation, so the hot loop can assume.
-#include "core/validate.hpp"
+#include "base/validate.hpp"
 #include "tearables/cloth.hpp"
 
 #include <cmath>

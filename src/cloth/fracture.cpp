@@ -1,5 +1,5 @@
 // Stage: material response of the yarns to their least-squares tension (Yarn Sec. 3.3-3.4),
-// with the strings' tensile curve (string/material_curve.hpp).
+// with the strings' tensile curve (sim/material_curve.hpp).
 //
 //  - Stress sigma = max(0, T) / (pi r^2) (Yarn Sec. 3.2; engineering stress on the
 //    original section; a yarn carries no compression).
@@ -26,7 +26,7 @@
 //    they follow (that is how a tear propagates: the yarns next to the tip carry the
 //    most, Yarn's "tears where the stress is highest").
 #include "cloth/cloth_state.hpp"
-#include "string/material_curve.hpp"
+#include "sim/material_curve.hpp"
 
 #include <algorithm>
 #include <cmath>

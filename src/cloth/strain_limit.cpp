@@ -12,7 +12,7 @@
 // to within sigma / E. A slack yarn pushes nothing (max(0, .)): yarns buckle freely.
 // Newton's method with the geometric stiffness of stretched springs (projected to be
 // positive semi-definite for compressed soft springs), a sparse Cholesky factorisation
-// (supernodal.hpp, the unknowns numbered in a nested-dissection order of the weave; the
+// (linalg/supernodal.hpp, the unknowns numbered in a nested-dissection order of the weave; the
 // symbolic analysis is reused while the pattern stays the same: same topology, same
 // contacts; Eigen's SimplicialLDLT if a pivot is not positive) and a backtracking line
 // search on the energy. The strings' block-tridiagonal solve does not apply to a mesh; a

@@ -18,7 +18,7 @@
 // diagonal of A^T A (dimensionless here, about 2) and assemble the normal equations
 // (A^T A + lambda' I) T = A^T b directly per vertex (each vertex couples the yarns that
 // meet there: 7 non-zeros per column on a grid), with a pattern fixed per topology, so
-// the sparse Cholesky (supernodal.hpp, the yarns numbered in nested-dissection order)
+// the sparse Cholesky (linalg/supernodal.hpp, the yarns numbered in nested-dissection order)
 // analyses once and only factorises each step.
 //
 // Choices where Yarn is vague:
@@ -56,7 +56,7 @@
 // nested-dissection order (clothEdgeOrder); 100 x 100 vertices (19800 yarns) take a few
 // milliseconds (BENCHMARKS.md).
 #include "cloth/cloth_state.hpp"
-#include "core/lanes.hpp"
+#include "base/lanes.hpp"
 
 #include <Eigen/OrderingMethods>
 
@@ -69,44 +69,6 @@ namespace {
 
 constexpr int kMaxRefinements = 12;
 constexpr double kRefinementTolerance = 1e-12;
-
-/// Boxes of at most this many items are not split further (their order hardly matters).
-constexpr std::size_t kDissectionLeaf = 8;
-
-struct Dissection {
-    const std::vector<std::array<int, 2>>& at;
-    int width, modulus, phase;
-    std::vector<std::uint32_t>& out;
-
-    void leaf(std::vector<std::uint32_t>& items) {
-        std::sort(items.begin(), items.end());
-        out.insert(out.end(), items.begin(), items.end());
-    }
-
-    void run(std::vector<std::uint32_t> items) {
-        if (items.size() <= kDissectionLeaf) return leaf(items);
-        int lo[2] = {at[items[0]][0], at[items[0]][1]}, hi[2] = {lo[0], lo[1]};
-        for (std::uint32_t i : items)
-            for (int a = 0; a < 2; ++a) {
-                lo[a] = std::min(lo[a], at[i][a]);
-                hi[a] = std::max(hi[a], at[i][a]);
-            }
-        const int axis = hi[0] - lo[0] >= hi[1] - lo[1] ? 0 : 1;
-        int line = lo[axis] + (hi[axis] - lo[axis] + 1 - width) / 2;  // the middle
-        while (((line - phase) % modulus + modulus) % modulus != 0) ++line;
-        std::vector<std::uint32_t> before, after, separator;
-        for (std::uint32_t i : items) {
-            const int x = at[i][axis];
-            (x < line ? before : x >= line + width ? after : separator).push_back(i);
-        }
-        if (before.size() == items.size() || after.size() == items.size()) return leaf(items);  // no split
-        items.clear();
-        items.shrink_to_fit();
-        run(std::move(before));
-        run(std::move(after));
-        leaf(separator);
-    }
-};
 
 /// P = I - sum n n^T over an orthonormal basis of the normals pressing the vertex.
 void pressProjector(ClothState& c) {
@@ -274,18 +236,6 @@ bool conjugateGradients(ClothState& c, double reg, Solve&& solve) {
     return true;  // at the cap, every step under half the last: reported as is
 }
 
-}  // namespace
-
-std::vector<std::uint32_t> gridDissection(const std::vector<std::array<int, 2>>& at, int width, int modulus, int phase) {
-    std::vector<std::uint32_t> out, all(at.size());
-    out.reserve(at.size());
-    for (std::size_t i = 0; i < at.size(); ++i) all[i] = static_cast<std::uint32_t>(i);
-    Dissection{at, width, modulus, phase, out}.run(std::move(all));
-    return out;
-}
-
-namespace {
-
 bool fullGrid(const ClothState& c) {
     return c.nu > 0 && c.nv > 0 && c.vertices() == static_cast<std::size_t>(c.nu) * static_cast<std::size_t>(c.nv);
 }
@@ -295,10 +245,6 @@ std::vector<std::uint32_t> naturalOrder(std::size_t n) {
     for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<std::uint32_t>(i);
     return order;
 }
-
-}  // namespace
-
-namespace {
 
 /// The lower triangle of the vertex graph (yarns and soft springs) in `order`, as a pattern.
 SparseMatrix vertexGraph(const ClothState& c, const std::vector<std::uint32_t>& order) {

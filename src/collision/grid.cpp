@@ -7,7 +7,7 @@
 #include <string>
 
 #include "collision/capsule.hpp"
-#include "core/thread_pool.hpp"
+#include "base/thread_pool.hpp"
 
 namespace tearables::detail {
 

@@ -14,7 +14,7 @@
 // vertex passes it on through the contact (a light box comes to rest on a sheet; a sphere
 // pushed by its host presses the sheet and is hardly slowed).
 #include "paper/sheet.hpp"
-#include "string/string_state.hpp"
+#include "sim/rigid_table.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -16,9 +16,9 @@
 // - Damping is stiffness-proportional along each spring, c = damping * k (Rayleigh):
 //   rigid motion is not damped, and the in-plane vibrations that the stiff springs would
 //   ring with are.
-#include "core/lanes.hpp"
+#include "base/lanes.hpp"
 #include "paper/sheet.hpp"
-#include "string/string_state.hpp"
+#include "sim/rigid_table.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -4,7 +4,7 @@
 // mesh.cpp: topology helpers and the validity check). No Bullet here.
 #pragma once
 
-#include "cloth/supernodal.hpp"
+#include "linalg/supernodal.hpp"
 #include "tearables/events.hpp"
 #include "tearables/paper.hpp"
 #include "tearables/world.hpp"

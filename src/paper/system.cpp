@@ -5,7 +5,7 @@
 // -> tears -> finite check. Topology changes happen only in the crease and tear stages,
 // after the positions are final, never inside a solver loop.
 #include "paper/system.hpp"
-#include "string/string_state.hpp"
+#include "sim/rigid_table.hpp"
 
 #include <algorithm>
 #include <chrono>

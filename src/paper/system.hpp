@@ -44,7 +44,7 @@ public:
     const PaperTimes& lastTimes() const { return times_; }
 
 private:
-    friend struct WorldAccess;  // snapshots read and replace the sheets (src/core/snapshot.cpp)
+    friend struct WorldAccess;  // snapshots read and replace the sheets (src/world/snapshot.cpp)
     std::vector<PaperSheet> sheets_;
     PointQuery query_;
     std::vector<std::uint32_t> query_sheet_;

@@ -14,7 +14,7 @@
 // an edge the balance cannot see (both ends held) keeps its elastic tension instead of
 // reading zero. The normal equations (A^T A + lambda I) T = A^T b + lambda T_k are sparse
 // (edges that share a vertex) and solved directly: the cloth's supernodal Cholesky
-// (cloth/supernodal.hpp), the unknowns in AMD order (or nested dissection, on a
+// (linalg/supernodal.hpp), the unknowns in AMD order (or nested dissection, on a
 // rectangle's sheet still on its grid, where cheaper), the pattern and its analysis kept
 // while the sheet's structural springs and their ends are the same (the vertices without
 // a row this step add zeros to it), one back-substitution; the relative residual is
@@ -25,7 +25,7 @@
 // pattern is built again once they stay the same for a step, so that a sheet creasing
 // every step does not pay the analysis every step) and for a factorisation that fails.
 // Directions and forces are those of the step's start (what the solve linearised about).
-#include "cloth/cloth_state.hpp"  // gridDissection
+#include "linalg/dissection.hpp"
 #include "paper/sheet.hpp"
 
 #include <Eigen/OrderingMethods>

@@ -1,5 +1,5 @@
 // StringDesc construction and validation: check at creation, so the hot loop can assume.
-#include "core/validate.hpp"
+#include "base/validate.hpp"
 #include "tearables/string.hpp"
 #include "tearables/world.hpp"
 

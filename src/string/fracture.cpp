@@ -18,9 +18,9 @@
 //    string and step only the most overloaded segment breaks (a uniform rope would
 //    otherwise shatter into all its segments at once; after the first tear the rest
 //    is unloaded).
-#include "core/lanes.hpp"
-#include "core/thread_pool.hpp"
-#include "string/material_curve.hpp"
+#include "base/lanes.hpp"
+#include "base/thread_pool.hpp"
+#include "sim/material_curve.hpp"
 #include "string/string_state.hpp"
 
 #include <algorithm>

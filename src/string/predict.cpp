@@ -1,5 +1,5 @@
 // Stages 2 and 8 of a step: unconstrained prediction x' and velocities from positions.
-#include "core/thread_pool.hpp"
+#include "base/thread_pool.hpp"
 #include "string/string_state.hpp"
 
 #include <cmath>

@@ -97,8 +97,8 @@
 // directions agree to 1e-12. The structure (blocks, chunks, passes) is the same.
 #include "string/shape_matching.hpp"
 
-#include "core/lanes.hpp"
-#include "core/thread_pool.hpp"
+#include "base/lanes.hpp"
+#include "base/thread_pool.hpp"
 
 #include <Eigen/SVD>
 

@@ -66,9 +66,9 @@
 // pulls the rope (two-way). Strings that share a body are coupled by Gauss-Seidel sweeps
 // over the strings in World::step.
 #include "collision/capsule.hpp"
-#include "core/lanes.hpp"
-#include "core/thread_pool.hpp"
-#include "core/tridiagonal.hpp"
+#include "base/lanes.hpp"
+#include "base/thread_pool.hpp"
+#include "linalg/tridiagonal.hpp"
 #include "string/string_state.hpp"
 
 #include <Eigen/Cholesky>

@@ -1,6 +1,11 @@
 // The per-instance state of a string, structure of arrays, indices not pointers.
 #pragma once
 
+#include "linalg/cholesky3.hpp"
+#include "sim/hold.hpp"
+#include "sim/material_curve.hpp"
+#include "sim/rigid_table.hpp"
+#include "sim/step_context.hpp"
 #include "string/shape_matching.hpp"
 #include "tearables/string.hpp"
 #include "tearables/world.hpp"
@@ -14,14 +19,6 @@
 #include <vector>
 
 namespace tearables::detail {
-
-/// What holds a particle.
-struct ParticleHold {
-    enum class Kind : std::uint8_t { Free, Pin, Glue };
-    Kind kind = Kind::Free;
-    Vec3 point = Vec3::Zero();  ///< Pin: world target, m; Glue: point in the body frame, m
-    RigidId body;               ///< Glue: the body
-};
 
 /// A contact of one segment with a rigid body for this step (from RigidContact).
 struct SegmentContact {
@@ -60,8 +57,6 @@ struct SegmentContact {
 };
 
 struct StringState;
-struct RigidTable;
-struct StepContext;
 class ThreadPool;
 
 /// Solves the strain limit of several strings at once, coupled by their string-string
@@ -95,102 +90,6 @@ struct BodyNode {
     Eigen::Matrix<double, 6, 1> linearised_at = Eigen::Matrix<double, 6, 1>::Zero();
     BodyNode() = default;
     explicit BodyNode(RigidId b) : body(b) {}
-};
-
-/// Cholesky factor L (A = L L^T) of a symmetric positive definite 3x3 block, the pivot
-/// of the chain's block-tridiagonal solve: the same algorithm as Eigen::LLT (column by
-/// column, from the lower triangle, the same operations in the same order, so the same
-/// bits), written out so that the compiler keeps it in registers instead of going
-/// through Eigen's general triangular solver.
-/// A block that is not positive definite gives NaN (the solve's callers drop non-finite
-/// steps).
-struct Cholesky3 {
-    double l00 = 1.0, l10 = 0.0, l20 = 0.0, l11 = 1.0, l21 = 0.0, l22 = 1.0;  ///< lower triangle of L
-    double i00 = 1.0, i11 = 1.0, i22 = 1.0;                                 ///< 1 / l_kk
-
-    void compute(const Mat3& a) {
-        const double p0 = a(0, 0);
-        if (p0 > 0.0) {
-            l00 = std::sqrt(p0);
-            i00 = 1.0 / l00;
-            l10 = a(1, 0) / l00;
-            l20 = a(2, 0) / l00;
-            const double p1 = a(1, 1) - l10 * l10;
-            if (p1 > 0.0) {
-                l11 = std::sqrt(p1);
-                i11 = 1.0 / l11;
-                l21 = (a(2, 1) - l20 * l10) / l11;
-                const double p2 = a(2, 2) - (l20 * l20 + l21 * l21);
-                if (p2 > 0.0) {
-                    l22 = std::sqrt(p2);
-                    i22 = 1.0 / l22;
-                    return;
-                }
-            }
-        }
-        // Not positive definite (a degenerate contact or body block): what Eigen::LLT
-        // leaves behind, so that such steps behave exactly as before.
-        const Eigen::LLT<Mat3> llt(a);
-        const Mat3& l = llt.matrixLLT();
-        l00 = l(0, 0), l10 = l(1, 0), l20 = l(2, 0), l11 = l(1, 1), l21 = l(2, 1), l22 = l(2, 2);
-        i00 = 1.0 / l00, i11 = 1.0 / l11, i22 = 1.0 / l22;
-    }
-    /// A^-1 b: L y = b, then L^T x = y.
-    Vec3 solve(const Vec3& b) const {
-        // The operations in Eigen's order (forward by columns, backward by columns), with
-        // its divisions, so that the results are those of Eigen::LLT::solve to the bit.
-        const double y0 = b.x() / l00;
-        const double y1 = (b.y() - l10 * y0) / l11;
-        const double y2 = (b.z() - (l20 * y0 + l21 * y1)) / l22;
-        const double x2 = y2 / l22;
-        const double x1 = (y1 - l21 * x2) / l11;
-        const double x0 = (y0 - (l10 * x1 + l20 * x2)) / l00;
-        return Vec3(x0, x1, x2);
-    }
-    Mat3 solve(const Mat3& b) const {
-        // Eigen's solver for several right-hand sides multiplies by the reciprocal of
-        // the diagonal instead, and sums differently (checked bit for bit). The
-        // reciprocals are the stored ones (the same divisions, done once).
-        const double r0 = i00, r1 = i11, r2 = i22;
-        Mat3 x;
-        for (int c = 0; c < 3; ++c) {
-            const double y0 = b(0, c) * r0;
-            const double y1 = (b(1, c) - y0 * l10) * r1;
-            const double y2 = ((b(2, c) - y0 * l20) - y1 * l21) * r2;
-            const double x2 = y2 * r2;
-            const double x1 = (y1 - x2 * l21) * r1;
-            x(0, c) = (y0 - (l10 * x1 + l20 * x2)) * r0;
-            x(1, c) = x1;
-            x(2, c) = x2;
-        }
-        return x;
-    }
-};
-
-/// Per-step context rebuilt each step (Box2D's b2StepContext).
-struct StepContext {
-    double h = 0.0;       ///< step, s
-    double inv_h = 0.0;   ///< 1/h
-    Vec3 gravity = Vec3::Zero();
-    const WorldSettings* settings = nullptr;
-    double time = 0.0;           ///< simulated time at the end of this step
-    std::int64_t step = 0;       ///< number of this step
-    /// Where a stage may split one big string's work (may be null: serial). Its forEach
-    /// runs serially when nested in another, so stages called from a forEach over many
-    /// strings stay serial inside.
-    ThreadPool* pool = nullptr;
-    /// Chains start their strain solve at the prediction, never warm (strain_limit.cpp,
-    /// warmStart): tests compare the two.
-    bool cold_strain_starts = false;
-    /// Chains' strain solves make Newton iterations only, no chord iterations
-    /// (strain_limit.cpp): tests compare the two.
-    bool newton_strain_only = false;
-};
-
-/// Per-segment material constants after random variation (Strings, Sec. 7).
-struct SegmentMaterial {
-    double young, yield, plastic_modulus, rupture;                  ///< tensile, Pa
-    double shear_modulus, torsion_yield, torsion_plastic, torsion_rupture;  ///< torsion
 };
 
 struct StringState {
@@ -306,19 +205,6 @@ struct StringState {
     std::size_t segments() const { return rest_length.size(); }
 };
 
-/// Table of rigid proxies; slots are reused, `present` false = empty.
-struct RigidTable {
-    std::vector<RigidState> bodies;
-    std::vector<std::uint8_t> used;
-    // per-step bookkeeping
-    std::vector<Vec3> start_position;
-    std::vector<Quat> start_orientation;
-    bool movable(RigidId id) const {
-        const RigidState& b = bodies[id.index];
-        return b.present && b.awake && b.inverse_mass > 0.0;
-    }
-};
-
 // Stage kernels, one file each.
 void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx);
 void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& ctx);
@@ -335,10 +221,5 @@ void updateRestShape(StringState& s);
 void shapeMatch(StringState& s, ThreadPool* pool = nullptr);
 void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx);
 void computeTwistForces(StringState& s);
-
-/// World position of a glued particle.
-inline Vec3 gluePoint(const RigidState& body, const Vec3& local) {
-    return body.position + body.orientation * local;
-}
 
 }  // namespace tearables::detail

@@ -22,9 +22,9 @@
 // rope hanging at rest, whose particles all fall by the same g h^2 before limiting, reads
 // about one particle's weight at its clamp and almost zero below it. Momentum balance
 // sees the weight below every segment; that is why it is the default.
-#include "core/lanes.hpp"
-#include "core/thread_pool.hpp"
-#include "core/tridiagonal.hpp"
+#include "base/lanes.hpp"
+#include "base/thread_pool.hpp"
+#include "linalg/tridiagonal.hpp"
 #include "string/string_state.hpp"
 
 #include <algorithm>

@@ -30,7 +30,7 @@
 // M_p = k (m_p - tau0), dm_p/dx_{p-1} = kb_p / (2|e_{p-1}|), dm_p/dx_{p+1} = -kb_p / (2|e_p|),
 // and dm_p/dx_p = -(the sum), kb_p = 2 e_{p-1} x e_p / (|e_{p-1}||e_p| + e_{p-1}.e_p)
 // (Eq. 7). It acts in the next step's prediction.
-#include "core/tridiagonal.hpp"
+#include "linalg/tridiagonal.hpp"
 #include "string/string_state.hpp"
 
 #include <algorithm>

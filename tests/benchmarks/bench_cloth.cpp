@@ -3,7 +3,7 @@
 // 50 x 50 and 100 x 100 vertex cloths, and the full cloth step for comparison.
 // Run: build/tests/benchmarks/tearables_bench --benchmark_filter=Cloth
 #include "cloth/cloth_state.hpp"
-#include "core/world_access.hpp"
+#include "world/world_access.hpp"
 #include "tearables/world.hpp"
 
 #include <benchmark/benchmark.h>

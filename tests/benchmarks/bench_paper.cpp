@@ -8,7 +8,7 @@
 // several times, whose first runs left the heap grown for the measured one (which then
 // never met a growing allocation, as an application's one sheet does).
 // Run: build/tests/benchmarks/tearables_bench --benchmark_filter=Paper
-#include "core/world_access.hpp"
+#include "world/world_access.hpp"
 #include "tearables/world.hpp"
 
 #include <benchmark/benchmark.h>

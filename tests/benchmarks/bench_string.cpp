@@ -12,7 +12,7 @@
 // (WorldSettings::threads). And the shape matching kernel alone (BM_CsmKernel).
 // And the step in which a long rope tears (BM_LongRopeTear).
 // Run: build/tests/benchmarks/tearables_bench --benchmark_filter='Table1|Segments|CsmKernel|LongRopeTear'
-#include "core/world_access.hpp"
+#include "world/world_access.hpp"
 #include "long_rope.hpp"
 #include "string/shape_matching.hpp"
 #include "tearables/world.hpp"

@@ -1,7 +1,7 @@
 // Cloth of tearable yarns (issue 6): descriptor checks, strain limiting, least-squares
 // tensions against analytic results, material response and tearing.
 #include "cloth/cloth_state.hpp"
-#include "core/world_access.hpp"
+#include "world/world_access.hpp"
 #include "tearables/scene.hpp"
 #include "tearables/world.hpp"
 
@@ -142,7 +142,7 @@ TEST(ClothTension, RefinementReachesItsTolerance) {
     EXPECT_LT(worst, 1e-10) << c.tension_iterations << " back-substitutions";
 }
 
-// The supernodal Cholesky of both cloth solves (supernodal.hpp) against Eigen's
+// The supernodal Cholesky of both cloth solves (linalg/supernodal.hpp) against Eigen's
 // SimplicialLDLT on the matrices it meets: a grid Laplacian-like SPD matrix in natural and
 // nested-dissection order (wide and narrow panels), and the factorisation reused for a
 // second matrix of the same pattern. Solutions agree to 1e-10 relative.

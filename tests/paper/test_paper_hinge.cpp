@@ -1,7 +1,7 @@
 // Paper Sec. III.B-C: breakable hinge springs. Breaking follows Eq. 7's distribution,
 // the inserted vertex is lifted by Eq. 8, phi and psi do what Fig. 8-9 show, and the mesh
 // stays valid through any sequence of breaks, inserts and tears.
-#include "core/world_access.hpp"
+#include "world/world_access.hpp"
 #include "paper/sheet.hpp"
 #include "paper_helpers.hpp"
 #include "tearables/world.hpp"

@@ -1,7 +1,7 @@
 // Tearing (beyond Paper): a sheet pulled at two corners tears between them, where the
 // edges are stretched past rupture_stretch, never where they are not; the mesh stays
 // valid and its mass is conserved.
-#include "core/world_access.hpp"
+#include "world/world_access.hpp"
 #include "paper/sheet.hpp"
 #include "paper_helpers.hpp"
 #include "tearables/world.hpp"

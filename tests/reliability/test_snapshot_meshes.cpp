@@ -5,7 +5,7 @@
 // Bullet world, with Bullet bodies, through BulletWorld::saveSnapshot); a world
 // whose cloths or sheets are not the snapshot's refuses it, naming the difference, and
 // is left as it was.
-#include "core/world_access.hpp"
+#include "world/world_access.hpp"
 #include "tearables/bullet.hpp"
 #include "tearables/snapshot.hpp"
 #include "tearables/world.hpp"

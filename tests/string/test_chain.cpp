@@ -1,5 +1,5 @@
 // The string core without Bullet, against analytic results (Strings Sec. 5.2; Yarn Sec. 3.2).
-#include "core/world_access.hpp"
+#include "world/world_access.hpp"
 #include "tearables/world.hpp"
 
 #include <gtest/gtest.h>

@@ -1,7 +1,7 @@
 // Chain shape matching kernel: rigid invariance, straightening, mass weighting, the O(1)
 // per-region moment sums against a brute-force fit, and degenerate (collinear) regions.
 #include "string/shape_matching.hpp"
-#include "core/thread_pool.hpp"
+#include "base/thread_pool.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>

@@ -2,9 +2,9 @@
 // string-string broad phase) against the brute-force search, also for strings side by
 // side, where the chains are swept along another axis than x; the tree's whole-node
 // rejection of swept pairs (World's nodesSeparationNeeded) against the pair by pair filter.
-#include "core/thread_pool.hpp"
+#include "base/thread_pool.hpp"
 #include "collision/grid.hpp"
-#include "core/world_access.hpp"
+#include "world/world_access.hpp"
 #include "tearables/world.hpp"
 
 #include <gtest/gtest.h>
@@ -352,7 +352,7 @@ std::size_t subnormals(const double* v, std::size_t n) {
 
 // A long rope laid out straight: its chain solve carries the pin's transverse coupling
 // down the rope, decaying geometrically (1e-47 after 1000 particles), and without the
-// step's float mode (core/float_mode.hpp) thousands of its gains were subnormal, each
+// step's float mode (base/float_mode.hpp) thousands of its gains were subnormal, each
 // operation on them a ~100-cycle microcode assist on Intel cores. With it, none is; and
 // the step hands the caller's mode back as it was, whichever it was.
 TEST(StepKernels, StepFlushesSubnormalsAndRestoresTheCallersMode) {

@@ -6,7 +6,7 @@
 #include "tearables/world.hpp"
 
 #include "collision/capsule.hpp"
-#include "core/world_access.hpp"
+#include "world/world_access.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,6 +1,6 @@
 // The O(n) kernel (both sweeps of its twisted factorisation, odd and even sizes) against a
 // dense solve.
-#include "core/tridiagonal.hpp"
+#include "linalg/tridiagonal.hpp"
 
 #include <Eigen/Dense>
 #include <gtest/gtest.h>

@@ -6,9 +6,9 @@
 #include "collision/capsule.hpp"
 #include "collision/grid.hpp"
 #include "paper/system.hpp"
-#include "core/float_mode.hpp"
-#include "core/thread_pool.hpp"
-#include "core/world_access.hpp"
+#include "base/float_mode.hpp"
+#include "base/thread_pool.hpp"
+#include "world/world_access.hpp"
 #include "string/string_state.hpp"
 
 #include <algorithm>

@@ -10,7 +10,7 @@
 // descriptor), so that a damaged file is refused rather than stepped.
 #include "tearables/snapshot.hpp"
 
-#include "core/world_access.hpp"
+#include "world/world_access.hpp"
 #include "string/string_state.hpp"
 
 #include <array>

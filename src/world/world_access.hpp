@@ -1,4 +1,4 @@
-// Access to the whole state of a World for snapshots (src/core/snapshot.cpp): the parts
+// Access to the whole state of a World for snapshots (src/world/snapshot.cpp): the parts
 // that persist from one step to the next: strings, cloths, paper sheets and the world's own.
 #pragma once
 

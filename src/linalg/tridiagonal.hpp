@@ -2,7 +2,7 @@
 // tension solve and the twist solve.
 #pragma once
 
-#include "core/lanes.hpp"
+#include "base/lanes.hpp"
 
 #include <cstddef>
 #include <vector>

@@ -1,5 +1,5 @@
 // World's cloth API: validates the arguments and forwards to the ClothSystem that
-// World::Impl owns (kept out of core/world.cpp so that the core's file stays small).
+// World::Impl owns (kept apart from world.cpp).
 #include "cloth/cloth_state.hpp"
 #include "tearables/world.hpp"
 

@@ -20,7 +20,7 @@
 // strings, where the cores are already busy.
 #pragma once
 
-#include "core/float_mode.hpp"
+#include "base/float_mode.hpp"
 
 #include <condition_variable>
 #include <cstddef>

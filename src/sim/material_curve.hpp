@@ -2,9 +2,13 @@
 // Yarn Sec. 3.3-3.4): bilinear, elastic slope E up to yield, then the plastic slope.
 #pragma once
 
-#include "string/string_state.hpp"
-
 namespace tearables::detail {
+
+/// Per-segment material constants after random variation (Strings, Sec. 7).
+struct SegmentMaterial {
+    double young, yield, plastic_modulus, rupture;                  ///< tensile, Pa
+    double shear_modulus, torsion_yield, torsion_plastic, torsion_rupture;  ///< torsion
+};
 
 /// Total strain on the curve at `stress` (Pa).
 inline double strainOnCurve(const SegmentMaterial& mat, double stress) {

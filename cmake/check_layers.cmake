@@ -1,0 +1,50 @@
+# Checks that every include between the folders of src/ points down the layers
+# (README.md, "How it works"): a file may include its own folder's headers and those of
+# lower layers, never a higher layer's nor a peer's of the same layer.
+# Run: cmake -DSRC=<repo>/src -P cmake/check_layers.cmake (CTest runs it as `layers`).
+if(NOT SRC)
+  message(FATAL_ERROR "check_layers: pass -DSRC=<the repository's src folder>")
+endif()
+
+# Folder -> layer, lowest first. Folders of one layer are peers: neither includes the other.
+set(layer_base 0)
+set(layer_linalg 1)
+set(layer_sim 2)
+set(layer_collision 3)
+set(layer_string 4)
+set(layer_cloth 4)
+set(layer_paper 4)
+set(layer_island 5)
+set(layer_world 6)
+
+file(GLOB folders RELATIVE ${SRC} ${SRC}/*)
+set(errors "")
+foreach(folder IN LISTS folders)
+  if(NOT IS_DIRECTORY ${SRC}/${folder})
+    continue()
+  endif()
+  if(NOT DEFINED layer_${folder})
+    string(APPEND errors "  src/${folder}/ has no layer: add it to cmake/check_layers.cmake\n")
+    continue()
+  endif()
+  file(GLOB_RECURSE files RELATIVE ${SRC} ${SRC}/${folder}/*.hpp ${SRC}/${folder}/*.cpp)
+  foreach(file IN LISTS files)
+    file(STRINGS ${SRC}/${file} includes REGEX "^[ \t]*#[ \t]*include[ \t]+\"[a-z_]+/")
+    foreach(line IN LISTS includes)
+      string(REGEX REPLACE "^[ \t]*#[ \t]*include[ \t]+\"([a-z_]+)/.*" "\\1" target "${line}")
+      if(target STREQUAL "tearables" OR target STREQUAL folder)
+        continue()  # the public headers, or the folder's own
+      endif()
+      if(NOT DEFINED layer_${target})
+        string(APPEND errors "  src/${file}: includes \"${target}/\", which is not a folder of src/\n")
+      elseif(NOT layer_${target} LESS layer_${folder})
+        string(APPEND errors "  src/${file}: includes \"${target}/\" (layer ${layer_${target}}) from src/${folder}/ (layer ${layer_${folder}})\n")
+      endif()
+    endforeach()
+  endforeach()
+endforeach()
+
+if(errors)
+  message(FATAL_ERROR "includes against the layers:\n${errors}")
+endif()
+message(STATUS "check_layers: every include in src/ points down the layers")

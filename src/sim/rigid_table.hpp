@@ -1,0 +1,29 @@
+// The rigid bodies the materials hold and touch, as the host hands them over.
+#pragma once
+
+#include "tearables/world.hpp"
+
+#include <cstdint>
+#include <vector>
+
+namespace tearables::detail {
+
+/// Table of rigid proxies; slots are reused, `present` false = empty.
+struct RigidTable {
+    std::vector<RigidState> bodies;
+    std::vector<std::uint8_t> used;
+    // per-step bookkeeping
+    std::vector<Vec3> start_position;
+    std::vector<Quat> start_orientation;
+    bool movable(RigidId id) const {
+        const RigidState& b = bodies[id.index];
+        return b.present && b.awake && b.inverse_mass > 0.0;
+    }
+};
+
+/// World position of a glued particle.
+inline Vec3 gluePoint(const RigidState& body, const Vec3& local) {
+    return body.position + body.orientation * local;
+}
+
+}  // namespace tearables::detail

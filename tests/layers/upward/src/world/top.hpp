@@ -1,0 +1,2 @@
+// The top layer of the fixture.
+#pragma once
