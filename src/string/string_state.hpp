@@ -46,7 +46,7 @@ struct SegmentContact {
     Vec3 start_normal = Vec3::UnitX();  ///< the normal at the start of the step
     double start_distance = 0.0; ///< the axes' distance at the start of the step, m
     double force = 0.0;          ///< normal force of the last solve, N (friction bound, warm start)
-    // The rigid contact's plane, linearised where the solve starts (strain_limit.cpp,
+    // The rigid contact's plane, linearised where the solve starts (contact_rows.cpp,
     // rigidGap): its point and normal in the world, and d(gap)/d(rotation) of the body.
     Vec3 plane_point = Vec3::Zero();
     Vec3 plane_normal = Vec3::UnitY();
@@ -60,7 +60,7 @@ struct StringState;
 class ThreadPool;
 
 /// Solves the strain limit of several strings at once, coupled by their string-string
-/// contacts (strain_limit.cpp): one Newton method on the sum of the strings' energies
+/// contacts (cluster_solve.cpp): one Newton method on the sum of the strings' energies
 /// and the contact penalties. `contacts` index into `strings`.
 /// `work` is its scratch, kept by the caller so that a running step does not allocate.
 struct ClusterScratch {
@@ -132,7 +132,7 @@ struct StringState {
     std::vector<Mat3> blk_factor_gain;    ///< factorisation: U_{i-1}^T D'_{i-1}^-1 (per particle)
     std::vector<Cholesky3> blk_factor;    ///< factorisation: Cholesky of D'_i
     /// The contact-free chain's factorisation: its pivots' inverses, 6 n + 12 doubles
-    /// (strain_limit.cpp, solveChain), kept for a chord iteration (scratch).
+    /// (solveChain, linalg/block_tridiagonal.hpp), kept for a chord iteration (scratch).
     std::vector<double> chain_inverse;
     /// solveChain's pairs (t, n - 1 - t): bit 0 where t couples to t + 1, bit 1 where
     /// n - 1 - t couples to n - 2 - t, for the back substitution (scratch, n entries).

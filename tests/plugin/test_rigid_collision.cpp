@@ -257,7 +257,7 @@ TEST(RigidCollision, RopeOverASphereSlidesAsAPulleyAndHoldsByCapstanFriction) {
     // Measured 2026-12-01: 0.102 m against 0.111 m (the implicit step's numerical damping);
     // held, the long end crept 4.4 mm in 1 s; at mu = 0.15 it ran 0.96 m.
     // Held is measured against sliding. Friction is regularised (a stiff spring below a
-    // slip of kRigidSlip of the rope's radius a step, strain_limit.cpp), so a held rope
+    // slip of kRigidSlip of the rope's radius a step, contact_rows.cpp), so a held rope
     // creeps at a steady ~20 um a step, and how fast depends on rounding: moving the
     // sphere by 1e-7 to 1e-5 m gave 2.3 to 8.4 mm in 1 s (2026-12-02; a bound of 10 mm
     // was within that spread). Held means 30x less than where friction cannot hold.

@@ -187,7 +187,7 @@ TEST(StringCollision, RopeDroppedAsAnArchHangsOnTheClampedRope) {
 // 0 .. 1e-3 m gained 0.2-0.65 J). Fixed: a pair that came into reach during the step
 // keeps the side it met the other on along the straight paths from the start of the
 // step, wherever any path within the segments' stray from those (their turning's
-// sagitta) would meet on that side too (strain_limit.cpp, sideMet).
+// sagitta) would meet on that side too (cluster_solve.cpp, sideMet).
 TEST(StringCollision, ArmsOfARopeMeetingHeadOnGainNoEnergy) {
     for (double shift : {0.0, 1e-12, -1e-12, 1e-10, 1e-9, -1e-9, 1e-8, 1e-7, -1e-7, 1e-6, 1e-5, -1e-5, 1e-4, 1e-3, -1e-3}) {
         World world(collisions());

@@ -1,0 +1,880 @@
+// The joint strain-limit solve of strings that touch each other (string-string and self
+// contacts; World gathers the clusters). The cluster's energy is the sum of the strings'
+// own step energies (strain_limit.cpp) plus, per contact between segment j of string a at
+// s and segment k of string b at t (b may be a),
+//     k_c/2 min(0, g)^2,   g = n . (x_a(s) - x_b(t)) - (r_a + r_b),
+// with x_a(s) = (1-s) x_j + s x_{j+1}, and lagged Coulomb friction w/2 |u_t|^2,
+// w = mu F / max(|u_t|, eps) (IPC, Li et al. 2020), F the normal force of the last pass.
+// Its Hessian is block-tridiagonal per string plus one rank-1 term per contact direction
+// (the normal, two friction tangents), so a Newton step solves (A + U K U^T) dx = r by the
+// Woodbury identity with the strings' own factorisations:
+//     y = A^-1 r,  Z = A^-1 U,  (K^-1 + U^T Z) z = U^T y,  dx = y - Z z,
+// or, for many directions, by one sparse factorisation of the whole cluster. s, t and n
+// are fixed within a pass (a convex problem) and measured again between passes. Movable
+// bodies are held where the strings' own solves left them (no body unknowns here).
+#include "collision/capsule.hpp"
+#include "string/strain_limit_internal.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/SparseCholesky>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <memory>
+
+namespace tearables::detail {
+
+namespace {
+
+/// Slip of the contact points (relative, per step) below which a string contact sticks,
+/// as a fraction of the contact's thickness (the smoothing length eps of friction).
+constexpr double kStringSlip = 1e-3;
+/// Penalty of a string contact over the stiffest spring (or particle inertia, m / h^2) of
+/// its two strings. At rope tensions it gives way by micrometres (F / k), and where a
+/// contact cannot be met without stretching a string (a rope pinned back through itself)
+/// it gives way as much as the rope stretches instead of stretching it without bound;
+/// such a pair then starts the next step deep and is left to come apart (kStringDeepStart).
+constexpr double kStringContactStiffness = 1.0;
+/// Axes closer than this fraction of the thickness have no direction of their own.
+constexpr double kStringAxisContact = 1e-3;
+/// Another pass when a contact's closest points (fractions) or normal moved by more.
+constexpr double kStringRelinearise = 1e-3;
+/// Times per Newton iteration that contacts the step would hit are added and the step
+/// solved again.
+constexpr int kStringPredictRounds = 3;
+/// Halvings of a joint Newton step before the line search takes the last one.
+constexpr int kStringLineSearchHalvings = 10;
+/// When a joint Newton step is solved by one sparse factorisation of the cluster's whole
+/// Hessian (sparseClusterStep) instead of the Woodbury identity: past kWoodburyDirections
+/// contact directions (normals and friction tangents), or past kWoodburyCachedDirections
+/// when directions times the cluster's particles exceed kWoodburyWork. Woodbury costs one
+/// chain solve and one stored column of the cluster's length per direction, and a dense
+/// system of their number: cheap for the few crossings of ropes lying on each other, not
+/// for the thousands of a long rope folded onto itself, where the sparse factorisation's
+/// fill follows where the contacts join the strings.
+constexpr std::size_t kWoodburyDirections = 256;
+constexpr std::size_t kWoodburyCachedDirections = 64;
+constexpr std::size_t kWoodburyWork = 100000;
+bool sparseStepPays(std::size_t directions, std::size_t particles) {
+    return directions > kWoodburyDirections ||
+           (directions > kWoodburyCachedDirections && directions * particles > kWoodburyWork);
+}
+/// Position accuracy of the joint solve, as a fraction of the thinnest contact.
+constexpr double kStringContactTolerance = 1e-5;
+/// firstTouch stops within this fraction of the gap of the touch, or after this many
+/// advancements (a grazing approach; the direction there is as good).
+constexpr double kStringTouchTolerance = 1e-3;
+constexpr int kStringTouchIterations = 32;
+
+/// How far a segment's real path over the step, from (p0, p1) to (q0, q1), may stray
+/// from the straight one (its ends moving linearly): moved by c (its ends' larger travel)
+/// while turning by theta, along an arc of that chord it strays from the chord by about
+/// c theta / 8 (the sagitta).
+double pathStray(const Vec3& p0, const Vec3& p1, const Vec3& q0, const Vec3& q1) {
+    const Vec3 u = p1 - p0, v = q1 - q0;
+    const double theta = std::atan2(u.cross(v).norm(), u.dot(v));
+    const double c = std::sqrt(std::max((q0 - p0).squaredNorm(), (q1 - p1).squaredNorm()));
+    return c * theta / 8.0;
+}
+
+/// Two segments moving linearly over the step, from (pa0, pa1), (pb0, pb1) at tau = 0 to
+/// (a0, a1), (b0, b1) at tau = 1.
+struct StraightPaths {
+    Vec3 pa0, pa1, pb0, pb1, ta0, ta1, tb0, tb1;
+    double r;  ///< the largest relative travel of the ends
+    StraightPaths(const Vec3& pa0_, const Vec3& pa1_, const Vec3& pb0_, const Vec3& pb1_, const Vec3& a0,
+                  const Vec3& a1, const Vec3& b0, const Vec3& b1)
+        : pa0(pa0_), pa1(pa1_), pb0(pb0_), pb1(pb1_), ta0(a0 - pa0_), ta1(a1 - pa1_), tb0(b0 - pb0_), tb1(b1 - pb1_) {
+        r = std::sqrt(std::max({(ta0 - tb0).squaredNorm(), (ta0 - tb1).squaredNorm(), (ta1 - tb0).squaredNorm(),
+                                (ta1 - tb1).squaredNorm()}));
+    }
+    /// Where, from `tau` on, the axes first come within `reach` of each other: false when
+    /// they never do; else true, with tau there and `normal` the direction from the
+    /// second toward the first (the side each is on when they meet). Conservative
+    /// advancement: the axes' distance changes over the step by at most r (the closest
+    /// points' difference is a convex combination of the ends' differences), so advancing
+    /// by (distance - reach) / r of the step never passes the first touch. Stops within
+    /// kStringTouchTolerance of `scale` of the touch.
+    bool firstTouch(double& tau, double reach, double scale, Vec3& normal) const {
+        for (int i = 0; i < kStringTouchIterations; ++i) {
+            const SegmentClosest cp =
+                closestPointsOfSegments(pa0 + tau * ta0, pa1 + tau * ta1, pb0 + tau * tb0, pb1 + tau * tb1);
+            const double ahead = cp.distance - reach;
+            if (ahead <= kStringTouchTolerance * scale || i + 1 == kStringTouchIterations) {
+                if (!(cp.distance > 0.0)) return false;
+                normal = (cp.p - cp.q) / cp.distance;
+                return true;
+            }
+            if (!(r > 0.0)) return false;
+            tau += ahead / r;
+            if (!(tau <= 1.0)) return false;
+        }
+        return false;
+    }
+};
+
+/// The side on which two segments that were apart at the start of the step met during
+/// it, as far as the motion from the start tells: true when it does, with `side` the
+/// direction from the second toward the first where they met, and `met` whether they
+/// did. Their real paths are not known, only that each strays from its straight one by
+/// about `stray` (pathStray, both segments' summed), so the straight paths decide only
+/// what every path within `stray` of them would: that the pair met at all (the straight
+/// paths come within gap - stray: the real ones within gap; never within gap + stray: the
+/// real ones never within gap), and on which side of `now` (the direction of the pair at
+/// the end) it met, the real meeting lying between the straight paths' touches of
+/// gap + stray and gap - stray: decided when those touches, and the touch of the gap
+/// itself (`side`), see `now` on the same side.
+bool sideMet(const StraightPaths& path, double gap, double stray, const Vec3& now, bool& met, Vec3& side) {
+    met = false;
+    if (!(stray < gap)) return false;
+    double tau = 0.0;
+    Vec3 early, late;
+    if (!path.firstTouch(tau, gap + stray, gap, early)) return true;  // never within reach
+    if (!path.firstTouch(tau, gap, gap, side)) return false;
+    if (!path.firstTouch(tau, gap - stray, gap, late)) return false;
+    const bool behind = now.dot(side) <= 0.0;
+    if ((now.dot(early) <= 0.0) != behind || (now.dot(late) <= 0.0) != behind) return false;
+    met = true;
+    return true;
+}
+
+/// A factorised chain system for many solves: the block Thomas factorisation of
+/// factorBlockTridiagonal with the pivots inverted once (a solve is then mat-vecs only),
+/// and a forward sweep that starts at the first nonzero of the right-hand side.
+struct ChainSolver {
+    std::vector<Mat3> inverse;  // D'_i^-1
+    std::vector<char> coupled;  // gain_i != 0
+    void factor(StringState& s) {
+        factorChain(s);
+        const std::size_t n = s.particles();
+        inverse.resize(n);
+        coupled.resize(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            inverse[i] = s.blk_factor[i].solve(Mat3(Mat3::Identity()));
+            coupled[i] = s.blk_coupled[i];
+        }
+    }
+    void solve(const StringState& s, std::vector<Vec3>& rhs, std::size_t first = 0) const {
+        const std::size_t n = s.particles();
+        for (std::size_t i = std::max<std::size_t>(first, 1); i < n; ++i)
+            if (coupled[i]) rhs[i] -= s.blk_factor_gain[i] * rhs[i - 1];
+        rhs[n - 1] = inverse[n - 1] * rhs[n - 1];
+        for (std::size_t i = n - 1; i-- > 0;) rhs[i] = inverse[i] * (rhs[i] - s.blk_off[i] * rhs[i + 1]);
+    }
+};
+
+}  // namespace
+
+namespace cluster {
+
+/// One entry of a contact direction's gradient u: coefficient of a particle's motion.
+struct UEntry {
+    std::uint32_t string;
+    std::size_t particle;
+    Vec3 coef;
+};
+
+/// A rank-1 term of the joint Hessian (a contact's normal, or a friction tangent).
+struct Direction {
+    UEntry u[4];
+    int entries = 0;
+    double weight = 0.0;             // its Hessian weight (k_c or the friction's)
+    std::size_t column[2] = {0, 0};  // offsets of Z in `pool` for its strings
+    std::uint32_t string[2] = {0, 0};
+    int strings = 0;
+};
+
+}  // namespace cluster
+
+/// What solveStringCluster needs besides the strings, kept between calls so that a
+/// running step does not allocate (vectors only grow).
+struct ClusterScratch::Impl {
+    std::vector<double> stiffest;
+    std::vector<char> shadowed, was_shadowed;
+    std::vector<std::array<std::uint32_t, 4>> keys;
+    std::vector<double> friction_weight, previous_weight;
+    std::vector<std::size_t> live, candidates;
+    std::vector<double> gap_seen, travel_seen;
+    std::vector<cluster::Direction> dirs;
+    std::vector<Vec3> pool, column;
+    std::vector<ChainSolver> solvers;
+    std::vector<std::vector<Vec3>> y;
+    /// The Woodbury system of `dim` contact directions and its factorisation, one set per
+    /// dim up to kCachedDims: Eigen's dynamic matrices keep no spare capacity (a resize to
+    /// another size reallocates, and so does LDLT::compute), and the number of directions
+    /// changes from step to step. Each set is allocated when its size first occurs, with
+    /// the sets up to twice it (a draped rope's directions come and go by a few); a running
+    /// scene then steps without allocating. Larger systems share one set, allocating.
+    struct Woodbury {
+        Eigen::MatrixXd sys;
+        Eigen::VectorXd rhs, z;
+        Eigen::LDLT<Eigen::MatrixXd> ldlt;
+    };
+    /// Each string's right-hand side of the Newton system, for sparseClusterStep (the
+    /// Woodbury step overwrites blk_rhs); and that step's matrix and factorisation.
+    std::vector<std::vector<Vec3>> r;
+    std::vector<Eigen::Triplet<double>> triplets;
+    Eigen::SparseMatrix<double> hessian;
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> sparse;
+    Eigen::VectorXd sparse_rhs, sparse_dx;
+    static constexpr auto kCachedDims = static_cast<Eigen::Index>(kWoodburyCachedDirections);
+    std::vector<std::unique_ptr<Woodbury>> by_dim;  ///< [dim], or [0] for dims past kCachedDims
+    Woodbury& woodbury(Eigen::Index dim) {
+        if (by_dim.empty()) by_dim.resize(static_cast<std::size_t>(kCachedDims) + 1);
+        if (dim > kCachedDims) {
+            if (!by_dim[0]) by_dim[0] = std::make_unique<Woodbury>();
+            return *by_dim[0];
+        }
+        if (!by_dim[static_cast<std::size_t>(dim)])
+            for (Eigen::Index k = 1; k <= std::min(2 * dim, kCachedDims); ++k) {
+                std::unique_ptr<Woodbury>& set = by_dim[static_cast<std::size_t>(k)];
+                if (set) continue;
+                set = std::make_unique<Woodbury>();
+                set->sys.setIdentity(k, k);
+                set->rhs.setZero(k);
+                set->z.setZero(k);
+                set->ldlt.compute(set->sys);
+            }
+        return *by_dim[static_cast<std::size_t>(dim)];
+    }
+};
+
+namespace {
+
+/// The joint Newton step of many contact directions: (A + U W U^T) dx = r, A the strings'
+/// own block-tridiagonal systems (blk_diag, blk_off as the strings hold them after
+/// assembly; fixed rows are identity rows), U W U^T the directions' rank-1 terms, r the
+/// right-hand sides kept in sc.r, as one sparse symmetric matrix of the cluster's 3n
+/// unknowns, factorised by Eigen's SimplicialLDLT (AMD ordering). The same step as the
+/// Woodbury identity's, to rounding. Writes dx into the strings' blk_rhs (zero for
+/// particles that are not free); false, with blk_rhs untouched, if the factorisation fails
+/// or the step is not finite. It allocates (the pattern is new each time); it only runs
+/// for the large clusters of sparseStepPays (past kWoodburyCachedDirections directions,
+/// where the Woodbury path allocates too), or where a test asks for it.
+bool sparseClusterStep(const std::vector<StringState*>& strings, const std::vector<cluster::Direction>& dirs,
+                       ClusterScratch::Impl& sc) {
+    std::vector<Eigen::Index> offset(strings.size() + 1, 0);
+    for (std::size_t i = 0; i < strings.size(); ++i)
+        offset[i + 1] = offset[i] + 3 * static_cast<Eigen::Index>(strings[i]->particles());
+    auto add = [&](Eigen::Index row, Eigen::Index col, const Mat3& block) {
+        for (Eigen::Index a = 0; a < 3; ++a)
+            for (Eigen::Index b = 0; b < 3; ++b)
+                if (block(a, b) != 0.0 && row + a >= col + b) sc.triplets.emplace_back(row + a, col + b, block(a, b));
+    };
+    sc.triplets.clear();
+    for (std::size_t i = 0; i < strings.size(); ++i) {
+        const StringState& s = *strings[i];
+        for (std::size_t p = 0; p < s.particles(); ++p) {
+            const Eigen::Index row = offset[i] + 3 * static_cast<Eigen::Index>(p);
+            add(row, row, s.blk_diag[p]);
+            if (p + 1 < s.particles()) add(row + 3, row, s.blk_off[p].transpose());  // A(p+1, p)
+        }
+    }
+    // A direction's term w u u^T: its entries pairwise (the lower triangle is read).
+    for (const cluster::Direction& d : dirs)
+        for (int a = 0; a < d.entries; ++a)
+            for (int b = 0; b < d.entries; ++b) {
+                const Eigen::Index row = offset[d.u[a].string] + 3 * static_cast<Eigen::Index>(d.u[a].particle);
+                const Eigen::Index col = offset[d.u[b].string] + 3 * static_cast<Eigen::Index>(d.u[b].particle);
+                if (row >= col) add(row, col, d.weight * d.u[a].coef * d.u[b].coef.transpose());
+            }
+    const Eigen::Index dim = offset.back();
+    sc.hessian.resize(dim, dim);
+    sc.hessian.setFromTriplets(sc.triplets.begin(), sc.triplets.end());  // sums duplicates
+    sc.sparse.compute(sc.hessian);
+    if (sc.sparse.info() != Eigen::Success) return false;
+    sc.sparse_rhs.resize(dim);
+    for (std::size_t i = 0; i < strings.size(); ++i)
+        for (std::size_t p = 0; p < strings[i]->particles(); ++p)
+            sc.sparse_rhs.segment<3>(offset[i] + 3 * static_cast<Eigen::Index>(p)) = sc.r[i][p];
+    sc.sparse_dx = sc.sparse.solve(sc.sparse_rhs);
+    if (sc.sparse.info() != Eigen::Success || !sc.sparse_dx.allFinite()) return false;
+    for (std::size_t i = 0; i < strings.size(); ++i) {
+        StringState& s = *strings[i];
+        for (std::size_t p = 0; p < s.particles(); ++p)
+            s.blk_rhs[p] = freeParticle(s, p) ? Vec3(sc.sparse_dx.segment<3>(offset[i] + 3 * static_cast<Eigen::Index>(p)))
+                                              : Vec3::Zero();
+    }
+    return true;
+}
+
+}  // namespace
+
+ClusterScratch::ClusterScratch() : impl(std::make_unique<Impl>()) {}
+ClusterScratch::~ClusterScratch() = default;
+ClusterScratch::ClusterScratch(ClusterScratch&&) noexcept = default;
+ClusterScratch& ClusterScratch::operator=(ClusterScratch&&) noexcept = default;
+
+namespace {
+
+using cluster::Direction;
+using cluster::UEntry;
+
+/// The joint Newton solve of one cluster (see the file's header): passes of Newton
+/// iterations with the contacts' closest points, normals and friction weights fixed, each
+/// iteration assembling the strings' own systems and the contacts' rows (assemble),
+/// factorising the strings (factor), solving the joint step by the Woodbury identity or
+/// one sparse factorisation (jointStep), adding the contacts the step would run into
+/// (addPredictedContacts) and moving along it by a line search (lineSearch); between
+/// passes the contacts are measured again (endPass). Its scratch is the caller's
+/// ClusterScratch.
+class ClusterSolver {
+public:
+    ClusterSolver(const std::vector<StringState*>& strings, std::vector<SegmentContact>& contacts, RigidTable& rigids,
+                  const StepContext& ctx, ClusterScratch& work)
+        : strings_(strings), contacts_(contacts), rigids_(rigids), ctx_(ctx), work_(work), sc_(*work.impl),
+          count_(strings.size()), inv_h2_(ctx.inv_h * ctx.inv_h) {}
+
+    void solve() {
+        if (!setup()) return;
+        const int iterations = ctx_.settings->strain_iterations * kContactIterationFactor;
+        for (int pass = 0; pass < kContactPasses; ++pass) {
+            bool converged = false;
+            beginPass();
+            for (int iter = 0; iter < iterations; ++iter) {
+                assemble();
+                factor();
+                jointStep();
+                findCandidates(stepReach());
+                addPredictedContacts();
+                if (lineSearch()) {
+                    converged = true;
+                    break;
+                }
+            }
+            if (!endPass() && converged) break;
+        }
+        finish();
+    }
+
+private:
+    // --- the contacts' geometry ---------------------------------------------------------
+
+    /// Positions along the current Newton step (held in blk_rhs), alpha of the way.
+    static Vec3 at(const StringState& s, std::size_t p, double alpha) {
+        return freeParticle(s, p) ? Vec3(s.x[p] + alpha * s.blk_rhs[p]) : s.x[p];
+    }
+    static Vec3 sidePoint(const StringState& s, std::size_t j, double f, double alpha) {
+        return Vec3((1.0 - f) * at(s, j, alpha) + f * at(s, j + 1, alpha));
+    }
+    static Vec3 startPoint(const StringState& s, std::size_t j, double f) {
+        return Vec3((1.0 - f) * s.x_prev[j] + f * s.x_prev[j + 1]);
+    }
+    double gapAt(const SegmentContact& c, double alpha) const {
+        const Vec3 pa = sidePoint(*strings_[c.string], c.segment, c.s, alpha);
+        const Vec3 pb = sidePoint(*strings_[c.partner], c.partner_segment, c.partner_s, alpha);
+        return c.normal.dot(pa - pb) - c.gap;
+    }
+    /// Relative tangential motion of the contact points over the step.
+    Vec3 slipAt(const SegmentContact& c, double alpha) const {
+        const StringState& a = *strings_[c.string];
+        const StringState& b = *strings_[c.partner];
+        Vec3 rel = (sidePoint(a, c.segment, c.s, alpha) - startPoint(a, c.segment, c.s)) -
+                   (sidePoint(b, c.partner_segment, c.partner_s, alpha) - startPoint(b, c.partner_segment, c.partner_s));
+        return Vec3(rel - c.normal * c.normal.dot(rel));
+    }
+    /// The (up to four) particle entries of a contact direction e: +e at this side's ends by
+    /// the fractions, -e at the other side's.
+    int entries(const SegmentContact& c, const Vec3& e, UEntry* out) const {
+        int k = 0;
+        const StringState& a = *strings_[c.string];
+        const StringState& b = *strings_[c.partner];
+        if (freeParticle(a, c.segment)) out[k++] = {c.string, c.segment, (1.0 - c.s) * e};
+        if (freeParticle(a, c.segment + 1)) out[k++] = {c.string, c.segment + 1, c.s * e};
+        if (freeParticle(b, c.partner_segment)) out[k++] = {c.partner, c.partner_segment, -(1.0 - c.partner_s) * e};
+        if (freeParticle(b, c.partner_segment + 1)) out[k++] = {c.partner, c.partner_segment + 1, -c.partner_s * e};
+        return k;
+    }
+
+    /// Closest points and normal at the given positions: the predicted ones in the first
+    /// pass (the strings' own solves, which ignored each other, may have pulled one
+    /// through the other), the current ones later (the passes keep them apart). The
+    /// contact takes the closest-point direction there, which may turn freely while the
+    /// pair comes into reach (e.g. end against side), unless the positions have carried
+    /// the pair through itself: then it takes the normal of the side it was on, which the
+    /// motion from the start of the step tells. A pair that touched at the start is on
+    /// its start normal's side; one that came into reach during the step, on the side it
+    /// met the other on, as far as the straight paths from the start tell it for any path
+    /// within their stray of them (sideMet). Where the straight paths do not tell (strays
+    /// near the gap: a torn rope whipping round its pin), only axes that went across each
+    /// other do: the side of their common perpendicular flipped.
+    void linearise(SegmentContact& c, bool predicted) {
+        const StringState& a = *strings_[c.string];
+        const StringState& b = *strings_[c.partner];
+        const std::vector<Vec3>& xa = predicted ? a.x_pred : a.x;
+        const std::vector<Vec3>& xb = predicted ? b.x_pred : b.x;
+        const std::size_t j = c.segment, k = c.partner_segment;
+        const Vec3 a0 = xa[j], a1 = xa[j + 1], b0 = xb[k], b1 = xb[k + 1];
+        const Vec3 pa0 = a.x_prev[j], pa1 = a.x_prev[j + 1], pb0 = b.x_prev[k], pb1 = b.x_prev[k + 1];
+        const SegmentClosest cp = closestPointsOfSegments(a0, a1, b0, b1);
+        c.s = cp.s;
+        c.partner_s = cp.t;
+        const Vec3 d = cp.p - cp.q;
+        Vec3 side = c.start_normal;
+        bool crossed = false;
+        if (c.start_distance < c.gap * (1.0 + kContactSlop)) {
+            crossed = d.dot(side) <= 0.0;
+        } else if (sideMet(StraightPaths(pa0, pa1, pb0, pb1, a0, a1, b0, b1), c.gap,
+                           pathStray(pa0, pa1, a0, a1) + pathStray(pb0, pb1, b0, b1), d, crossed, side)) {
+            crossed = crossed && d.dot(side) <= 0.0;
+        } else if (predicted && cp.distance < c.gap && cp.s > 0.0 && cp.s < 1.0 && cp.t > 0.0 && cp.t < 1.0) {
+            const Vec3 m = (a1 - a0).cross(b1 - b0);
+            const Vec3 m0 = (pa1 - pa0).cross(pb1 - pb0);
+            crossed = m.dot(m0) > 0.0 && m.dot(a0 - b0) * m0.dot(pa0 - pb0) < 0.0;
+        }
+        if (cp.distance > kStringAxisContact * c.gap && !crossed)
+            c.normal = d / cp.distance;
+        else if (predicted || crossed)
+            c.normal = side;  // else: keep the last pass's normal
+    }
+
+    // --- shadowed contacts ----------------------------------------------------------------
+    // A contact whose closest point is the far end of a segment, shared with the next
+    // segment that has a contact with the same other segment, is implied by that one (the
+    // shared particle lies on both): it is shadowed, so that the four pairs of two strings
+    // crossing at particles do not push four times and toggle against each other.
+
+    static std::array<std::uint32_t, 4> keyOf(std::uint32_t sa, std::uint32_t ja, std::uint32_t sb, std::uint32_t jb) {
+        std::array<std::uint32_t, 4> k{sa, ja, sb, jb};
+        if (std::make_pair(sb, jb) < std::make_pair(sa, ja)) k = {sb, jb, sa, ja};
+        return k;
+    }
+    /// The contacts' keys, sorted for the binary searches of `exists`.
+    void sortKeys() {
+        sc_.keys.resize(contacts_.size());
+        for (std::size_t i = 0; i < contacts_.size(); ++i) {
+            const SegmentContact& c = contacts_[i];
+            sc_.keys[i] = keyOf(c.string, c.segment, c.partner, c.partner_segment);
+        }
+        std::sort(sc_.keys.begin(), sc_.keys.end());
+    }
+    bool exists(std::uint32_t sa, std::int64_t ja, std::uint32_t sb, std::int64_t jb) const {
+        if (ja < 0 || jb < 0 || ja >= static_cast<std::int64_t>(strings_[sa]->segments()) ||
+            jb >= static_cast<std::int64_t>(strings_[sb]->segments()))
+            return false;
+        const auto k = keyOf(sa, static_cast<std::uint32_t>(ja), sb, static_cast<std::uint32_t>(jb));
+        return std::binary_search(sc_.keys.begin(), sc_.keys.end(), k) && !strings_[sa]->broken[static_cast<std::size_t>(ja)] &&
+               !strings_[sb]->broken[static_cast<std::size_t>(jb)];
+    }
+    void shadow() {
+        for (std::size_t i = 0; i < contacts_.size(); ++i) {
+            const SegmentContact& c = contacts_[i];
+            const std::int64_t j = c.segment, k = c.partner_segment;
+            // Toward the next segment only, so that two pairs never shadow each other.
+            sc_.shadowed[i] = (c.s == 1.0 && exists(c.string, j + 1, c.partner, k)) ||
+                              (c.partner_s == 1.0 && exists(c.string, j, c.partner, k + 1));
+        }
+    }
+    bool skipped(const SegmentContact& c) const {
+        return sc_.shadowed[static_cast<std::size_t>(&c - contacts_.data())] || strings_[c.string]->broken[c.segment] ||
+               strings_[c.partner]->broken[c.partner_segment];
+    }
+
+    // --- friction ---------------------------------------------------------------------------
+
+    /// Friction acts where the last pass (or step) found a pressing force.
+    bool frictional(const SegmentContact& c) const { return c.friction > 0.0 && c.force > 0.0 && !skipped(c); }
+    /// Friction of a pass: w/2 |u_t|^2 with w = mu F / max(|u_t|, eps) taken at the start of
+    /// the pass (weighFriction), a smooth quadratic, so Newton converges as without it.
+    double frictionEnergy(std::size_t i, double alpha) const {
+        return 0.5 * sc_.friction_weight[i] * slipAt(contacts_[i], alpha).squaredNorm();
+    }
+    void weighFriction() {
+        for (std::size_t i = 0; i < contacts_.size(); ++i) {
+            const SegmentContact& c = contacts_[i];
+            sc_.friction_weight[i] =
+                frictional(c) ? c.friction * c.force / std::max(slipAt(c, 0.0).norm(), kStringSlip * c.gap) : 0.0;
+        }
+    }
+
+    // --- contacts known to stay apart ---------------------------------------------------
+    // Each contact keeps a lower bound of its gap: the gap last computed, less twice the
+    // largest move of any particle since (`travel_`: a contact point is a convex
+    // combination of two particles, and the normal is a unit vector, so the gap moves by at
+    // most the two sides' moves). A contact whose bound clears what a step can close is
+    // known to stay apart, and is left out of the loops that would only find that (the
+    // same contacts, the same sums). `live`: the contacts not skipped in this pass;
+    // `candidates`: those of them a step of `reach` could bring to touch, or with
+    // friction, in order.
+
+    bool clear(std::size_t ci, double reach) const {
+        return sc_.gap_seen[ci] - (travel_ - sc_.travel_seen[ci]) > reach * (1.0 + 1e-6) + 1e-6 * contacts_[ci].gap;
+    }
+    double seeGap(std::size_t ci) {
+        sc_.gap_seen[ci] = gapAt(contacts_[ci], 0.0);
+        sc_.travel_seen[ci] = travel_;
+        return sc_.gap_seen[ci];
+    }
+    /// Twice the largest move of the step held in blk_rhs (infinite if any is not finite,
+    /// so that nothing is left out).
+    double stepReach() const {
+        double largest = 0.0;
+        for (const StringState* sp : strings_)
+            for (std::size_t p = 0; p < sp->particles(); ++p) {
+                if (!freeParticle(*sp, p)) continue;
+                const double d = sp->blk_rhs[p].squaredNorm();
+                largest = std::isfinite(d) ? std::max(largest, d) : std::numeric_limits<double>::infinity();
+            }
+        return 2.0 * std::sqrt(largest);
+    }
+    void findCandidates(double reach) {
+        sc_.candidates.clear();
+        for (std::size_t ci : sc_.live)
+            if (!clear(ci, reach) || sc_.friction_weight[ci] > 0.0) sc_.candidates.push_back(ci);
+    }
+
+    // --- the stages -------------------------------------------------------------------------
+
+    /// Planes, tolerance, penalties, the contacts' first closest points and normals, and
+    /// friction weights. False where the strings' own solves already keep every pair apart
+    /// (and no pair pressed at the end of the last step): that state is the joint optimum.
+    bool setup() {
+        // The rigid contacts' planes where the bodies are now (other strings' solves may
+        // have moved them since this string's own); the bodies stay there in this solve.
+        for (StringState* s : strings_) linearisePlanes(*s, rigids_);
+        double shortest = 1e300;
+        for (const StringState* s : strings_) shortest = std::min(shortest, s->shortest_rest);
+        // Converged when no particle moves by more than the strain tolerance of the
+        // shortest segment or kStringContactTolerance of the thinnest contact, whichever is
+        // larger (the taut-but-slack segments of assembleChain make Newton linear near the end).
+        double thinnest = 1e300;
+        for (const SegmentContact& c : contacts_) thinnest = std::min(thinnest, c.gap);
+        tol_ = std::max(ctx_.settings->strain_tolerance * shortest, kStringContactTolerance * thinnest);
+
+        // Penalty of a contact: the stiffest spring or particle inertia of either side.
+        std::vector<double>& stiffest = sc_.stiffest;
+        stiffest.assign(count_, 0.0);
+        for (std::size_t i = 0; i < count_; ++i) stiffest[i] = stiffestTerm(*strings_[i], inv_h2_);
+        for (SegmentContact& c : contacts_)
+            c.stiffness = kStringContactStiffness * std::max(stiffest[c.string], stiffest[c.partner]);
+
+        sc_.shadowed.assign(contacts_.size(), 0);
+        sortKeys();
+        sc_.friction_weight.assign(contacts_.size(), 0.0);
+        for (SegmentContact& c : contacts_) linearise(c, true);
+        shadow();
+        for (SegmentContact& c : contacts_) c.active = !skipped(c) && gapAt(c, 0.0) < 0.0;
+        weighFriction();
+        bool touching = false;
+        for (std::size_t i = 0; i < contacts_.size(); ++i)
+            touching = touching || contacts_[i].active || sc_.friction_weight[i] > 0.0;
+        if (!touching) return false;
+
+        if (sc_.solvers.size() < count_) {
+            sc_.solvers.resize(count_);
+            sc_.y.resize(count_);
+        }
+        sc_.gap_seen.resize(contacts_.size());
+        sc_.travel_seen.resize(contacts_.size());
+        travel_ = 0.0;
+        for (const StringState* sp : strings_) cluster_particles_ += sp->particles();
+        return true;
+    }
+
+    /// The live contacts of a pass, their gaps not known yet.
+    void beginPass() {
+        sc_.live.clear();
+        for (std::size_t ci = 0; ci < contacts_.size(); ++ci) {
+            if (skipped(contacts_[ci])) {
+                contacts_[ci].active = false;
+                continue;
+            }
+            sc_.live.push_back(ci);
+            sc_.gap_seen[ci] = -std::numeric_limits<double>::infinity();
+            sc_.travel_seen[ci] = 0.0;
+        }
+        travel_ = 0.0;
+    }
+
+    /// Each string's own system (glued particles held: no body unknowns here), then the
+    /// contacts' gradients into the strings' right-hand sides and their Hessians' rank-1
+    /// directions into `dirs`.
+    void assemble() {
+        for (StringState* sp : strings_) {
+            StringState& s = *sp;
+            assembleChain(s, rigids_, ctx_, nullptr);
+            assembleRigidContacts(s);
+            for (std::size_t p = 0; p < s.particles(); ++p) {
+                if (freeParticle(s, p)) continue;
+                s.blk_diag[p] = Mat3::Identity();
+                s.blk_rhs[p].setZero();
+                if (p > 0) s.blk_off[p - 1].setZero();
+                if (p < s.segments()) s.blk_off[p].setZero();
+            }
+            for (auto& step : s.node_step) step.setZero();
+        }
+        std::vector<Direction>& dirs = sc_.dirs;
+        dirs.clear();
+        for (std::size_t ci : sc_.live) {
+            SegmentContact& c = contacts_[ci];
+            // The penalty k_c/2 min(0, g)^2 is one-sided: it never pulls, so a normal that
+            // turned at a corner cannot drag the strings together.
+            const double g = clear(ci, 0.0) ? 1.0 : seeGap(ci);
+            c.active = g < 0.0;
+            if (c.active) {
+                // Normal: gradient k g u, Hessian k u u^T.
+                UEntry u[4];
+                const int k = entries(c, c.normal, u);
+                for (int i = 0; i < k; ++i) strings_[u[i].string]->blk_rhs[u[i].particle] -= c.stiffness * g * u[i].coef;
+                Direction dn;
+                dn.entries = entries(c, c.normal, dn.u);
+                dn.weight = c.stiffness;
+                if (dn.entries > 0) dirs.push_back(dn);
+            }
+            const double wf = sc_.friction_weight[ci];
+            if (!(wf > 0.0)) continue;
+            // Friction: gradient w u_t on the relative motion, Hessian w (I - n n^T).
+            const Vec3 grad = wf * slipAt(c, 0.0);
+            // d(rel)/dx has the same entries as the gradient of g with e = I.
+            UEntry ug[4];
+            const int kg = entries(c, Vec3::Ones(), ug);
+            for (int i = 0; i < kg; ++i) {
+                const double f = ug[i].coef.x();  // the fraction (with its sign)
+                strings_[ug[i].string]->blk_rhs[ug[i].particle] -= f * grad;
+            }
+            const Vec3 t1 = c.normal.unitOrthogonal();
+            for (const Vec3& t : {t1, Vec3(c.normal.cross(t1))}) {
+                Direction dt;
+                dt.entries = entries(c, t, dt.u);
+                dt.weight = wf;
+                if (dt.entries > 0) dirs.push_back(dt);
+            }
+        }
+    }
+
+    /// Factorises every string and solves y = A^-1 r; the right-hand sides kept in sc.r.
+    void factor() {
+        if (sc_.r.size() < count_) sc_.r.resize(count_);
+        for (std::size_t i = 0; i < count_; ++i) {
+            StringState& s = *strings_[i];
+            std::vector<Vec3>& y = sc_.y[i];
+            sc_.solvers[i].factor(s);
+            sc_.r[i] = s.blk_rhs;
+            y = s.blk_rhs;
+            sc_.solvers[i].solve(s, y);
+            for (std::size_t p = 0; p < s.particles(); ++p)
+                if (!freeParticle(s, p) || !y[p].allFinite()) y[p].setZero();
+        }
+        sc_.pool.clear();
+        solved_ = 0;
+    }
+
+    /// Z = A^-1 U, one solve per direction and string it touches, for the directions added
+    /// since the last call (into `pool`).
+    void columns() {
+        std::vector<Vec3>& scratch = sc_.column;
+        for (; solved_ < sc_.dirs.size(); ++solved_) {
+            Direction& d = sc_.dirs[solved_];
+            d.strings = 0;
+            for (int e = 0; e < d.entries; ++e) {
+                bool known = false;
+                for (int i = 0; i < d.strings; ++i) known = known || d.string[i] == d.u[e].string;
+                if (!known) d.string[d.strings++] = d.u[e].string;
+            }
+            for (int i = 0; i < d.strings; ++i) {
+                const StringState& s = *strings_[d.string[i]];
+                scratch.assign(s.particles(), Vec3::Zero());
+                std::size_t first = s.particles();
+                for (int e = 0; e < d.entries; ++e)
+                    if (d.u[e].string == d.string[i]) {
+                        scratch[d.u[e].particle] += d.u[e].coef;
+                        first = std::min(first, d.u[e].particle);
+                    }
+                sc_.solvers[d.string[i]].solve(s, scratch, first);
+                for (std::size_t p = 0; p < s.particles(); ++p)
+                    if (!freeParticle(s, p) || !scratch[p].allFinite()) scratch[p].setZero();
+                d.column[i] = sc_.pool.size();
+                sc_.pool.insert(sc_.pool.end(), scratch.begin(), scratch.end());
+            }
+        }
+    }
+    /// Direction d's column of Z at particle p of `string` (zero where d does not touch it).
+    Vec3 zAt(const Direction& d, std::uint32_t string, std::size_t p) const {
+        for (int i = 0; i < d.strings; ++i)
+            if (d.string[i] == string) return sc_.pool[d.column[i] + p];
+        return Vec3::Zero();
+    }
+
+    /// The joint Newton step into the strings' blk_rhs: by one sparse factorisation of the
+    /// whole cluster where that pays (sparseStepPays), else by the Woodbury identity,
+    /// (K^-1 + U^T Z) z = U^T y, dx = y - Z z.
+    void jointStep() {
+        const std::vector<Direction>& dirs = sc_.dirs;
+        if ((work_.always_sparse || sparseStepPays(dirs.size(), cluster_particles_)) && sparseClusterStep(strings_, dirs, sc_))
+            return;
+        columns();
+        for (std::size_t i = 0; i < count_; ++i) strings_[i]->blk_rhs = sc_.y[i];
+        const auto dim = static_cast<Eigen::Index>(dirs.size());
+        if (dim == 0) return;
+        ClusterScratch::Impl::Woodbury& wb = sc_.woodbury(dim);
+        Eigen::MatrixXd& sys = wb.sys;
+        Eigen::VectorXd& rhs = wb.rhs;
+        sys.resize(dim, dim);
+        rhs.resize(dim);
+        for (Eigen::Index r = 0; r < dim; ++r) {
+            const Direction& dr = dirs[static_cast<std::size_t>(r)];
+            double uy = 0.0;
+            for (int e = 0; e < dr.entries; ++e) uy += dr.u[e].coef.dot(sc_.y[dr.u[e].string][dr.u[e].particle]);
+            rhs[r] = uy;
+            for (Eigen::Index col = 0; col < dim; ++col) {
+                const Direction& dc = dirs[static_cast<std::size_t>(col)];
+                double v = 0.0;
+                for (int e = 0; e < dr.entries; ++e) v += dr.u[e].coef.dot(zAt(dc, dr.u[e].string, dr.u[e].particle));
+                sys(r, col) = v;
+            }
+            sys(r, r) += 1.0 / dr.weight;
+        }
+        // Symmetric to rounding; LDLT reads the lower triangle only.
+        wb.ldlt.compute(sys);
+        Eigen::VectorXd& z = wb.z;
+        z = wb.ldlt.solve(rhs);
+        if (!z.allFinite()) return;
+        for (Eigen::Index r = 0; r < dim; ++r) {
+            const Direction& d = dirs[static_cast<std::size_t>(r)];
+            for (int i = 0; i < d.strings; ++i) {
+                std::vector<Vec3>& dx = strings_[d.string[i]]->blk_rhs;
+                const Vec3* zc = &sc_.pool[d.column[i]];
+                for (std::size_t p = 0; p < dx.size(); ++p) dx[p] -= z[r] * zc[p];
+            }
+        }
+    }
+
+    /// A separated contact that the full step would drive into penetration joins the
+    /// Hessian (not the gradient: it does not push yet) and the step is solved again, so
+    /// that the step stops at it instead of the line search shrinking to nothing against a
+    /// penalty that switches on.
+    void addPredictedContacts() {
+        for (int round = 0; round < kStringPredictRounds; ++round) {
+            bool added = false;
+            for (std::size_t ci : sc_.candidates) {
+                SegmentContact& c = contacts_[ci];
+                if (c.active || !(gapAt(c, 1.0) < 0.0)) continue;
+                c.active = true;
+                Direction dn;
+                dn.entries = entries(c, c.normal, dn.u);
+                dn.weight = c.stiffness;
+                if (dn.entries > 0) {
+                    sc_.dirs.push_back(dn);
+                    added = true;
+                }
+            }
+            if (!added) break;
+            jointStep();
+            findCandidates(stepReach());
+        }
+    }
+
+    /// The cluster's energy alpha of the way along the step (the contacts left out of
+    /// `candidates` stay apart along the whole step: no penalty, no friction).
+    double energy(double alpha) const {
+        double e = 0.0;
+        for (const StringState* s : strings_) e += stepEnergy(*s, rigids_, ctx_, alpha);
+        for (std::size_t ci : sc_.candidates) {
+            const SegmentContact& c = contacts_[ci];
+            const double g = std::min(0.0, gapAt(c, alpha));
+            e += 0.5 * c.stiffness * g * g;
+            if (sc_.friction_weight[ci] > 0.0) e += frictionEnergy(ci, alpha);
+        }
+        return e;
+    }
+
+    /// Backtracking line search on the cluster's energy, then the move; true where no
+    /// particle moved by more than the tolerance (converged).
+    bool lineSearch() {
+        double alpha = 1.0;
+        const double e0 = energy(0.0);
+        for (int halving = 0; halving < kStringLineSearchHalvings && energy(alpha) > e0; ++halving) alpha *= 0.5;
+        double worst = 0.0;
+        for (StringState* sp : strings_)
+            for (std::size_t p = 0; p < sp->particles(); ++p) {
+                if (!freeParticle(*sp, p)) continue;
+                const Vec3 dx = alpha * sp->blk_rhs[p];
+                if (!dx.allFinite()) continue;
+                sp->x[p] += dx;
+                worst = std::max(worst, dx.norm());
+            }
+        travel_ += 2.0 * worst;
+        return worst < tol_;
+    }
+
+    /// The pressing forces (the friction bound of the next pass), then the closest points,
+    /// shadows and friction weights again. Returns whether they changed: then another pass.
+    bool endPass() {
+        bool changed = false;
+        double moved = 0.0;
+        for (SegmentContact& c : contacts_) c.force = skipped(c) ? 0.0 : c.stiffness * std::max(0.0, -gapAt(c, 0.0));
+        for (SegmentContact& c : contacts_) {
+            const std::size_t i = static_cast<std::size_t>(&c - contacts_.data());
+            if (strings_[c.string]->broken[c.segment] || strings_[c.partner]->broken[c.partner_segment]) continue;
+            const double s0 = c.s, t0 = c.partner_s;
+            const Vec3 n0 = c.normal;
+            linearise(c, false);
+            if (!sc_.shadowed[i])
+                moved = std::max({moved, std::abs(c.s - s0), std::abs(c.partner_s - t0), (c.normal - n0).norm()});
+        }
+        sc_.was_shadowed = sc_.shadowed;
+        shadow();
+        changed = sc_.was_shadowed != sc_.shadowed;
+        for (SegmentContact& c : contacts_) c.active = !skipped(c) && gapAt(c, 0.0) < 0.0;
+        // The friction weights follow the new forces and slips: the fixed point of the
+        // passes is Coulomb's law (mu F while sliding, a stiff spring below eps).
+        std::vector<double>& previous = sc_.previous_weight;
+        previous = sc_.friction_weight;
+        weighFriction();
+        for (std::size_t i = 0; i < contacts_.size(); ++i) {
+            const double a = previous[i], b = sc_.friction_weight[i];
+            if (std::abs(a - b) > kStringRelinearise * std::max(a, b)) changed = true;
+        }
+        return changed || moved > kStringRelinearise;
+    }
+
+    /// Springs' forces and rigid row projectors of the final state; the particles a string
+    /// contact presses lose the contact force's direction from their tension equations.
+    void finish() {
+        for (StringState* sp : strings_) finishChain(*sp, rigids_, ctx_);
+        for (const SegmentContact& c : contacts_) {
+            if (skipped(c) || gapAt(c, 0.0) > kContactSlop * c.gap) continue;
+            Vec3 dirs_c[2] = {c.normal, Vec3::Zero()};
+            if (frictional(c)) {
+                const Vec3 slip = slipAt(c, 0.0);
+                if (slip.norm() > 0.0) dirs_c[1] = slip / slip.norm();
+            }
+            UEntry u[4];
+            const int k = entries(c, Vec3::Ones(), u);
+            for (int i = 0; i < k; ++i) {
+                StringState& s = *strings_[u[i].string];
+                for (const Vec3& dir : dirs_c) {
+                    const Vec3 left = s.row_projector[u[i].particle] * dir;  // what is left of it
+                    const double len = left.norm();
+                    if (len > 1e-6) s.row_projector[u[i].particle] -= (left / len) * (left / len).transpose();
+                    s.rows_pressed = true;
+                }
+            }
+        }
+    }
+
+    const std::vector<StringState*>& strings_;
+    std::vector<SegmentContact>& contacts_;
+    RigidTable& rigids_;
+    const StepContext& ctx_;
+    ClusterScratch& work_;
+    ClusterScratch::Impl& sc_;
+    const std::size_t count_;
+    const double inv_h2_;
+    double tol_ = 0.0;                    ///< convergence: the largest move, m
+    double travel_ = 0.0;                 ///< twice the largest moves summed over this pass, m
+    std::size_t solved_ = 0;              ///< directions whose columns of Z are in `pool`
+    std::size_t cluster_particles_ = 0;
+};
+
+}  // namespace
+
+void solveStringCluster(const std::vector<StringState*>& strings, std::vector<SegmentContact>& contacts,
+                        RigidTable& rigids, const StepContext& ctx, ClusterScratch& work) {
+    ClusterSolver(strings, contacts, rigids, ctx, work).solve();
+}
+
+}  // namespace tearables::detail

@@ -1,0 +1,95 @@
+// Internal to the strain-limit solve: what its three files share. strain_limit.cpp is the
+// Newton driver (energy, assembly, iterations), contact_rows.cpp the rigid contacts' rows,
+// cluster_solve.cpp the joint solve of strings that touch each other.
+#pragma once
+
+#include "linalg/block_tridiagonal.hpp"
+#include "string/string_state.hpp"
+
+#include <Eigen/Core>
+
+#include <cstddef>
+
+namespace tearables::detail {
+
+/// Passes of the contact solves (rigid friction's weights; the joint string solve's
+/// closest points and friction), and the iteration budget of a pass with contacts
+/// relative to WorldSettings::strain_iterations.
+constexpr int kContactPasses = 4;
+constexpr int kContactIterationFactor = 4;
+/// A segment within this fraction of its radius of a body (or of the contact's thickness)
+/// counts as touching it.
+constexpr double kContactSlop = 0.1;
+
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+using Mat36 = Eigen::Matrix<double, 3, 6>;
+
+/// The cross-product matrix [r]x.
+inline Mat3 cross(const Vec3& r) {
+    Mat3 m;
+    m << 0.0, -r.z(), r.y(), r.z(), 0.0, -r.x(), -r.y(), r.x(), 0.0;
+    return m;
+}
+
+inline bool freeParticle(const StringState& s, std::size_t p) { return s.hold[p].kind == ParticleHold::Kind::Free; }
+
+// --- rigid-contact rows (contact_rows.cpp) ---------------------------------------------
+
+/// Linearises the string's contact planes where the bodies are now (the start of a solve).
+void linearisePlanes(StringState& s, const RigidTable& rigids);
+/// The gap of contact c (linearised by linearisePlanes) at string point xs: >= 0 when the
+/// string is clear of the plane. `extra`: a further displacement of the body (a trial step).
+double rigidGap(const StringState& s, const SegmentContact& c, const Vec3& xs, const Vec6* extra = nullptr);
+/// The gradient of rigidGap with respect to the body's displacement (u, theta).
+Vec6 rigidGapBodyGradient(const SegmentContact& c);
+/// The tangential motion u_t of contact c over the step (relative to the body), with the
+/// string's contact point at xs and the body moved by `extra` beyond its displacement.
+Vec3 rigidSlip(const StringState& s, const SegmentContact& c, const Vec3& xs, const Vec6* extra = nullptr);
+/// d(u_t)/d(body displacement): T [-I, [arm]x], T the tangent projector.
+Mat36 rigidSlipBodyJacobian(const SegmentContact& c, const Mat3& tangent);
+/// Rigid contact c's penalty k_c g^2 / 2 on the string's own rows (g: its gap, or 0 where
+/// it only joins the Hessian) at the segment's ends that move (`fa`, `fb`).
+void addPenaltyRows(StringState& s, const SegmentContact& c, double g, bool fa, bool fb);
+/// Rigid contact c's friction w/2 |T rel|^2 on the string's own rows, at the segment's ends
+/// that move (`fa`, `fb`). Returns T and T rel.
+struct FrictionTerm {
+    Mat3 tangent;
+    Vec3 slip;
+};
+FrictionTerm addFrictionRows(StringState& s, const SegmentContact& c, bool fa, bool fb);
+/// The friction weights of a pass, from each contact's penalty force and slip now.
+/// Returns the largest relative change of a weight.
+double weighRigidFriction(StringState& s);
+/// The penalty and friction rows of the string's rigid contacts that penetrate now, without
+/// body unknowns (the bodies stay where they are), with the string's own solve's stiffness
+/// and friction weights.
+void assembleRigidContacts(StringState& s);
+/// The stiffest spring or particle inertia (m / h^2) of a string, N/m: what its contact
+/// penalties are scaled from.
+double stiffestTerm(const StringState& s, double inv_h2);
+
+// --- the chain's Newton system (strain_limit.cpp) ----------------------------------------
+
+/// The Newton system of the chain without contacts (inertia rows and stretched springs)
+/// into blk_diag, blk_off, blk_rhs. `tension_estimate` (per segment, may be null): the
+/// tension of the Hessian's geometric term (see limitStrain).
+void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx, double* tension_estimate);
+/// The energy the Newton iteration minimises at the current state moved by alpha times the
+/// step held in blk_rhs (particles) and node_step (bodies).
+double stepEnergy(const StringState& s, const RigidTable& rigids, const StepContext& ctx, double alpha);
+/// After a solve: glued particles back on their bodies, the springs' forces in the final
+/// state and the row projectors of the particles that rigid bodies press.
+void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ctx);
+
+/// factorBlockTridiagonal of the string's system (blk_diag, blk_off) into blk_factor,
+/// blk_factor_gain and blk_coupled.
+inline void factorChain(StringState& s) {
+    const std::size_t n = s.particles();
+    s.blk_factor.resize(n);
+    s.blk_coupled.resize(n);
+    factorBlockTridiagonal(n, s.blk_diag.data(), s.blk_off.data(), s.blk_factor.data(), s.blk_factor_gain.data(),
+                           s.blk_coupled.data());
+}
+
+}  // namespace tearables::detail
