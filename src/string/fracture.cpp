@@ -1,9 +1,10 @@
-// Stage 7: material response to the estimated tension (Strings, Sec. 5.3-5.4; Yarn, Sec. 3.3-3.4).
+// Stage 7: material response to the estimated tension (Strings, Sec. 5.3-5.4; Yarn,
+// Sec. 3.3-3.4).
 //
-// Stress sigma = T / (pi r0^2) (Strings Eq. 8, engineering stress on the original section). The tensile curve is bilinear: strain
-// sigma/E up to the yield stress, then yield/E + (sigma - yield)/E_p (Strings Sec. 5.1:
-// "a line with a constant slope that fits the curve best"). Choices where the papers
-// are vague, documented here:
+// Stress sigma = T / (pi r0^2) (Strings Eq. 8, engineering stress on the original
+// section). The tensile curve is bilinear: strain sigma/E up to the yield stress, then
+// yield/E + (sigma - yield)/E_p (Strings Sec. 5.1: "a line with a constant slope that fits
+// the curve best"). Choices where the papers are vague:
 //  - L_max = L_rest (1 + sigma/E): the strain limit follows the elastic strain of the
 //    current stress (Strings Sec. 5.4, Yarn Sec. 3.3), so an unloaded rope is
 //    inextensible and a loaded one lengthens as its modulus says. The limiter meets it

@@ -49,7 +49,7 @@ void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
     });
 }
 
-// The speed clamp on positions (issue 8): after the strain limit, no free particle has
+// The speed clamp on positions: after the strain limit, no free particle has
 // moved farther than max_speed * h this step. A finite but absurd user force (1e30 N)
 // otherwise flings a torn piece 1e26 m in one step, where the swept collision search sees
 // it cross every other string and the joint solve drags them along. Held particles follow

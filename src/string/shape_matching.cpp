@@ -22,9 +22,8 @@
 //     A = sum m~ (x - c)(x0 - c0)^T = sum m~ x x0^T - M c c0^T,
 // R = rotational part of A, goals g_ik = R (x0_i - c0) + c.
 //
-// O(1) per region. The brief for this kernel suggested prefix sums of m, m x, m x0 and
-// m x x0^T along the chain with A_k = S_k - M c c0^T. Differences of global prefix sums
-// cancel catastrophically: their terms grow with the distance from the origin and with the
+// O(1) per region. Global prefix sums of m, m x, m x0 and m x x0^T along the chain with
+// A_k = S_k - M c c0^T would cancel catastrophically: their terms grow with the distance from the origin and with the
 // chain's length, while A_k is of the order of the region's own (small) extent squared
 // (a 746-particle rope of 1 cm segments would lose about 8 digits in A of a w = 2 region).
 // We keep the O(1) cost without any subtraction (the van Herk / Gil-Werman sliding-window
@@ -35,9 +34,7 @@
 // of the next, both about the same particle of the region, which simply add (or, at the
 // piece's ends, a prefix or a suffix of one block, about its first particle); every
 // quantity then has the size of a few regions, and A_k = S - M c c0^T (about a particle
-// of the region) loses only a couple of digits. (Until 2026-12-01 both parts were shifted
-// to the region's centre particle, two 3x3 outer-product updates per region more; the
-// rounding differs in the last bits.) Goals are blended as
+// of the region) loses only a couple of digits. Goals are blended as
 // x_i + mean_k [R_k (x0_i - c0_k) + (c_k - x_i)], again with local differences only.
 //
 // Rotation. csmRotation returns the rotation R maximising tr(R^T A): with A = U S V^T (an
@@ -51,9 +48,8 @@
 // keeps its plane instead of a spin picked by round-off. A straight rest shape makes every
 // region rank 1; its goals only depend on R v_1 = u_1.
 //
-// How R is computed. A 3x3 JacobiSVD per region was a tenth of a rope's step, and most
-// regions are easy, so the SVD is kept only for the cases the two cheap paths below are not
-// sure of. Both are stateless (no warm start: results do not depend on call order) and
+// How R is computed. A 3x3 JacobiSVD per region is costly and most regions are easy, so
+// the SVD is kept only for the cases the two cheap paths below are not sure of. Both are stateless (no warm start: results do not depend on call order) and
 // agree with the SVD's R to rounding times the problem's own condition number
 // sigma_1 / (sigma_2 + det-signed sigma_3) (tested against JacobiSVD on random, reflected,
 // planar, nearly planar and nearly rank-1 matrices). The cofactor matrix cof A = det(A)
@@ -81,19 +77,16 @@
 //   - Otherwise (1e-12/6 < q < 1e-7: nearly rank 1, where cofactors lose their digits or
 //     the rank test is close, or a Newton iteration that does not converge in 12 steps or
 //     fails its check), JacobiSVD.
-// A = 0 or non-finite A gives identity.
-// These paths are not bit for bit the SVD: R changes in the last bits, and so do the
-// results of every scene with strings (where a scene is chaotic, more: see
-// docs/benchmarks-history.md, issue 9, the CSM stage, for the tests that rounding used
-// to decide).
+// A = 0 or non-finite A gives identity. These paths are not bit for bit the SVD: R
+// differs in the last bits.
 //
 // Straight rest shapes (straightChainShapeMatchingGoals). A string created along one line
 // (StringDesc::straight, the common rope) has every region of rank 1, A = a v^T with v the
 // line's direction, and only R v = a / |a| enters its goals (the rest offsets lie along
 // v): c + ((x0_i - c0) . v) a / |a|. So a second kernel keeps 8 moment sums instead of 16
 // (m, m x, m s and m x s, s the rest offset along v) and fits a region with one square
-// root and no rotation. Its goals are the rank-1 path's to rounding (tested against it),
-// at about half the time (BM_CsmKernel); the stage takes it where a piece's rest
+// root and no rotation. Its goals are the rank-1 path's to rounding (tested against it);
+// the stage takes it where a piece's rest
 // directions agree to 1e-12. The structure (blocks, chunks, passes) is the same.
 #include "string/shape_matching.hpp"
 
@@ -118,10 +111,9 @@ constexpr double kRankOneTolerance = 1e-12;
 
 /// The 16 sums of CsmMoments as one flat array: m, mx, mx0, mxx0 (column-major). The
 /// passes accumulate, store and add moments in this form, element by element over an even
-/// count, which the compiler keeps in registers or moves in aligned pairs. (On Eigen's 3-
-/// and 9-element objects it mixed packet and scalar accesses to the same spilled values; a
-/// value stored one way and reloaded the other misses store forwarding, and those stalls
-/// were half the time of the moment pass.)
+/// count, which the compiler keeps in registers or moves in aligned pairs (on Eigen's 3-
+/// and 9-element objects it mixes packet and scalar accesses to the same spilled values,
+/// and a value stored one way and reloaded the other misses store forwarding).
 struct FlatMoments {
     alignas(16) double v[16] = {};
 };
@@ -427,8 +419,8 @@ EIGEN_DONT_INLINE void rotationOutOfRange(const Mat3& a_in, Mat3& r) {
 
 /// csmRotation into r, which may be a itself (every path reads all of a before it writes
 /// r): the fit pass turns A_k in place into R_k, and the result is stored straight where it
-/// belongs (returned by value, the copy into place reloaded it in other widths than it
-/// was stored in, and missed store forwarding). Rank 1: r is written at batch.solve().
+/// belongs (a copy into place would reload it in other widths than it was stored in).
+/// Rank 1: r is written at batch.solve().
 inline void rotationInto(const Mat3& a, Mat3& r, RankOneBatch& batch) {
     const double n2 = a.squaredNorm();  // NaN or infinite for non-finite A
     if (n2 >= 1e-100 && n2 <= 1e100) return rotationInRange(a, n2, r, batch);
@@ -714,8 +706,7 @@ void straightChainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const doub
         // with the rest offsets taken along v. A particle's per-region mass is found once
         // for both, and the eight running sums are four pairs of lanes stored straight
         // from registers: (m, m dx), (m dy, m dz), (m s, m dx s), (m dy s, m dz s), the
-        // products and sums of addParticle, so the same bits (as LineMoments, the sums
-        // went to the stack and were copied from there: 15k -> 10k TSC ticks a call).
+        // products and sums of addParticle, so the same bits (not through the stack).
         for (std::size_t b = h.b0; b < h.b1; ++b) {
             const std::size_t s = b * block;
             const std::size_t e = std::min(s + block, n) - 1;
@@ -745,8 +736,7 @@ void straightChainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const doub
             const PieceLayout::Region g = layout.region(k);
             const std::size_t r = g.reference;
             // The sums straight from the buffers into registers (a copy into a local array
-            // first was reloaded in other widths than it was stored in: store forwarding
-            // failed, and this pass took three times as long).
+            // would be reloaded in other widths than it was stored in).
             const double* one = g.prefix_only ? prefix(g.hi) : suffix(g.lo);
             const double* other = g.two_blocks ? prefix(g.hi) : nullptr;
             LineMoments f;

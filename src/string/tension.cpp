@@ -39,9 +39,8 @@ constexpr double kRegularisation = 1e-6;
 /// segment).
 constexpr std::size_t kParallelSegments = kParallelItems;
 
-// The row helpers below are forced inline: GCC kept rowImpulse as a call in the assembly
-// loop, one call and a 24-byte return through memory a particle (the assembly took 5.4 us
-// of the 746-segment Bullet rope's step, 3.9 us inlined; the same bits).
+// The row helpers below are forced inline: GCC otherwise keeps rowImpulse as a call in the
+// assembly loop, with its return through memory (the same bits either way).
 
 /// Weight of particle p's equation (1), or 0 when it gives none: clamped, or glued to an
 /// immovable body; both carry an unknown support force.
@@ -53,9 +52,8 @@ constexpr std::size_t kParallelSegments = kParallelItems;
 }
 
 /// Whether particle p's equation is whole (no body presses it): its projector exactly I,
-/// compared entry by entry (Eigen's isIdentity(0) tests the same, at several times the
-/// cost; it was 1.6% of a 746-segment rope's step), where any projector of the string
-/// may differ from I (rows_pressed).
+/// compared entry by entry (what Eigen's isIdentity(0) tests, at a fraction of its cost),
+/// where any projector of the string may differ from I (rows_pressed).
 [[gnu::always_inline]] inline bool wholeRow(const StringState& s, std::size_t p) { return !s.rows_pressed || s.row_projector[p] == Mat3::Identity(); }
 
 /// u . (P_p v) for particle p's projector P_p, with `whole` = wholeRow(s, p): then P_p = I
@@ -92,7 +90,7 @@ void momentumTension(StringState& s, const StepContext& ctx) {
     });
     // Each particle's weight, whether its row is whole, and its impulse are found once and
     // carried from the segment it ends to the segment it starts (the same values, so the
-    // same bits, as finding them per segment: they were a third of the stage).
+    // same bits, as finding them per segment).
     struct Row {
         double weight;
         bool whole;

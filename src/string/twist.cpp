@@ -1,4 +1,4 @@
-// Stage 3 (after strain limiting, so that it sees this step's geometry): twist.
+// The twist stage (after strain limiting, so that it sees this step's geometry).
 //
 // Strings, Sec. 4 gives every segment j a twist angle theta_j between its twist-free
 // (Bishop) frame and its material frame, and spreads a twist applied at an end along the
@@ -98,10 +98,9 @@ void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     // An untwisted string that nothing twists (the common rope): every angle, velocity,
     // rest twist and clamped end angle +0 and no end glued to a body. The solve would
     // give +0 everywhere (rows with +0 right-hand sides), so it is skipped with its
-    // result: the same bits, without the assembly and the tridiagonal solve (6 us of a
-    // 746-segment rope's step). The joints' stiffnesses are refreshed by the next solve
-    // that runs; until then nothing reads them but computeTwistForces, whose moments are
-    // zero whatever they hold.
+    // result: the same bits, without the assembly and the tridiagonal solve. The joints'
+    // stiffnesses are refreshed by the next solve that runs; until then nothing reads
+    // them but computeTwistForces, whose moments are zero whatever they hold.
     s.twist_skipped = untwisted(s);
     if (s.twist_skipped) {
         std::copy(s.twist.begin(), s.twist.end(), s.twist_old.begin());
