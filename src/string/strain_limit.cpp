@@ -780,80 +780,167 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
     s.strain_warm_start = s.contacts.empty() && s.body_nodes.empty() && !ctx.cold_strain_starts && warmStart(s, ctx);
 }
 
-double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
-    const std::size_t n = s.particles();
-    double first_move = -1.0;  // the first iteration's largest move
-    const double inv_h2 = ctx.inv_h * ctx.inv_h;
-    const double tol = ctx.settings->strain_tolerance;
-    const std::size_t nodes = s.body_nodes.size();
+namespace {
 
-    // Body unknowns (contacts with movable bodies): scratch kept in the string (grown to
-    // the most nodes seen, never shrunk, so that a running step does not allocate).
-    StringState::NodeScratch& scratch = s.node_scratch;
-    if (scratch.diag.size() < nodes) {
-        scratch.diag.resize(nodes);
-        scratch.rhs.resize(nodes);
-        scratch.coupling.resize(nodes);
+/// limitStrain's Newton iterations on one string (see the file's header): passes of
+/// iterations (several where rigid friction's lagged weights must settle), each iteration a
+/// Newton or chord step (solveStep: assemble, then solveChain or the factorised system with
+/// the touched bodies' Schur complement), the contacts the step would run into added
+/// (addPredictedContacts), a line search on the energy and the move (applyStep).
+class StrainSolve {
+public:
+    StrainSolve(StringState& string, RigidTable& rigid_table, const StepContext& context)
+        : s(string), rigids(rigid_table), ctx(context), n(string.particles()), inv_h2(context.inv_h * context.inv_h),
+          tol(context.settings->strain_tolerance), nodes(string.body_nodes.size()), scratch(string.node_scratch) {
+        // Body unknowns (contacts with movable bodies): scratch kept in the string (grown to
+        // the most nodes seen, never shrunk, so that a running step does not allocate).
+        if (scratch.diag.size() < nodes) {
+            scratch.diag.resize(nodes);
+            scratch.rhs.resize(nodes);
+            scratch.coupling.resize(nodes);
+        }
+        // Contacts with rigid bodies: g >= 0 on linearised planes (linearisePlanes), a stiff
+        // one-sided penalty k_c min(0, g)^2 / 2, with x(s) = (1-s) x_j + s x_{j+1}. A movable
+        // body takes part with its 6 unknowns and its mass and inertia, so a rope catches a
+        // crate with its tension. The penalty only pushes: a contact takes part in an
+        // iteration where the current state penetrates it, and a separated contact that the
+        // full Newton step would run into joins the Hessian (not the gradient) and the step is
+        // solved again, so that the step stops at it instead of passing through it.
+        linearisePlanes(s, rigids);
+        const double stiffest = s.contacts.empty() ? 0.0 : stiffestTerm(s, inv_h2);  // two passes over the string: only for contacts
+        for (SegmentContact& c : s.contacts) {
+            // Stiff enough to dominate the rope's springs, the particles' and the body's
+            // inertia: under a load F it gives way by F / k_c only. Fixed for the step, so
+            // that the line search below sees one energy.
+            if (c.stiffness > 0.0) continue;
+            double kc = stiffest;
+            if (c.node >= 0) kc = std::max(kc, inv_h2 / rigids.bodies[c.body.index].inverse_mass);
+            c.stiffness = kc * kContactStiffnessFactor;
+        }
+        // A chain without contacts or body unknowns: its Hessian's geometric term takes the
+        // linearised tension (starting from the last step's), its system is solved by
+        // solveChain, and it stops on a quadratic prediction (see the file's header).
+        plain_chain = s.contacts.empty() && nodes == 0;
+        if (plain_chain) std::copy(s.spring_force.begin(), s.spring_force.end(), s.geometric_tension.begin());
+        // A long one, alone on the pool (not nested in a forEach over strings), is split over
+        // two threads (parallelChainStep); glued particles move bodies, so not with those.
+        const bool glued = plain_chain && std::any_of(s.hold.begin(), s.hold.end(), [](const ParticleHold& hold) {
+            return hold.kind == ParticleHold::Kind::Glue;
+        });
+        parallel_chain = plain_chain && !glued && n >= kParallelChainParticles && ctx.pool && ctx.pool->parallel();
+        // Chord iterations: the gradient assembled, the factorisation of the last Newton
+        // iteration reused (the pivots' inverses solveChain keeps), products only. Only after
+        // the first Newton iteration from a warm start, whose geometric term took the last
+        // step's converged tension (after cold iterations it is a first-order estimate, too far
+        // off for a linear rate), and only in a chain of free and pinned particles shorter than
+        // kParallelChainParticles: a longer one's iterations are the same on one thread as on
+        // two (parallelChainStep), which has none.
+        const bool chord_chain =
+            plain_chain && !glued && n < kParallelChainParticles && s.chain_inverse.size() >= 6 * n + 12 && !ctx.newton_strain_only;
+        inverses = chord_chain ? s.chain_inverse.data() : nullptr;
+        warm_start = s.strain_warm_start;
     }
-    auto& node_diag = scratch.diag;
-    auto& node_rhs = scratch.rhs;
-    auto& coupling = scratch.coupling;
 
-    // Contacts with rigid bodies: g >= 0 on linearised planes (linearisePlanes), a stiff
-    // one-sided penalty k_c min(0, g)^2 / 2, with x(s) = (1-s) x_j + s x_{j+1}. A movable
-    // body takes part with its 6 unknowns and its mass and inertia, so a rope catches a
-    // crate with its tension. The penalty only pushes: a contact takes part in an
-    // iteration where the current state penetrates it, and a separated contact that the
-    // full Newton step would run into joins the Hessian (not the gradient) and the step is
-    // solved again, so that the step stops at it instead of passing through it.
-    linearisePlanes(s, rigids);
-    const double stiffest = s.contacts.empty() ? 0.0 : stiffestTerm(s, inv_h2);  // two passes over the string: only for contacts
-    for (SegmentContact& c : s.contacts) {
-        // Stiff enough to dominate the rope's springs, the particles' and the body's
-        // inertia: under a load F it gives way by F / k_c only. Fixed for the step, so
-        // that the line search below sees one energy.
-        if (c.stiffness > 0.0) continue;
-        double kc = stiffest;
-        if (c.node >= 0) kc = std::max(kc, inv_h2 / rigids.bodies[c.body.index].inverse_mass);
-        c.stiffness = kc * kContactStiffnessFactor;
+    /// Runs the solve; returns the largest move of its first iteration.
+    double run() {
+        double first_move = -1.0;  // the first iteration's largest move
+        // Impacts are strongly nonlinear (a rope deflected by centimetres in one step): with
+        // contacts the solve may take more iterations. Friction's passes: the weights from the
+        // last pass's forces and slips (the first pass of a step has none, or a repeated
+        // solve's), until they settle.
+        const int iterations = ctx.settings->strain_iterations * (s.contacts.empty() ? kChainIterationFactor : kContactIterationFactor);
+        bool frictional = false;
+        for (const SegmentContact& c : s.contacts) frictional = frictional || c.friction > 0.0;
+        for (int pass = 0; pass < (frictional ? kContactPasses : 1); ++pass) {
+            bool converged = false;
+            double last_move = -1.0;
+            bool chord_next = false;  // the next iteration may be a chord iteration
+            for (int iter = 0; iter < iterations; ++iter) {
+                double worst = 0.0;
+                bool stalled = false;
+                bool chord = false;  // this iteration is one
+                if (parallel_chain)
+                    worst = parallelChainStep(s, rigids, ctx, *ctx.pool);
+                else
+                    worst = iterate(chord_next, last_move, chord, stalled);
+                if (first_move < 0.0) first_move = worst;
+                ++s.strain_newton_iterations;
+                s.strain_chord_iterations += chord;
+                s.strain_warm_start = false;
+                // Without contacts the iteration converges quadratically once it is close
+                // (each move ~ C times the last one squared): where the moves fall that fast,
+                // the move the next iteration would make, predicted with C from the last two,
+                // is checked against the tolerance (with a margin of 100) instead of being
+                // made. After a chord iteration the next move is predicted linearly, ~2 C
+                // m_last times this one (the Hessian changed by O(m_N) over the Newton move
+                // m_N), and a move within the tolerance ends the solve only where it fell that
+                // fast too.
+                const bool quadratic = last_move > 0.0 && worst < kQuadraticRegime * last_move;
+                const double margin = kPredictionMargin * worst * worst;
+                const bool next_within = plain_chain && quadratic &&
+                                         (chord ? 2.0 * margin < tol * s.shortest_rest * last_move
+                                                : margin * worst < tol * s.shortest_rest * last_move * last_move);
+                // A chord iteration follows the first Newton iteration of a warm start, or a
+                // chord iteration whose move fell by kQuadraticRegime or more.
+                chord_next = inverses && (iter == 0 ? warm_start : chord && quadratic);
+                last_move = worst;
+                if (stalled || (worst < tol * s.shortest_rest && (!chord || quadratic)) || next_within) {
+                    converged = true;
+                    break;
+                }
+            }
+            if (!frictional) break;
+            const double change = weighRigidFriction(s);
+            if (converged && change < kFrictionSettled) break;
+        }
+        for (SegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
+        finishChain(s, rigids, ctx);
+        return std::max(first_move, 0.0);
     }
-    auto gapNow = [&](const SegmentContact& c) {
+
+private:
+    double gapNow(const SegmentContact& c) const {
         const std::size_t j = c.segment;
         return rigidGap(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]);
-    };
-    // The gap after the full step held in blk_rhs and node_step.
-    auto gapAfterStep = [&](const SegmentContact& c) {
+    }
+    /// The gap after the full step held in blk_rhs and node_step.
+    double gapAfterStep(const SegmentContact& c) const {
         const std::size_t j = c.segment;
         auto moved = [&](std::size_t p) { return fixedRow(s, p) ? s.x[p] : Vec3(s.x[p] + s.blk_rhs[p]); };
         const Vec6 step = c.node >= 0 ? s.node_step[static_cast<std::size_t>(c.node)] : Vec6::Zero();
         return rigidGap(s, c, (1.0 - c.s) * moved(j) + c.s * moved(j + 1), &step);
-    };
+    }
 
-    // A chain without contacts or body unknowns: its Hessian's geometric term takes the
-    // linearised tension (starting from the last step's), its system is solved by
-    // solveChain, and it stops on a quadratic prediction (see the file's header).
-    const bool plain_chain = s.contacts.empty() && nodes == 0;
-    if (plain_chain) std::copy(s.spring_force.begin(), s.spring_force.end(), s.geometric_tension.begin());
-    // A long one, alone on the pool (not nested in a forEach over strings), is split over
-    // two threads (parallelChainStep); glued particles move bodies, so not with those.
-    const bool glued = plain_chain && std::any_of(s.hold.begin(), s.hold.end(), [](const ParticleHold& hold) {
-        return hold.kind == ParticleHold::Kind::Glue;
-    });
-    const bool parallel_chain = plain_chain && !glued && n >= kParallelChainParticles && ctx.pool && ctx.pool->parallel();
-    // Chord iterations: the gradient assembled, the factorisation of the last Newton
-    // iteration reused (the pivots' inverses solveChain keeps), products only. Only after
-    // the first Newton iteration from a warm start, whose geometric term took the last
-    // step's converged tension (after cold iterations it is a first-order estimate, too far
-    // off for a linear rate), and only in a chain of free and pinned particles shorter than
-    // kParallelChainParticles: a longer one's iterations are the same on one thread as on
-    // two (parallelChainStep), which has none.
-    const bool chord_chain = plain_chain && !glued && n < kParallelChainParticles && s.chain_inverse.size() >= 6 * n + 12 && !ctx.newton_strain_only;
-    double* const inverses = chord_chain ? s.chain_inverse.data() : nullptr;
-    const bool warm_start = s.strain_warm_start;
-    // Assembles the Newton system (the chain's, plus the contacts in the Hessian: those
-    // marked active) and solves it: the particles' step into blk_rhs, the bodies' into
-    // node_step.
-    auto solveStep = [&]() {
+    /// One iteration other than parallelChainStep's: a chord step where `chord_next`
+    /// allows it and acceptChord takes it (`chord`), else a Newton step; then the contacts
+    /// it would run into, the line search (`stalled` where it found no lower energy) and
+    /// the move. Returns the largest move.
+    double iterate(bool chord_next, double last_move, bool& chord, bool& stalled) {
+        for (SegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
+        if (chord_next && assembleChainGradient(s, ctx)) {
+            chordSolveChain(n, s.blk_off.data(), s.blk_rhs.data(), s.blk_factor_gain.data(), s.chain_coupled.data(),
+                            inverses);
+            chord = acceptChord(s, last_move);
+        }
+        if (!chord) solveStep();
+        addPredictedContacts();
+        return applyStep(lineSearch(stalled));
+    }
+
+    /// Assembles the Newton system (the chain's, plus the contacts in the Hessian: those
+    /// marked active) and solves it: the particles' step into blk_rhs, the bodies' into
+    /// node_step.
+    void solveStep() {
+        assemble();
+        solve();
+    }
+
+    /// The chain's rows (assembleChain), the active contacts' penalty rows and all
+    /// contacts' friction rows, with their bodies' blocks and couplings (node scratch).
+    void assemble() {
+        auto& node_diag = scratch.diag;
+        auto& node_rhs = scratch.rhs;
+        auto& coupling = scratch.coupling;
         assembleChain(s, rigids, ctx, plain_chain ? s.geometric_tension.data() : nullptr);
         for (std::size_t b = 0; b < nodes; ++b) {
             const BodyNode& node = s.body_nodes[b];
@@ -896,7 +983,14 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
             if (fa) coupling[b].emplace_back(j, (w * wa) * jb);
             if (fb) coupling[b].emplace_back(j + 1, (w * wb) * jb);
         }
+    }
 
+    /// solveChain for a plain chain; else the factorised chain, with the Schur complement
+    /// on the touched bodies' unknowns.
+    void solve() {
+        auto& node_diag = scratch.diag;
+        auto& node_rhs = scratch.rhs;
+        auto& coupling = scratch.coupling;
         if (plain_chain) {
             solveChain(n, s.blk_diag.data(), s.blk_off.data(), s.blk_rhs.data(), s.blk_factor_gain.data(),
                        s.chain_coupled.data(), inverses);
@@ -939,122 +1033,96 @@ double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) {
                 for (std::size_t p = 0; p < n; ++p) s.blk_rhs[p] -= f * s.node_columns[c][p];
         }
         for (std::size_t b = 0; b < nodes; ++b) s.node_step[b] = du.segment<6>(static_cast<Eigen::Index>(6 * b));
-    };
+    }
 
-    // Impacts are strongly nonlinear (a rope deflected by centimetres in one step): with
-    // contacts the solve may take more iterations. Friction's passes: the weights from the
-    // last pass's forces and slips (the first pass of a step has none, or a repeated
-    // solve's), until they settle.
-    const int iterations = ctx.settings->strain_iterations * (s.contacts.empty() ? kChainIterationFactor : kContactIterationFactor);
-    bool frictional = false;
-    for (const SegmentContact& c : s.contacts) frictional = frictional || c.friction > 0.0;
-    for (int pass = 0; pass < (frictional ? kContactPasses : 1); ++pass) {
-    bool converged = false;
-    double last_move = -1.0;
-    bool chord_next = false;  // the next iteration may be a chord iteration
-    for (int iter = 0; iter < iterations; ++iter) {
+    /// A separated contact that the full Newton step would run into joins the Hessian (not
+    /// the gradient) and the step is solved again.
+    void addPredictedContacts() {
+        for (int round = 0; round < kPredictRounds; ++round) {
+            bool added = false;
+            for (SegmentContact& c : s.contacts)
+                if (!c.active && !s.broken[c.segment] && gapAfterStep(c) < 0.0) c.active = added = true;
+            if (!added) break;
+            solveStep();
+        }
+    }
+
+    /// The springs' curvature changes along a long step (a rope deflected by
+    /// centimetres) and the penalties switch on along it: backtrack until the (convex)
+    /// energy decreases. Where no fraction of the step lowers it, the state is the
+    /// minimum to rounding: stop there, rather than take a step that raises the energy.
+    double lineSearch(bool& stalled) {
+        double alpha = 1.0;
+        if (!s.contacts.empty()) {
+            const double e0 = stepEnergy(s, rigids, ctx, 0.0);
+            int halving = 0;
+            for (; halving < kLineSearchHalvings && stepEnergy(s, rigids, ctx, alpha) > e0; ++halving) alpha *= 0.5;
+            if (halving == kLineSearchHalvings) {
+                alpha = 0.0;
+                stalled = true;
+            }
+        }
+        return alpha;
+    }
+
+    /// Moves along alpha times the step: bodies by their displacement, free particles, and
+    /// glued ones' bodies by the impulse K^-1 dx. Returns the largest move.
+    double applyStep(double alpha) {
         double worst = 0.0;
-        bool stalled = false;
-        bool chord = false;  // this iteration is one
-        if (parallel_chain) {
-            worst = parallelChainStep(s, rigids, ctx, *ctx.pool);
-        } else {
-            for (SegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
-            if (chord_next && assembleChainGradient(s, ctx)) {
-                chordSolveChain(n, s.blk_off.data(), s.blk_rhs.data(), s.blk_factor_gain.data(), s.chain_coupled.data(),
-                                inverses);
-                chord = acceptChord(s, last_move);
-            }
-            if (!chord) solveStep();
-            for (int round = 0; round < kPredictRounds; ++round) {
-                bool added = false;
-                for (SegmentContact& c : s.contacts)
-                    if (!c.active && !s.broken[c.segment] && gapAfterStep(c) < 0.0) c.active = added = true;
-                if (!added) break;
-                solveStep();
-            }
-            // The springs' curvature changes along a long step (a rope deflected by
-            // centimetres) and the penalties switch on along it: backtrack until the (convex)
-            // energy decreases. Where no fraction of the step lowers it, the state is the
-            // minimum to rounding: stop there, rather than take a step that raises the energy.
-            double alpha = 1.0;
-            if (!s.contacts.empty()) {
-                const double e0 = stepEnergy(s, rigids, ctx, 0.0);
-                int halving = 0;
-                for (; halving < kLineSearchHalvings && stepEnergy(s, rigids, ctx, alpha) > e0; ++halving) alpha *= 0.5;
-                if (halving == kLineSearchHalvings) {
-                    alpha = 0.0;
-                    stalled = true;
-                }
-            }
-            if (alpha != 1.0)
-                for (std::size_t p = 0; p < n; ++p) s.blk_rhs[p] *= alpha;
-            for (std::size_t b = 0; b < nodes; ++b) {
-                const Vec6 u = alpha * s.node_step[b];
-                if (!u.allFinite()) continue;
-                BodyNode& node = s.body_nodes[b];
-                RigidState& body = rigids.bodies[node.body.index];
-                const Vec6 impulse = node.mass * u;
-                node.impulse += impulse;
-                node.displacement += u;
-                body.impulse += impulse.head<3>() * ctx.inv_h;
-                displaceBody(body, node.displacement - u - node.linearised_at, node.displacement - node.linearised_at);
-                worst = std::max(worst, u.head<3>().norm());
-            }
-            if (plain_chain) linearisedTension(s, ctx, 0, s.segments());
-            // Apply: free particles move, glued ones move their body by the impulse K^-1 dx.
-            // The largest move from the largest square (one square root: the same bits).
-            double worst_squared = 0.0;
-            for (std::size_t p = 0; p < n; ++p) {
-                if (fixedRow(s, p)) continue;
-                const Vec3& dx = s.blk_rhs[p];
-                if (!dx.allFinite()) continue;
-                worst_squared = std::max(worst_squared, dx.squaredNorm());
-                if (s.hold[p].kind == ParticleHold::Kind::Free) {
-                    s.x[p] += dx;
-                } else {
-                    RigidState& b = rigids.bodies[s.hold[p].body.index];
-                    const Vec3 impulse = mobility(s, rigids, p).K.inverse() * dx;
-                    s.glue_impulse[p] += impulse;
-                    b.impulse += impulse * ctx.inv_h;
-                    applyBodyImpulse(b, s.x[p] - b.position, impulse);
-                }
-            }
-            worst = std::max(worst, std::sqrt(worst_squared));
+        if (alpha != 1.0)
+            for (std::size_t p = 0; p < n; ++p) s.blk_rhs[p] *= alpha;
+        for (std::size_t b = 0; b < nodes; ++b) {
+            const Vec6 u = alpha * s.node_step[b];
+            if (!u.allFinite()) continue;
+            BodyNode& node = s.body_nodes[b];
+            RigidState& body = rigids.bodies[node.body.index];
+            const Vec6 impulse = node.mass * u;
+            node.impulse += impulse;
+            node.displacement += u;
+            body.impulse += impulse.head<3>() * ctx.inv_h;
+            displaceBody(body, node.displacement - u - node.linearised_at, node.displacement - node.linearised_at);
+            worst = std::max(worst, u.head<3>().norm());
         }
-        if (first_move < 0.0) first_move = worst;
-        ++s.strain_newton_iterations;
-        s.strain_chord_iterations += chord;
-        s.strain_warm_start = false;
-        // Without contacts the iteration converges quadratically once it is close (each
-        // move ~ C times the last one squared): where the moves fall that fast, the move
-        // the next iteration would make, predicted with C from the last two, is checked
-        // against the tolerance (with a margin of 100) instead of being made. After a
-        // chord iteration the next move is predicted linearly, ~2 C m_last times this one
-        // (the Hessian changed by O(m_N) over the Newton move m_N), and a move within the
-        // tolerance ends the solve only
-        // where it fell that fast too.
-        const bool quadratic = last_move > 0.0 && worst < kQuadraticRegime * last_move;
-        const double margin = kPredictionMargin * worst * worst;
-        const bool next_within = plain_chain && quadratic &&
-                                 (chord ? 2.0 * margin < tol * s.shortest_rest * last_move
-                                        : margin * worst < tol * s.shortest_rest * last_move * last_move);
-        // A chord iteration follows the first Newton iteration of a warm start, or a chord
-        // iteration whose move fell by kQuadraticRegime or more.
-        chord_next = inverses && (iter == 0 ? warm_start : chord && quadratic);
-        last_move = worst;
-        if (stalled || (worst < tol * s.shortest_rest && (!chord || quadratic)) || next_within) {
-            converged = true;
-            break;
+        if (plain_chain) linearisedTension(s, ctx, 0, s.segments());
+        // Apply: free particles move, glued ones move their body by the impulse K^-1 dx.
+        // The largest move from the largest square (one square root: the same bits).
+        double worst_squared = 0.0;
+        for (std::size_t p = 0; p < n; ++p) {
+            if (fixedRow(s, p)) continue;
+            const Vec3& dx = s.blk_rhs[p];
+            if (!dx.allFinite()) continue;
+            worst_squared = std::max(worst_squared, dx.squaredNorm());
+            if (s.hold[p].kind == ParticleHold::Kind::Free) {
+                s.x[p] += dx;
+            } else {
+                RigidState& b = rigids.bodies[s.hold[p].body.index];
+                const Vec3 impulse = mobility(s, rigids, p).K.inverse() * dx;
+                s.glue_impulse[p] += impulse;
+                b.impulse += impulse * ctx.inv_h;
+                applyBodyImpulse(b, s.x[p] - b.position, impulse);
+            }
         }
+        return std::max(worst, std::sqrt(worst_squared));
     }
-    if (!frictional) break;
-    const double change = weighRigidFriction(s);
-    if (converged && change < kFrictionSettled) break;
-    }
-    for (SegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
-    finishChain(s, rigids, ctx);
-    return std::max(first_move, 0.0);
-}
+
+    StringState& s;
+    RigidTable& rigids;
+    const StepContext& ctx;
+    const std::size_t n;
+    const double inv_h2;
+    const double tol;
+    const std::size_t nodes;
+    StringState::NodeScratch& scratch;
+    /// A chain without contacts or body unknowns, on two threads, and its chord iterations'
+    /// store of pivot inverses (null: none).
+    bool plain_chain = false;
+    bool parallel_chain = false;
+    double* inverses = nullptr;
+    bool warm_start = false;
+};
+
+}  // namespace
+
+double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx) { return StrainSolve(s, rigids, ctx).run(); }
 
 }  // namespace tearables::detail
