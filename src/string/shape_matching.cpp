@@ -37,48 +37,8 @@
 // of the region) loses only a couple of digits. Goals are blended as
 // x_i + mean_k [R_k (x0_i - c0_k) + (c_k - x_i)], again with local differences only.
 //
-// Rotation. csmRotation returns the rotation R maximising tr(R^T A): with A = U S V^T (an
-// SVD, S >= 0), R = U diag(1, 1, det(U V^T)) V^T (a reflection is fixed by flipping the
-// singular vector of the smallest singular value). It handles planar regions (rank 2) and
-// sign-indefinite A. When A has rank <= 1 (sigma_2 <= 1e-12 sigma_1: all particles of the
-// region collinear, now or at rest: a straight chain being stretched or a straight rest
-// shape), every rotation taking the rest direction v_1 to the current one u_1 is optimal
-// and the rotation about the line is undetermined; we then take the smallest such rotation
-// (about v_1 x u_1), the one closest to identity, so a curved rest shape pulled straight
-// keeps its plane instead of a spin picked by round-off. A straight rest shape makes every
-// region rank 1; its goals only depend on R v_1 = u_1.
-//
-// How R is computed. A 3x3 JacobiSVD per region is costly and most regions are easy, so
-// the SVD is kept only for the cases the two cheap paths below are not sure of. Both are stateless (no warm start: results do not depend on call order) and
-// agree with the SVD's R to rounding times the problem's own condition number
-// sigma_1 / (sigma_2 + det-signed sigma_3) (tested against JacobiSVD on random, reflected,
-// planar, nearly planar and nearly rank-1 matrices). The cofactor matrix cof A = det(A)
-// A^-T (columns a_1 x a_2, a_2 x a_0, a_0 x a_1) gives q = |cof A|_F / |A|_F^2, which
-// brackets the rank test: q / sqrt(3) <= sigma_2 / sigma_1 <= 3 q. (A with |A|_F^2 outside
-// [1e-100, 1e100] is first scaled by a power of two, so that |A|^4 cannot overflow.)
-//   - q <= 1e-12 / 6 (surely rank 1; every region of a straight rest shape): v_1 and u_1
-//     (up to their lengths) by power steps from A's longest column u, p = A^T u / |A|_F^2,
-//     q = A p (the pair has consistent signs), and R = the smallest rotation taking p to q
-//     as above, from the quaternion (|p||q| + p.q, p x q).
-//   - q >= 1e-7 (sigma_2 / sigma_1 >= 5.7e-8): Higham's scaled Newton iteration for the
-//     polar factor, X <- (z X + X^-T / z) / 2, z = (|X^-1|_F / |X|_F)^(1/2), X^-T =
-//     cof X / det X, started from B = A + cof(A) / s with s ~ sigma_1. In the SVD with
-//     rotations U, V and signed s_3 = det-sign sigma_3, cof A = U diag(s2 s3, s1 s3, s1 s2)
-//     V^T, so B = U diag(s1 + s2 s3/s, s2 + s1 s3/s, s3 + s1 s2/s) V^T: the same singular
-//     vectors, all signed values positive (also for planar A, where A^-T does not exist,
-//     and for reflected A if s is close enough to sigma_1: there s is refined from |A|_F by
-//     Newton on A^T A's characteristic cubic), so the iteration converges to exactly the
-//     R above, in 4-6 steps (its smallest value is sigma_2 + s3 ~ the problem's
-//     conditioning). q >= 1e-7 keeps B's cofactors and determinant accurate enough (det B
-//     to about 1e-16 / q^2 relative: a percent; the iteration only needs its sign and
-//     size). For reflected A the converged R is checked to be the maximiser (tr(S) I - S >=
-//     0 with S = R^T A symmetric), since a determinant of the wrong sign there would
-//     converge to another stationary rotation.
-//   - Otherwise (1e-12/6 < q < 1e-7: nearly rank 1, where cofactors lose their digits or
-//     the rank test is close, or a Newton iteration that does not converge in 12 steps or
-//     fails its check), JacobiSVD.
-// A = 0 or non-finite A gives identity. These paths are not bit for bit the SVD: R
-// differs in the last bits.
+// Rotation: the rotational part of each region's A (csmRotation; see the rotation helpers
+// below for its derivation and the paths that compute it).
 //
 // Straight rest shapes (straightChainShapeMatchingGoals). A string created along one line
 // (StringDesc::straight, the common rope) has every region of rank 1, A = a v^T with v the
@@ -86,8 +46,8 @@
 // v): c + ((x0_i - c0) . v) a / |a|. So a second kernel keeps 8 moment sums instead of 16
 // (m, m x, m s and m x s, s the rest offset along v) and fits a region with one square
 // root and no rotation. Its goals are the rank-1 path's to rounding (tested against it);
-// the stage takes it where a piece's rest
-// directions agree to 1e-12. The structure (blocks, chunks, passes) is the same.
+// the stage takes it where a piece's rest directions agree to 1e-12. The structure
+// (blocks, chunks, passes) is the same.
 #include "string/shape_matching.hpp"
 
 #include "base/lanes.hpp"
@@ -157,6 +117,50 @@ inline FlatMoments flat(const CsmMoments& s) {
     for (int j = 0; j < 9; ++j) f.v[kMxx0 + j] = s.mxx0.data()[j];
     return f;
 }
+
+// The rotation of a region. csmRotation returns the rotation R maximising tr(R^T A): with
+// A = U S V^T (an SVD, S >= 0), R = U diag(1, 1, det(U V^T)) V^T (a reflection is fixed
+// by flipping the singular vector of the smallest singular value). It handles planar regions
+// (rank 2) and sign-indefinite A. When A has rank <= 1 (sigma_2 <= 1e-12 sigma_1: all
+// particles of the region collinear, now or at rest: a straight chain being stretched or a
+// straight rest shape), every rotation taking the rest direction v_1 to the current one u_1
+// is optimal and the rotation about the line is undetermined; we then take the smallest
+// such rotation (about v_1 x u_1), the one closest to identity, so a curved rest shape
+// pulled straight keeps its plane instead of a spin picked by round-off. A straight rest
+// shape makes every region rank 1; its goals only depend on R v_1 = u_1.
+//
+// How R is computed. A 3x3 JacobiSVD per region is costly and most regions are easy, so the
+// SVD is kept only for the cases the two cheap paths below are not sure of. Both are
+// stateless (no warm start: results do not depend on call order) and agree with the SVD's R
+// to rounding times the problem's own condition number sigma_1 / (sigma_2 + det-signed
+// sigma_3) (tested against JacobiSVD on random, reflected, planar, nearly planar and nearly
+// rank-1 matrices). The cofactor matrix cof A = det(A) A^-T (columns a_1 x a_2, a_2 x a_0,
+// a_0 x a_1) gives q = |cof A|_F / |A|_F^2, which brackets the rank test: q / sqrt(3) <=
+// sigma_2 / sigma_1 <= 3 q. (A with |A|_F^2 outside [1e-100, 1e100] is first scaled by a
+// power of two, so that |A|^4 cannot overflow.)
+//   - q <= 1e-12 / 6 (surely rank 1; every region of a straight rest shape): v_1 and u_1
+//     (up to their lengths) by power steps from A's longest column u, p = A^T u / |A|_F^2,
+//     q = A p (the pair has consistent signs), and R = the smallest rotation taking p to q
+//     as above, from the quaternion (|p||q| + p.q, p x q).
+//   - q >= 1e-7 (sigma_2 / sigma_1 >= 5.7e-8): Higham's scaled Newton iteration for the
+//     polar factor, X <- (z X + X^-T / z) / 2, z = (|X^-1|_F / |X|_F)^(1/2), X^-T =
+//     cof X / det X, started from B = A + cof(A) / s with s ~ sigma_1. In the SVD with
+//     rotations U, V and signed s_3 = det-sign sigma_3, cof A = U diag(s2 s3, s1 s3, s1 s2)
+//     V^T, so B = U diag(s1 + s2 s3/s, s2 + s1 s3/s, s3 + s1 s2/s) V^T: the same singular
+//     vectors, all signed values positive (also for planar A, where A^-T does not exist,
+//     and for reflected A if s is close enough to sigma_1: there s is refined from |A|_F by
+//     Newton on A^T A's characteristic cubic), so the iteration converges to exactly the
+//     R above, in 4-6 steps (its smallest value is sigma_2 + s3 ~ the problem's
+//     conditioning). q >= 1e-7 keeps B's cofactors and determinant accurate enough (det B
+//     to about 1e-16 / q^2 relative: a percent; the iteration only needs its sign and
+//     size). For reflected A the converged R is checked to be the maximiser (tr(S) I - S >=
+//     0 with S = R^T A symmetric), since a determinant of the wrong sign there would
+//     converge to another stationary rotation.
+//   - Otherwise (1e-12/6 < q < 1e-7: nearly rank 1, where cofactors lose their digits or
+//     the rank test is close, or a Newton iteration that does not converge in 12 steps or
+//     fails its check), JacobiSVD.
+// A = 0 or non-finite A gives identity. These paths are not bit for bit the SVD: R
+// differs in the last bits.
 
 /// q = |cof A|_F / |A|_F^2 at or above which the Newton iteration is used (see above).
 constexpr double kNewtonMinQ = 1e-7;
