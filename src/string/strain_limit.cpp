@@ -819,7 +819,7 @@ public:
         }
         // A chain without contacts or body unknowns: its Hessian's geometric term takes the
         // linearised tension (starting from the last step's), its system is solved by
-        // solveChain, and it stops on a quadratic prediction (see the file's header).
+        // solveChain, and it stops on a quadratic prediction of its next move (run).
         plain_chain = s.contacts.empty() && nodes == 0;
         if (plain_chain) std::copy(s.spring_force.begin(), s.spring_force.end(), s.geometric_tension.begin());
         // A long one, alone on the pool (not nested in a forEach over strings), is split over
