@@ -33,12 +33,12 @@ struct WorldSettings {
     /// Strings collide with rigid bodies (through the host's ContactProvider, the Bullet
     /// plugin's narrow phase). A string does not collide with a body it is glued to.
     bool rigid_contacts = true;
-    /// Strings collide with each other and themselves (capsules per segment, exact 27-cell
-    /// grid on the swept segments; the strings that touch are solved together, so they
-    /// exchange momentum and never pass through each other). A string that hangs or swings
-    /// nearly straight is proved free of self contacts from its shape in one pass over its
-    /// particles; a curved one is searched (tens of microseconds a step for a 746-segment
-    /// rope, BENCHMARKS.md). Turn off for ropes that never meet.
+    /// Strings collide with each other and themselves (capsules per segment, found on the
+    /// segments swept over the step by a box tree per string; the strings that touch are
+    /// solved together, so they exchange momentum and never pass through each other). A
+    /// string that hangs or swings nearly straight is proved free of self contacts from its
+    /// shape in one pass over its particles; a curved one is searched (BENCHMARKS.md).
+    /// Turn off for ropes that never meet.
     bool string_collisions = true;
     /// Threads that step independent strings in parallel, 0..64: 1 steps on the calling
     /// thread only, 0 uses every core the machine reports. Where a stage has one string
@@ -170,7 +170,9 @@ struct StageTimes {
     StageTimes& operator+=(const StageTimes& o);
 };
 
-/// The core simulation of strings. Single-threaded; deterministic for equal inputs.
+/// The core simulation: strings, cloths and paper sheets coupled to the host's rigid
+/// bodies. A step runs on the calling thread and on WorldSettings::threads workers;
+/// deterministic for equal inputs, whatever the thread count.
 class World {
 public:
     explicit World(const WorldSettings& settings = {});
