@@ -172,7 +172,7 @@ void StringPairs::findPairs() {
     contact_order_.clear();
     for (std::size_t i = 0; i < grid_pairs_.size(); ++i) {
         const SegmentContact& c = pair_contact_[i];
-        const PairKey key = std::make_tuple(c.string, c.segment, c.partner, c.partner_segment);
+        const PairKey key = pairKey(c);
         if (pair_verdict_[i] == kPairDeep) deep_next_.push_back(key);
         if (pair_verdict_[i] == kPairContact) contact_order_.emplace_back(key, static_cast<std::uint32_t>(i));
     }
@@ -319,7 +319,7 @@ std::uint8_t StringPairs::judgePair(const SegmentPair& pair, SegmentContact& c) 
     c.gap = strings[c.string].radius[c.segment] + strings[c.partner].radius[c.partner_segment];
     // Deep at the start, or still coming apart from being deep: no contact (see
     // kStringDeepStart), and remembered for the next step.
-    const auto key = std::make_tuple(c.string, c.segment, c.partner, c.partner_segment);
+    const PairKey key = pairKey(c);
     const bool was_deep = std::binary_search(deep_pairs_.begin(), deep_pairs_.end(), key);
     if (pair.distance < (was_deep ? 1.0 : kStringDeepStart) * c.gap) {
         return kPairDeep;
@@ -440,18 +440,26 @@ double StringPairs::nodesSeparationNeeded(const ChainTree::NodeBounds& a, const 
 void StringPairs::couple(std::vector<StringState>& strings, RigidTable& rigids, const StepContext& ctx) {
     strings_ = &strings;
     pool_ = ctx.pool;
-    ThreadPool& pool = *pool_;
     findPairs();
     if (string_pairs_.empty()) return;
-    // Warm start: the force a pair pressed with at the end of the last step bounds
-    // its friction in the first pass.
-    auto key = [](const SegmentContact& c) { return std::make_tuple(c.string, c.segment, c.partner, c.partner_segment); };
+    warmStart();
+    solveClusters(groupClusters(), rigids, ctx);
+}
+
+/// The force a pair pressed with at the end of the last step bounds its friction in the
+/// first pass (both lists sorted by key).
+void StringPairs::warmStart() {
     std::size_t k = 0;
     for (SegmentContact& c : string_pairs_) {
-        while (k < previous_pairs_.size() && key(previous_pairs_[k]) < key(c)) ++k;
-        if (k < previous_pairs_.size() && key(previous_pairs_[k]) == key(c)) c.force = previous_pairs_[k].force;
+        while (k < previous_pairs_.size() && pairKey(previous_pairs_[k]) < pairKey(c)) ++k;
+        if (k < previous_pairs_.size() && pairKey(previous_pairs_[k]) == pairKey(c)) c.force = previous_pairs_[k].force;
     }
-    // Clusters: strings connected through pairs (union-find over string slots).
+}
+
+/// Clusters: strings connected through pairs (union-find over string slots). Returns how
+/// many of clusters_ this step uses.
+std::size_t StringPairs::groupClusters() {
+    std::vector<StringState>& strings = *strings_;
     cluster_root_.resize(strings.size());
     for (std::size_t i = 0; i < strings.size(); ++i) cluster_root_[i] = static_cast<std::uint32_t>(i);
     auto root = [&](std::uint32_t i) {
@@ -498,9 +506,13 @@ void StringPairs::couple(std::vector<StringState>& strings, RigidTable& rigids, 
             cl.index.push_back(i);
         }
     }
-    // Clusters share no string (and the joint solve moves no body), so they are solved
-    // on the pool; each writes only its own strings and its own pairs.
-    pool.forEach(count, [&](std::size_t q) {
+    return count;
+}
+
+/// Clusters share no string (and the joint solve moves no body), so they are solved on
+/// the pool; each writes only its own strings and its own pairs.
+void StringPairs::solveClusters(std::size_t count, RigidTable& rigids, const StepContext& ctx) {
+    pool_->forEach(count, [&](std::size_t q) {
         Cluster& cl = clusters_[q];
         cl.scratch.always_sparse = sparse_joint_steps;
         solveStringCluster(cl.strings, cl.contacts, rigids, ctx, cl.scratch);

@@ -22,6 +22,7 @@ namespace tearables::detail {
 
 /// One pair of segments: (string, segment, partner string, partner segment).
 using PairKey = std::tuple<std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t>;
+inline PairKey pairKey(const SegmentContact& c) { return PairKey(c.string, c.segment, c.partner, c.partner_segment); }
 
 /// The string-string contacts of a step and what persists of them between steps.
 class StringPairs {
@@ -78,6 +79,9 @@ private:
     std::uint8_t judgePair(const SegmentPair& pair, SegmentContact& c) const;
     bool surelyDropped(std::uint32_t i, std::uint32_t j) const;
     double nodesSeparationNeeded(const ChainTree::NodeBounds& a, const ChainTree::NodeBounds& b) const;
+    void warmStart();
+    std::size_t groupClusters();
+    void solveClusters(std::size_t count, RigidTable& rigids, const StepContext& ctx);
 
     std::vector<StringState>* strings_ = nullptr;  // this step's strings (couple, finish)
     ThreadPool* pool_ = nullptr;
