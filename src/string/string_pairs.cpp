@@ -132,11 +132,17 @@ void StringPairs::findPairs() {
         deep_pairs_.clear();
         return;
     }
-    // The swept capsules' overlaps through a box tree per string (collision/grid.hpp,
-    // ChainTree). The tree asks judgePair about each pair as it finds it and keeps only
-    // those that are not dropped (a swinging rope's swept search finds thousands, nearly
-    // all dropped); the kept ones are judged again on the pool in chunks, their verdicts
-    // collected in the pairs' order, and sorted.
+    searchTree(skip);
+    sortContacts();
+}
+
+/// The swept capsules' overlaps through a box tree per string (collision/grid.hpp,
+/// ChainTree). The tree asks judgePair about each pair as it finds it and keeps only
+/// those that are not dropped (a swinging rope's swept search finds thousands, nearly
+/// all dropped); the kept ones are judged again on the pool in chunks, their verdicts
+/// in the pairs' order.
+void StringPairs::searchTree(std::uint32_t skip) {
+    ThreadPool& pool = *pool_;
     auto keep = [](const void* self, const SegmentPair& pair) {
         // judgePair writes what it reads of the contact first: a scratch per thread,
         // not a SegmentContact (~330 bytes of defaults) built for every candidate.
@@ -164,11 +170,14 @@ void StringPairs::findPairs() {
         const std::size_t lo = grid_pairs_.size() * chunk / chunks, hi = grid_pairs_.size() * (chunk + 1) / chunks;
         for (std::size_t i = lo; i < hi; ++i) pair_verdict_[i] = judgePair(grid_pairs_[i], pair_contact_[i]);
     });
-    // The contacts sorted by key (string, segment, partner, partner segment): the warm
-    // start merges with the last step's pairs, and the deep pairs are binary-searched.
-    // The keys are sorted with the contacts' indices and the contacts copied once, in
-    // that order (not the ~330-byte contacts sorted). A key names one pair of segments,
-    // which the search reports once, so the order is the one sorting the contacts gives.
+}
+
+/// The contacts sorted by key (string, segment, partner, partner segment): the warm
+/// start merges with the last step's pairs, and the deep pairs are binary-searched.
+/// The keys are sorted with the contacts' indices and the contacts copied once, in that
+/// order (not the ~330-byte contacts sorted). A key names one pair of segments, which
+/// the search reports once, so the order is the one sorting the contacts gives.
+void StringPairs::sortContacts() {
     contact_order_.clear();
     for (std::size_t i = 0; i < grid_pairs_.size(); ++i) {
         const SegmentContact& c = pair_contact_[i];

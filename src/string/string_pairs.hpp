@@ -73,6 +73,8 @@ private:
     static constexpr std::uint8_t kPairDropped = 0, kPairDeep = 1, kPairContact = 2;
 
     void findPairs();
+    void searchTree(std::uint32_t skip);
+    void sortContacts();
     template <bool fill>
     void scanString(PairString& ps);
     bool selfPairFree(const PairString& ps, std::uint32_t skip) const;
