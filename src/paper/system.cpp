@@ -121,7 +121,7 @@ void PaperSystem::movePin(PaperId id, std::uint32_t vertex, const Vec3& point) {
     s.hold[vertex].point = point;
 }
 
-void PaperSystem::detach(PaperId id, std::uint32_t vertex, EventCause cause, double time, std::int64_t step, std::vector<Event>& events) {
+void PaperSystem::release(PaperId id, std::uint32_t vertex, EventCause cause, double time, std::int64_t step, std::vector<Event>& events) {
     PaperSheet& s = get(id);
     checkVertex(s, vertex);
     if (s.hold[vertex].kind == VertexHold::Kind::Free) return;
@@ -148,7 +148,7 @@ void PaperSystem::releaseBody(RigidId body, double time, std::int64_t step, std:
         if (!sheets_[i].alive) continue;
         for (std::size_t v = 0; v < sheets_[i].vertices(); ++v)
             if (sheets_[i].hold[v].kind == VertexHold::Kind::Glue && sheets_[i].hold[v].body == body)
-                detach(PaperId{static_cast<std::uint32_t>(i)}, static_cast<std::uint32_t>(v), EventCause::BodyRemoved, time, step, events);
+                release(PaperId{static_cast<std::uint32_t>(i)}, static_cast<std::uint32_t>(v), EventCause::BodyRemoved, time, step, events);
     }
 }
 

@@ -25,7 +25,7 @@ public:
     void attachToRigid(PaperId id, std::uint32_t vertex, RigidId body, const Vec3& local, const RigidTable& rigids);
     void movePin(PaperId id, std::uint32_t vertex, const Vec3& point);
     /// Frees a vertex; a Release event goes to `events` when it was held.
-    void detach(PaperId id, std::uint32_t vertex, EventCause cause, double time, std::int64_t step, std::vector<Event>& events);
+    void release(PaperId id, std::uint32_t vertex, EventCause cause, double time, std::int64_t step, std::vector<Event>& events);
     void applyForce(PaperId id, std::uint32_t vertex, const Vec3& force);
 
     /// Drops every glue to `body` (Release events, cause BodyRemoved).

@@ -21,7 +21,9 @@ namespace tearables::detail {
 /// end); throws InvalidInput naming `field` when out of range.
 int resolveIndex(int particle, std::size_t count, const char* field);
 
-/// The strings of a world: created, stepped and viewed through World.
+/// The strings of a world: created, stepped and viewed through World. The same shape as
+/// ClothSystem and PaperSystem: add, remove, get, contains, ids; step(rigids, ctx, host,
+/// events) and lastTimes(); usesBody, releaseBody, release.
 class StringSystem {
 public:
     /// Builds a string from a valid descriptor (throws InvalidInput otherwise) in the first free slot.

@@ -359,7 +359,7 @@ void World::attachPaperToRigid(PaperId id, std::uint32_t vertex, RigidId body, c
 }
 void World::movePaperPin(PaperId id, std::uint32_t vertex, const Vec3& point) { impl_->papers.movePin(id, vertex, point); }
 void World::detachPaper(PaperId id, std::uint32_t vertex) {
-    impl_->papers.detach(id, vertex, EventCause::Request, impl_->time, impl_->steps, impl_->pending);
+    impl_->papers.release(id, vertex, EventCause::Request, impl_->time, impl_->steps, impl_->pending);
 }
 void World::applyPaperForce(PaperId id, std::uint32_t vertex, const Vec3& force) { impl_->papers.applyForce(id, vertex, force); }
 const PaperTimes& World::lastPaperTimes() const { return impl_->papers.lastTimes(); }
