@@ -33,12 +33,12 @@ struct WorldSettings {
     /// Strings collide with rigid bodies (through the host's ContactProvider, the Bullet
     /// plugin's narrow phase). A string does not collide with a body it is glued to.
     bool rigid_contacts = true;
-    /// Strings collide with each other and themselves (capsules per segment, exact 27-cell
-    /// grid on the swept segments; the strings that touch are solved together, so they
-    /// exchange momentum and never pass through each other). A string that hangs or swings
-    /// nearly straight is proved free of self contacts from its shape in one pass over its
-    /// particles; a curved one is searched (tens of microseconds a step for a 746-segment
-    /// rope, BENCHMARKS.md). Turn off for ropes that never meet.
+    /// Strings collide with each other and themselves (capsules per segment, found on the
+    /// segments swept over the step by a box tree per string; the strings that touch are
+    /// solved together, so they exchange momentum and never pass through each other). A
+    /// string that hangs or swings nearly straight is proved free of self contacts from its
+    /// shape in one pass over its particles; a curved one is searched (BENCHMARKS.md).
+    /// Turn off for ropes that never meet.
     bool string_collisions = true;
     /// Threads that step independent strings in parallel, 0..64: 1 steps on the calling
     /// thread only, 0 uses every core the machine reports. Where a stage has one string
@@ -127,8 +127,10 @@ struct PointContact {
     bool onFace() const { return weights.squaredNorm() > 0.0; }
 };
 
-/// Finds contacts between strings and rigid bodies; implemented by the host (the Bullet
-/// plugin uses Bullet's broadphase and narrow phase). Called once per step.
+/// Finds contacts of strings and of mesh objects (cloths, sheets) with rigid bodies;
+/// implemented by the host (the Bullet plugin uses Bullet's broadphase and narrow phase).
+/// In a step, findContacts is called once (the strings), findPointContacts once for the
+/// live cloths and once for the live sheets.
 class ContactProvider {
 public:
     virtual ~ContactProvider() = default;
@@ -170,7 +172,9 @@ struct StageTimes {
     StageTimes& operator+=(const StageTimes& o);
 };
 
-/// The core simulation of strings. Single-threaded; deterministic for equal inputs.
+/// The core simulation: strings, cloths and paper sheets coupled to the host's rigid
+/// bodies. A step runs on the calling thread and on WorldSettings::threads workers;
+/// deterministic for equal inputs, whatever the thread count.
 class World {
 public:
     explicit World(const WorldSettings& settings = {});
@@ -222,12 +226,12 @@ public:
     const RigidState& rigid(RigidId id) const;
     /// Drops the proxy and every attachment to it (Release events with cause BodyRemoved).
     void removeRigid(RigidId id);
-    /// True when some string is glued to this body.
+    /// True when some string, cloth or sheet is glued to this body.
     bool rigidInUse(RigidId id) const;
-    /// The host's contact generation (nullptr: strings do not collide with rigid bodies).
+    /// The host's contact generation (nullptr: nothing collides with rigid bodies).
     /// The provider must outlive the world or be reset first.
     void setContactProvider(ContactProvider* provider);
-    /// Contacts of the last step (after the collision stage), for inspection and tests.
+    /// The host's string contacts of the last step as it reported them, for inspection and tests.
     const std::vector<RigidContact>& lastContacts() const;
 
     /// Advances all strings, cloths and paper sheets by `h` seconds, [1e-7, 1]. Throws
@@ -242,7 +246,8 @@ public:
     const StringDesc& desc(StringId id) const;
     /// Events of the last step, in order.
     const std::vector<Event>& events() const;
-    /// Stage times of the last step.
+    /// Wall time of the last step's stages, s: the strings' and the cloths' (the sheets'
+    /// are in lastPaperTimes()).
     const StageTimes& lastStageTimes() const;
     /// Simulated time, s, and steps taken.
     double time() const;

@@ -1,10 +1,11 @@
 // The per-instance state of a cloth (structure of arrays, indices not pointers) and the
-// small system that World::Impl owns and calls from World::step.
+// system that steps the cloths of a world.
 #pragma once
 
 #include "linalg/dissection.hpp"
 #include "linalg/supernodal.hpp"
 #include "sim/hold.hpp"
+#include "sim/host_contacts.hpp"
 #include "sim/material_curve.hpp"
 #include "sim/rigid_table.hpp"
 #include "sim/step_context.hpp"
@@ -147,9 +148,6 @@ struct ClothState {
     std::size_t edgeCount() const { return edges.size(); }
 };
 
-/// Asks the host for the contacts of mesh vertices (World::Impl::findPointContacts).
-using PointContactFinder = std::function<void(const PointQuery&, std::vector<PointContact>&)>;
-
 // Stage kernels (one file each), testable without a world.
 /// Builds a cloth's state from a valid descriptor.
 ClothState makeCloth(const ClothDesc& desc);
@@ -188,9 +186,10 @@ public:
     std::vector<ClothId> ids() const;
     bool empty() const;
 
-    /// One step of every live cloth, after the strings (DESIGN.md, "How a step flows").
-    void step(RigidTable& rigids, const StepContext& ctx, const PointContactFinder& find, std::vector<Event>& events,
-              StageTimes& times);
+    /// One step of every live cloth (after the strings in World::step).
+    void step(RigidTable& rigids, const StepContext& ctx, const HostContacts& host, std::vector<Event>& events);
+    /// Wall time of the cloths' stages in the last step, s (zero without a live cloth).
+    const StageTimes& lastTimes() const { return times_; }
     /// Swept bounds of every live cloth for a step of `h` (World::meshBounds).
     void bounds(double h, const Vec3& gravity, std::vector<std::pair<Vec3, Vec3>>& out) const;
     /// True when a cloth vertex is glued to `body`.
@@ -203,10 +202,17 @@ public:
 
 private:
     friend struct WorldAccess;  // snapshots read and replace the cloths (src/world/snapshot.cpp)
+    void predict(const RigidTable& rigids, const StepContext& ctx);
+    void collideBodies(const RigidTable& rigids, const HostContacts& host);
+    void limitStrain(RigidTable& rigids, const StepContext& ctx);
+    void solveTension(const StepContext& ctx);
+    void respondMaterial(const StepContext& ctx, std::vector<Event>& events);
+    void updateVelocities(RigidTable& rigids, const StepContext& ctx, std::vector<Event>& events);
     std::vector<ClothState> cloths_;
     PointQuery query_;
     std::vector<PointContact> found_;
     std::vector<std::uint32_t> query_cloth_;
+    StageTimes times_;
 };
 
 }  // namespace tearables::detail

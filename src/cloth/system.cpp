@@ -1,19 +1,18 @@
-// The cloths of a world and their step, in named stages (DESIGN.md, "How a step flows"):
-// prediction, collision with rigid bodies (the host's point query), strain limiting,
-// tension (Yarn Sec. 3.2), friction, material response (tears: the only topology change,
-// after the solves), velocities.
+// The cloths of a world and their step, in named stages: prediction, collision with
+// rigid bodies (the host's point query), strain limiting, tension (Yarn Sec. 3.2),
+// material response (tears: the only topology change, after the solves), velocities
+// and friction.
 #include "cloth/cloth_state.hpp"
 
+#include "base/stage_timer.hpp"
+#include "sim/freeze.hpp"
+
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 
 namespace tearables::detail {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double seconds(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
 
 bool finite(const Vec3& v) { return v.allFinite(); }
 
@@ -114,17 +113,33 @@ void ClothSystem::release(ClothId id, std::size_t vertex, EventCause cause, doub
     pending.push_back(releaseEvent(c, vertex, cause, time, step));
 }
 
-void ClothSystem::step(RigidTable& rigids, const StepContext& ctx, const PointContactFinder& find, std::vector<Event>& events,
-                       StageTimes& times) {
-    auto live = [](const ClothState& c) { return c.alive && !c.frozen; };
-    const auto t0 = Clock::now();
+namespace {
+
+bool live(const ClothState& c) { return c.alive && !c.frozen; }
+
+}  // namespace
+
+void ClothSystem::step(RigidTable& rigids, const StepContext& ctx, const HostContacts& host, std::vector<Event>& events) {
+    StageTimes& t = times_;
+    t = StageTimes{};
+    if (empty()) return;
+    StageTimer timer;
+    predict(rigids, ctx);                 timer.lap(t.predict);
+    collideBodies(rigids, host);          timer.lap(t.collision);
+    limitStrain(rigids, ctx);             timer.lap(t.strain_limit);
+    solveTension(ctx);                    timer.lap(t.tension);
+    respondMaterial(ctx, events);         timer.lap(t.material);
+    updateVelocities(rigids, ctx, events); timer.lap(t.velocities);
+}
+
+void ClothSystem::predict(const RigidTable& rigids, const StepContext& ctx) {
     for (ClothState& c : cloths_)
         if (live(c)) predictCloth(c, rigids, ctx);
-    const auto t1 = Clock::now();
-    times.predict += seconds(t0, t1);
+}
 
-    // Collision with rigid bodies: the host's narrow phase on spheres of the yarn radius,
-    // swept from the start of the step to the prediction.
+/// Collision with rigid bodies: the host's narrow phase on spheres of the yarn radius,
+/// swept from the start of the step to the prediction.
+void ClothSystem::collideBodies(const RigidTable& rigids, const HostContacts& host) {
     query_.start.clear();
     query_.predicted.clear();
     query_.radius.clear();
@@ -139,7 +154,7 @@ void ClothSystem::step(RigidTable& rigids, const StepContext& ctx, const PointCo
         query_cloth_.push_back(static_cast<std::uint32_t>(i));
     }
     found_.clear();
-    if (!query_.start.empty() && find) find(query_, found_);
+    if (!query_.start.empty() && host.points) host.points(query_, found_);
     for (const PointContact& pc : found_) {
         if (pc.onFace()) continue;  // a cloth gives no triangles: vertex contacts only
         ClothState& c = cloths_[query_cloth_[pc.object]];
@@ -159,24 +174,27 @@ void ClothSystem::step(RigidTable& rigids, const StepContext& ctx, const PointCo
         vc.friction = std::max(0.0, pc.friction);
         c.contacts.push_back(vc);
     }
-    const auto t2 = Clock::now();
-    times.collision += seconds(t1, t2);
+}
 
+void ClothSystem::limitStrain(RigidTable& rigids, const StepContext& ctx) {
     for (ClothState& c : cloths_)
         if (live(c)) limitClothStrain(c, rigids, ctx);
-    const auto t3 = Clock::now();
-    times.strain_limit += seconds(t2, t3);
+}
 
+void ClothSystem::solveTension(const StepContext& ctx) {
     for (ClothState& c : cloths_)
         if (live(c)) solveClothTension(c, ctx);
-    const auto t4 = Clock::now();
-    times.tension += seconds(t3, t4);
+}
 
+void ClothSystem::respondMaterial(const StepContext& ctx, std::vector<Event>& events) {
     for (ClothState& c : cloths_)
         if (live(c)) respondClothMaterial(c, ctx, events);
-    const auto t5 = Clock::now();
-    times.material += seconds(t4, t5);
+}
 
+/// Velocities from the step's motion, capped at max_speed, then the contacts' friction; a
+/// cloth left non-finite is frozen at the start of the step (a non-finite start at the
+/// origin).
+void ClothSystem::updateVelocities(RigidTable& rigids, const StepContext& ctx, std::vector<Event>& events) {
     const double max_speed = ctx.settings ? ctx.settings->max_speed : 500.0;
     for (std::size_t i = 0; i < cloths_.size(); ++i) {
         ClothState& c = cloths_[i];
@@ -193,22 +211,11 @@ void ClothSystem::step(RigidTable& rigids, const StepContext& ctx, const PointCo
         if (ok && !c.contacts.empty()) applyClothFriction(c, rigids, ctx);
         std::fill(c.force.begin(), c.force.end(), Vec3::Zero());
         if (!ok) {
-            for (std::size_t p = 0; p < c.vertices(); ++p) {
-                c.x[p] = finite(c.x_prev[p]) ? c.x_prev[p] : Vec3::Zero();
-                c.v[p].setZero();
-            }
+            for (std::size_t p = 0; p < c.vertices(); ++p) c.x[p] = finite(c.x_prev[p]) ? c.x_prev[p] : Vec3::Zero();
             std::fill(c.tension.begin(), c.tension.end(), 0.0);
-            c.frozen = true;
-            Event e;
-            e.type = EventType::Freeze;
-            e.cause = EventCause::NonFinite;
-            e.object = c.desc.name;
-            e.time = ctx.time;
-            e.step = ctx.step;
-            events.push_back(e);
+            events.push_back(freezeNonFinite(c.v, c.frozen, c.desc.name, ctx));
         }
     }
-    times.velocities += seconds(t5, Clock::now());
 }
 
 }  // namespace tearables::detail

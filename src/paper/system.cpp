@@ -5,18 +5,19 @@
 // -> tears -> finite check. Topology changes happen only in the crease and tear stages,
 // after the positions are final, never inside a solver loop.
 #include "paper/system.hpp"
+
+#include "base/stage_timer.hpp"
+#include "sim/freeze.hpp"
 #include "sim/rigid_table.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 
 namespace tearables::detail {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double seconds(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
+bool live(const PaperSheet& s) { return s.alive && !s.frozen; }
 
 void checkVertex(const PaperSheet& s, std::uint32_t vertex) {
     if (vertex >= s.vertices())
@@ -120,7 +121,7 @@ void PaperSystem::movePin(PaperId id, std::uint32_t vertex, const Vec3& point) {
     s.hold[vertex].point = point;
 }
 
-void PaperSystem::detach(PaperId id, std::uint32_t vertex, EventCause cause, double time, std::int64_t step, std::vector<Event>& events) {
+void PaperSystem::release(PaperId id, std::uint32_t vertex, EventCause cause, double time, std::int64_t step, std::vector<Event>& events) {
     PaperSheet& s = get(id);
     checkVertex(s, vertex);
     if (s.hold[vertex].kind == VertexHold::Kind::Free) return;
@@ -142,12 +143,12 @@ void PaperSystem::applyForce(PaperId id, std::uint32_t vertex, const Vec3& force
     s.force[vertex] += force;
 }
 
-void PaperSystem::forgetBody(RigidId body, double time, std::int64_t step, std::vector<Event>& events) {
+void PaperSystem::releaseBody(RigidId body, double time, std::int64_t step, std::vector<Event>& events) {
     for (std::size_t i = 0; i < sheets_.size(); ++i) {
         if (!sheets_[i].alive) continue;
         for (std::size_t v = 0; v < sheets_[i].vertices(); ++v)
             if (sheets_[i].hold[v].kind == VertexHold::Kind::Glue && sheets_[i].hold[v].body == body)
-                detach(PaperId{static_cast<std::uint32_t>(i)}, static_cast<std::uint32_t>(v), EventCause::BodyRemoved, time, step, events);
+                release(PaperId{static_cast<std::uint32_t>(i)}, static_cast<std::uint32_t>(v), EventCause::BodyRemoved, time, step, events);
     }
 }
 
@@ -177,14 +178,33 @@ void PaperSystem::bounds(double h, const Vec3& gravity, std::vector<std::pair<Ve
     }
 }
 
-void PaperSystem::step(const PaperStep& ctx, RigidTable& rigids, const PointContactFinder& find, std::vector<Event>& events) {
-    times_ = PaperTimes{};
+void PaperSystem::step(RigidTable& rigids, const StepContext& ctx, const HostContacts& host, std::vector<Event>& events) {
+    PaperTimes& t = times_;
+    t = PaperTimes{};
     if (sheets_.empty()) return;
-    auto live = [](const PaperSheet& s) { return s.alive && !s.frozen; };
-    auto t0 = Clock::now();
-    // Rigid bodies: one query of every live sheet's vertices, where they start and where
-    // they would go without their springs (gravity's pull); the host's contacts are
-    // speculative (a reach of both travels), so the springs' motion is covered.
+    PaperStep pctx;
+    pctx.h = ctx.h;
+    pctx.inv_h = ctx.inv_h;
+    pctx.gravity = ctx.gravity;
+    pctx.max_speed = ctx.settings->max_speed;
+    pctx.time = ctx.time;
+    pctx.step = ctx.step;
+    StageTimer timer;
+    collideBodies(rigids, pctx, host);     timer.lap(t.collision);
+    solve(rigids, pctx);                   timer.lap(t.solve);
+    enforceContacts(rigids, pctx);         timer.lap(t.collision);
+    tension(pctx);                         timer.lap(t.tension);
+    positions(rigids, pctx);               timer.lap(t.positions);
+    crease(pctx, events);                  timer.lap(t.crease);
+    tearAndCheck(ctx, pctx, events);       timer.lap(t.tear);
+}
+
+/// Rigid bodies: one query of every live sheet's vertices, where they start and where
+/// they would go without their springs (gravity's pull); the host's contacts are
+/// speculative (a reach of both travels), so the springs' motion is covered. Movable
+/// bodies then lend their mass to the vertices that touch or hold them, shared equally
+/// among all of them (over every sheet).
+void PaperSystem::collideBodies(RigidTable& rigids, const PaperStep& ctx, const HostContacts& host) {
     query_.start.clear();
     query_.predicted.clear();
     query_.radius.clear();
@@ -208,7 +228,7 @@ void PaperSystem::step(const PaperStep& ctx, RigidTable& rigids, const PointCont
         query_sheet_.push_back(static_cast<std::uint32_t>(i));
     }
     contacts_.clear();
-    if (find && !query_.start.empty()) find(query_, contacts_);
+    if (host.points && !query_.start.empty()) host.points(query_, contacts_);
     per_sheet_.resize(sheets_.size());
     for (auto& list : per_sheet_) list.clear();
     // A sheet does not collide with a body it is glued to (as strings): the glue already
@@ -225,46 +245,47 @@ void PaperSystem::step(const PaperStep& ctx, RigidTable& rigids, const PointCont
         const std::uint32_t sheet = query_sheet_[c.object];
         if (!std::binary_search(glued_[sheet].begin(), glued_[sheet].end(), c.body.index)) per_sheet_[sheet].push_back(c);
     }
-    // Movable bodies lend their mass to the vertices that touch or hold them, shared
-    // equally among all of them (over every sheet): count them first.
     share_.assign(rigids.bodies.size(), 0.0);
     for (std::size_t i = 0; i < sheets_.size(); ++i)
         if (live(sheets_[i])) countCouplings(sheets_[i], per_sheet_[i], rigids, ctx, share_);
     couplings_.resize(sheets_.size());
     for (std::size_t i = 0; i < sheets_.size(); ++i)
         if (live(sheets_[i])) coupleBodies(sheets_[i], per_sheet_[i], share_, rigids, ctx, couplings_[i]);
-    auto t1 = Clock::now();
-    times_.collision = seconds(t0, t1);
+}
 
+void PaperSystem::solve(const RigidTable& rigids, const PaperStep& ctx) {
     for (PaperSheet& s : sheets_)
         if (live(s)) solveVelocities(s, rigids, ctx);
-    auto t2 = Clock::now();
-    times_.solve = seconds(t1, t2);
+}
 
-    // The bodies get what their shares gained; then every contact is made to hold at the
-    // end of the step (static bodies, friction, what the coupling left).
+/// The bodies get what their shares gained; then every contact is made to hold at the
+/// end of the step (static bodies, friction, what the coupling left).
+void PaperSystem::enforceContacts(RigidTable& rigids, const PaperStep& ctx) {
     for (std::size_t i = 0; i < sheets_.size(); ++i) {
         if (!live(sheets_[i])) continue;
         releaseBodies(sheets_[i], couplings_[i], rigids, ctx);
         resolveContacts(sheets_[i], per_sheet_[i], rigids, ctx);
     }
-    auto t3a = Clock::now();
-    times_.collision += seconds(t2, t3a);
+}
+
+void PaperSystem::tension(const PaperStep& ctx) {
     for (std::size_t i = 0; i < sheets_.size(); ++i)
         if (live(sheets_[i])) estimateTension(sheets_[i], per_sheet_[i], ctx);
-    t2 = Clock::now();
-    times_.tension = seconds(t3a, t2);
+}
 
+void PaperSystem::positions(RigidTable& rigids, const PaperStep& ctx) {
     for (PaperSheet& s : sheets_)
         if (live(s)) integratePositions(s, rigids, ctx);
-    auto t3 = Clock::now();
-    times_.positions = seconds(t2, t3);
+}
 
+void PaperSystem::crease(const PaperStep& ctx, std::vector<Event>& events) {
     for (std::size_t i = 0; i < sheets_.size(); ++i)
         if (live(sheets_[i])) creaseAndFold(sheets_[i], PaperId{static_cast<std::uint32_t>(i)}, ctx, events);
-    auto t4 = Clock::now();
-    times_.crease = seconds(t3, t4);
+}
 
+/// Tears, then the finite check: a sheet left non-finite is frozen where it is (its
+/// non-finite vertices at the origin, so that its view stays finite).
+void PaperSystem::tearAndCheck(const StepContext& step, const PaperStep& ctx, std::vector<Event>& events) {
     for (std::size_t i = 0; i < sheets_.size(); ++i) {
         PaperSheet& s = sheets_[i];
         if (!live(s)) continue;
@@ -272,25 +293,12 @@ void PaperSystem::step(const PaperStep& ctx, RigidTable& rigids, const PointCont
         bool ok = true;
         for (std::size_t v = 0; v < s.vertices() && ok; ++v) ok = s.x[v].allFinite() && s.v[v].allFinite();
         if (!ok) {
-            // Frozen: finite vertices stay where they are, non-finite ones are put at the
-            // origin (the sheet is no longer simulated; its view stays finite).
-            for (std::size_t v = 0; v < s.vertices(); ++v) {
+            for (std::size_t v = 0; v < s.vertices(); ++v)
                 if (!s.x[v].allFinite()) s.x[v].setZero();
-                s.v[v].setZero();
-            }
-            s.frozen = true;
-            Event e;
-            e.type = EventType::Freeze;
-            e.cause = EventCause::NonFinite;
-            e.object = s.desc.name;
-            e.time = ctx.time;
-            e.step = ctx.step;
-            events.push_back(e);
+            events.push_back(freezeNonFinite(s.v, s.frozen, s.desc.name, step));
         }
         std::fill(s.force.begin(), s.force.end(), Vec3::Zero());
     }
-    times_.tear = seconds(t4, Clock::now());
 }
 
 }  // namespace tearables::detail
-

@@ -1,16 +1,15 @@
-// Paper sheets: the small system World::Impl owns and calls from World::step.
+// Paper sheets: the system that creates, attaches and steps the sheets of a world.
 #pragma once
 
 #include "paper/sheet.hpp"
+#include "sim/host_contacts.hpp"
+#include "sim/step_context.hpp"
 
 #include <functional>
 #include <utility>
 #include <vector>
 
 namespace tearables::detail {
-
-/// Finds the contacts of a PointQuery (World::Impl::findPointContacts, which checks the host's answer).
-using PointContactFinder = std::function<void(const PointQuery&, std::vector<PointContact>&)>;
 
 class PaperSystem {
 public:
@@ -26,18 +25,18 @@ public:
     void attachToRigid(PaperId id, std::uint32_t vertex, RigidId body, const Vec3& local, const RigidTable& rigids);
     void movePin(PaperId id, std::uint32_t vertex, const Vec3& point);
     /// Frees a vertex; a Release event goes to `events` when it was held.
-    void detach(PaperId id, std::uint32_t vertex, EventCause cause, double time, std::int64_t step, std::vector<Event>& events);
+    void release(PaperId id, std::uint32_t vertex, EventCause cause, double time, std::int64_t step, std::vector<Event>& events);
     void applyForce(PaperId id, std::uint32_t vertex, const Vec3& force);
 
     /// Drops every glue to `body` (Release events, cause BodyRemoved).
-    void forgetBody(RigidId body, double time, std::int64_t step, std::vector<Event>& events);
+    void releaseBody(RigidId body, double time, std::int64_t step, std::vector<Event>& events);
     bool usesBody(RigidId body) const;
     /// Bounds of every live sheet grown by its radius and its travel in a step of h.
     void bounds(double h, const Vec3& gravity, std::vector<std::pair<Vec3, Vec3>>& out) const;
 
     /// One step of every sheet: velocities (implicit Jacobi or explicit), rigid contacts,
     /// positions, creases and hinges, tears, the finite check.
-    void step(const PaperStep& ctx, RigidTable& rigids, const PointContactFinder& find, std::vector<Event>& events);
+    void step(RigidTable& rigids, const StepContext& ctx, const HostContacts& host, std::vector<Event>& events);
     /// Contacts of the last step, per the query's object order (for tests).
     const std::vector<PointContact>& lastContacts() const { return contacts_; }
     /// Wall time of the sheets' stages in the last step, s.
@@ -45,6 +44,13 @@ public:
 
 private:
     friend struct WorldAccess;  // snapshots read and replace the sheets (src/world/snapshot.cpp)
+    void collideBodies(RigidTable& rigids, const PaperStep& ctx, const HostContacts& host);
+    void solve(const RigidTable& rigids, const PaperStep& ctx);
+    void enforceContacts(RigidTable& rigids, const PaperStep& ctx);
+    void tension(const PaperStep& ctx);
+    void positions(RigidTable& rigids, const PaperStep& ctx);
+    void crease(const PaperStep& ctx, std::vector<Event>& events);
+    void tearAndCheck(const StepContext& step, const PaperStep& ctx, std::vector<Event>& events);
     std::vector<PaperSheet> sheets_;
     PointQuery query_;
     std::vector<std::uint32_t> query_sheet_;

@@ -3,20 +3,19 @@
 #pragma once
 
 #include "cloth/cloth_state.hpp"
-#include "paper/sheet.hpp"
 #include "collision/grid.hpp"
+#include "paper/sheet.hpp"
+#include "string/string_pairs.hpp"
 #include "string/string_state.hpp"
 #include "tearables/world.hpp"
 
 #include <cstdint>
-#include <tuple>
 #include <vector>
 
 namespace tearables::detail {
 
-/// A string-string pair that started a step too deep (world.cpp, kStringDeepStart):
-/// (string, segment, string, segment).
-using DeepPair = std::tuple<std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t>;
+/// A string-string pair that started a step too deep (string_pairs.cpp, kStringDeepStart).
+using DeepPair = PairKey;
 
 /// Pointers into a World's state; valid while the world lives.
 struct WorldParts {

@@ -1,5 +1,5 @@
-// World's cloth API: validates the arguments and forwards to the ClothSystem that
-// World::Impl owns (kept apart from world.cpp).
+// World's cloth API: validates the arguments and forwards to the world's ClothSystem
+// (src/cloth/system.cpp).
 #include "cloth/cloth_state.hpp"
 #include "tearables/world.hpp"
 

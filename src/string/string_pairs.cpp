@@ -1,0 +1,593 @@
+// String-string and self collision (Strings Sec. 6): every segment is a capsule, two
+// capsules overlap when their axes come closer than the sum of the radii.
+//
+// The strings that touch are solved together (solveStringCluster): one Newton method on
+// the sum of their energies, the contact penalties and Coulomb friction on the contact
+// points' motion relative to each other, both sides of every contact moving with their
+// masses, springs and tensions; momentum is exchanged, the strain limit stays exact and
+// the step ends without overlaps. The strings' own solves run first and give the
+// starting point; a cluster whose pairs they already keep apart is left as it is.
+// (Why not a fixed partner point, a projection or a linearised coupling:
+// docs/notes-string-collision.md.)
+//
+// Pairs come from the segments at the START of the step, each capsule grown by its ends'
+// travel in the step (and kStringReach of its radius), so every pair that came within
+// reach during the step, also one that passed through, is found (ChainTree); the start
+// direction of each pair says which side is which when the axes touch or have crossed.
+// A pair that starts the step deeper than kStringDeepStart is left to come apart by
+// itself. A string that hangs or swings nearly straight is proved free of self pairs
+// from its shape (selfPairFree) and its self search is skipped: the same pairs, none.
+//
+// Momentum-balance tension: the particles a string contact presses lose the contact
+// force's directions from their tension equations (row_projector, as for rigid
+// contacts); what else the joint solve moved is the springs' doing and counts as tension.
+// The clean-up projection (finish) runs after the tension stage.
+#include "string/string_pairs.hpp"
+
+#include "collision/capsule.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace tearables::detail {
+
+namespace {
+
+/// Coulomb friction between strings (fibre on fibre, dry nylon and cotton: about 0.2-0.4).
+constexpr double kStringFriction = 0.3;
+/// The clean-up projection after the tension stage (finish): at most this many
+/// Gauss-Seidel sweeps, stopped once no pair overlaps by more than the tolerance
+/// (fraction of its thickness).
+constexpr int kStringCleanupSweeps = 8;
+constexpr double kStringCleanupTolerance = 1e-3;
+/// A pair whose axes are closer than this fraction of the thickness at the start of a
+/// step is no contact this step: no step of the solver ends that deep, so something else
+/// put it there (strings created through each other, a pin moved through a string, a
+/// string pinned back onto itself), and it has no side to be pushed to (the axes may
+/// even be collinear). It is left to come apart by itself and is a contact again once its
+/// axes are apart by the thickness at the start of a step.
+constexpr double kStringDeepStart = 0.5;
+/// Axes closer than this fraction of the thickness have no reliable direction of their
+/// own: the direction at the start of the step is used.
+constexpr double kStringAxisContact = 1e-3;
+/// Pairs are searched for with each capsule grown by its ends' travel in the step and by
+/// this fraction of its radius (slack for what the joint solve changes): every pair that
+/// can meet during the step is found, and no pair that cannot.
+constexpr double kStringReach = 1.0;
+/// A pair of the swept search whose axes are farther apart after the strings' own solves
+/// than (1 + this) times the thickness plus twice the relative travel of its ends in the
+/// step, on their starting side, is not solved: the joint solve moves a string by about
+/// that (a fast arm meeting another is deflected by a step's motion); the pairs of a
+/// swinging or resting straight rope (every third segment) are dropped.
+constexpr double kStringNear = 0.25;
+/// Pairs within this fraction of the thickness of touching count as colliding.
+constexpr double kStringTouchSlop = 0.1;
+
+/// Segments of one string closer along it than the capsules are thick touch their
+/// neighbours when the string is straight: segments k apart have (k - 1) L of axis
+/// between them, so pairs with k <= 1 + ceil(2 r / L) are not collisions. (A property
+/// of the string, not of the search margin: only true overlaps act.)
+std::uint32_t stringContactSkip(double thickest_radius, double shortest_segment) {
+    return static_cast<std::uint32_t>(1.0 + std::ceil(2.0 * thickest_radius / shortest_segment));
+}
+
+}  // namespace
+
+std::size_t StringPairs::lastSelfFreeStrings() const {
+    return static_cast<std::size_t>(std::count(self_free_.begin(), self_free_.end(), std::uint8_t{1}));
+}
+
+void StringPairs::findPairs() {
+    const std::vector<StringState>& strings = *strings_;
+    ThreadPool& pool = *pool_;
+    string_pairs_.clear();
+    deep_next_.clear();
+    // The segments of the live strings, string after string, each string's run filled
+    // on the pool (where it starts is known beforehand).
+    pair_strings_.clear();
+    std::size_t particle_count = 0, segment_count = 0;
+    for (std::size_t i = 0; i < strings.size(); ++i) {
+        const StringState& s = strings[i];
+        if (!s.alive || s.frozen) continue;
+        pair_strings_.push_back({static_cast<std::uint32_t>(i), particle_count, segment_count, 0.0, 0.0, true, -1.0, 0.0});
+        particle_count += s.particles();
+        segment_count += s.segments();
+    }
+    grid_positions_.resize(particle_count);
+    grid_travel_.resize(particle_count);
+    grid_thickness_.resize(segment_count);
+    grid_segments_.resize(segment_count);
+    // A single string is scanned for selfPairFree alone first: proved free of self
+    // pairs, it needs nothing more (the search would keep none). Otherwise each
+    // string's scan fills its run of the search's arrays as well.
+    const bool alone = pair_strings_.size() == 1;
+    pool.forEach(pair_strings_.size(), [&](std::size_t k) {
+        if (alone)
+            scanString<false>(pair_strings_[k]);
+        else
+            scanString<true>(pair_strings_[k]);
+    });
+    double thickest = 0.0, shortest_segment = 1e300, extent = 0.0;
+    for (const PairString& ps : pair_strings_) {
+        thickest = std::max(thickest, ps.thickest);
+        extent = std::max(extent, ps.extent);
+        shortest_segment = std::min(shortest_segment, strings[ps.string].shortest_rest);
+    }
+    tree_searched_ = false;
+    grid_pairs_.clear();
+    grid_rounding_ = 1e-15 * (2.0 * extent + 1.0);
+    const std::uint32_t skip = stringContactSkip(thickest, shortest_segment);
+    self_free_.assign(pair_strings_.size(), 0);
+    if (straight_strings_skip)
+        for (std::size_t k = 0; k < pair_strings_.size(); ++k) self_free_[k] = selfPairFree(pair_strings_[k], skip);
+    if (alone && self_free_[0]) {
+        deep_pairs_.clear();
+        return;
+    }
+    if (alone) scanString<true>(pair_strings_[0]);
+    bool finite_state = true;
+    for (const PairString& ps : pair_strings_) finite_state = finite_state && ps.finite;
+    if (grid_segments_.size() < 2 || !finite_state) {
+        deep_pairs_.clear();
+        return;
+    }
+    searchTree(skip);
+    sortContacts();
+}
+
+/// The swept capsules' overlaps through a box tree per string (collision/grid.hpp,
+/// ChainTree). The tree asks judgePair about each pair as it finds it and keeps only
+/// those that are not dropped (a swinging rope's swept search finds thousands, nearly
+/// all dropped); the kept ones are judged again on the pool in chunks, their verdicts
+/// in the pairs' order.
+void StringPairs::searchTree(std::uint32_t skip) {
+    ThreadPool& pool = *pool_;
+    auto keep = [](const void* self, const SegmentPair& pair) {
+        // judgePair writes what it reads of the contact first: a scratch per thread,
+        // not a SegmentContact (~330 bytes of defaults) built for every candidate.
+        thread_local SegmentContact scratch;
+        return static_cast<const StringPairs*>(self)->judgePair(pair, scratch) != kPairDropped;
+    };
+    auto reject = [](const void* self, std::uint32_t i, std::uint32_t j) {
+        return static_cast<const StringPairs*>(self)->surelyDropped(i, j);
+    };
+    // Whole node pairs of the tree dropped at once (nodesSeparationNeeded): a rope
+    // swinging as a whole has its swept boxes overlap far along it, their relative
+    // travel small.
+    auto separation_needed = [](const void* self, const ChainTree::NodeBounds& a,
+                                const ChainTree::NodeBounds& b) {
+        return static_cast<const StringPairs*>(self)->nodesSeparationNeeded(a, b);
+    };
+    const ChainTree::Sweep sweep{grid_travel_.data(), grid_thickness_.data(), separation_needed};
+    tree_.findPairs(grid_positions_.data(), grid_segments_, 0.0, grid_pairs_, skip, &pool, keep, this, reject,
+                   node_pruning ? &sweep : nullptr, self_free_.data());
+    tree_searched_ = true;
+    pair_verdict_.resize(grid_pairs_.size());
+    pair_contact_.resize(grid_pairs_.size());
+    const std::size_t chunks = std::min<std::size_t>(grid_pairs_.size(), 64);
+    pool.forEach(chunks, [&](std::size_t chunk) {
+        const std::size_t lo = grid_pairs_.size() * chunk / chunks, hi = grid_pairs_.size() * (chunk + 1) / chunks;
+        for (std::size_t i = lo; i < hi; ++i) pair_verdict_[i] = judgePair(grid_pairs_[i], pair_contact_[i]);
+    });
+}
+
+/// The contacts sorted by key (string, segment, partner, partner segment): the warm
+/// start merges with the last step's pairs, and the deep pairs are binary-searched.
+/// The keys are sorted with the contacts' indices and the contacts copied once, in that
+/// order (not the ~330-byte contacts sorted). A key names one pair of segments, which
+/// the search reports once, so the order is the one sorting the contacts gives.
+void StringPairs::sortContacts() {
+    contact_order_.clear();
+    for (std::size_t i = 0; i < grid_pairs_.size(); ++i) {
+        const SegmentContact& c = pair_contact_[i];
+        const PairKey key = pairKey(c);
+        if (pair_verdict_[i] == kPairDeep) deep_next_.push_back(key);
+        if (pair_verdict_[i] == kPairContact) contact_order_.emplace_back(key, static_cast<std::uint32_t>(i));
+    }
+    std::sort(contact_order_.begin(), contact_order_.end());
+    string_pairs_.reserve(contact_order_.size());
+    for (const auto& [key, i] : contact_order_) string_pairs_.push_back(pair_contact_[i]);
+    std::sort(deep_next_.begin(), deep_next_.end());
+    deep_pairs_.swap(deep_next_);
+}
+
+/// Scans a live string for the search: its largest |x|_1 and |x_prev|_1 (ps.extent),
+/// thickest radius, and selfPairFree's sums: the least advance of a segment along the
+/// unit chord u of the start positions, d . u - 1e-14 |d|_1 (d = x_prev[j+1] - x_prev[j];
+/// -1 where the chord has no direction or a segment does not advance), and the largest
+/// |t_{j+1} - t_j| of the travels t = x - x_prev, times 1 + 1e-12. With `fill`, also its
+/// run of grid_positions_ (the start positions), grid_travel_ (t), grid_segments_ (each
+/// capsule at the start, grown by its ends' travel) and grid_thickness_, and ps.finite.
+/// A long string's particles in ranges on the pool (each writes its own entries; the
+/// least, largest and finiteness do not depend on the cut). A NaN makes the sums fail
+/// the test, not vanish from it.
+template <bool fill>
+void StringPairs::scanString(PairString& ps) {
+    const std::vector<StringState>& strings = *strings_;
+    ThreadPool& pool = *pool_;
+    const StringState& s = strings[ps.string];
+    const std::size_t n = s.particles();
+    const Vec3 chord = s.x_prev.back() - s.x_prev.front();
+    const double chord_length = chord.norm();
+    const bool along_chord = chord_length > 0.0 && std::isfinite(chord_length);
+    const Vec3 u = along_chord ? Vec3(chord / chord_length) : Vec3::Zero();
+    struct Sums {
+        double extent = 0.0, thickest = 0.0;
+        double advance = std::numeric_limits<double>::infinity(), shear2 = 0.0;
+        bool finite = true;
+        void least(double v) { if (!(v >= advance)) advance = v; }
+        void most(double v) { if (!(v <= shear2)) shear2 = v; }
+    };
+    Vec3* positions = grid_positions_.data() + ps.particle_base;
+    Vec3* moved = grid_travel_.data() + ps.particle_base;
+    CollisionSegment* segments = grid_segments_.data() + ps.segment_base;
+    double* thickness = grid_thickness_.data() + ps.segment_base;
+    const auto base = static_cast<std::uint32_t>(ps.particle_base);
+    // How far particle p travelled this step (t = x - x_prev given), to its prediction or
+    // in its string's own solve (sqrt is monotone and correctly rounded: the larger of
+    // the two norms, bit for bit, with one square root).
+    auto travel = [&s](std::size_t p, const Vec3& t) {
+        return std::sqrt(std::max(t.squaredNorm(), (s.x_pred[p] - s.x_prev[p]).squaredNorm()));
+    };
+    Sums range_sums[kMaxRanges];
+    forRanges(&pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t part) {
+        Sums sums;
+        // The particle before's travel vector and (with `fill`) travel, carried: each
+        // particle's found once, both its segments use them.
+        Vec3 before = p0 > 0 ? Vec3(s.x[p0 - 1] - s.x_prev[p0 - 1]) : Vec3::Zero();
+        double previous = 0.0;
+        if constexpr (fill) previous = p0 > 0 ? travel(p0 - 1, before) : 0.0;
+        for (std::size_t p = p0; p < p1; ++p) {
+            sums.extent = std::max(sums.extent, std::max(s.x[p].cwiseAbs().sum(), s.x_prev[p].cwiseAbs().sum()));
+            const Vec3 t = s.x[p] - s.x_prev[p];
+            double now = 0.0;
+            if constexpr (fill) {
+                now = travel(p, t);
+                positions[p] = s.x_prev[p];  // pairs from the start of the step (swept)
+                moved[p] = t;
+            }
+            if (p > 0) {
+                const std::size_t j = p - 1;
+                sums.thickest = std::max(sums.thickest, s.radius[j]);
+                const Vec3 d = s.x_prev[p] - s.x_prev[j];
+                sums.least(d.dot(u) - 1e-14 * d.cwiseAbs().sum());
+                sums.most((t - before).squaredNorm());
+                if constexpr (fill) {
+                    CollisionSegment& seg = segments[j];
+                    seg.a = base + static_cast<std::uint32_t>(j);
+                    seg.b = seg.a + 1;
+                    seg.chain = ps.string;
+                    seg.index_in_chain = static_cast<std::uint32_t>(j);
+                    // The capsule at the start of the step, swept: grown by the travel
+                    // of its ends, and by kStringReach of its radius for what the joint
+                    // solve changes.
+                    seg.radius = s.radius[j] * (1.0 + kStringReach) + std::max(previous, now);
+                    seg.skip = s.broken[j] != 0;
+                    thickness[j] = s.radius[j];
+                    sums.finite = sums.finite && std::isfinite(seg.radius);
+                }
+            }
+            previous = now;
+            before = t;
+        }
+        range_sums[part] = sums;
+    });
+    Sums total;
+    for (const Sums& sums : range_sums) {  // (ranges not run hold the identities)
+        total.extent = std::max(total.extent, sums.extent);
+        total.thickest = std::max(total.thickest, sums.thickest);
+        total.least(sums.advance);
+        total.most(sums.shear2);
+        total.finite = total.finite && sums.finite;
+    }
+    ps.extent = total.extent;
+    ps.thickest = total.thickest;
+    ps.advance = along_chord && total.advance > 0.0 ? total.advance : -1.0;
+    ps.shear = std::sqrt(total.shear2) * (1.0 + 1e-12);
+    ps.finite = total.finite;
+}
+
+/// True when judgePair would drop every pair of a string's own segments this step, by
+/// the string's shape alone (ps's sums, scanString): a rope that
+/// swings or hangs nearly straight, whose self search otherwise descends its whole
+/// tree along the diagonal (its neighbouring nodes' boxes overlap) to drop every pair.
+///
+/// With u the unit chord of the string's start positions, every segment advancing along
+/// u by at least `advance` > 0 (less a rounding margin of 1e-14 |d|_1 per segment, far
+/// above the dot product's), segments i < j with g = j - i are separated along u, at
+/// the start, by at least (g - 1) advance (the segments between them, each forward);
+/// and the relative travel of any end of one and any end of the other is at most
+/// (g + 1) `shear` (shear: the largest |t_{k+1} - t_k| of the travels t = x - x_prev
+/// judgePair reads, with a relative 1e-12 for the norms' rounding). surelyDropped's
+/// argument (any unit direction will do) drops a pair separated by sep along u when
+/// sep > c + k r (k = 1 + 2 (1 + 1e-6)); this takes 4 for k, and for c the string's
+/// largest gap, 2 (1 + kStringNear) (1 + 1e-6) times its thickest radius, plus
+/// grid_rounding_. The pairs that exist have g > skip (closer ones are never pairs), and
+/// (g - 1) advance - 4 (g + 1) shear grows with g where advance > 4 shear: so the
+/// pairs with g = skip + 1 decide for all. Such a pair is not deep either: its start
+/// distance exceeds c > the gap.
+bool StringPairs::selfPairFree(const PairString& ps, std::uint32_t skip) const {
+    const double c = 2.0 * (1.0 + kStringNear) * ps.thickest * (1.0 + 1e-6) + grid_rounding_;
+    const double travel = 4.0 * ps.shear;
+    const double g = static_cast<double>(skip) + 1.0;
+    return ps.advance > travel && (g - 1.0) * ps.advance - (g + 1.0) * travel > c;
+}
+
+/// What findPairs makes of a pair of the swept search: no contact, a pair that
+/// is (still) deep (c's key is remembered), or a contact (c). Reads only.
+std::uint8_t StringPairs::judgePair(const SegmentPair& pair, SegmentContact& c) const {
+    const std::vector<StringState>& strings = *strings_;
+    const CollisionSegment& a = grid_segments_[pair.first];
+    const CollisionSegment& b = grid_segments_[pair.second];
+    // Only the key and the gap until the pair is kept (most are not).
+    c.string = a.chain;
+    c.segment = a.index_in_chain;
+    c.partner = b.chain;
+    c.partner_segment = b.index_in_chain;
+    c.gap = strings[c.string].radius[c.segment] + strings[c.partner].radius[c.partner_segment];
+    // Deep at the start, or still coming apart from being deep: no contact (see
+    // kStringDeepStart), and remembered for the next step.
+    const PairKey key = pairKey(c);
+    const bool was_deep = std::binary_search(deep_pairs_.begin(), deep_pairs_.end(), key);
+    if (pair.distance < (was_deep ? 1.0 : kStringDeepStart) * c.gap) {
+        return kPairDeep;
+    }
+    // Apart after the strings' own solves, by more than kStringNear of the
+    // thickness and on the side they started on: no contact this step (most pairs
+    // of the swept search, e.g. every third segment of a straight rope).
+    const StringState& sa = strings[c.string];
+    const StringState& sb = strings[c.partner];
+    // Relative travel of the pair's ends over the step: the axes' distance at any
+    // time of the step differs from the end's by at most this.
+    double relative = 0.0;
+    for (std::size_t i = c.segment; i <= c.segment + 1u; ++i)
+        for (std::size_t k = c.partner_segment; k <= c.partner_segment + 1u; ++k)
+            relative = std::max(relative, ((sa.x[i] - sa.x_prev[i]) - (sb.x[k] - sb.x_prev[k])).squaredNorm());
+    relative = std::sqrt(relative);
+    const double apart = (1.0 + kStringNear) * c.gap + 2.0 * relative;
+    // Most pairs of the swept search are dropped here without their closest points:
+    // when the segments are separated along the start normal n by more than
+    // `apart` (every point of this side beyond every point of the other), the
+    // closest points p, q have (p - q).n >= that > 0 and |p - q| >= (p - q).n, so
+    // the test below would drop the pair too. A margin of 1e-6 and of the
+    // positions' rounding keeps that true in floating point.
+    {
+        const Vec3& a0 = sa.x[c.segment];
+        const Vec3& a1 = sa.x[c.segment + 1];
+        const Vec3& b0 = sb.x[c.partner_segment];
+        const Vec3& b1 = sb.x[c.partner_segment + 1];
+        const Vec3& n = pair.normal;
+        const double separation = std::min(n.dot(a0), n.dot(a1)) - std::max(n.dot(b0), n.dot(b1));
+        const double rounding = 1e-15 * (a0.cwiseAbs().sum() + b0.cwiseAbs().sum() + 1.0);
+        if (separation > apart * (1.0 + 1e-6) + rounding) return kPairDropped;
+    }
+    const SegmentClosest now = closestPointsOfSegments(
+        sa.x[c.segment], sa.x[c.segment + 1], sb.x[c.partner_segment], sb.x[c.partner_segment + 1]);
+    if (now.distance > apart && (now.p - now.q).dot(pair.normal) > 0.0) return kPairDropped;
+    const double gap = c.gap;
+    c = SegmentContact{};
+    c.string = a.chain;
+    c.segment = a.index_in_chain;
+    c.partner = b.chain;
+    c.partner_segment = b.index_in_chain;
+    c.s = pair.s;
+    c.partner_s = pair.t;
+    c.start_normal = pair.normal;
+    c.start_distance = pair.distance;
+    c.normal = pair.normal;
+    c.gap = gap;
+    c.friction = kStringFriction;
+    return kPairContact;
+}
+
+/// True when judgePair would drop the pair of segments i < j (of grid_segments_) for
+/// sure, decided before their closest points at the start of the step: when at the
+/// start they are separated along some unit u (here the direction between their
+/// midpoints) by sep > the relative travel r of their ends, then for every point a of
+/// one and b of the other, now, (a - b).n0 >= d0 - r > 0 (n0, d0: the start closest
+/// points' direction and distance; d0 >= sep, and the motion of a - b is a convex
+/// combination of the ends' relative motions), so the pair is on its starting side, not
+/// deep, and its axes are now at least sep - r apart. Dropped when that is beyond
+/// judgePair's distance, with a margin for rounding: judgePair would drop it too.
+///
+/// In the arithmetic (most of a swinging rope's candidates, ~3 a segment, meet this
+/// test): with w = (a0 + a1) - (b0 + b1) (twice the midpoints' difference), L = |w|,
+/// the separation along u = w / L is (L^2 - |w.(a1 - a0)| - |w.(b1 - b0)|) / (2 L);
+/// the test sep - r > k r + c (k = 1 + 2 (1 + 1e-6), c = (1 + kStringNear) gap (1 + 1e-6)
+/// + rounding) is multiplied by 2 L and squared (both sides positive) so that it needs
+/// one square root (for L) and none for r (r^2 is the max of the squared relative
+/// travels, computed as judgePair does; a relative 1e-12 on it for the square root's
+/// rounding). The errors of the rearranged expression are of the order of
+/// 1e-16 |x|, far below the rounding term (grid_rounding_ >= judgePair's own).
+bool StringPairs::surelyDropped(std::uint32_t i, std::uint32_t j) const {
+    const CollisionSegment& a = grid_segments_[i];
+    const CollisionSegment& b = grid_segments_[j];
+    const Vec3& a0 = grid_positions_[a.a];
+    const Vec3& a1 = grid_positions_[a.b];
+    const Vec3& b0 = grid_positions_[b.a];
+    const Vec3& b1 = grid_positions_[b.b];
+    const Vec3 w = (a0 + a1) - (b0 + b1);
+    const double length2 = w.squaredNorm();
+    const double length = std::sqrt(length2);
+    const double c = (1.0 + kStringNear) * (grid_thickness_[i] + grid_thickness_[j]) * (1.0 + 1e-6) + grid_rounding_;
+    // 2 L (sep - c), when the pair is separated along u by more than c.
+    const double room = length2 - std::abs(w.dot(a1 - a0)) - std::abs(w.dot(b1 - b0)) - 2.0 * c * length;
+    if (!(room > 0.0)) return false;
+    // The relative travel (squared) as judgePair computes it, from the set-up's
+    // x - x_prev (the same values).
+    double relative2 = 0.0;
+    for (std::uint32_t pa : {a.a, a.b})
+        for (std::uint32_t pb : {b.a, b.b}) relative2 = std::max(relative2, (grid_travel_[pa] - grid_travel_[pb]).squaredNorm());
+    constexpr double k = 1.0 + 2.0 * (1.0 + 1e-6);
+    return room * room > 4.0 * length2 * (k * k * (1.0 + 1e-12)) * relative2;
+}
+
+/// The separation along any unit direction u beyond which judgePair drops every pair of
+/// node a's segments with node b's (the tree tests it along the coordinate axes and
+/// along directions it finds, ChainTree::NodeSeparation). surelyDropped's argument for
+/// all the pairs at once: a separation sep of the nodes' start boxes (of the axes' ends,
+/// grid_positions_) along u bounds every pair's separation along u from below; the
+/// travel boxes bound every end pair's relative travel: |t_a - t_b| <= |max(ta_hi -
+/// tb_lo, tb_hi - ta_lo)| (per coordinate), >= each pair's `relative`; the thicknesses
+/// bound each pair's gap. So when sep - R > (1 + kStringNear) (g_a + g_b) + 2 R, every
+/// pair meets surelyDropped's condition with its own (smaller) gap and travel, on u.
+/// The relative margins: 1e-12 on R for the order of the sums in judgePair's norms (a
+/// few ulps), 1e-6 and grid_rounding_ (from the largest |x|_1 of the strings' particles,
+/// start or now, >= judgePair's) as in surelyDropped; the rounding of a separation
+/// along a direction the tree finds (a dot product of positions, along a direction
+/// unit to 1e-16) is within the second grid_rounding_.
+double StringPairs::nodesSeparationNeeded(const ChainTree::NodeBounds& a, const ChainTree::NodeBounds& b) const {
+    const Vec3 d = (a.travel_hi - b.travel_lo).cwiseMax(b.travel_hi - a.travel_lo);
+    const double relative = std::sqrt(d.x() * d.x() + d.y() * d.y() + d.z() * d.z()) * (1.0 + 1e-12);
+    const double apart = (1.0 + kStringNear) * (a.thickness + b.thickness) + 2.0 * relative;
+    return relative + apart * (1.0 + 1e-6) + 2.0 * grid_rounding_;
+}
+
+/// After every string's own strain limit, before the tension stage: finds the pairs
+/// and solves each cluster of touching strings jointly (see above).
+void StringPairs::couple(std::vector<StringState>& strings, RigidTable& rigids, const StepContext& ctx) {
+    strings_ = &strings;
+    pool_ = ctx.pool;
+    findPairs();
+    if (string_pairs_.empty()) return;
+    warmStart();
+    solveClusters(groupClusters(), rigids, ctx);
+}
+
+/// The force a pair pressed with at the end of the last step bounds its friction in the
+/// first pass (both lists sorted by key).
+void StringPairs::warmStart() {
+    std::size_t k = 0;
+    for (SegmentContact& c : string_pairs_) {
+        while (k < previous_pairs_.size() && pairKey(previous_pairs_[k]) < pairKey(c)) ++k;
+        if (k < previous_pairs_.size() && pairKey(previous_pairs_[k]) == pairKey(c)) c.force = previous_pairs_[k].force;
+    }
+}
+
+/// Clusters: strings connected through pairs (union-find over string slots). Returns how
+/// many of clusters_ this step uses.
+std::size_t StringPairs::groupClusters() {
+    std::vector<StringState>& strings = *strings_;
+    cluster_root_.resize(strings.size());
+    for (std::size_t i = 0; i < strings.size(); ++i) cluster_root_[i] = static_cast<std::uint32_t>(i);
+    auto root = [&](std::uint32_t i) {
+        while (cluster_root_[i] != i) i = cluster_root_[i] = cluster_root_[cluster_root_[i]];
+        return i;
+    };
+    for (const SegmentContact& c : string_pairs_) cluster_root_[root(c.string)] = root(c.partner);
+    // The pairs grouped by cluster (clusters in the order of their root slot, pairs in
+    // their order within each: a counting sort by root), each cluster's strings in the
+    // order its pairs name them first.
+    cluster_first_.assign(strings.size() + 1, 0);
+    pair_root_.resize(string_pairs_.size());
+    for (std::size_t i = 0; i < string_pairs_.size(); ++i) {
+        pair_root_[i] = root(string_pairs_[i].string);
+        ++cluster_first_[pair_root_[i] + 1];
+    }
+    for (std::size_t r = 0; r < strings.size(); ++r) cluster_first_[r + 1] += cluster_first_[r];
+    cluster_order_.resize(string_pairs_.size());
+    cluster_fill_.assign(cluster_first_.begin(), cluster_first_.end() - 1);
+    for (std::size_t i = 0; i < string_pairs_.size(); ++i) cluster_order_[cluster_fill_[pair_root_[i]]++] = i;
+    cluster_local_.assign(strings.size(), ~std::uint32_t{0});
+    std::size_t count = 0;
+    for (std::size_t r = 0; r < strings.size(); ++r) {
+        if (cluster_first_[r] == cluster_first_[r + 1]) continue;
+        if (clusters_.size() <= count) clusters_.emplace_back();
+        Cluster& cl = clusters_[count++];
+        cl.strings.clear();
+        cl.contacts.clear();
+        cl.index.clear();
+        cl.contacts.reserve(cluster_first_[r + 1] - cluster_first_[r]);  // not grown copy by copy
+        cl.index.reserve(cluster_first_[r + 1] - cluster_first_[r]);
+        for (std::size_t q = cluster_first_[r]; q < cluster_first_[r + 1]; ++q) {
+            const std::size_t i = cluster_order_[q];
+            const SegmentContact& c = string_pairs_[i];
+            for (std::uint32_t sidx : {c.string, c.partner})
+                if (cluster_local_[sidx] == ~std::uint32_t{0}) {
+                    cluster_local_[sidx] = static_cast<std::uint32_t>(cl.strings.size());
+                    cl.strings.push_back(&strings[sidx]);
+                }
+            SegmentContact local = c;
+            local.string = cluster_local_[c.string];
+            local.partner = cluster_local_[c.partner];
+            cl.contacts.push_back(local);
+            cl.index.push_back(i);
+        }
+    }
+    return count;
+}
+
+/// Clusters share no string (and the joint solve moves no body), so they are solved on
+/// the pool; each writes only its own strings and its own pairs.
+void StringPairs::solveClusters(std::size_t count, RigidTable& rigids, const StepContext& ctx) {
+    pool_->forEach(count, [&](std::size_t q) {
+        Cluster& cl = clusters_[q];
+        cl.scratch.always_sparse = sparse_joint_steps;
+        solveStringCluster(cl.strings, cl.contacts, rigids, ctx, cl.scratch);
+        for (std::size_t i = 0; i < cl.contacts.size(); ++i) {
+            SegmentContact& c = string_pairs_[cl.index[i]];
+            c.force = cl.contacts[i].force;
+            c.normal = cl.contacts[i].normal;
+        }
+    });
+}
+
+/// After the tension stage: a mass-weighted projection of whatever overlap the joint
+/// solve left (its penalty gives way by F / k_c, and the closest points move while s
+/// and t are held within a pass; usually nothing), moving the four ends by the
+/// fractions s and t as the Strings paper does (the least mass-weighted motion that
+/// moves the closest points apart by the overlap d: impulse d / (w_a + w_b),
+/// w_a = (1-s)^2 w_j + s^2 w_{j+1}); then the colliding flags of the next shape
+/// matching and the warm start of the next step.
+void StringPairs::finish(std::vector<StringState>& strings) {
+    previous_pairs_.clear();
+    if (string_pairs_.empty()) return;
+    auto weight = [](const StringState& s, std::size_t p) {
+        return s.hold[p].kind == ParticleHold::Kind::Free ? s.inv_mass[p] : 0.0;
+    };
+    // The gap at the closest points now. The joint solve kept every pair on its side,
+    // so the closest-point direction is the normal (the solve's where the axes touch).
+    auto measure = [&](SegmentContact& c) {
+        const StringState& sa = strings[c.string];
+        const StringState& sb = strings[c.partner];
+        const SegmentClosest cp = closestPointsOfSegments(
+            sa.x[c.segment], sa.x[c.segment + 1], sb.x[c.partner_segment], sb.x[c.partner_segment + 1]);
+        c.s = cp.s;
+        c.partner_s = cp.t;
+        const Vec3 d = cp.p - cp.q;
+        if (cp.distance > kStringAxisContact * c.gap) c.normal = d / cp.distance;
+        return d.dot(c.normal) - c.gap;
+    };
+    for (int sweep = 0; sweep < kStringCleanupSweeps; ++sweep) {
+        double worst = 0.0;
+        for (SegmentContact& c : string_pairs_) {
+            if (strings[c.string].broken[c.segment] || strings[c.partner].broken[c.partner_segment]) continue;
+            const double gap = measure(c);
+            if (gap >= 0.0) continue;
+            worst = std::max(worst, -gap / c.gap);
+            StringState& sa = strings[c.string];
+            StringState& sb = strings[c.partner];
+            const double s = c.s, t = c.partner_s;
+            const double a0 = (1.0 - s) * weight(sa, c.segment), a1 = s * weight(sa, c.segment + 1);
+            const double b0 = (1.0 - t) * weight(sb, c.partner_segment), b1 = t * weight(sb, c.partner_segment + 1);
+            const double w = (1.0 - s) * a0 + s * a1 + (1.0 - t) * b0 + t * b1;
+            if (!(w > 0.0)) continue;
+            const Vec3 step = (-gap / w) * c.normal;
+            sa.x[c.segment] += a0 * step;
+            sa.x[c.segment + 1] += a1 * step;
+            sb.x[c.partner_segment] -= b0 * step;
+            sb.x[c.partner_segment + 1] -= b1 * step;
+        }
+        if (worst <= kStringCleanupTolerance) break;
+    }
+    // Colliding particles weigh 3x in the next step's shape matching (Sec. 6).
+    for (SegmentContact& c : string_pairs_) {
+        if (c.force > 0.0) previous_pairs_.push_back(c);
+        if (measure(c) > kStringTouchSlop * c.gap) continue;
+        strings[c.string].colliding[c.segment] = strings[c.string].colliding[c.segment + 1] = 1;
+        strings[c.partner].colliding[c.partner_segment] = strings[c.partner].colliding[c.partner_segment + 1] = 1;
+    }
+}
+
+}  // namespace tearables::detail

@@ -1,0 +1,436 @@
+// The strings' step as a sequence of stages (string_system.hpp). Each stage runs the
+// strings that share nothing on the pool, each call touching only its own string and
+// reading the bodies; whatever strings share (bodies they pull or touch, string-string
+// contacts, events) stays on this thread, in slot order.
+#include "string/string_system.hpp"
+
+#include "base/stage_timer.hpp"
+#include "base/thread_pool.hpp"
+#include "sim/freeze.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+namespace tearables::detail {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+double vary(std::mt19937_64& rng, double value, double variation) {
+    if (variation <= 0.0) return value;
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    return value * (1.0 + variation * u(rng));
+}
+
+bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
+
+bool live(const StringState& s) { return s.alive && !s.frozen; }
+
+/// True when the string is glued to, or touches, a body that moves.
+bool touchesMovableBody(const StringState& s) {
+    return !s.body_nodes.empty() || std::find(s.glue_movable.begin(), s.glue_movable.end(), 1) != s.glue_movable.end();
+}
+
+/// A string that holds a body (glue) writes to it in several stages: it stays serial.
+bool ownsNothing(const StringState& s) {
+    for (const ParticleHold& hold : s.hold)
+        if (hold.kind == ParticleHold::Kind::Glue) return false;
+    return true;
+}
+
+}  // namespace
+
+int resolveIndex(int particle, std::size_t count, const char* field) {
+    const int n = static_cast<int>(count);
+    if (particle < -n || particle >= n)
+        throw InvalidInput(field, "particle index " + std::to_string(particle) + " out of range (the string has " +
+                                      std::to_string(n) + " particles)");
+    return particle < 0 ? particle + n : particle;
+}
+
+StringId StringSystem::add(const StringDesc& desc) {
+    validate(desc);
+    StringState s;
+    s.desc = desc;
+    const std::size_t n = desc.points.size();
+    const std::size_t m = n - 1;
+    s.x = desc.points;
+    s.v.assign(n, Vec3::Zero());
+    s.x_prev = s.x;
+    s.x_pred = s.x;
+    s.force.assign(n, Vec3::Zero());
+    s.mass.assign(n, 0.0);
+    s.hold.assign(n, ParticleHold{});
+    s.glue_impulse.assign(n, Vec3::Zero());
+    s.glue_movable.assign(n, 0);
+    s.rest_length.resize(m);
+    const double area = kPi * desc.radius * desc.radius;
+    for (std::size_t j = 0; j < m; ++j) {
+        s.rest_length[j] = (desc.points[j + 1] - desc.points[j]).norm();
+        // Strings input: mass per segment = density * pi r^2 * length, half to each end.
+        const double half = 0.5 * desc.density * area * s.rest_length[j];
+        s.mass[j] += half;
+        s.mass[j + 1] += half;
+    }
+    for (const auto& [index, mass] : desc.particle_masses) s.mass[resolveIndex(index, n, "particle_masses")] = mass;
+    s.inv_mass.resize(n);
+    for (std::size_t p = 0; p < n; ++p) s.inv_mass[p] = 1.0 / s.mass[p];
+    s.original_length = s.rest_length;
+    s.max_length = s.rest_length;
+    s.tension.assign(m, 0.0);
+    s.twist.assign(m, 0.0);
+    s.radius.assign(m, desc.radius);
+    s.broken.assign(m, 0);
+    s.yielded.assign(m, 0);
+    s.peak_stress.assign(m, 0.0);
+    s.rng.seed(desc.seed);
+    s.material.resize(m);
+    const Material& mat = desc.material;
+    for (std::size_t j = 0; j < m; ++j) {
+        SegmentMaterial& sm = s.material[j];
+        sm.young = vary(s.rng, mat.tensile.young, mat.variation);
+        sm.yield = vary(s.rng, mat.tensile.yield, mat.variation);
+        sm.plastic_modulus = vary(s.rng, mat.tensile.plastic_modulus, mat.variation);
+        sm.rupture = std::max(vary(s.rng, mat.tensile.rupture, mat.variation), sm.yield * (1.0 + 1e-12));
+        sm.shear_modulus = vary(s.rng, mat.torsion.modulus, mat.variation);
+        sm.torsion_yield = vary(s.rng, mat.torsion.yield, mat.variation);
+        sm.torsion_plastic = vary(s.rng, mat.torsion.plastic_modulus, mat.variation);
+        sm.torsion_rupture = std::max(vary(s.rng, mat.torsion.rupture, mat.variation), sm.torsion_yield * (1.0 + 1e-12));
+        s.peak_stress[j] = sm.yield;
+    }
+    s.compliance.resize(m);
+    for (std::size_t j = 0; j < m; ++j) s.compliance[j] = s.rest_length[j] / (s.material[j].young * area);
+    s.dir.resize(m);
+    for (std::size_t j = 0; j < m; ++j) s.dir[j] = (s.x[j + 1] - s.x[j]) / s.rest_length[j];
+    s.diag.assign(m, 0.0);
+    s.off.assign(m, 0.0);
+    s.rhs.assign(m, 0.0);
+    s.scratch.assign(m, 0.0);
+    s.violation.assign(m, 0.0);
+    s.impulse.assign(m, 0.0);
+    s.active.assign(m, 0);
+    s.blk_diag.assign(n, Mat3::Zero());
+    s.blk_off.assign(n, Mat3::Zero());
+    s.blk_rhs.assign(n, Vec3::Zero());
+    s.blk_factor_gain.assign(n, Mat3::Zero());
+    s.blk_factor.resize(n);
+    s.chain_inverse.assign(6 * n + 12, 0.0);
+    s.chain_coupled.assign(n, 0);
+    s.row_projector.assign(n, Mat3::Identity());
+    s.colliding.assign(n, 0);
+    s.spring_force.assign(m, 0.0);
+    s.geometric_tension.assign(m, 0.0);
+    s.prev_stretch.assign(m, 0.0);
+    s.rest_direction.resize(m);
+    for (std::size_t j = 0; j < m; ++j) s.rest_direction[j] = (desc.points[j + 1] - desc.points[j]) / s.rest_length[j];
+    s.rest_shape.assign(n, Vec3::Zero());
+    s.csm_goal.assign(n, Vec3::Zero());
+    s.csm_mass = s.mass;
+    updateRestShape(s);
+    s.twist_velocity.assign(m, 0.0);
+    s.twist_old.assign(m, 0.0);
+    s.twist_inertia.resize(m);
+    s.twist_width.resize(m);
+    for (std::size_t j = 0; j < m; ++j) {
+        const double seg_mass = desc.density * area * s.rest_length[j];
+        s.twist_inertia[j] = 0.5 * seg_mass * desc.radius * desc.radius;
+        s.twist_width[j] = desc.twist_half_width.size() == 1 ? desc.twist_half_width[0] : desc.twist_half_width[j];
+    }
+    const std::size_t joints = m > 0 ? m - 1 : 0;
+    s.rest_twist.assign(joints, 0.0);
+    s.joint_stiffness.assign(joints, 0.0);
+    s.torsion_peak.assign(joints, 0.0);
+    s.joint_strain.assign(joints, 0.0);
+    s.torsion_yielded.assign(joints, 0);
+    s.twist_force.assign(n, Vec3::Zero());
+    updateTwistStiffness(s);
+    s.shortest_rest = *std::min_element(s.rest_length.begin(), s.rest_length.end());
+
+    // Reuse a free slot so ids stay small; the order of strings is the slot order.
+    for (std::size_t i = 0; i < strings_.size(); ++i)
+        if (!strings_[i].alive) {
+            strings_[i] = std::move(s);
+            return StringId{static_cast<std::uint32_t>(i)};
+        }
+    strings_.push_back(std::move(s));
+    // The step's per-string index lists get their room here, not in a step (own_ is empty
+    // while every string touches a movable body, and would grow in the step in which one
+    // stops touching it).
+    live_.reserve(strings_.size());
+    own_.reserve(strings_.size());
+    return StringId{static_cast<std::uint32_t>(strings_.size() - 1)};
+}
+
+void StringSystem::remove(StringId id) {
+    StringState& s = get(id);
+    s = StringState{};
+    s.alive = false;
+}
+
+StringState& StringSystem::get(StringId id) {
+    if (!contains(id)) throw InvalidInput("string", "no such string");
+    return strings_[id.index];
+}
+
+const StringState& StringSystem::get(StringId id) const {
+    if (!contains(id)) throw InvalidInput("string", "no such string");
+    return strings_[id.index];
+}
+
+bool StringSystem::contains(StringId id) const { return id.index < strings_.size() && strings_[id.index].alive; }
+
+std::vector<StringId> StringSystem::ids() const {
+    std::vector<StringId> out;
+    for (std::size_t i = 0; i < strings_.size(); ++i)
+        if (strings_[i].alive) out.push_back(StringId{static_cast<std::uint32_t>(i)});
+    return out;
+}
+
+bool StringSystem::usesBody(RigidId body) const {
+    for (const StringState& s : strings_) {
+        if (!s.alive) continue;
+        for (const ParticleHold& hold : s.hold)
+            if (hold.kind == ParticleHold::Kind::Glue && hold.body == body) return true;
+    }
+    return false;
+}
+
+void StringSystem::releaseBody(RigidId body, double time, std::int64_t step, std::vector<Event>& pending) {
+    for (std::size_t i = 0; i < strings_.size(); ++i) {
+        StringState& s = strings_[i];
+        if (!s.alive) continue;
+        for (std::size_t p = 0; p < s.particles(); ++p)
+            if (s.hold[p].kind == ParticleHold::Kind::Glue && s.hold[p].body == body)
+                release(StringId{static_cast<std::uint32_t>(i)}, p, EventCause::BodyRemoved, time, step, pending);
+    }
+}
+
+void StringSystem::release(StringId id, std::size_t particle, EventCause cause, double time, std::int64_t step,
+                           std::vector<Event>& pending) {
+    StringState& s = get(id);
+    if (s.hold[particle].kind == ParticleHold::Kind::Free) return;
+    s.hold[particle] = ParticleHold{};
+    Event e;
+    e.type = EventType::Release;
+    e.cause = cause;
+    e.string = id;
+    e.object = s.desc.name;
+    e.particle = static_cast<int>(particle);
+    e.time = time;
+    e.step = step;
+    pending.push_back(e);
+}
+
+void StringSystem::step(RigidTable& rigids, const StepContext& ctx, const HostContacts& host, std::vector<Event>& events) {
+    StageTimes& t = times_;
+    t = StageTimes{};
+    pool_ = ctx.pool;
+    listLive();
+    StageTimer timer;
+    shapeMatch();                                     timer.lap(t.shape_matching);
+    predict(rigids, ctx);                             timer.lap(t.predict);
+    collideBodies(rigids, host);                      timer.lap(t.collision);
+    limitStrain(rigids, ctx);                         timer.lap(t.strain_limit);
+    // The strings that touch are solved again, together, before the tension stage reads
+    // their motion; what overlap that leaves is projected away after it (so it never
+    // counts as tension).
+    if (ctx.settings->string_collisions) {
+        pairs_.couple(strings_, rigids, ctx);         timer.lap(t.collision);
+    }
+    solveTwist(rigids, ctx);                          timer.lap(t.twist);
+    estimateTension(ctx);                             timer.lap(t.tension);
+    if (ctx.settings->string_collisions) {
+        pairs_.finish(strings_);                      timer.lap(t.collision);
+    }
+    respondMaterial(ctx, events);                     timer.lap(t.material);
+    updateVelocities(ctx, events);                    timer.lap(t.velocities);
+}
+
+void StringSystem::listLive() {
+    live_.clear();
+    for (std::size_t i = 0; i < strings_.size(); ++i)
+        if (live(strings_[i])) live_.push_back(static_cast<std::uint32_t>(i));
+}
+
+template <class Fn>
+void StringSystem::eachLive(Fn&& fn) {
+    pool_->forEach(live_.size(), [&](std::size_t k) { fn(strings_[live_[k]]); });
+}
+
+void StringSystem::shapeMatch() {
+    ThreadPool* pool = pool_;
+    eachLive([pool](StringState& s) { detail::shapeMatch(s, pool); });
+}
+
+void StringSystem::predict(const RigidTable& rigids, const StepContext& ctx) {
+    eachLive([&](StringState& s) { detail::predict(s, rigids, ctx); });
+}
+
+/// Collision with rigid bodies: the host's narrow phase on the predicted positions. Each
+/// string gets its own contacts, checked (a bad contact from the host is dropped, never
+/// trusted).
+void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host) {
+    pool_->forEach(strings_.size(), [this](std::size_t i) {
+        StringState& s = strings_[i];
+        s.contacts.clear();
+        s.body_nodes.clear();
+        if (s.rows_pressed) std::fill(s.row_projector.begin(), s.row_projector.end(), Mat3::Identity());
+        s.rows_pressed = false;
+        std::fill(s.colliding.begin(), s.colliding.end(), 0);
+    });
+    contacts_.clear();
+    if (!host.segments) return;
+    query_.strings.clear();
+    query_.start.clear();
+    query_.predicted.clear();
+    query_.radius.clear();
+    query_.broken.clear();
+    for (std::size_t i = 0; i < strings_.size(); ++i) {
+        const StringState& s = strings_[i];
+        if (!s.alive || s.frozen) continue;
+        query_.strings.push_back(StringId{static_cast<std::uint32_t>(i)});
+        query_.start.push_back(&s.x_prev);
+        query_.predicted.push_back(&s.x);
+        query_.radius.push_back(&s.radius);
+        query_.broken.push_back(&s.broken);
+    }
+    host.segments(query_, contacts_);
+    for (const RigidContact& c : contacts_) {
+        if (c.string.index >= strings_.size() || !strings_[c.string.index].alive) continue;
+        StringState& s = strings_[c.string.index];
+        if (s.frozen || c.segment >= s.segments() || s.broken[c.segment]) continue;
+        if (c.body.index >= rigids.bodies.size() || !rigids.used[c.body.index]) continue;
+        if (!finite(c.normal) || !finite(c.point) || !std::isfinite(c.s) || !std::isfinite(c.friction)) continue;
+        const double len = c.normal.norm();
+        if (!(len > 0.5)) continue;
+        // A string glued to a MOVABLE body does not collide with it: the glue already
+        // moves that body in the string's solve, and a second coupling through
+        // contacts would count the same body twice (a limitation: a rope cannot yet
+        // wrap around the crate it holds). A static or kinematic body is no unknown,
+        // so a string glued to it (a winch drum) collides with it (glue it on the
+        // surface: the contacts push the rest of the string out of the body).
+        bool glued = false;
+        if (rigids.bodies[c.body.index].inverse_mass > 0.0)
+            for (const ParticleHold& hold : s.hold)
+                glued = glued || (hold.kind == ParticleHold::Kind::Glue && hold.body == c.body);
+        if (glued) continue;
+        SegmentContact sc;
+        sc.segment = c.segment;
+        sc.s = std::clamp(c.s, 0.0, 1.0);
+        sc.normal = c.normal / len;
+        const RigidState& body = rigids.bodies[c.body.index];
+        sc.local = body.orientation.conjugate() * (c.point - body.position);
+        sc.local_normal = body.orientation.conjugate() * sc.normal;
+        sc.body = c.body;
+        sc.friction = std::max(0.0, c.friction);
+        sc.gap = s.radius[c.segment];
+        const Vec3 xs = (1.0 - sc.s) * s.x[c.segment] + sc.s * s.x[c.segment + 1];
+        sc.depth = std::max(0.0, -(sc.normal.dot(xs - c.point) - s.radius[c.segment]));
+        if (rigids.movable(c.body)) {
+            int node = -1;
+            for (std::size_t b = 0; b < s.body_nodes.size(); ++b)
+                if (s.body_nodes[b].body == c.body) node = static_cast<int>(b);
+            if (node < 0) {
+                s.body_nodes.emplace_back(c.body);
+                s.node_step.resize(s.body_nodes.size());
+                node = static_cast<int>(s.body_nodes.size() - 1);
+            }
+            sc.node = node;
+        }
+        s.contacts.push_back(sc);
+    }
+}
+
+/// Strain limiting. Strings that neither hold nor touch a movable body are solved once
+/// (their solve is exact), in parallel; the others are coupled through the bodies they
+/// move and are swept Gauss-Seidel in order on this thread. prepareStrainLimit touches
+/// bodies only for glued particles: strings that hold none are prepared in parallel.
+void StringSystem::limitStrain(RigidTable& rigids, const StepContext& ctx) {
+    eachLive([&](StringState& s) {
+        if (ownsNothing(s)) prepareStrainLimit(s, rigids, ctx);
+    });
+    bool coupled = false;
+    own_.clear();
+    is_own_.assign(strings_.size(), 0);
+    for (std::size_t i = 0; i < strings_.size(); ++i) {
+        StringState& s = strings_[i];
+        if (!live(s)) continue;
+        const bool owns_nothing = ownsNothing(s);
+        if (!owns_nothing) prepareStrainLimit(s, rigids, ctx);
+        coupled = coupled || touchesMovableBody(s);
+        if (!touchesMovableBody(s) && owns_nothing) {
+            own_.push_back(static_cast<std::uint32_t>(i));
+            is_own_[i] = 1;
+        }
+    }
+    pool_->forEach(own_.size(), [&](std::size_t k) { detail::limitStrain(strings_[own_[k]], rigids, ctx); });
+    // The sweeps end early once a sweep finds every string at its solution already (its
+    // first Newton step within the strain tolerance): the bodies no longer move.
+    const int sweeps = coupled ? ctx.settings->coupling_iterations : 1;
+    for (int sweep = 0; sweep < sweeps; ++sweep) {
+        double moved = 0.0;
+        for (std::size_t i = 0; i < strings_.size(); ++i) {
+            StringState& s = strings_[i];
+            if (!live(s) || is_own_[i]) continue;
+            if (sweep == 0 || touchesMovableBody(s))
+                moved = std::max(moved, detail::limitStrain(s, rigids, ctx) / s.shortest_rest);
+        }
+        if (sweep > 0 && moved < ctx.settings->strain_tolerance) break;
+    }
+    eachLive([&](StringState& s) { clampTravel(s, ctx); });
+}
+
+void StringSystem::solveTwist(RigidTable& rigids, const StepContext& ctx) {
+    pool_->forEach(own_.size(), [&](std::size_t k) { detail::solveTwist(strings_[own_[k]], rigids, ctx); });
+    for (std::size_t i = 0; i < strings_.size(); ++i)
+        if (live(strings_[i]) && !is_own_[i]) detail::solveTwist(strings_[i], rigids, ctx);
+}
+
+void StringSystem::estimateTension(const StepContext& ctx) {
+    eachLive([&](StringState& s) { detail::estimateTension(s, ctx); });
+}
+
+/// Each string's response is its own; its events are collected per string and appended
+/// in string order (the order of a serial loop).
+void StringSystem::respondMaterial(const StepContext& ctx, std::vector<Event>& events) {
+    if (live_events_.size() < live_.size()) live_events_.resize(live_.size());
+    pool_->forEach(live_.size(), [&](std::size_t k) {
+        live_events_[k].clear();
+        detail::respondMaterial(strings_[live_[k]], StringId{live_[k]}, ctx, live_events_[k]);
+    });
+    for (std::size_t k = 0; k < live_.size(); ++k) events.insert(events.end(), live_events_[k].begin(), live_events_[k].end());
+}
+
+/// Twist forces and velocities; a string left non-finite is frozen at the start of the
+/// step (a non-finite start at the origin).
+void StringSystem::updateVelocities(const StepContext& ctx, std::vector<Event>& events) {
+    bad_state_.assign(live_.size(), 0);
+    pool_->forEach(live_.size(), [&](std::size_t k) {
+        StringState& s = strings_[live_[k]];
+        computeTwistForces(s);
+        detail::updateVelocities(s, ctx);
+        // A long string alone checks and clears its particles on the pool (forRanges).
+        bad_state_[k] = forRangesAny(pool_, s.particles(), kParallelItems, [&](std::size_t p0, std::size_t p1) {
+            bool ok = true;
+            for (std::size_t p = p0; p < p1 && ok; ++p) ok = finite(s.x[p]) && finite(s.v[p]);
+            std::fill(s.force.begin() + static_cast<std::ptrdiff_t>(p0), s.force.begin() + static_cast<std::ptrdiff_t>(p1), Vec3::Zero());
+            return !ok;
+        });
+    });
+    for (std::size_t k = 0; k < live_.size(); ++k) {
+        if (!bad_state_[k]) continue;
+        StringState& s = strings_[live_[k]];
+        for (std::size_t p = 0; p < s.particles(); ++p) {
+            if (!finite(s.x_prev[p])) s.x_prev[p].setZero();
+            s.x[p] = s.x_prev[p];
+        }
+        std::fill(s.tension.begin(), s.tension.end(), 0.0);
+        Event e = freezeNonFinite(s.v, s.frozen, s.desc.name, ctx);
+        e.string = StringId{live_[k]};
+        events.push_back(e);
+    }
+}
+
+}  // namespace tearables::detail
