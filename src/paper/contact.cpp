@@ -103,7 +103,7 @@ namespace {
 bool closing(const PaperSheet& s, const PointContact& c, const RigidTable& rigids, const PaperStep& ctx) {
     // Face contacts lend no mass: they act at velocity level only (resolveContacts).
     if (c.onFace() || c.vertex >= s.vertices() || !rigids.movable(c.body)) return false;
-    if (s.hold[c.vertex].kind != VertexHold::Kind::Free) return false;
+    if (s.hold[c.vertex].kind != ParticleHold::Kind::Free) return false;
     const RigidState& body = rigids.bodies[c.body.index];
     const Vec3 body_v = body.linear_velocity + body.angular_velocity.cross(c.point - body.position);
     const double radius = 0.5 * s.desc.thickness;
@@ -118,7 +118,7 @@ void countCouplings(const PaperSheet& s, const std::vector<PointContact>& contac
                     const PaperStep& ctx, std::vector<double>& count) {
     count.resize(rigids.bodies.size(), 0.0);
     for (std::size_t i = 0; i < s.vertices(); ++i)
-        if (s.hold[i].kind == VertexHold::Kind::Glue && rigids.movable(s.hold[i].body)) count[s.hold[i].body.index] += 1.0;
+        if (s.hold[i].kind == ParticleHold::Kind::Glue && rigids.movable(s.hold[i].body)) count[s.hold[i].body.index] += 1.0;
     for (const PointContact& c : contacts)
         if (closing(s, c, rigids, ctx)) count[c.body.index] += 1.0;
 }
@@ -129,8 +129,8 @@ void coupleBodies(PaperSheet& s, const std::vector<PointContact>& contacts, cons
     assignGrowing(s.added_mass, s.vertices(), Mat3::Zero());
     assignGrowing(s.added_force, s.vertices(), Vec3::Zero());
     for (std::size_t i = 0; i < s.vertices(); ++i) {
-        const VertexHold& hold = s.hold[i];
-        if (hold.kind != VertexHold::Kind::Glue || !rigids.movable(hold.body)) continue;
+        const ParticleHold& hold = s.hold[i];
+        if (hold.kind != ParticleHold::Kind::Glue || !rigids.movable(hold.body)) continue;
         const RigidState& body = rigids.bodies[hold.body.index];
         BodyCoupling c;
         c.vertex = static_cast<std::uint32_t>(i);
@@ -200,10 +200,10 @@ void releaseBodies(const PaperSheet& s, const std::vector<BodyCoupling>& couplin
 
 void integratePositions(PaperSheet& s, RigidTable& rigids, const PaperStep& ctx) {
     for (std::size_t i = 0; i < s.vertices(); ++i) {
-        const VertexHold& hold = s.hold[i];
-        if (hold.kind == VertexHold::Kind::Pin) {
+        const ParticleHold& hold = s.hold[i];
+        if (hold.kind == ParticleHold::Kind::Pin) {
             s.x[i] = hold.point;
-        } else if (hold.kind == VertexHold::Kind::Glue) {
+        } else if (hold.kind == ParticleHold::Kind::Glue) {
             RigidState& body = rigids.bodies[hold.body.index];
             if (rigids.movable(hold.body)) {
                 s.x[i] += ctx.h * s.v[i];  // solved with the body's share; the body follows (releaseBodies)

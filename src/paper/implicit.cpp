@@ -48,8 +48,8 @@ constexpr double kJacobiWeight = 2.0 / 3.0;
 
 /// Velocity a held vertex must have to be where its holder is at the end of the step.
 Vec3 heldVelocity(const PaperSheet& s, std::size_t i, const RigidTable& rigids, const PaperStep& ctx) {
-    const VertexHold& hold = s.hold[i];
-    if (hold.kind == VertexHold::Kind::Pin) return (hold.point - s.x[i]) * ctx.inv_h;
+    const ParticleHold& hold = s.hold[i];
+    if (hold.kind == ParticleHold::Kind::Pin) return (hold.point - s.x[i]) * ctx.inv_h;
     const RigidState& b = rigids.bodies[hold.body.index];
     return (gluePoint(b, hold.point) - s.x[i]) * ctx.inv_h;
 }
@@ -358,8 +358,8 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
     for (std::size_t i = 0; i < n; ++i) {
         // Pins and glue to immovable bodies prescribe the velocity; a glue to a movable
         // body was turned into added mass (coupleBodies).
-        s.fixed[i] = s.hold[i].kind == VertexHold::Kind::Pin ||
-                     (s.hold[i].kind == VertexHold::Kind::Glue && !rigids.movable(s.hold[i].body));
+        s.fixed[i] = s.hold[i].kind == ParticleHold::Kind::Pin ||
+                     (s.hold[i].kind == ParticleHold::Kind::Glue && !rigids.movable(s.hold[i].body));
         Vec3 rhs = h * (s.mass[i] * ctx.gravity + s.force[i] + s.added_force[i]);
         // The symmetric sum of the blocks in scalars (kept in registers; an Eigen 3x3
         // accumulator is spilled to the stack and reloaded in every pass of the loop).

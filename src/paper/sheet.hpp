@@ -5,6 +5,7 @@
 #pragma once
 
 #include "linalg/supernodal.hpp"
+#include "sim/hold.hpp"
 #include "tearables/events.hpp"
 #include "tearables/paper.hpp"
 #include "tearables/world.hpp"
@@ -29,13 +30,10 @@ template <class T> void assignGrowing(std::vector<T>& v, std::size_t n, const ty
     v.assign(n, value);
 }
 
-/// What holds a vertex.
-struct VertexHold {
-    enum class Kind : std::uint8_t { Free, Pin, Glue };
-    Kind kind = Kind::Free;
-    Vec3 point = Vec3::Zero();  ///< Pin: world target; Glue: point in the body's frame
-    RigidId body;               ///< Glue
-};
+/// What holds a vertex: the ParticleHold of every material, under the name that
+/// paper/system.cpp and world/snapshot.cpp still use (a distinct type only so that the
+/// snapshot's two io overloads stay distinct; same members, same bytes).
+struct VertexHold : ParticleHold {};
 
 /// The couplings of springs in the implicit solve, seen from one of their vertices, four
 /// row entries side by side (lanes 0-3, row entry j in lane j % 4 of block j / 4;

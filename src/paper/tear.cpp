@@ -174,7 +174,7 @@ void tear(PaperSheet& s, PaperId id, const PaperStep& ctx, std::vector<Event>& e
             if (!s.crack_tip[v] && started >= kNewCracks) continue;
             // A held vertex is not split: both halves would stay at the pin (or glue), and
             // the crack would open nothing. The crack starts next to it instead.
-            if (s.hold[v].kind != VertexHold::Kind::Free) continue;
+            if (s.hold[v].kind != ParticleHold::Kind::Free) continue;
             if (!onBoundary(s, v, scratch)) continue;
             // The inner fan edge most perpendicular to the stretched edge.
             trianglesOf(s, v, fan);
