@@ -71,7 +71,7 @@ struct ClothDesc {
     /// half to each end. Used when areal_density is 0.
     double density = 0.0;
     double yarn_radius = 2.5e-4;          ///< m, > 0: stress = T / (pi r^2); also the contact radius of the vertices
-    Material material;                    ///< the yarn's tensile curve (torsion is not used by cloth)
+    Material material;                    ///< the yarn's tensile curve (torsion is not used by cloth, but validated)
     double lambda = 1e-6;                 ///< Tikhonov parameter of the tension least squares, [0, 1] (relative to the mean diagonal of A^T A)
     /// Shear spring of each cell diagonal: force per unit strain, N, >= 0 (a loose weave
     /// shears easily; the yarns carry the load).
