@@ -532,8 +532,7 @@ void BulletWorld::findCandidates(double h) {
         if (v.frozen) continue;
         Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
         // The fastest particle's speed from the largest square: one root (the same value,
-        // as the root is monotonic and correctly rounded; a root a particle was ~2% of a
-        // 746-segment rope's step).
+        // as the root is monotonic and correctly rounded), not one per particle.
         double reach2 = 0.0;
         for (std::size_t p = 0; p < v.particleCount(); ++p) {
             lo = lo.cwiseMin((*v.positions)[p]);

@@ -1,4 +1,4 @@
-// tearables: woven cloth made of tearable yarns (issue 6; the Yarn paper extended to cloth).
+// tearables: woven cloth made of tearable yarns (the Yarn paper extended to cloth).
 //
 // A cloth is a rectangular weave of vertices joined by yarn edges: warp yarns along the
 // cloth's local x axis and weft yarns along its local z axis. Yarn edges are strain

@@ -53,11 +53,9 @@ bool narrowPhase(const Vec3* x, const std::vector<CollisionSegment>& segs, const
 }
 
 namespace {
-/// Segments per leaf of a ChainTree. Strings' Table 1 rope (746 segments, swinging) is
-/// searched in 6.7% fewer instructions a step with leaves of 16 than of 4 (8: 4.9%, 32:
-/// 6.0%): a leaf pair's loops stop at the separation along the rope, where smaller leaves
-/// paid a node pair's bounds and callbacks for every few segments along the diagonal. The
-/// tear step of the long rope (1e5 pairs) is 0.6% cheaper, strings of 100 the same.
+/// Segments per leaf of a ChainTree: a leaf pair's loops stop at the separation along the
+/// rope, where smaller leaves pay a node pair's bounds and callbacks for every few segments
+/// along the diagonal (docs/benchmarks-history.md).
 constexpr std::uint32_t kLeaf = 16;
 constexpr std::size_t kParallelChainSegments = kParallelItems;  // a chain this long is split over the pool
 bool boxesOverlap(const Vec3& alo, const Vec3& ahi, const Vec3& blo, const Vec3& bhi) {

@@ -143,9 +143,8 @@ void coupleBodies(PaperSheet& s, const std::vector<PointContact>& contacts, cons
         // The glued vertex starts where the body point was before the host's step (the
         // host has moved the body already) and as it went before the host's gravity kick:
         // the lent mass's weight goes into the solve instead (added_force), so the sheet
-        // carries it implicitly. (Left to the host, the kick reached the solve as a
-        // velocity jump of the vertex against its neighbours: their damping and the
-        // truncated Jacobi solve then held a 2 g weight at 24% strain.)
+        // carries it implicitly, not as a velocity jump of the vertex against its
+        // neighbours (which their damping and the truncated Jacobi solve resist).
         s.x[i] = gluePoint(body, hold.point) - ctx.h * c.body_velocity;  // where it was before the host's step
         s.v[i] = c.body_velocity - ctx.h * ctx.gravity;
         s.added_mass[i] += c.lent;
@@ -187,12 +186,10 @@ void releaseBodies(const PaperSheet& s, const std::vector<BodyCoupling>& couplin
         if (c.normal.squaredNorm() > 0.0 && impulse.dot(c.normal) > 0.0) impulse.setZero();
         // Position-based, as the strings couple: the body is moved by what its share
         // moved differently from the host's step, h dv; the world turns that move into
-        // the velocity change dv when the step ends. (An impulse alone left the host's
-        // fall of g h^2 per step uncorrected: a glued weight sank until the springs were
-        // stretched 24%.) Translation only: the impulse goes through the centre of mass.
-        // Applied at the contact point, the torques of the many vertex contacts, each
-        // solved as if alone, overshot: a box resting on a sheet rocked, spun up to 27
-        // rad/s and tumbled off. A limitation: the sheet does not turn a body.
+        // the velocity change dv when the step ends (an impulse alone would leave the
+        // host's fall of g h^2 per step uncorrected). Translation only: the impulse goes
+        // through the centre of mass, since the torques of many vertex contacts, each
+        // solved as if alone, overshoot. A limitation: the sheet does not turn a body.
         body.position += body.inverse_mass * ctx.h * impulse;
         body.impulse += impulse;
     }

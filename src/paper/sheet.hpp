@@ -21,10 +21,9 @@ namespace tearables::detail {
 
 struct RigidTable;
 
-/// v.assign(n, value), where a growing v takes half its capacity again. A sheet that
-/// creases every step gains vertices and springs every step, and an exact assign made a
-/// new allocation for its per-vertex and per-entry arrays at every step: 2 MB for a 64 x
-/// 64 sheet's rows, each one mapped and zeroed afresh by the kernel (a fifth of the step).
+/// v.assign(n, value), where a growing v takes half its capacity again: a sheet that
+/// creases every step gains vertices and springs every step, and an exact assign would
+/// allocate its per-vertex and per-entry arrays afresh at every step.
 template <class T> void assignGrowing(std::vector<T>& v, std::size_t n, const typename std::vector<T>::value_type& value) {
     if (n > v.capacity()) v.reserve(std::max(n, v.capacity() + v.capacity() / 2));
     v.assign(n, value);
