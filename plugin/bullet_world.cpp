@@ -395,8 +395,8 @@ private:
     /// Sharpens Bullet's closest points of a segment (a + s axis, the capsule's core) and a
     /// curved convex body at pose `pose`. GJK stops when its distance is within a relative
     /// 1e-6 of squared distance (in float), which leaves its separating direction off by
-    /// up to a tenth of a radian on a cylinder (contact points 3 mm inside it, and a rope
-    /// crept off the cylinder's top on those tilted planes). The plane through the body's
+    /// up to a tenth of a radian on a cylinder (contact points inside it, tilted contact
+    /// planes a rope creeps along). The plane through the body's
     /// support point along a direction n, normal n, always bounds the body; the best such
     /// plane for the segment is the one the segment lies farthest in front of,
     ///     f(n) = min(n . a, n . b) - max over the body of n . y,

@@ -76,22 +76,6 @@ class ThreadPool;
 /// once the buffers have grown.
 class ChainTree {
 public:
-    /// With a `pool`, the segments' boxes and each chain's tree and self pairs are done on
-    /// it (chains are independent; each chain's pairs are collected in a buffer of its own
-    /// and appended in chain order, so the output is the same for any thread count).
-    /// With a `keep` filter, only the pairs for which keep(context, pair) is true are
-    /// output (it is called as the pairs are found, from the pool's threads: it must only
-    /// read), so that a caller dropping most pairs never stores them.
-    /// With a `reject` test as well, a candidate pair (segments i < j) for which
-    /// reject(context, i, j) is true is dropped before its closest points are computed (the
-    /// caller's proof that `keep` would drop it). With a `sweep` (travel per particle,
-    /// thickness per segment, a NodeSeparation test), every node also bounds its segments'
-    /// axes, travel, directions and thickness, and a pair of nodes whose boxes overlap is
-    /// skipped whole when the sweep's test says so (for a swinging rope: segments whose
-    /// swept capsules overlap but whose relative travel is small beside their separation).
-    /// With `self_free` (one flag per chain), the chains flagged are not searched for self
-    /// pairs (the caller's proof that `keep` would drop every one); their trees are still
-    /// built for the pairs with other chains.
     using Filter = bool (*)(const void* context, const SegmentPair& pair);
     using Reject = bool (*)(const void* context, std::uint32_t i, std::uint32_t j);
 
@@ -121,6 +105,18 @@ public:
         NodeSeparation separation = nullptr;
     };
 
+    /// The overlapping pairs of `segments` into `out`. Optional:
+    /// - `pool`: boxes, trees and self pairs chain by chain on it, each chain's pairs in a
+    ///   buffer of its own, appended in chain order (the same output for any thread count);
+    /// - `keep`: only the pairs with keep(context, pair) are output, called as they are found,
+    ///   from the pool's threads (it must only read), so dropped pairs are never stored;
+    /// - `reject`: a candidate i < j with reject(context, i, j) is dropped before its closest
+    ///   points (the caller's proof that `keep` would drop it);
+    /// - `sweep`: nodes also bound their segments' axes, travel, directions and thickness,
+    ///   and a node pair is skipped whole where sweep->separation says `keep` drops it all
+    ///   (a swinging rope: swept capsules overlap, relative travel is small);
+    /// - `self_free`: per chain, 1 where `keep` would drop every self pair (its tree is
+    ///   still built for the pairs with other chains).
     void findPairs(const Vec3* positions, const std::vector<CollisionSegment>& segments, double margin,
                    std::vector<SegmentPair>& out, std::uint32_t skip_neighbours = 1, ThreadPool* pool = nullptr,
                    Filter keep = nullptr, const void* context = nullptr, Reject reject = nullptr,

@@ -1,14 +1,8 @@
 // Paper sheets: contacts of the vertices with rigid bodies, and the position update with
-// pins and glue.
-//
-// Each vertex is a sphere of half the sheet's thickness. The host (the Bullet plugin)
-// reports a contact point on the body where the body is at the end of its step, with the
-// normal from the body toward the vertex. A vertex may approach the body by no more than
-// its gap (speculative contact): n . v >= -gap / h. The velocity change that enforces it
-// is the vertex's normal impulse; Coulomb friction limits the tangential change of the
-// velocity relative to the body's surface to mu times the normal one. The body receives
-// the equal and opposite impulse (linear momentum is conserved), as the strings' contacts
-// do, but through its centre of mass (releaseBodies says why).
+// pins and glue. Each vertex is a sphere of half the sheet's thickness; the host reports a
+// contact point on the body at the end of its step, the normal toward the vertex. The
+// contact is speculative with Coulomb friction (resolvePoint); the body receives the
+// opposite impulse through its centre of mass (releaseBodies), momentum conserved.
 // A light vertex cannot stop a heavy body in one step: the body is held over the next
 // steps, as the implicit solve turns the vertex's displacement into spring force and the
 // vertex passes it on through the contact (a light box comes to rest on a sheet; a sphere

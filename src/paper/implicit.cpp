@@ -74,9 +74,9 @@ inline Lanes load2(const double (&quad)[4], unsigned lane) {
 
 /// The rows of the Jacobi gather: per vertex, the couplings of its live springs, in spring
 /// order (so every sum is deterministic), padded with a zero entry to an even length (the
-/// sweep sums even and odd entries apart, two or four entries at a time). They depend only on the live springs' ends and
-/// the vertex count, and are rebuilt only when those changed (a crease or a tear): the
-/// check is one pass over the springs.
+/// sweep sums even and odd entries apart, two or four entries at a time). They depend only
+/// on the live springs' ends and the vertex count, and are rebuilt only when those changed
+/// (a crease or a tear): the check is one pass over the springs.
 void buildRows(PaperSheet& s) {
     const std::size_t n = s.vertices();
     std::size_t live = 0;
@@ -136,8 +136,7 @@ constexpr int kPipelineDepth = 1;
 /// chains, even and odd entries (two lanes of one register: the sum's latency, not the
 /// arithmetic, bounded a single chain), each in row order: with `kWide`, the terms of
 /// four entries are computed at once (AVX) and added pair by pair, the same additions in
-/// the same order, so both kernels give the same bits (and those of the scalar sweeps
-/// before them).
+/// the same order, so both kernels give the same bits.
 template <bool kWide>
 __attribute__((always_inline)) inline void jacobiVertex(const PaperSheet& s, std::size_t i, const JacobiEntry* dv, JacobiEntry* next) {
     if (s.fixed[i]) {
@@ -242,8 +241,8 @@ bool haveAvx2() { return false; }
 /// indices away, so iteration k can run at vertex i as soon as iteration k - 1 has passed
 /// i + reach. Up to kPipelineDepth iterations run in one pass over the rows, each `reach`
 /// vertices behind the one before, in the order of increasing k at every position: the
-/// rows a vertex needs are read again while they are still in the cache (the rows of a
-/// 64 x 64 sheet are 2 MB, the ones in flight ~100 kB). Two buffers suffice:
+/// rows a vertex needs are read again while they are still in the cache (the rows in
+/// flight are a small part of a large sheet's). Two buffers suffice:
 /// when iteration k overwrites iterate k - 2 at vertex i, iteration k - 1 has passed
 /// i + reach and needs no vertex <= i any more. The arithmetic is that of plain sweeps,
 /// in the same order: the same bits.
