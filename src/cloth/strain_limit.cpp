@@ -10,18 +10,6 @@
 // (linalg/supernodal.hpp, nested-dissection order, the analysis reused while the pattern
 // stays; SimplicialLDLT where a pivot is not positive) and a backtracking line search on
 // the energy: exact at any stiffness ratio, where Jacobi or PBD sweeps would need many.
-//
-// The geometric term's stretch: as in the strings' solve, the exact k C at an iterate
-// overstates the tension (a transverse move d stretches a stiff yarn by ~d^2 / 2L) and the
-// line search stalls. The yarn's term takes instead its stretch after the last step to
-// first order, C + e . (dx_b - dx_a), where that is smaller than C (the gradient is exact:
-// the same minimum). After a cut step, the next iteration takes the exact k C.
-//
-// Rigid bodies: a movable body a cloth touches or holds is 6 unknowns (translation u,
-// rotation w) with its mass and inertia M_b, relative to the pose the host already
-// integrated; contacts and glues are linear penalty rows g = n.x_v - n.(u + w x r) - c,
-// so the cloth holds the body with its real mass and the body pushes the cloth (two-way,
-// as the strings do). The penalty is 100x the stiffest yarn or inertia it competes with.
 #include "cloth/cloth_state.hpp"
 
 #include <algorithm>
@@ -34,6 +22,11 @@ namespace {
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 using Mat6 = Eigen::Matrix<double, 6, 6>;
 
+// Rigid bodies: a movable body a cloth touches or holds is 6 unknowns (translation u,
+// rotation w) with its mass and inertia M_b, relative to the pose the host already
+// integrated; contacts and glues are linear penalty rows g = n.x_v - n.(u + w x r) - c, so
+// the cloth holds the body with its real mass and the body pushes the cloth (two-way, as
+// the strings do). The penalty is 100x the stiffest yarn or inertia it competes with.
 constexpr double kPenaltyFactor = 100.0;
 constexpr int kLineSearchSteps = 12;
 
@@ -258,7 +251,11 @@ struct Solver {
 
     /// Each yarn's stretch after the step alpha * c.step from c.x, to first order:
     /// max(0, C + e . (dx_b - dx_a)), into yarn_estimate (0 for yarns slack at c.x). C, the
-    /// stretch at c.x, is what assemble() left there.
+    /// stretch at c.x, is what assemble() left there. As in the strings' solve, the exact
+    /// k C at an iterate overstates the tension (a transverse move d stretches a stiff yarn
+    /// by ~d^2 / 2L) and stalls the line search; the geometric term takes this estimate
+    /// where it is smaller (the gradient stays exact: the same minimum), and the exact k C
+    /// in the iteration after a cut step.
     void linearisedStretch(double alpha) {
         auto move = [&](std::uint32_t p) {
             return c.dof[p] >= 0 ? Vec3(alpha * c.step.segment<3>(c.dof[p])) : Vec3::Zero();

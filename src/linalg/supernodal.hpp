@@ -1,5 +1,5 @@
-// A supernodal sparse Cholesky factorisation A = L L^T for the cloth's and the paper's
-// solves (Newton Hessians and tension normal equations), without BLAS or threads: the
+// A supernodal sparse Cholesky factorisation A = L L^T (the cloth's Newton Hessian, the
+// cloth's and the paper's tension normal equations), without BLAS or threads: the
 // standard left-looking supernodal method (Ng and Peyton 1993; Davis, "Direct Methods for
 // Sparse Linear Systems", 2006, ch. 4 for the elimination tree and the row patterns).
 //
@@ -13,9 +13,9 @@
 //
 // The symbolic analysis (elimination tree, pattern of L, supernodes, where each entry of A
 // goes) depends on the pattern of A only and is kept while the pattern is the same. The
-// matrix must be symmetric positive definite (both cloth matrices are: masses over h^2 or
-// lambda' I plus positive semi-definite terms); factorize() says false otherwise, and the
-// caller falls back to LDL^T. No pivoting: the order is the one given.
+// matrix must be symmetric positive definite (all three are: masses over h^2 or lambda' I
+// plus positive semi-definite terms); factorize() says false otherwise, and the caller
+// falls back (LDL^T, or conjugate gradients for the paper). No pivoting: the order is the one given.
 #pragma once
 
 #include <Eigen/Dense>

@@ -13,7 +13,8 @@
 // its elastic tension. The normal equations are solved by the supernodal Cholesky
 // (linalg/supernodal.hpp; AMD order, or nested dissection on a rectangle's grid where
 // cheaper), the analysis kept while the structural springs stay; conjugate gradients
-// answer in the steps where they changed. Directions and forces are the step's start's.
+// answer in the steps where they changed or the factorisation fails. Directions and
+// forces are those of the step's start (what the solve linearised about).
 #include "linalg/dissection.hpp"
 #include "paper/sheet.hpp"
 
