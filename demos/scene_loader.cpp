@@ -190,9 +190,8 @@ private:
         return true;
     }
     bool open(json v) {
-        // Found by the fuzz regression test (issue 8): every open level keeps its path, so
-        // 100000 nested arrays cost O(depth^2) (two minutes, gigabytes). A scene nests a
-        // handful of levels.
+        // Every open level keeps its path, so deep nesting costs O(depth^2) time and memory
+        // (the fuzz regression test's 100000 nested arrays); a scene nests a handful.
         if (stack_.size() >= kMaxDepth) {
             error.emplace(nextPath(), "nested deeper than " + std::to_string(kMaxDepth) + " levels");
             return false;
@@ -239,7 +238,7 @@ struct Range {
     static Range closed(double lo, double hi) { return {lo, hi, false, false}; }
     static Range leftOpen(double lo, double hi) { return {lo, hi, true, false}; }
     /// Positions, offsets and velocities that Bullet stores in single precision: within
-    /// +-1e6 (m, m/s, rad/s, m/s^2), where a float still resolves them (issue 8).
+    /// +-1e6 (m, m/s, rad/s, m/s^2), where a float still resolves them.
     static Range bullet() { return closed(-1e6, 1e6); }
 
     bool contains(double v) const {

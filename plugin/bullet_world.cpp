@@ -395,8 +395,8 @@ private:
     /// Sharpens Bullet's closest points of a segment (a + s axis, the capsule's core) and a
     /// curved convex body at pose `pose`. GJK stops when its distance is within a relative
     /// 1e-6 of squared distance (in float), which leaves its separating direction off by
-    /// up to a tenth of a radian on a cylinder (contact points 3 mm inside it, and a rope
-    /// crept off the cylinder's top on those tilted planes). The plane through the body's
+    /// up to a tenth of a radian on a cylinder (contact points inside it, tilted contact
+    /// planes a rope creeps along). The plane through the body's
     /// support point along a direction n, normal n, always bounds the body; the best such
     /// plane for the segment is the one the segment lies farthest in front of,
     ///     f(n) = min(n . a, n . b) - max over the body of n . y,
@@ -532,8 +532,7 @@ void BulletWorld::findCandidates(double h) {
         if (v.frozen) continue;
         Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
         // The fastest particle's speed from the largest square: one root (the same value,
-        // as the root is monotonic and correctly rounded; a root a particle was ~2% of a
-        // 746-segment rope's step).
+        // as the root is monotonic and correctly rounded), not one per particle.
         double reach2 = 0.0;
         for (std::size_t p = 0; p < v.particleCount(); ++p) {
             lo = lo.cwiseMin((*v.positions)[p]);

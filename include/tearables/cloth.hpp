@@ -1,4 +1,4 @@
-// tearables: woven cloth made of tearable yarns (issue 6; the Yarn paper extended to cloth).
+// tearables: woven cloth made of tearable yarns (the Yarn paper extended to cloth).
 //
 // A cloth is a rectangular weave of vertices joined by yarn edges: warp yarns along the
 // cloth's local x axis and weft yarns along its local z axis. Yarn edges are strain
@@ -63,20 +63,20 @@ struct ClothDesc {
     std::array<double, 2> size{1.0, 1.0}; ///< extent along local x and z, m, > 0 (ignored along an axis of resolution 1)
     std::array<int, 2> resolution{21, 21};///< vertices along local x and z, each 1..2000, at least 2 vertices in all
     Quat orientation = Quat::Identity();  ///< local to world, non-zero (normalised on creation)
-    /// Areal density of the cloth, kg/m^2, >= 0: each vertex weighs its share of the area
+    /// Areal density of the cloth, kg/m^2, [0, 1e6]: each vertex weighs its share of the area
     /// (a quarter cell per corner of a cell). Exactly one of areal_density and density must
     /// be > 0; a single yarn (resolution 1 along an axis) needs density.
     double areal_density = 0.1;
-    /// Density of the yarn's fibre, kg/m^3, >= 0: each yarn edge weighs density * pi r^2 * length,
+    /// Density of the yarn's fibre, kg/m^3, [0, 1e6]: each yarn edge weighs density * pi r^2 * length,
     /// half to each end. Used when areal_density is 0.
     double density = 0.0;
     double yarn_radius = 2.5e-4;          ///< m, > 0: stress = T / (pi r^2); also the contact radius of the vertices
-    Material material;                    ///< the yarn's tensile curve (torsion is not used by cloth)
+    Material material;                    ///< the yarn's tensile curve (torsion is not used by cloth, but validated)
     double lambda = 1e-6;                 ///< Tikhonov parameter of the tension least squares, [0, 1] (relative to the mean diagonal of A^T A)
-    /// Shear spring of each cell diagonal: force per unit strain, N, >= 0 (a loose weave
+    /// Shear spring of each cell diagonal: force per unit strain, N, [0, 1e9] (a loose weave
     /// shears easily; the yarns carry the load).
     double shear_stiffness = 0.01;
-    /// Bending spring across two consecutive edges of a yarn: force per unit strain, N, >= 0.
+    /// Bending spring across two consecutive edges of a yarn: force per unit strain, N, [0, 1e9].
     double bending_stiffness = 0.001;
     double damping = 0.0;                 ///< linear velocity damping, 1/s, [0, 1000]
     /// Viscoplastic time of the yarns, s, [0, 10]: past yield the rest length approaches

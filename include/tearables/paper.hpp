@@ -57,27 +57,27 @@ struct PaperDesc {
     std::vector<Vec3> vertices;                          ///< rest positions, m, finite
     std::vector<std::array<std::uint32_t, 3>> triangles; ///< counter-clockwise seen from the normal; non-degenerate, a manifold
     // --- material ---
-    double density = 0.08;               ///< kg/m^2 (office paper: 0.08), > 0
-    double stiffness = 5e3;              ///< N/m, spring constant of the edges, > 0. In a 2-D lattice this is also the
+    double density = 0.08;               ///< kg/m^2 (office paper: 0.08), [1e-9, 1e6]
+    double stiffness = 5e3;              ///< N/m, spring constant of the edges, (0, 1e12]. In a 2-D lattice this is also the
                                          ///< sheet's membrane stiffness, so it does not change with the resolution
     double bending = 0.05;               ///< bending springs' stiffness as a fraction of `stiffness`, [0, 1]
     double damping = 0.01;               ///< s, stiffness-proportional (Rayleigh) damping: c = damping * k per spring, [0, 1]
     int jacobi_iterations = 8;           ///< Jacobi iterations of the implicit solve (Paper Eq. 6), 1..256
     PaperIntegrator integrator = PaperIntegrator::Implicit;
     // --- breakable hinge springs (Paper Sec. III.B-C) ---
-    double phi = 1.0;                    ///< fragility exponent of P = (1 - l/l0)^phi, > 0 (large = rubbery, small = fragile)
+    double phi = 1.0;                    ///< fragility exponent of P = (1 - l/l0)^phi, (0, 1000] (large = rubbery, small = fragile)
     double psi = 0.5;                    ///< lift of a crease vertex, h = psi/2 sqrt(l0^2 - l^2), [0, 4] (area conservation)
     double hinge_threshold = 0.5;        ///< a hinge spring is inserted across an edge when its opposite vertices come
                                          ///< closer than this fraction of their rest distance, [0, 1)
     bool breakable = true;               ///< springs break under compression and edges fold into hinges
     // --- tearing (beyond Paper) ---
     bool tearable = false;               ///< the sheet separates where an edge is stretched past rupture_stretch
-    double rupture_stretch = 0.02;       ///< relative stretch at which an edge tears, > 0: l/l0 - 1, or with
+    double rupture_stretch = 0.02;       ///< relative stretch at which an edge tears, (0, 100]: l/l0 - 1, or with
                                          ///< Momentum tension the equivalent T / (k l0)
     PaperTension tension = PaperTension::Stretch;  ///< how edge tensions are estimated
     // --- collision and the rest ---
-    double thickness = 1e-3;             ///< m, > 0: vertices collide with rigid bodies as spheres of half this
-    double friction = 0.5;               ///< Coulomb coefficient against rigid bodies, >= 0 (combined with the body's: max)
+    double thickness = 1e-3;             ///< m, (0, 1]: vertices collide with rigid bodies as spheres of half this
+    double friction = 0.5;               ///< Coulomb coefficient against rigid bodies, [0, 100] (combined with the body's: max)
     std::uint64_t seed = 1;              ///< seeds the sheet's random generator (breaking)
     std::vector<PaperAttachment> attachments;  ///< at most one per vertex
 

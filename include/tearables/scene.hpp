@@ -108,7 +108,7 @@ struct Driver {
 };
 
 /// Where the pictures (`--png`) look from. Every field is optional: what is absent is
-/// fitted to the scene's bounds (demos/render/camera.cpp).
+/// fitted to the scene's bounds (fitCamera, demos/render/scene_painter.hpp).
 struct Camera {
     std::optional<Vec3> eye;     ///< camera position, m (must differ from target)
     std::optional<Vec3> target;  ///< the point looked at, m

@@ -1,4 +1,4 @@
-// tearables: snapshots of the whole core state (issue 8).
+// tearables: snapshots of the whole core state.
 //
 // A snapshot holds everything a World carries from one step to the next: every string's
 // full state (positions, velocities, rest lengths, material state after variation,
@@ -17,23 +17,15 @@
 // Integers are written as 64-bit words, doubles as their IEEE bits, strings and arrays
 // with a length word first. Core tags, in this order:
 //   "WRLD"  settings, time, steps, and the slot counts of strings, rigid bodies, cloths
-//           and paper sheets (version 2 added the last two);
+//           and paper sheets;
 //   "RIGD"  the rigid proxies by slot;
 //   "STRG"  one per string slot (dead slots included: ids stay);
-//   "CLTH"  one per cloth slot (version 2; version 3 added the descriptor's weak yarns):
-//           descriptor, vertices (positions, velocities, start and predicted
-//           positions, pending forces, masses, pins and glues), yarn
-//           edges (vertices, warp/weft, rest, original and maximum lengths, tension,
-//           stiffness, peak stress, broken and yielded flags, material after variation),
-//           soft springs and which edges they go with, per-vertex edge lists, the last
-//           edge directions, the topology counter, the last tension residual, the random
-//           generator. The solvers' scratch and factorisations are rebuilt;
-//   "PAPR"  one per paper sheet slot (version 2): descriptor, vertices (positions,
-//           predicted positions, velocities, pending forces, masses, pins and glues,
-//           crack tips), the mesh as it is now (triangles, springs with kind, rest,
-//           stiffness, broken flag and hinge edge), the adjacency lists in their order,
-//           per-spring survived compression and tension, the crease/hinge/tear counters,
-//           the random generator, the sheet's mass;
+//   "CLTH"  one per cloth slot: descriptor, vertices (positions, velocities, forces, masses,
+//           holds), yarn edges (lengths, tension, damage, material after variation), soft
+//           springs, adjacency, the random generator; scratch and factors are rebuilt;
+//   "PAPR"  one per paper sheet slot: descriptor, vertices, the mesh as it is now
+//           (triangles, springs, adjacency in its order), per-spring damage, the crease,
+//           hinge and tear counters, the random generator, the sheet's mass;
 //   "SCOL"  string-string warm start;
 //   "EVNT"  pending events.
 // A host adds its own (the Bullet plugin: "BULT"). A reader refuses a file of another

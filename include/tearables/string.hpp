@@ -39,7 +39,7 @@ struct StringDesc {
     std::vector<int> twist_half_width = {2};
     TensionEstimator tension = TensionEstimator::Momentum;  ///< tension estimator (one of the enum's values)
     bool tearable = true;          ///< segments break where their stress passes rupture
-    double damping = 0.0;          ///< linear velocity damping, 1/s, >= 0 (air drag stand-in)
+    double damping = 0.0;          ///< linear velocity damping, 1/s, [0, 1000] (air drag stand-in)
     /// Retardation time of the material's stretch (Kelvin-Voigt), s, [0, 1]: damps the
     /// axial vibration of a loaded rope; 0 = undamped.
     double axial_damping = 0.01;

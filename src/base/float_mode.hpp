@@ -2,11 +2,8 @@
 //
 // A value that decays geometrically along a long chain passes through the subnormal
 // range (below 2.2e-308) on its way to zero, and on Intel cores each operation on a
-// subnormal operand or result takes a microcode assist of ~100 cycles. A 100 000-segment
-// rope laid out straight did exactly that: the chain solve's gains carried the pin's
-// transverse coupling down the rope, 1.7e-47 after 1000 particles and 2.3e-316 after
-// 20 000, and ~70 000 of the solve's 900 000 gain entries were subnormal. Its step took
-// twice as long as with them flushed (docs/benchmarks-history.md, tenth round). Such
+// subnormal operand or result takes a microcode assist of ~100 cycles (the chain solve's
+// gains along a long straight rope: docs/benchmarks-history.md, tenth round). Such
 // values are far below anything the simulation resolves (a position's rounding is ~1e-16
 // of its size), so the step flushes them: flush-to-zero (results) and denormals-are-zero
 // (operands) in MXCSR, set for the step and restored after it, and set by the pool's

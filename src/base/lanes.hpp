@@ -30,10 +30,9 @@ inline Lanes2 sqrtLanes(Lanes2 v) {
 }
 
 /// v in the lanes where the mask m (all ones or all zeros per lane, as a comparison
-/// gives) holds, else +0. With the SSE2 instruction written out: from the vector
-/// extension's `&`, GCC 12 took both lanes through general registers (a move out, a
-/// conditional move and a move back per lane) where a comparison's lanes were also
-/// tested, which put ~8 cycles on the chain solve's dependency chain per value.
+/// gives) holds, else +0. The SSE2 instruction is written out: from the vector extension's
+/// `&`, GCC 12 may take both lanes through general registers (a move out, a conditional
+/// move and a move back per lane), on the chain solve's dependency chain.
 inline Lanes2 maskLanes(LaneMask2 m, Lanes2 v) {
 #if defined(__SSE2__)
     return (Lanes2)_mm_and_pd((__m128d)v, (__m128d)m);

@@ -1,4 +1,4 @@
-// A small deterministic thread pool for the strings' independent stages (issue 9).
+// A small deterministic thread pool for the materials' independent stages.
 //
 // forEach(count, fn) calls fn(i) for i in [0, count) and returns when all calls have
 // finished. Indices are split into fixed contiguous ranges, one per thread (the calling
@@ -7,12 +7,9 @@
 // bit-identical for any thread count. Workers are started lazily on the first parallel
 // call; no allocation per call. Between calls a worker first spins for kSpinMicroseconds
 // (watching the call counter: pause instructions, then yielding the core) and then sleeps
-// on a condition variable, and the caller waits for the workers the same way. Waking a
-// sleeping thread took 70-110 us on this project's (virtual) machine, as much as the work
-// of one Newton iteration of a 8192-particle rope split in two; calls in quick succession
-// (the iterations of one solve) now hand over in 1-2 us, also with every core busy with
-// other work (pure pause spinning took up to 400 us a call there: the thread waited for
-// could not run).
+// on a condition variable, and the caller waits for the workers the same way: calls in
+// quick succession (the iterations of one solve) hand over without waking a sleeping
+// thread, and yielding lets a waited-for thread run on a busy core.
 //
 // Nested calls run serially: a forEach made from inside a forEach's fn (on any thread)
 // loops in place. So a stage may split one big string's work over the pool (a long
@@ -152,7 +149,7 @@ private:
     void* context_ = nullptr;  // the caller's function object, called through call_
     void (*call_)(void*, std::size_t) = nullptr;
     static constexpr int kSpinMicroseconds = 200;
-    static constexpr unsigned kPauseSpins = 1024;  // ~10-40 us of pause instructions
+    static constexpr unsigned kPauseSpins = 1024;  // pause instructions before yielding
     std::size_t count_ = 0, parts_ = 1;
     std::atomic<std::size_t> pending_{0}, generation_{0};
     std::atomic<bool> quit_{false};

@@ -1,8 +1,7 @@
-// Checks shared by the descriptors' validation (src/string/desc.cpp, src/cloth/desc.cpp):
-// each throws InvalidInput naming the field and the value it got. The field's name is a
-// string_view, made a std::string only when it is thrown: World::step checks its settings
-// every step, and a name past the small-string buffer ("strain_tolerance") was a heap
-// allocation per step (issue 9).
+// Checks shared by the descriptors' validation (string/desc.cpp, cloth/desc.cpp,
+// sim/validate_material.hpp): each throws InvalidInput naming the field and the value it
+// got. The field's name is a string_view, made a std::string only when it is thrown, so a
+// check run every step (World::step's settings) never allocates.
 #pragma once
 
 #include "tearables/types.hpp"
@@ -34,6 +33,13 @@ inline void requirePositive(std::string_view field, double v) {
 inline void requireRange(std::string_view field, double v, double lo, double hi) {
     requireFinite(field, v);
     if (v < lo || v > hi) throw InvalidInput(std::string(field), "must be in [" + num(lo) + ", " + num(hi) + "] (got " + num(v) + ")");
+}
+
+/// Positive and within [lo, hi]: the range where the solvers' derived quantities (masses,
+/// stiffnesses, their inverses) stay normal double-precision numbers.
+inline void requirePhysical(std::string_view field, double v, double lo, double hi) {
+    requirePositive(field, v);
+    requireRange(field, v, lo, hi);
 }
 
 }  // namespace tearables::detail

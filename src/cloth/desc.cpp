@@ -1,5 +1,6 @@
 // ClothDesc validation: check at creation, so the hot loop can assume.
 #include "base/validate.hpp"
+#include "sim/validate_material.hpp"
 #include "tearables/cloth.hpp"
 
 #include <cmath>
@@ -53,14 +54,7 @@ void validate(const ClothDesc& d) {
     if (d.areal_density > 0.0 && (d.resolution[0] == 1 || d.resolution[1] == 1))
         throw InvalidInput("areal_density", "a single yarn (resolution 1 along an axis) has no area: give density instead");
     requirePositive("yarn_radius", d.yarn_radius);
-    const TensileCurve& t = d.material.tensile;
-    requirePositive("material.tensile.young", t.young);
-    requirePositive("material.tensile.yield", t.yield);
-    requirePositive("material.tensile.plastic_modulus", t.plastic_modulus);
-    requirePositive("material.tensile.rupture", t.rupture);
-    if (!(t.rupture > t.yield))
-        throw InvalidInput("material.tensile.rupture", "must be greater than yield (" + num(t.rupture) + " <= " + num(t.yield) + ")");
-    requireRange("material.variation", d.material.variation, 0.0, 0.5);
+    detail::validateMaterial(d.material, "material");
     requireRange("lambda", d.lambda, 0.0, 1.0);
     requireRange("shear_stiffness", d.shear_stiffness, 0.0, 1e9);
     requireRange("bending_stiffness", d.bending_stiffness, 0.0, 1e9);

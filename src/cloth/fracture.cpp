@@ -1,30 +1,19 @@
 // Stage: material response of the yarns to their least-squares tension (Yarn Sec. 3.3-3.4),
 // with the strings' tensile curve (sim/material_curve.hpp).
-//
-//  - Stress sigma = max(0, T) / (pi r^2) (Yarn Sec. 3.2; engineering stress on the
-//    original section; a yarn carries no compression).
-//  - Strain-limit threshold (Sec. 3.3): L_max = L_rest (1 + sigma / E). As for strings the
-//    strain-limit solve meets it implicitly through k = E A / L_rest; L_max is reported.
-//  - Yield (Sec. 3.4): past yield the peak stress sets a permanent strain
-//    eps_perm = eps_curve(peak) - peak / E and the rest length grows to L0 (1 + eps_perm);
-//    a Yield event the first time.
-//  - Strain rate (Sec. 3.4, "the more time is taken to break a yarn, the less vigorous
-//    the breakage"): with plastic_time tau > 0 the rest length approaches its target
-//    exponentially, L += (L_target - L) (1 - exp(-h / tau)) (viscoplastic flow). A slow
-//    pull gives the yarn time to lengthen plastically before it reaches rupture, which
-//    lowers its spring force at a given elongation and spreads the load to its
-//    neighbours; a fast pull reaches rupture with the rest length lagging (brittle).
-//    tau = 0 (the default) follows the curve at once, as the strings do; the update is
-//    explicit (this step's stress sets this step's rest length), so it is rate
-//    independent only while a step adds little stress against rupture - yield
-//    (tests/cloth: 0.04% strain a step follows the curve, 1% a step breaks at half the
-//    plastic elongation).
-//  - Rupture: a yarn whose stress reaches its rupture stress breaks (if tearable): the
-//    edge is removed (its vertices stay), the soft springs that depended on it go with
-//    it, a Tear event is emitted. Per cloth and step only the most overloaded yarn
-//    breaks: its load moves to its neighbours, and the next step's tension says whether
-//    they follow (that is how a tear propagates: the yarns next to the tip carry the
-//    most, Yarn's "tears where the stress is highest").
+//  - Stress sigma = max(0, T) / (pi r^2) (Sec. 3.2: engineering stress, no compression);
+//    L_max = L_rest (1 + sigma / E) (Sec. 3.3) is met by the strain-limit solve, reported.
+//  - Yield (Sec. 3.4): the peak stress sets eps_perm = eps_curve(peak) - peak / E and the
+//    rest length grows to L0 (1 + eps_perm); a Yield event the first time.
+//  - Strain rate (Sec. 3.4, "the more time is taken to break a yarn, the less vigorous the
+//    breakage"): with plastic_time tau > 0 the rest length approaches its target as
+//    L += (L_target - L) (1 - exp(-h / tau)): a slow pull lengthens the yarn plastically
+//    and spreads the load, a fast one ruptures it with the rest length lagging. tau = 0
+//    follows the curve at once, as strings do; the update is explicit, so rate independent
+//    only while a step adds little stress against rupture - yield (tests/cloth).
+//  - Rupture: a tearable yarn whose stress reaches rupture breaks: the edge goes (its
+//    vertices stay) with the soft springs that depend on it, and a Tear event is emitted.
+//    Only the most overloaded yarn per cloth and step breaks; the next step's tensions say
+//    whether its neighbours follow (Yarn: "tears where the stress is highest").
 #include "cloth/cloth_state.hpp"
 #include "sim/material_curve.hpp"
 

@@ -1,43 +1,15 @@
-// Stage: strain limiting of the weave, generalising the strings' solve (string/strain_limit.cpp)
-// from a chain to a mesh.
-//
+// Stage: strain limiting of the weave, the strings' solve (string/strain_limit.cpp) from a
+// chain to a mesh: backward Euler with the yarns at the material's own stiffness,
 //   x, u = argmin  sum_i m_i/(2h^2) |x_i - x'_i|^2 + sum_b u_b^T M_b u_b / (2h^2)
 //                + sum_yarn k_e/2 max(0, |x_b - x_a| - L_e)^2          (stiff: k_e = E A / L_e)
 //                + sum_soft k_s/2 (|x_b - x_a| - L_s)^2                 (shear, bending)
-//                + sum_penalty k_c/2 g^2  (contacts: only where g < 0; glue: always)
-//
-// i.e. backward Euler with the yarns at the material's own stiffness (the compliance form
-// of strain limiting: a yarn stretches by sigma / E, L_max = L (1 + sigma / E) of Yarn
-// Sec. 3.3 is met implicitly, never a step late). At fibre moduli this is inextensible
-// to within sigma / E. A slack yarn pushes nothing (max(0, .)): yarns buckle freely.
-// Newton's method with the geometric stiffness of stretched springs (projected to be
-// positive semi-definite for compressed soft springs), a sparse Cholesky factorisation
-// (linalg/supernodal.hpp, the unknowns numbered in a nested-dissection order of the weave; the
-// symbolic analysis is reused while the pattern stays the same: same topology, same
-// contacts; Eigen's SimplicialLDLT if a pivot is not positive) and a backtracking line
-// search on the energy. The strings' block-tridiagonal solve does not apply to a mesh; a
-// direct sparse solve keeps the same exactness at any stiffness ratio, where an
-// iterative (Jacobi / Gauss-Seidel / PBD) projection would need many sweeps.
-//
-// The geometric term's stretch. As in the strings' solve (string/strain_limit.cpp), the
-// exact k C of a yarn at an iterate is a poor guide: a transverse move of d stretches the
-// stiff yarn by ~d^2 / 2L and reads as a tension far above the one at the solution, the
-// step after it sees the vertex held transversely by that tension and barely moves, and
-// the line search cuts step after step (a 20 x 20 cloth swinging from two corners: every
-// solve ended at the iteration budget with moves of ~1e-4 m still to go). The yarn's term
-// takes instead its stretch after the last step to first order, C + e . (dx_b - dx_a)
-// (at the first iteration, the stretch the yarn ended the last time step with), or C
-// where that is smaller. The gradient is exact, so the minimum is the same; the median
-// last move of that cloth's solves falls from 1.4e-4 to ~4e-6 m within the same budget.
-// Where the line search had to cut a step, the next iteration takes the exact k C: a
-// cloth torn across by its pins (yarns snapping one after the other) otherwise took steps
-// along the too-soft estimate that the search cut again and again.
-//
-// Rigid bodies: a movable body a cloth touches or holds is 6 unknowns (translation u,
-// rotation w) with its mass and inertia M_b, relative to the pose the host already
-// integrated; contacts and glues are linear penalty rows g = n.x_v - n.(u + w x r) - c,
-// so the cloth holds the body with its real mass and the body pushes the cloth (two-way,
-// as the strings do). The penalty is 100x the stiffest yarn or inertia it competes with.
+//                + sum_penalty k_c/2 g^2  (contacts: only where g < 0; glue: always),
+// the compliance form of Yarn Sec. 3.3's L_max = L (1 + sigma / E), met implicitly; a slack
+// yarn pushes nothing, so yarns buckle freely. Newton's method with the geometric stiffness
+// (projected positive semi-definite for compressed soft springs), a sparse Cholesky
+// (linalg/supernodal.hpp, nested-dissection order, the analysis reused while the pattern
+// stays; SimplicialLDLT where a pivot is not positive) and a backtracking line search on
+// the energy: exact at any stiffness ratio, where Jacobi or PBD sweeps would need many.
 #include "cloth/cloth_state.hpp"
 
 #include <algorithm>
@@ -50,6 +22,11 @@ namespace {
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 using Mat6 = Eigen::Matrix<double, 6, 6>;
 
+// Rigid bodies: a movable body a cloth touches or holds is 6 unknowns (translation u,
+// rotation w) with its mass and inertia M_b, relative to the pose the host already
+// integrated; contacts and glues are linear penalty rows g = n.x_v - n.(u + w x r) - c, so
+// the cloth holds the body with its real mass and the body pushes the cloth (two-way, as
+// the strings do). The penalty is 100x the stiffest yarn or inertia it competes with.
 constexpr double kPenaltyFactor = 100.0;
 constexpr int kLineSearchSteps = 12;
 
@@ -274,7 +251,11 @@ struct Solver {
 
     /// Each yarn's stretch after the step alpha * c.step from c.x, to first order:
     /// max(0, C + e . (dx_b - dx_a)), into yarn_estimate (0 for yarns slack at c.x). C, the
-    /// stretch at c.x, is what assemble() left there.
+    /// stretch at c.x, is what assemble() left there. As in the strings' solve, the exact
+    /// k C at an iterate overstates the tension (a transverse move d stretches a stiff yarn
+    /// by ~d^2 / 2L) and stalls the line search; the geometric term takes this estimate
+    /// where it is smaller (the gradient stays exact: the same minimum), and the exact k C
+    /// in the iteration after a cut step.
     void linearisedStretch(double alpha) {
         auto move = [&](std::uint32_t p) {
             return c.dof[p] >= 0 ? Vec3(alpha * c.step.segment<3>(c.dof[p])) : Vec3::Zero();

@@ -1,60 +1,19 @@
-// Stage: yarn tensions from momentum balance (Yarn, Sec. 3.2), extended from a yarn to
-// a woven mesh.
+// Stage: yarn tensions from momentum balance (Yarn, Sec. 3.2), extended from a yarn to a
+// woven mesh. A free vertex i of mass m_i whose strain-limited motion is x''_i satisfies
+// (papers/README.md: the equations lost in the extraction)
+//     m_i (x''_i - x'_i) / h^2 = F_in_i + sum_e T_e s_ie e_e,   s_ie = +1 if i starts e, else -1,
+// x'_i its prediction, F_in_i the soft shear and bending springs at x'', e_e yarn e's unit
+// direction at x'', T_e its tension: A T = b, three rows per free vertex. Held vertices give
+// no rows; a pressed vertex's rows are projected across the contact normals (P_i = I -
+// sum n n^T), where the unknown contact force acts.
 //
-// With forward Euler, a free vertex i of mass m_i whose strain-limited motion is x''_i
-// must satisfy (papers/README.md: the equations lost in the extraction)
-//     m_i (x''_i - x'_i) / h^2 = F_in_i + sum_e T_e s_ie e_e,      s_ie = +1 if i starts e, -1 if it ends it,
-// where x'_i is its prediction (external forces already in it), F_in_i the soft shear and
-// bending springs at x'' (internal forces, known), e_e the unit direction of yarn e at
-// x'' and T_e its unknown tension. All free vertices stacked (3 rows each) give A T = b
-// with b_i = m_i (x''_i - x'_i) / h^2 - F_in_i (newtons). Pinned vertices and vertices
-// glued to a body carry an unknown support force and give no rows; a vertex a rigid body
-// presses has its rows projected across the contact normals (P_i = I - sum n n^T over an
-// orthonormal basis of the normals), where the unknown contact force acts.
-//
-// A mesh has more yarns per vertex than a chain; where the system is not determined
-// (self-stress of a flat weave between pins) Yarn takes the Tikhonov-regularised least
-// squares  min |A T - b|^2 + lambda |T|^2,  lambda = 1e-6. We scale lambda by the mean
-// diagonal of A^T A (dimensionless here, about 2) and assemble the normal equations
-// (A^T A + lambda' I) T = A^T b directly per vertex (each vertex couples the yarns that
-// meet there: 7 non-zeros per column on a grid), with a pattern fixed per topology, so
-// the sparse Cholesky (linalg/supernodal.hpp, the yarns numbered in nested-dissection order)
-// analyses once and only factorises each step.
-//
-// Choices where Yarn is vague:
-//  - Self-stress. Momentum balance cannot see a stress state that is in equilibrium by
-//    itself: a cloth stretched between two clamps, a yarn pulled at both ends by pins.
-//    Those tensions lie in the null space of A, and "as small as possible" (Yarn's
-//    regularisation towards zero) reports zero: a cloth pulled apart by its clamps would
-//    never tear. We regularise towards a prior instead, the tensions the strain limiter's
-//    stiff springs carry at x'' (k_e max(0, |d| - L)):
-//        min |A T - b|^2 + lambda |T - T_spring|^2.
-//    Where the motion determines T (the row space of A) the momentum answer wins, with
-//    the bias below; in the null space the constitutive answer fills in.
-//  - Bias. Plain Tikhonov pulls every tension towards the prior by about
-//    lambda / sigma_min^2 (sigma_min the smallest singular value of A, about 1/n for a
-//    chain of n yarns: 3e-4 relative for 20 yarns), so a regularised answer would
-//    disagree with the exact one of a consistent system. We iterate the Tikhonov step
-//    (iterated Tikhonov / proximal point),  T_{k+1} = (A^T A + lambda' I)^-1 (A^T b + lambda' T_k),
-//    warm-started from the prior T_0 (the strain limiter's forces: at rest they already
-//    are the answer; they are a better start than the last step's tensions after a tear or
-//    a jerk). Each refinement is one back-substitution with the same factor and shrinks
-//    the row-space bias by lambda' / (lambda' + sigma^2); the null-space part stays at the
-//    prior's. The iteration converges to  T_LS(min norm) + P_null T_spring.
-//  - Conjugate gradients. That iteration is Richardson's on (A^T A) T = A^T b preconditioned
-//    by the factor; conjugate gradients with the same preconditioner search the same Krylov
-//    space for the same back-substitutions and take its best point: where the system is
-//    well-conditioned (every mode the motion excites has sigma^2 >> lambda') they reach
-//    the tolerance in fewer back-substitutions (100 x 100 drape: 4 for 5). Where they find
-//    a slow mode (sigma^2 <~ lambda': self-stress of a clamped weave) the fixed point is
-//    ill-conditioned: converging it moves tensions by newtons on round-off (cloth-tear,
-//    before its perforation, then tore at step 6 instead of 84), while the truncated
-//    iteration keeps those modes at the prior; there the solve falls back to the
-//    iteration above, from the prior, as before.
-//
-// Scaling: the factorisation of a q-yarn mesh costs about O(q^1.5) with the yarns in
-// nested-dissection order (clothEdgeOrder); 100 x 100 vertices (19800 yarns) take a few
-// milliseconds (BENCHMARKS.md).
+// Yarn regularises towards zero, min |A T - b|^2 + lambda |T|^2 (lambda = 1e-6). Self-stress
+// (a cloth between two clamps) lies in A's null space and would read zero and never tear,
+// so we regularise towards the strain limiter's spring forces T_spring (k_e max(0, |d| - L)):
+//     min |A T - b|^2 + lambda' |T - T_spring|^2,   lambda' = lambda mean diag(A^T A),
+// then remove the bias towards the prior by iterating (iteratedTikhonov). The normal
+// equations are assembled per vertex, their pattern fixed per topology, and factored by the
+// supernodal Cholesky (linalg/supernodal.hpp), yarns in nested-dissection order: O(q^1.5).
 #include "cloth/cloth_state.hpp"
 #include "base/lanes.hpp"
 
@@ -160,8 +119,12 @@ double dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
     return (sum[0] + sum[1]) + (sum[2] + sum[3]);
 }
 
-/// Iterated Tikhonov from the prior in c.solution: T <- M^-1 (A^T b + lambda' T),
-/// M = A^T A + lambda' I the assembled matrix.
+/// Iterated Tikhonov (proximal point) from the prior in c.solution: T <- M^-1 (A^T b +
+/// lambda' T), M = A^T A + lambda' I the assembled matrix. Plain Tikhonov pulls every tension
+/// towards the prior by about lambda' / sigma_min^2 (sigma_min ~ 1/n for a chain of n
+/// yarns); each refinement, one back-substitution, shrinks that bias by lambda' / (lambda' +
+/// sigma^2) and leaves the null-space part at the prior's: the limit is T_LS(min norm) +
+/// P_null T_spring. The prior is a better start than the last step's tensions after a tear.
 template <class Solve>
 void iteratedTikhonov(ClothState& c, double reg, Solve&& solve) {
     const int q = static_cast<int>(c.columns.size());
@@ -185,9 +148,13 @@ void iteratedTikhonov(ClothState& c, double reg, Solve&& solve) {
 /// the prior in c.solution, by conjugate gradients preconditioned by M^-1 (the factor),
 /// one back-substitution a step. No product with the matrix in the loop: for z = M^-1 r,
 /// N' z = M z - lambda' z = r - lambda' z, and N' p follows by p's own recurrence (one
-/// product with M at the start, for r_0). Returns false, c.solution spoilt, at a slow mode:
-/// a step more than half the last (CG has reached an eigenvalue of M^-1 N' = sigma^2 /
-/// (sigma^2 + lambda') well below 1; see the file's comment).
+/// product with M at the start, for r_0). Where every mode the motion excites has sigma^2 >>
+/// lambda' it takes fewer back-substitutions than iteratedTikhonov (the same Krylov space,
+/// its best point). Returns false, c.solution spoilt, at a slow mode: a step more than half
+/// the last (an eigenvalue of M^-1 N' = sigma^2 / (sigma^2 + lambda') well below 1, as for
+/// the self-stress of a clamped weave). There the fixed point is ill-conditioned (converging
+/// it moves tensions by newtons on round-off) and the caller falls back to the truncated
+/// iteration, which keeps those modes at the prior.
 template <class Solve>
 bool conjugateGradients(ClothState& c, double reg, Solve&& solve) {
     const int q = static_cast<int>(c.columns.size());

@@ -1,49 +1,17 @@
 // Closest points of two segments (Ericson, Real-Time Collision Detection, Sec. 5.1.9).
+// With P(s) = p0 + s d1, Q(t) = q0 + t d2 (s, t in [0, 1]) and r = p0 - q0, the squared
+// distance F(s, t) = a s^2 - 2 b s t + e t^2 + 2 c s - 2 f t + r.r (a = d1.d1, b = d1.d2,
+// e = d2.d2, c = d1.r, f = d2.r) is convex; the lines' minimiser is
+//     s = (b f - c e) / (a e - b^2),   t = (a f - b c) / (a e - b^2).
+// Ericson: clamp s to [0, 1], take t(s) = (b s + f) / e; if t must be clamped, the optimum
+// lies on that t-edge, where s(t) = (b t - c) / a, clamped. A segment of length ~0 is a
+// point (its parameter 0, the other one the clamped projection); parallel segments take
+// the middle of their projections' overlap.
 //
-// Derivation. Write the segments as P(s) = p0 + s d1 and Q(t) = q0 + t d2 with
-// d1 = p1 - p0, d2 = q1 - q0, s, t in [0, 1], and let r = p0 - q0. The squared distance
-//
-//     F(s, t) = |P(s) - Q(t)|^2 = |r + s d1 - t d2|^2
-//             = a s^2 - 2 b s t + e t^2 + 2 c s - 2 f t + r.r,
-//
-// with a = d1.d1, b = d1.d2, e = d2.d2, c = d1.r, f = d2.r, is a convex quadratic
-// (its Hessian [[a, -b], [-b, e]] has determinant a e - b^2 = |d1 x d2|^2 >= 0).
-// Setting its gradient to zero gives the closest points of the two infinite lines:
-//
-//     a s - b t = -c,   b s - e t = -f   =>   s = (b f - c e) / (a e - b^2),
-//                                             t = (a f - b c) / (a e - b^2).
-//
-// For fixed s the best t is the projection of P(s) on the second line,
-// t(s) = (P(s) - q0).d2 / e = (b s + f) / e, clamped to [0, 1]; for fixed t the best s is
-// s(t) = (Q(t) - p0).d1 / a = (b t - c) / a, clamped. Ericson's argument: because F is
-// convex, the minimiser over the square [0, 1]^2 lies either at the line minimiser (when
-// it is inside), or on the edge of the square that the line minimiser is clamped to.
-// So: clamp the line minimiser's s to [0, 1]; take t = t(s); if t is inside [0, 1] the
-// pair is optimal (F restricted to that s-edge is minimised there, and the s-edge is the
-// right one); if t had to be clamped to 0 or 1, the optimum lies on that t-edge, where
-// the best s is s(t) clamped. The formulas need a > 0, e > 0 and a e - b^2 > 0:
-//
-//  * a (or e) ~ 0: that segment is a point; its parameter is 0 and the other one is the
-//    clamped projection of the point on the other segment (both ~ 0: s = t = 0).
-//  * a e - b^2 ~ 0: the segments are parallel and the line minimiser is a whole line of
-//    pairs. Any s gives the same line distance as long as t(s) stays in [0, 1]; we take
-//    the middle of the overlap of [0, 1] with the interval that the second segment
-//    projects to on the first line (s of q0 is -c/a, s of q1 is (b - c)/a), or the nearer
-//    end of [0, 1] when they do not overlap, then continue as above.
-//
-// Conditioning. Computed as written, a e - b^2 cancels catastrophically for nearly
-// parallel segments (relative error eps / sin^2 of their angle). With Lagrange's identity
-// (A x B).(C x D) = (A.C)(B.D) - (A.D)(B.C) both terms come from cross products instead:
-//     a e - b^2 = |n|^2,   b f - c e = n.(d2 x r),   n = d1 x d2,
-// which are accurate to eps / sin relative. An error ds in s moves the distance by at
-// most sin * |ds| * |d1| along nearly parallel lines, so the distance stays accurate to a
-// few eps * |d1| at every angle.
-//
-// Tolerances. A segment is a point when its squared length is below 1e-28 times the
-// largest of a, e and |r|^2 (a length 1e-14 of the problem's scale; the error made by
-// treating it as a point is that small). The segments are parallel when
-// |n|^2 = a e sin^2(angle) <= 1e-24 a e, i.e. sin(angle) <= 1e-12; the midpoint rule is
-// then off by at most sin * |d1| = 1e-12 of the length.
+// Conditioning: a e - b^2 cancels for nearly parallel segments (relative error eps /
+// sin^2). By Lagrange's identity a e - b^2 = |n|^2 and b f - c e = n.(d2 x r) with
+// n = d1 x d2, accurate to eps / sin; an error ds moves the distance by sin |ds| |d1|, so
+// the distance stays accurate to a few eps |d1| at every angle.
 #include "collision/capsule.hpp"
 
 #include <algorithm>
@@ -54,6 +22,9 @@ namespace {
 
 double clamp01(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
 
+// A point: squared length below 1e-28 of max(a, e, |r|^2) (a length 1e-14 of the scale, the
+// error of treating it as a point). Parallel: |n|^2 = a e sin^2 <= 1e-24 a e, i.e. sin <=
+// 1e-12, where the midpoint rule is off by at most 1e-12 of the length.
 constexpr double kPointTolerance = 1e-28;     // squared relative length of a "point" segment
 constexpr double kParallelTolerance = 1e-24;  // sin^2 of the angle of "parallel" segments
 
@@ -89,7 +60,9 @@ SegmentClosest closestPointsOfSegments(const Vec3& p0, const Vec3& p1, const Vec
             if (denom > kParallelTolerance * a * e) {
                 s = clamp01(n.dot(d2.cross(r)) / denom);  // (b f - c e) / (a e - b^2)
             } else {
-                // Parallel: the middle of the overlap of the projections (see above).
+                // Parallel: any s whose t(s) stays in [0, 1] gives the line distance; take
+                // the middle of the overlap of [0, 1] with the second segment's projection
+                // on the first line (q0 at s = -c/a, q1 at (b - c)/a).
                 const double sq0 = -c / a;
                 const double sq1 = (b - c) / a;
                 const double lo = std::max(0.0, std::min(sq0, sq1));

@@ -1,4 +1,5 @@
-// Ray tests against string capsules (issue 4: "so a game can shoot or cut a rope").
+// Ray tests against string capsules, so that a game can shoot or cut a rope: the first
+// capsule a ray enters.
 #include "tearables/queries.hpp"
 
 #include <algorithm>

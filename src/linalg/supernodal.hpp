@@ -1,26 +1,21 @@
-// A supernodal sparse Cholesky factorisation A = L L^T for the cloth's two solves (the
-// strain limiter's Newton Hessian and the tension normal equations), without BLAS or threads.
+// A supernodal sparse Cholesky factorisation A = L L^T (the cloth's Newton Hessian, the
+// cloth's and the paper's tension normal equations), without BLAS or threads: the
+// standard left-looking supernodal method (Ng and Peyton 1993; Davis, "Direct Methods for
+// Sparse Linear Systems", 2006, ch. 4 for the elimination tree and the row patterns).
 //
-// Eigen's SimplicialLDLT updates one column at a time with scalar, index-chasing loops.
-// On a weave numbered in nested-dissection order (gridDissection) the columns of L come in
-// runs with the same structure below the diagonal (supernodes: the separators, and the 3
-// unknowns of a vertex); a supernode's columns are stored as one dense column-major panel,
-// and every update from a descendant is a dense product subtracted straight from the
-// panel where its rows land (updateScatter), then the panel is factorised in place, its
-// diagonal block and the rows below in one column sweep (panelCholesky). Both are our own
-// kernels, not Eigen's: Eigen's GEMM, LLT and triangular solve run SSE2 in this build (no
-// -march) and their dispatch cost more than the arithmetic of the many narrow panels (a
-// 100 x 100 cloth's tension matrix has ~7 600 supernodes of 2.6 columns on average, and an
-// update from a descendant averages 3.5 of its columns and 8 rows). An AVX2 variant of
-// each is chosen at run time and gives the same bits. This is the standard left-looking
-// supernodal method (Ng and Peyton 1993; Davis, "Direct Methods for Sparse Linear
-// Systems", 2006, ch. 4 for the elimination tree and the row patterns).
+// In nested-dissection order (gridDissection) the columns of L come in runs with the same
+// structure below the diagonal (supernodes: the separators, and the 3 unknowns of a
+// vertex); a supernode is one dense column-major panel, every update from a descendant a
+// dense product subtracted where its rows land (updateScatter), then the panel is
+// factorised in place (panelCholesky). The kernels are our own: the panels are narrow (a
+// few columns), where Eigen's GEMM and LLT dispatch costs more than the arithmetic. An
+// AVX2 variant of each is chosen at run time and gives the same bits.
 //
 // The symbolic analysis (elimination tree, pattern of L, supernodes, where each entry of A
 // goes) depends on the pattern of A only and is kept while the pattern is the same. The
-// matrix must be symmetric positive definite (both cloth matrices are: masses over h^2 or
-// lambda' I plus positive semi-definite terms); factorize() says false otherwise, and the
-// caller falls back to LDL^T. No pivoting: the order is the one given.
+// matrix must be symmetric positive definite (all three are: masses over h^2 or lambda' I
+// plus positive semi-definite terms); factorize() says false otherwise, and the caller
+// falls back (LDL^T, or conjugate gradients for the paper). No pivoting: the order is the one given.
 #pragma once
 
 #include <Eigen/Dense>

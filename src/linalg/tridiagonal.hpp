@@ -17,8 +17,8 @@ namespace tearables::detail {
 ///
 /// The elimination runs from both ends at once (a twisted factorisation), the two sweeps
 /// in the two lanes of one register: a row's elimination is a chain of a product and a
-/// division on the last row's (~19 cycles), and the two halves' chains now take the time
-/// of one. They meet at the middle row, which takes both sides' eliminations; the back
+/// division on the last row's (~19 cycles), and the two halves' chains take the time of
+/// one. They meet at the middle row, which takes both sides' eliminations; the back
 /// substitution runs outward from it. Row t of the top sweep and row n-1-t of the bottom
 /// one share a step: scratch[t] and scratch[n-1-t] keep their gains (c'), rhs their d'.
 inline void solveSymmetricTridiagonal(const std::vector<double>& diag, const std::vector<double>& off,

@@ -1,14 +1,8 @@
 // Paper sheets: contacts of the vertices with rigid bodies, and the position update with
-// pins and glue.
-//
-// Each vertex is a sphere of half the sheet's thickness. The host (the Bullet plugin)
-// reports a contact point on the body where the body is at the end of its step, with the
-// normal from the body toward the vertex. A vertex may approach the body by no more than
-// its gap (speculative contact): n . v >= -gap / h. The velocity change that enforces it
-// is the vertex's normal impulse; Coulomb friction limits the tangential change of the
-// velocity relative to the body's surface to mu times the normal one. The body receives
-// the equal and opposite impulse (linear momentum is conserved), as the strings' contacts
-// do, but through its centre of mass (releaseBodies says why).
+// pins and glue. Each vertex is a sphere of half the sheet's thickness; the host reports a
+// contact point on the body at the end of its step, the normal toward the vertex. The
+// contact is speculative with Coulomb friction (resolvePoint); the body receives the
+// opposite impulse through its centre of mass (releaseBodies), momentum conserved.
 // A light vertex cannot stop a heavy body in one step: the body is held over the next
 // steps, as the implicit solve turns the vertex's displacement into spring force and the
 // vertex passes it on through the contact (a light box comes to rest on a sheet; a sphere
@@ -103,7 +97,7 @@ namespace {
 bool closing(const PaperSheet& s, const PointContact& c, const RigidTable& rigids, const PaperStep& ctx) {
     // Face contacts lend no mass: they act at velocity level only (resolveContacts).
     if (c.onFace() || c.vertex >= s.vertices() || !rigids.movable(c.body)) return false;
-    if (s.hold[c.vertex].kind != VertexHold::Kind::Free) return false;
+    if (s.hold[c.vertex].kind != ParticleHold::Kind::Free) return false;
     const RigidState& body = rigids.bodies[c.body.index];
     const Vec3 body_v = body.linear_velocity + body.angular_velocity.cross(c.point - body.position);
     const double radius = 0.5 * s.desc.thickness;
@@ -118,7 +112,7 @@ void countCouplings(const PaperSheet& s, const std::vector<PointContact>& contac
                     const PaperStep& ctx, std::vector<double>& count) {
     count.resize(rigids.bodies.size(), 0.0);
     for (std::size_t i = 0; i < s.vertices(); ++i)
-        if (s.hold[i].kind == VertexHold::Kind::Glue && rigids.movable(s.hold[i].body)) count[s.hold[i].body.index] += 1.0;
+        if (s.hold[i].kind == ParticleHold::Kind::Glue && rigids.movable(s.hold[i].body)) count[s.hold[i].body.index] += 1.0;
     for (const PointContact& c : contacts)
         if (closing(s, c, rigids, ctx)) count[c.body.index] += 1.0;
 }
@@ -129,8 +123,8 @@ void coupleBodies(PaperSheet& s, const std::vector<PointContact>& contacts, cons
     assignGrowing(s.added_mass, s.vertices(), Mat3::Zero());
     assignGrowing(s.added_force, s.vertices(), Vec3::Zero());
     for (std::size_t i = 0; i < s.vertices(); ++i) {
-        const VertexHold& hold = s.hold[i];
-        if (hold.kind != VertexHold::Kind::Glue || !rigids.movable(hold.body)) continue;
+        const ParticleHold& hold = s.hold[i];
+        if (hold.kind != ParticleHold::Kind::Glue || !rigids.movable(hold.body)) continue;
         const RigidState& body = rigids.bodies[hold.body.index];
         BodyCoupling c;
         c.vertex = static_cast<std::uint32_t>(i);
@@ -143,9 +137,8 @@ void coupleBodies(PaperSheet& s, const std::vector<PointContact>& contacts, cons
         // The glued vertex starts where the body point was before the host's step (the
         // host has moved the body already) and as it went before the host's gravity kick:
         // the lent mass's weight goes into the solve instead (added_force), so the sheet
-        // carries it implicitly. (Left to the host, the kick reached the solve as a
-        // velocity jump of the vertex against its neighbours: their damping and the
-        // truncated Jacobi solve then held a 2 g weight at 24% strain.)
+        // carries it implicitly, not as a velocity jump of the vertex against its
+        // neighbours (which their damping and the truncated Jacobi solve resist).
         s.x[i] = gluePoint(body, hold.point) - ctx.h * c.body_velocity;  // where it was before the host's step
         s.v[i] = c.body_velocity - ctx.h * ctx.gravity;
         s.added_mass[i] += c.lent;
@@ -187,12 +180,10 @@ void releaseBodies(const PaperSheet& s, const std::vector<BodyCoupling>& couplin
         if (c.normal.squaredNorm() > 0.0 && impulse.dot(c.normal) > 0.0) impulse.setZero();
         // Position-based, as the strings couple: the body is moved by what its share
         // moved differently from the host's step, h dv; the world turns that move into
-        // the velocity change dv when the step ends. (An impulse alone left the host's
-        // fall of g h^2 per step uncorrected: a glued weight sank until the springs were
-        // stretched 24%.) Translation only: the impulse goes through the centre of mass.
-        // Applied at the contact point, the torques of the many vertex contacts, each
-        // solved as if alone, overshot: a box resting on a sheet rocked, spun up to 27
-        // rad/s and tumbled off. A limitation: the sheet does not turn a body.
+        // the velocity change dv when the step ends (an impulse alone would leave the
+        // host's fall of g h^2 per step uncorrected). Translation only: the impulse goes
+        // through the centre of mass, since the torques of many vertex contacts, each
+        // solved as if alone, overshoot. A limitation: the sheet does not turn a body.
         body.position += body.inverse_mass * ctx.h * impulse;
         body.impulse += impulse;
     }
@@ -200,10 +191,10 @@ void releaseBodies(const PaperSheet& s, const std::vector<BodyCoupling>& couplin
 
 void integratePositions(PaperSheet& s, RigidTable& rigids, const PaperStep& ctx) {
     for (std::size_t i = 0; i < s.vertices(); ++i) {
-        const VertexHold& hold = s.hold[i];
-        if (hold.kind == VertexHold::Kind::Pin) {
+        const ParticleHold& hold = s.hold[i];
+        if (hold.kind == ParticleHold::Kind::Pin) {
             s.x[i] = hold.point;
-        } else if (hold.kind == VertexHold::Kind::Glue) {
+        } else if (hold.kind == ParticleHold::Kind::Glue) {
             RigidState& body = rigids.bodies[hold.body.index];
             if (rigids.movable(hold.body)) {
                 s.x[i] += ctx.h * s.v[i];  // solved with the body's share; the body follows (releaseBodies)

@@ -1,32 +1,22 @@
 // Paper sheets: breakable hinge springs (Paper Sec. III.B-C).
 //
 // A compressed structural spring (l < l0) breaks with probability P = (1 - l/l0)^phi
-// (Eq. 7). The paper evaluates P without saying how often; drawn anew every step, a spring
-// held at one compression would break with certainty given time, and the outcome would
-// depend on the time step. We draw only against the increase of the compression: a spring
-// that has survived compression c_s and is now at c > c_s breaks with probability
-// (c^phi - c_s^phi) / (1 - c_s^phi), so that the chance to have broken by the time it
-// reaches c is exactly c^phi, however many steps it took to get there (the breaking test
-// checks this distribution).
+// (Eq. 7). The paper does not say how often P is drawn; drawn every step, a spring held at
+// one compression would break given time, at a rate set by the time step. We draw only
+// against the increase: a spring that survived compression c_s and is now at c > c_s
+// breaks with probability (c^phi - c_s^phi) / (1 - c_s^phi), so it has broken by c with
+// probability exactly c^phi, in any number of steps.
 //
-// Breaking inserts a mass point at the middle of the spring, lifted along the surface
-// normal by h = psi/2 sqrt(l0^2 - l^2) (Eq. 8): with psi = 1 the two halves, each of rest
-// length l0/2, are exactly at rest (the sheet keeps its area); smaller psi leaves them
-// compressed (flat, flexible paper: bank notes), larger psi stretched (creases that pop:
-// card board). The lift goes to the side the edge already bulges to, seen from the
-// vertices opposite it (the buckle the compression started); when the edge lies flat the
-// side is drawn with the sheet's generator. The two triangles of the edge are split at the
-// new point (two new structural springs to the opposite vertices: the mesh stays a
-// triangle mesh), and an unbreakable auxiliary spring between the old ends, at their
-// compressed distance, keeps the crease after the load is gone (Fig. 3-4).
+// Breaking inserts a mass point at the spring's middle (a quarter of each end's mass),
+// lifted along the normal by h = psi/2 sqrt(l0^2 - l^2) (Eq. 8): psi = 1 leaves the halves
+// (rest l0/2) at rest, smaller psi compressed (bank notes), larger stretched (card board).
+// The lift goes to the side the edge already bulges to, else a side drawn with the sheet's
+// generator. The edge's triangles are split at the new point, an unbreakable auxiliary
+// spring between the old ends keeps the crease (Fig. 3-4), and the bending springs that no
+// longer span an edge are retired: the crease bends freely.
 //
-// The new point takes a quarter of each end's mass (mass is conserved). Bending springs
-// spanning the re-triangulated edges no longer span an edge and are retired: the crease is
-// a line of damage that bends freely.
-//
-// Hinges (Fig. 5): a bending spring whose two vertices come closer than hinge_threshold
-// times their rest distance (the edge between them is folded) is replaced by an
-// unbreakable hinge spring at the folded distance, so that the fold stays.
+// Hinges (Fig. 5): a bending spring whose vertices come closer than hinge_threshold times
+// their rest distance is replaced by an unbreakable hinge spring at the folded distance.
 #include "paper/sheet.hpp"
 
 #include <algorithm>

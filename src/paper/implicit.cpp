@@ -40,16 +40,15 @@ namespace {
 /// Paper Eq. 6 is plain Jacobi (w = 1). For paper-stiff springs W_ii is almost all
 /// h^2 sum k, and the iteration matrix of plain Jacobi then has an eigenvalue near -1 (the
 /// checkerboard mode of the mesh): with an even number of iterations the truncated series
-/// flips that mode's displacement every step and the sheet rings forever (measured: 24%
-/// strain and 0.4 m/s after 20 s with 8 iterations, 0.002% with 7 or 9). Weighted Jacobi
+/// flips that mode's displacement every step and the sheet rings forever. Weighted Jacobi
 /// with w = 2/3, the textbook smoother, maps that eigenvalue to -1/3: the mode is damped
 /// for every iteration count.
 constexpr double kJacobiWeight = 2.0 / 3.0;
 
 /// Velocity a held vertex must have to be where its holder is at the end of the step.
 Vec3 heldVelocity(const PaperSheet& s, std::size_t i, const RigidTable& rigids, const PaperStep& ctx) {
-    const VertexHold& hold = s.hold[i];
-    if (hold.kind == VertexHold::Kind::Pin) return (hold.point - s.x[i]) * ctx.inv_h;
+    const ParticleHold& hold = s.hold[i];
+    if (hold.kind == ParticleHold::Kind::Pin) return (hold.point - s.x[i]) * ctx.inv_h;
     const RigidState& b = rigids.bodies[hold.body.index];
     return (gluePoint(b, hold.point) - s.x[i]) * ctx.inv_h;
 }
@@ -75,9 +74,9 @@ inline Lanes load2(const double (&quad)[4], unsigned lane) {
 
 /// The rows of the Jacobi gather: per vertex, the couplings of its live springs, in spring
 /// order (so every sum is deterministic), padded with a zero entry to an even length (the
-/// sweep sums even and odd entries apart, two or four entries at a time). They depend only on the live springs' ends and
-/// the vertex count, and are rebuilt only when those changed (a crease or a tear): the
-/// check is one pass over the springs.
+/// sweep sums even and odd entries apart, two or four entries at a time). They depend only
+/// on the live springs' ends and the vertex count, and are rebuilt only when those changed
+/// (a crease or a tear): the check is one pass over the springs.
 void buildRows(PaperSheet& s) {
     const std::size_t n = s.vertices();
     std::size_t live = 0;
@@ -127,13 +126,8 @@ void setCoupling(PaperSheet& s, std::uint32_t slot, double iso, double along, co
     quad.dir_z[lane] = d.z();
 }
 
-/// Iterations per pass of jacobiSweeps over the rows. Measured at 64 x 64 on the hosts of
-/// 2026-11: 2 about 4% faster than 1; 4 no better; 8 slower at 128 x 128, whose rows in
-/// flight leave the L2. Since the iterates are padded (JacobiEntry: a neighbour is one
-/// load), 1 is the fastest on the host of 2026-12-02: 0.960-0.966 ms a step against
-/// 0.985-0.992 with 2 at 64 x 64 (3 and 4: 1.00 and 1.02), 4.46-4.64 against 4.75-4.79 ms
-/// at 128 x 128, 0.229-0.231 against 0.235-0.238 ms at 32 x 32. The sweep's own work, not
-/// the rows' reloads, bounds it now. Any depth gives the same bits.
+/// Iterations per pass of jacobiSweeps over the rows (docs/benchmarks-history.md: the
+/// measurements that chose 1). Any depth gives the same bits.
 constexpr int kPipelineDepth = 1;
 
 /// One vertex of one weighted Jacobi iteration (Eq. 6): b_i - sum_j W_ij dv_j
@@ -142,8 +136,7 @@ constexpr int kPipelineDepth = 1;
 /// chains, even and odd entries (two lanes of one register: the sum's latency, not the
 /// arithmetic, bounded a single chain), each in row order: with `kWide`, the terms of
 /// four entries are computed at once (AVX) and added pair by pair, the same additions in
-/// the same order, so both kernels give the same bits (and those of the scalar sweeps
-/// before them).
+/// the same order, so both kernels give the same bits.
 template <bool kWide>
 __attribute__((always_inline)) inline void jacobiVertex(const PaperSheet& s, std::size_t i, const JacobiEntry* dv, JacobiEntry* next) {
     if (s.fixed[i]) {
@@ -248,8 +241,8 @@ bool haveAvx2() { return false; }
 /// indices away, so iteration k can run at vertex i as soon as iteration k - 1 has passed
 /// i + reach. Up to kPipelineDepth iterations run in one pass over the rows, each `reach`
 /// vertices behind the one before, in the order of increasing k at every position: the
-/// rows a vertex needs are read again while they are still in the cache (the rows of a
-/// 64 x 64 sheet are 2 MB, the ones in flight ~100 kB). Two buffers suffice:
+/// rows a vertex needs are read again while they are still in the cache (the rows in
+/// flight are a small part of a large sheet's). Two buffers suffice:
 /// when iteration k overwrites iterate k - 2 at vertex i, iteration k - 1 has passed
 /// i + reach and needs no vertex <= i any more. The arithmetic is that of plain sweeps,
 /// in the same order: the same bits.
@@ -286,11 +279,9 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
     // in order.
     //
     // In chunks of kLengthChunk live springs: first their lengths and inverse lengths, in
-    // short loops (a root and a division, ~35 cycles of latency, that the long loop's body
-    // left the core too few springs in flight to overlap: the comparison with 1e-12 that
-    // waits on the root was its hottest instruction), then the rest. The roots and the
-    // divisions two springs at a time, in lanes (one sqrtpd, one divpd: the divider takes a
-    // pair in the time of one; the same bits as norm() and 1.0 / l).
+    // short loops (a root and a division, ~35 cycles of latency, overlap across springs
+    // only in a loop this short), then the rest. The roots and the divisions two springs at
+    // a time, in lanes (one sqrtpd, one divpd; the same bits as norm() and 1.0 / l).
     s.link_length.resize(s.springs.size());
     constexpr std::size_t kLengthChunk = 32;
     std::uint32_t chunk_spring[kLengthChunk];
@@ -335,8 +326,8 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
             Vec3 f = h * (sp.stiffness * (l - sp.rest) + damping * sp.stiffness * d.dot(relative)) * d;
             // K = k (d d^T + t (I - d d^T)), t = max(0, 1 - l0 / l): the block
             // h c d d^T + h^2 K = iso I + along d d^T needs two numbers and d, not nine.
-            // max(0, 1 - l0 / l) without a branch (it was one, taken at random as springs
-            // swing between stretched and compressed): x + |x| is 2x or 0 exactly.
+            // max(0, 1 - l0 / l) without a branch (springs swing between stretched and
+            // compressed at random): x + |x| is 2x or 0 exactly.
             const double stretch = 1.0 - sp.rest * inv_l;
             const double t = 0.5 * (stretch + std::abs(stretch));
             const double iso = h2 * sp.stiffness * t;
@@ -358,8 +349,8 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
     for (std::size_t i = 0; i < n; ++i) {
         // Pins and glue to immovable bodies prescribe the velocity; a glue to a movable
         // body was turned into added mass (coupleBodies).
-        s.fixed[i] = s.hold[i].kind == VertexHold::Kind::Pin ||
-                     (s.hold[i].kind == VertexHold::Kind::Glue && !rigids.movable(s.hold[i].body));
+        s.fixed[i] = s.hold[i].kind == ParticleHold::Kind::Pin ||
+                     (s.hold[i].kind == ParticleHold::Kind::Glue && !rigids.movable(s.hold[i].body));
         Vec3 rhs = h * (s.mass[i] * ctx.gravity + s.force[i] + s.added_force[i]);
         // The symmetric sum of the blocks in scalars (kept in registers; an Eigen 3x3
         // accumulator is spilled to the stack and reloaded in every pass of the loop).

@@ -5,6 +5,7 @@
 #pragma once
 
 #include "linalg/supernodal.hpp"
+#include "sim/hold.hpp"
 #include "tearables/events.hpp"
 #include "tearables/paper.hpp"
 #include "tearables/world.hpp"
@@ -20,22 +21,18 @@ namespace tearables::detail {
 
 struct RigidTable;
 
-/// v.assign(n, value), where a growing v takes half its capacity again. A sheet that
-/// creases every step gains vertices and springs every step, and an exact assign made a
-/// new allocation for its per-vertex and per-entry arrays at every step: 2 MB for a 64 x
-/// 64 sheet's rows, each one mapped and zeroed afresh by the kernel (a fifth of the step).
+/// v.assign(n, value), where a growing v takes half its capacity again: a sheet that
+/// creases every step gains vertices and springs every step, and an exact assign would
+/// allocate its per-vertex and per-entry arrays afresh at every step.
 template <class T> void assignGrowing(std::vector<T>& v, std::size_t n, const typename std::vector<T>::value_type& value) {
     if (n > v.capacity()) v.reserve(std::max(n, v.capacity() + v.capacity() / 2));
     v.assign(n, value);
 }
 
-/// What holds a vertex.
-struct VertexHold {
-    enum class Kind : std::uint8_t { Free, Pin, Glue };
-    Kind kind = Kind::Free;
-    Vec3 point = Vec3::Zero();  ///< Pin: world target; Glue: point in the body's frame
-    RigidId body;               ///< Glue
-};
+/// What holds a vertex: the ParticleHold of every material, under the name that
+/// paper/system.cpp and world/snapshot.cpp still use (a distinct type only so that the
+/// snapshot's two io overloads stay distinct; same members, same bytes).
+struct VertexHold : ParticleHold {};
 
 /// The couplings of springs in the implicit solve, seen from one of their vertices, four
 /// row entries side by side (lanes 0-3, row entry j in lane j % 4 of block j / 4;

@@ -8,18 +8,16 @@
 // it also sees what the truncated Jacobi solve really applied, at the cost of a sparse
 // solve per step.
 //
-// Separation. An edge stretched past rupture_stretch opens a crack perpendicular to it:
-// at one of its ends that lies on the sheet's boundary (or on an earlier cut), the fan of
-// triangles around that vertex is cut along its inner edge most perpendicular to the
-// stretched edge, and the vertex is duplicated: the triangles on one side of the cut take
-// the copy (mass shared by area, velocity copied, the same pin or glue). The cut edge's
-// spring is duplicated so both new boundary edges keep theirs, and springs spanning the cut
-// (bending, hinge, auxiliary) are renamed to the side where they still span an edge, or
-// retired. A crack thus starts at the boundary and runs inward one vertex per step while
-// the stress stays above rupture; the far end of each cut is remembered as a crack tip,
-// whose edges are torn first, and at most one new crack starts per step. Held (pinned, glued) vertices are never split. An overstretched edge with both ends inside the sheet
-// waits until a crack reaches it (a vertex inside has a closed fan: cutting one edge of it
-// separates nothing). At most one split per vertex per step.
+// Separation. An edge stretched past rupture_stretch opens a crack perpendicular to it: at
+// an end on the sheet's boundary (or on an earlier cut), the fan of triangles around that
+// vertex is cut along its inner edge most perpendicular to the stretched edge, and the
+// vertex is duplicated (the copy: mass shared by area, velocity copied, the same hold).
+// The cut edge's spring is duplicated; springs spanning the cut are renamed to the side
+// where they still span an edge, or retired. A crack runs inward one vertex per step while
+// the stress stays above rupture; each cut's far end is a crack tip, torn first, and at
+// most one new crack starts per step. Held vertices are never split; an edge with both
+// ends inside waits for a crack (an inner vertex's fan is closed). One split per vertex
+// and step.
 #include "paper/sheet.hpp"
 
 #include <algorithm>
@@ -174,7 +172,7 @@ void tear(PaperSheet& s, PaperId id, const PaperStep& ctx, std::vector<Event>& e
             if (!s.crack_tip[v] && started >= kNewCracks) continue;
             // A held vertex is not split: both halves would stay at the pin (or glue), and
             // the crack would open nothing. The crack starts next to it instead.
-            if (s.hold[v].kind != VertexHold::Kind::Free) continue;
+            if (s.hold[v].kind != ParticleHold::Kind::Free) continue;
             if (!onBoundary(s, v, scratch)) continue;
             // The inner fan edge most perpendicular to the stretched edge.
             trianglesOf(s, v, fan);

@@ -2,29 +2,19 @@
 //
 // Stretch: T_e = k (l - l0), the spring's own force (exact for this mass-spring model).
 //
-// Momentum (Yarn Sec. 3.2, the cloth case; see papers/README.md for the lost equations):
-// a free vertex i of mass m_i joined by edges e must satisfy
+// Momentum (Yarn Sec. 3.2, the cloth case; papers/README.md has the lost equations): a free
+// vertex i of mass m_i joined by edges e satisfies
 //   m_i (v''_i - v_i) / h = F_ext_i + F_in_i + sum_e T_e e_ie,
-// with v'' the velocity after the step's solve, F_ext gravity and the user's forces, F_in
-// the non-structural springs (bending, auxiliary, hinge) and e_ie the unit vector from i
-// along edge e. Three equations per vertex; vertices that are held, touch a body or carry
-// a body's mass are left out (unknown forces act there). The tensions are the regularised
-// least squares min |A T - b|^2 + lambda |T - T_k|^2, lambda = 1e-6 (Yarn's value), where
-// we regularise toward the spring forces T_k = k (l - l0) instead of toward zero, so that
-// an edge the balance cannot see (both ends held) keeps its elastic tension instead of
-// reading zero. The normal equations (A^T A + lambda I) T = A^T b + lambda T_k are sparse
-// (edges that share a vertex) and solved directly: the cloth's supernodal Cholesky
-// (linalg/supernodal.hpp), the unknowns in AMD order (or nested dissection, on a
-// rectangle's sheet still on its grid, where cheaper), the pattern and its analysis kept
-// while the sheet's structural springs and their ends are the same (the vertices without
-// a row this step add zeros to it), one back-substitution; the relative residual is
-// reported (~1e-14). Conjugate gradients with a diagonal preconditioner (what this code
-// used until 2026-12-02, through Eigen) are ill-conditioned here, lambda being 1e-6 of the
-// diagonal: a 64 x 64 sheet ended its 60 iterations with 6% of |rhs| left; they remain,
-// matrix-free, for the steps in which the springs changed (a crease or a tear: the
-// pattern is built again once they stay the same for a step, so that a sheet creasing
-// every step does not pay the analysis every step) and for a factorisation that fails.
-// Directions and forces are those of the step's start (what the solve linearised about).
+// v'' the velocity after the step's solve, F_ext gravity and user forces, F_in the
+// non-structural springs (bending, auxiliary, hinge), e_ie the unit vector from i along e.
+// Held vertices, those touching a body and those carrying a body's mass give no rows. The
+// tensions minimise |A T - b|^2 + lambda |T - T_k|^2 (lambda = 1e-6, Yarn's), regularised
+// toward the spring forces T_k = k (l - l0) so that an edge the balance cannot see keeps
+// its elastic tension. The normal equations are solved by the supernodal Cholesky
+// (linalg/supernodal.hpp; AMD order, or nested dissection on a rectangle's grid where
+// cheaper), the analysis kept while the structural springs stay; conjugate gradients
+// answer in the steps where they changed or the factorisation fails. Directions and
+// forces are those of the step's start (what the solve linearised about).
 #include "linalg/dissection.hpp"
 #include "paper/sheet.hpp"
 
@@ -128,8 +118,7 @@ void buildTensionPattern(const PaperSheet& s, PaperSheet::TensionScratch& w) {
     // A rectangle's sheet still on its grid: nested dissection of the edges at their doubled
     // midpoints, as the cloth's yarns (cloth/tension.cpp): an odd line of it (the edges
     // crossing between two columns or rows of vertices, diagonals included) separates the
-    // edges on either side. Kept where it costs fewer operations than AMD's order (at 32 x
-    // 32, 64 x 64 and 128 x 128 vertices: 8%, 27% and 40% fewer).
+    // edges on either side. Kept where it costs fewer operations than AMD's order.
     const int nx = s.desc.resolution[0], nz = s.desc.resolution[1];
     const auto grid = static_cast<std::uint32_t>(nx * nz);
     bool on_grid = s.desc.vertices.empty() && s.vertices() == grid;
@@ -182,8 +171,7 @@ bool solveDirect(const PaperSheet& s, PaperSheet::TensionScratch& w) {
     if (!w.factor.analysed() || !sameEnds(s, w, w.pattern_ends)) {
         // The springs changed since the pattern was built. It is built anew once they have
         // stayed the same for a step; until then the conjugate gradients answer. A sheet
-        // that creases or tears every step would otherwise pay the analysis every step (a
-        // 64 x 64 sheet creasing as it swings: 125 ms a step).
+        // that creases or tears every step would otherwise pay the analysis every step.
         if (!sameEnds(s, w, w.seen_ends)) {
             recordEnds(s, w, w.seen_ends);
             return false;
@@ -351,9 +339,9 @@ void estimateTension(PaperSheet& s, const std::vector<PointContact>& contacts, c
         // In a step whose springs changed (a crease, a tear), or where the factorisation
         // fails (a pivot not finite): conjugate gradients with the diagonal (Jacobi)
         // preconditioner, warm-started at T_k, stopping at |r| <= kCgTolerance |rhs| or
-        // after kCgIterations. Ill-conditioned (a 64 x 64 sheet: 6% of |rhs| left after the
-        // 60), hence the direct solve wherever the pattern holds. (t still holds T_k: the
-        // direct solve writes it only when it succeeds.)
+        // after kCgIterations. Ill-conditioned (lambda is 1e-6 of the diagonal), hence the
+        // direct solve wherever the pattern holds. (t still holds T_k: the direct solve
+        // writes it only when it succeeds.)
         std::vector<double>& z = w.z;
         std::vector<double>& p = w.direction;
         z.resize(count);

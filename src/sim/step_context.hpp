@@ -21,11 +21,11 @@ struct StepContext {
     /// runs serially when nested in another, so stages called from a forEach over many
     /// strings stay serial inside.
     ThreadPool* pool = nullptr;
-    /// Chains start their strain solve at the prediction, never warm (strain_limit.cpp,
+    /// Chains start their strain solve at the prediction, never warm (the strings'
     /// warmStart): tests compare the two.
     bool cold_strain_starts = false;
-    /// Chains' strain solves make Newton iterations only, no chord iterations
-    /// (strain_limit.cpp): tests compare the two.
+    /// Chains' strain solves make Newton iterations only, no chord iterations (src/string/):
+    /// tests compare the two.
     bool newton_strain_only = false;
 };
 

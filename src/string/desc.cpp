@@ -1,5 +1,6 @@
 // StringDesc construction and validation: check at creation, so the hot loop can assume.
 #include "base/validate.hpp"
+#include "sim/validate_material.hpp"
 #include "tearables/string.hpp"
 #include "tearables/world.hpp"
 
@@ -13,22 +14,13 @@ namespace {
 using detail::num;
 using detail::requireFinite;
 using detail::requirePositive;
+using detail::requirePhysical;
 using detail::requireRange;
 
-/// Positive, and within the range where the solver's derived quantities (segment masses,
-/// stiffnesses, twist inertias, their inverses) stay normal double-precision numbers.
-void requirePhysical(const std::string& field, double v, double lo, double hi) {
-    requirePositive(field, v);
-    requireRange(field, v, lo, hi);
-}
-
-// Physical ranges (issue 8): wide enough for every real string (a 0.1 um fibre to a 10 m
-// hawser; aerogel to osmium; foam to graphene), narrow enough that nothing derived from
-// them under- or overflows.
+// Physical ranges: wide enough for every real string (a 0.1 um fibre to a 10 m hawser),
+// narrow enough that nothing derived from them under- or overflows.
 constexpr double kMinRadius = 1e-7, kMaxRadius = 10.0;        // m
 constexpr double kMinDensity = 1e-3, kMaxDensity = 1e5;       // kg/m^3
-constexpr double kMinStress = 1e-3, kMaxStress = 1e13;        // Pa (moduli and stresses)
-constexpr double kMinStrain = 1e-9, kMaxStrain = 1e3;         // torsional strain
 constexpr double kMinMass = 1e-15, kMaxMass = 1e12;           // kg
 
 }  // namespace
@@ -81,21 +73,7 @@ void validate(const StringDesc& d) {
             throw InvalidInput("points[" + std::to_string(i) + "]",
                                "segment " + std::to_string(i - 1) + " has no usable mass (" + num(mass) + " kg)");
     }
-    const TensileCurve& t = d.material.tensile;
-    requirePhysical("material.tensile.young", t.young, kMinStress, kMaxStress);
-    requirePhysical("material.tensile.yield", t.yield, kMinStress, kMaxStress);
-    requirePhysical("material.tensile.plastic_modulus", t.plastic_modulus, kMinStress, kMaxStress);
-    requirePhysical("material.tensile.rupture", t.rupture, kMinStress, kMaxStress);
-    if (!(t.rupture > t.yield))
-        throw InvalidInput("material.tensile.rupture", "must be greater than yield (" + num(t.rupture) + " <= " + num(t.yield) + ")");
-    const TorsionCurve& q = d.material.torsion;
-    requirePhysical("material.torsion.modulus", q.modulus, kMinStress, kMaxStress);
-    requirePhysical("material.torsion.yield", q.yield, kMinStrain, kMaxStrain);
-    requirePhysical("material.torsion.plastic_modulus", q.plastic_modulus, kMinStress, kMaxStress);
-    requirePhysical("material.torsion.rupture", q.rupture, kMinStrain, kMaxStrain);
-    if (!(q.rupture > q.yield))
-        throw InvalidInput("material.torsion.rupture", "must be greater than yield (" + num(q.rupture) + " <= " + num(q.yield) + ")");
-    requireRange("material.variation", d.material.variation, 0.0, 0.5);
+    detail::validateMaterial(d.material, "material");
     if (d.csm_half_width < 1 || d.csm_half_width > 8)
         throw InvalidInput("csm_half_width", "must be in [1, 8] (got " + std::to_string(d.csm_half_width) + ")");
     requireRange("bending", d.bending, 0.0, 1.0);

@@ -12,11 +12,14 @@
 #include <vector>
 
 #include "collision/grid.hpp"
+#include "collision/reference_grid.hpp"
 
 namespace {
 
 using tearables::Vec3;
 using namespace tearables::detail;
+using namespace tearables::reference;
+using tearables::reference::SegmentGrid;  // not the library's placeholder of that name
 
 struct RopePile {
     std::vector<Vec3> x;

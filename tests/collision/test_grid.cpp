@@ -13,12 +13,15 @@
 
 #include "collision/capsule.hpp"
 #include "collision/grid.hpp"
+#include "collision/reference_grid.hpp"
 
 namespace {
 
 using tearables::InvalidInput;
 using tearables::Vec3;
 using namespace tearables::detail;
+using namespace tearables::reference;
+using tearables::reference::SegmentGrid;  // not the library's placeholder of that name
 
 Vec3 randomUnit(std::mt19937_64& rng) {
     std::normal_distribution<double> n;
@@ -570,7 +573,7 @@ TEST(SegmentGrid, RejectsInvalidInput) {
 TEST(ChainTree, FindsExactlyTheGridsPairs) {
     std::mt19937_64 rng(77);
     std::uniform_real_distribution<double> u(0.0, 1.0);
-    SegmentGrid grid;
+    tearables::reference::SegmentGrid grid;
     ChainTree tree;
     std::vector<SegmentPair> from_grid, from_tree;
     std::size_t total = 0;

@@ -519,7 +519,7 @@ TEST(SnapshotMeshes, DamagedClothsAndSheetsAreRefusedAndChangeNothing) {
          "do not sum to the sheet's mass"},
         {damaged([](const tearables::detail::WorldParts& w) {
              auto& hold = w.papers->at(0).hold[9];
-             hold.kind = tearables::detail::VertexHold::Kind::Glue;
+             hold.kind = tearables::detail::ParticleHold::Kind::Glue;
              hold.body = RigidId{7};
          }),
          "snapshot.PAPR[0]", "vertex 9 is glued to rigid slot 7"},

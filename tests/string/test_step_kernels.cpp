@@ -4,6 +4,7 @@
 // rejection of swept pairs (World's nodesSeparationNeeded) against the pair by pair filter.
 #include "base/thread_pool.hpp"
 #include "collision/grid.hpp"
+#include "collision/reference_grid.hpp"
 #include "world/world_access.hpp"
 #include "tearables/world.hpp"
 
@@ -73,7 +74,7 @@ TEST(StepKernels, ChainTreeFindsTheBruteForcePairs) {
         detail::ChainTree tree;
         std::vector<detail::SegmentPair> out;
         tree.findPairs(x.data(), segs, 0.0, out, 3);
-        const auto expected = detail::bruteForcePairs(x.data(), x.size(), segs, 0.0, 3);
+        const auto expected = tearables::reference::bruteForcePairs(x.data(), x.size(), segs, 0.0, 3);
         ASSERT_GT(expected.size(), 10u) << layout;
         EXPECT_EQ(keys(out), keys(expected)) << layout;
     }
@@ -333,7 +334,7 @@ TEST(StepKernels, ChainTreeSplitsALongChainOverThePoolWithTheSamePairs) {
         ASSERT_EQ(a[i].second, b[i].second) << i;
         ASSERT_EQ(a[i].distance, b[i].distance) << i;
     }
-    EXPECT_EQ(keys(b), keys(detail::bruteForcePairs(x.data(), x.size(), segs, 0.0, 3)));
+    EXPECT_EQ(keys(b), keys(tearables::reference::bruteForcePairs(x.data(), x.size(), segs, 0.0, 3)));
 }
 
 #if defined(__SSE2__)
