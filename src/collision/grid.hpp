@@ -59,10 +59,6 @@ bool excludedPair(const CollisionSegment& si, const CollisionSegment& sj, std::u
 bool narrowPhase(const Vec3* x, const std::vector<CollisionSegment>& segs, const SegmentInfo* info, double margin,
                  std::uint32_t i, std::uint32_t j, std::vector<SegmentPair>& out);
 
-/// Unused: World::Impl still declares a member of this type; it goes with that member. The
-/// hash grid itself is the tests' reference (tests/collision/reference_grid.hpp).
-struct SegmentGrid {};
-
 class ThreadPool;
 
 /// Every pair of overlapping capsules (distance between the axes < r1 + r2 + margin),

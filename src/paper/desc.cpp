@@ -129,7 +129,7 @@ PaperSheet buildSheet(const PaperDesc& desc) {
     s.x_pred = s.x;
     s.force.assign(n, Vec3::Zero());
     s.mass.assign(n, 0.0);
-    s.hold.assign(n, VertexHold{});
+    s.hold.assign(n, ParticleHold{});
     s.crack_tip.assign(n, 0);
     // Lumped masses: a third of each triangle's mass to each corner.
     for (const auto& t : s.triangles) {

@@ -71,7 +71,7 @@ std::uint32_t addVertex(PaperSheet& s, Vec3 x, Vec3 v, double mass) {
     s.v.push_back(v);
     s.force.push_back(Vec3::Zero());
     s.mass.push_back(mass);
-    s.hold.push_back(VertexHold{});
+    s.hold.push_back(ParticleHold{});
     s.crack_tip.push_back(0);
     return static_cast<std::uint32_t>(s.x.size() - 1);
 }

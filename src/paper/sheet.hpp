@@ -29,11 +29,6 @@ template <class T> void assignGrowing(std::vector<T>& v, std::size_t n, const ty
     v.assign(n, value);
 }
 
-/// What holds a vertex: the ParticleHold of every material, under the name that
-/// paper/system.cpp and world/snapshot.cpp still use (a distinct type only so that the
-/// snapshot's two io overloads stay distinct; same members, same bytes).
-struct VertexHold : ParticleHold {};
-
 /// The couplings of springs in the implicit solve, seen from one of their vertices, four
 /// row entries side by side (lanes 0-3, row entry j in lane j % 4 of block j / 4;
 /// structure of arrays inside the block, so the Jacobi sweep works on two or four entries
@@ -69,7 +64,7 @@ struct PaperSheet {
     std::vector<Vec3> v;          ///< velocities, m/s
     std::vector<Vec3> force;      ///< user forces for the next step, N
     std::vector<double> mass;     ///< kg
-    std::vector<VertexHold> hold;
+    std::vector<ParticleHold> hold;
     std::vector<std::uint8_t> crack_tip;  ///< 1 where a tear's cut ends inside the sheet (tear.cpp)
     // topology
     std::vector<std::array<std::uint32_t, 3>> triangles;

@@ -37,14 +37,14 @@ PaperId PaperSystem::add(const PaperDesc& desc, const RigidTable& rigids) {
         if (desc.attachments[i].body.valid()) checkBody(rigids, desc.attachments[i].body, "attachments[" + std::to_string(i) + "].body");
     PaperSheet s = buildSheet(desc);
     for (const PaperAttachment& a : desc.attachments) {
-        VertexHold& hold = s.hold[a.vertex];
+        ParticleHold& hold = s.hold[a.vertex];
         if (a.body.valid()) {
-            hold.kind = VertexHold::Kind::Glue;
+            hold.kind = ParticleHold::Kind::Glue;
             hold.body = a.body;
             hold.point = a.local;
             s.x[a.vertex] = gluePoint(rigids.bodies[a.body.index], a.local);
         } else {
-            hold.kind = VertexHold::Kind::Pin;
+            hold.kind = ParticleHold::Kind::Pin;
             hold.point = a.world ? *a.world : s.x[a.vertex];
             s.x[a.vertex] = hold.point;
         }
@@ -99,7 +99,7 @@ void PaperSystem::attachToPoint(PaperId id, std::uint32_t vertex, const Vec3& po
     PaperSheet& s = get(id);
     checkVertex(s, vertex);
     if (!point.allFinite()) throw InvalidInput("point", "must be finite");
-    s.hold[vertex] = VertexHold{VertexHold::Kind::Pin, point, RigidId{}};
+    s.hold[vertex] = ParticleHold{ParticleHold::Kind::Pin, point, RigidId{}};
     s.x[vertex] = point;
     s.v[vertex].setZero();
 }
@@ -109,14 +109,14 @@ void PaperSystem::attachToRigid(PaperId id, std::uint32_t vertex, RigidId body, 
     checkVertex(s, vertex);
     checkBody(rigids, body, "body");
     if (!local.allFinite()) throw InvalidInput("local", "must be finite");
-    s.hold[vertex] = VertexHold{VertexHold::Kind::Glue, local, body};
+    s.hold[vertex] = ParticleHold{ParticleHold::Kind::Glue, local, body};
     s.x[vertex] = gluePoint(rigids.bodies[body.index], local);
 }
 
 void PaperSystem::movePin(PaperId id, std::uint32_t vertex, const Vec3& point) {
     PaperSheet& s = get(id);
     checkVertex(s, vertex);
-    if (s.hold[vertex].kind != VertexHold::Kind::Pin) throw InvalidInput("vertex", "is not pinned to a world point");
+    if (s.hold[vertex].kind != ParticleHold::Kind::Pin) throw InvalidInput("vertex", "is not pinned to a world point");
     if (!point.allFinite()) throw InvalidInput("point", "must be finite");
     s.hold[vertex].point = point;
 }
@@ -124,8 +124,8 @@ void PaperSystem::movePin(PaperId id, std::uint32_t vertex, const Vec3& point) {
 void PaperSystem::release(PaperId id, std::uint32_t vertex, EventCause cause, double time, std::int64_t step, std::vector<Event>& events) {
     PaperSheet& s = get(id);
     checkVertex(s, vertex);
-    if (s.hold[vertex].kind == VertexHold::Kind::Free) return;
-    s.hold[vertex] = VertexHold{};
+    if (s.hold[vertex].kind == ParticleHold::Kind::Free) return;
+    s.hold[vertex] = ParticleHold{};
     Event e;
     e.type = EventType::Release;
     e.cause = cause;
@@ -147,7 +147,7 @@ void PaperSystem::releaseBody(RigidId body, double time, std::int64_t step, std:
     for (std::size_t i = 0; i < sheets_.size(); ++i) {
         if (!sheets_[i].alive) continue;
         for (std::size_t v = 0; v < sheets_[i].vertices(); ++v)
-            if (sheets_[i].hold[v].kind == VertexHold::Kind::Glue && sheets_[i].hold[v].body == body)
+            if (sheets_[i].hold[v].kind == ParticleHold::Kind::Glue && sheets_[i].hold[v].body == body)
                 release(PaperId{static_cast<std::uint32_t>(i)}, static_cast<std::uint32_t>(v), EventCause::BodyRemoved, time, step, events);
     }
 }
@@ -155,8 +155,8 @@ void PaperSystem::releaseBody(RigidId body, double time, std::int64_t step, std:
 bool PaperSystem::usesBody(RigidId body) const {
     for (const PaperSheet& s : sheets_) {
         if (!s.alive) continue;
-        for (const VertexHold& hold : s.hold)
-            if (hold.kind == VertexHold::Kind::Glue && hold.body == body) return true;
+        for (const ParticleHold& hold : s.hold)
+            if (hold.kind == ParticleHold::Kind::Glue && hold.body == body) return true;
     }
     return false;
 }
@@ -215,9 +215,9 @@ void PaperSystem::collideBodies(RigidTable& rigids, const PaperStep& ctx, const 
         if (!live(s)) continue;
         // A glue to a body that left the table frees the vertex (the world's removeRigid
         // does this with an event; this guards the solve).
-        for (VertexHold& hold : s.hold)
-            if (hold.kind == VertexHold::Kind::Glue && (hold.body.index >= rigids.bodies.size() || !rigids.used[hold.body.index]))
-                hold = VertexHold{};
+        for (ParticleHold& hold : s.hold)
+            if (hold.kind == ParticleHold::Kind::Glue && (hold.body.index >= rigids.bodies.size() || !rigids.used[hold.body.index]))
+                hold = ParticleHold{};
         s.v_start = s.v;  // before coupling changes it (momentum-balance tension)
         s.x_pred.resize(s.vertices());
         for (std::size_t v = 0; v < s.vertices(); ++v) s.x_pred[v] = s.x[v] + ctx.h * (s.v[v] + ctx.h * ctx.gravity);
@@ -237,8 +237,8 @@ void PaperSystem::collideBodies(RigidTable& rigids, const PaperStep& ctx, const 
     for (std::size_t i = 0; i < sheets_.size(); ++i) {
         glued_[i].clear();
         if (!live(sheets_[i]) || contacts_.empty()) continue;
-        for (const VertexHold& hold : sheets_[i].hold)
-            if (hold.kind == VertexHold::Kind::Glue) glued_[i].push_back(hold.body.index);
+        for (const ParticleHold& hold : sheets_[i].hold)
+            if (hold.kind == ParticleHold::Kind::Glue) glued_[i].push_back(hold.body.index);
         std::sort(glued_[i].begin(), glued_[i].end());
     }
     for (const PointContact& c : contacts_) {

@@ -363,12 +363,6 @@ void io(A& a, PaperAttachment& t) {
     io(a, t.world);
 }
 template <class A>
-void io(A& a, detail::VertexHold& h) {
-    ioEnum(a, h.kind, 2, "vertex hold kind");
-    io(a, h.point);
-    io(a, h.body);
-}
-template <class A>
 void io(A& a, PaperSpring& sp) {
     io(a, sp.a);
     io(a, sp.b);
@@ -778,8 +772,8 @@ void checkPaper(const detail::PaperSheet& s, const detail::RigidTable& rigids, c
     }
     double total = 0.0;
     for (std::uint32_t v = 0; v < n; ++v) {
-        const detail::VertexHold& h = s.hold[v];
-        if (h.kind == detail::VertexHold::Kind::Glue && !bodyExists(rigids, h.body))
+        const detail::ParticleHold& h = s.hold[v];
+        if (h.kind == detail::ParticleHold::Kind::Glue && !bodyExists(rigids, h.body))
             fail("vertex " + std::to_string(v) + " is glued to rigid slot " + std::to_string(h.body.index) +
                  ", which the snapshot does not have");
         if (!(s.mass[v] > 0.0) || !std::isfinite(s.mass[v])) fail("vertex " + std::to_string(v) + " has no valid mass");

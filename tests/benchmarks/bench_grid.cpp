@@ -19,7 +19,7 @@ namespace {
 using tearables::Vec3;
 using namespace tearables::detail;
 using namespace tearables::reference;
-using tearables::reference::SegmentGrid;  // not the library's placeholder of that name
+using tearables::reference::SegmentGrid;
 
 struct RopePile {
     std::vector<Vec3> x;

@@ -21,7 +21,7 @@ using tearables::InvalidInput;
 using tearables::Vec3;
 using namespace tearables::detail;
 using namespace tearables::reference;
-using tearables::reference::SegmentGrid;  // not the library's placeholder of that name
+using tearables::reference::SegmentGrid;
 
 Vec3 randomUnit(std::mt19937_64& rng) {
     std::normal_distribution<double> n;
