@@ -19,7 +19,8 @@
 //   "WRLD"  settings, time, steps, and the slot counts of strings, rigid bodies, cloths
 //           and paper sheets (version 2 added the last two);
 //   "RIGD"  the rigid proxies by slot;
-//   "STRG"  one per string slot (dead slots included: ids stay);
+//   "STRG"  one per string slot (dead slots included: ids stay; version 4 dropped two
+//           per-segment arrays the solver never read);
 //   "CLTH"  one per cloth slot (version 2; version 3 added the descriptor's weak yarns):
 //           descriptor, vertices (positions, velocities, start and predicted
 //           positions, pending forces, masses, pins and glues), yarn
@@ -34,7 +35,7 @@
 //           stiffness, broken flag and hinge edge), the adjacency lists in their order,
 //           per-spring survived compression and tension, the crease/hinge/tear counters,
 //           the random generator, the sheet's mass;
-//   "SCOL"  string-string warm start;
+//   "SCOL"  string-string warm start (version 4 dropped the rigid contacts' fields);
 //   "EVNT"  pending events.
 // A host adds its own (the Bullet plugin: "BULT"). A reader refuses a file of another
 // version, a truncated or corrupt file, and a section it does not know, with a
@@ -55,7 +56,7 @@
 namespace tearables {
 
 /// The version this build writes and the only one it reads.
-constexpr std::uint32_t kSnapshotVersion = 3;
+constexpr std::uint32_t kSnapshotVersion = 4;
 
 /// A snapshot was refused: field() is "snapshot" or "snapshot.<section>", problem() says
 /// what is wrong (wrong magic, version, checksum, truncated, inconsistent section).

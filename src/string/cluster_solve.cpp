@@ -194,7 +194,7 @@ struct Direction {
 struct ClusterScratch::Impl {
     std::vector<double> stiffest;
     std::vector<char> shadowed, was_shadowed;
-    std::vector<std::array<std::uint32_t, 4>> keys;
+    std::vector<PairKey> keys;
     std::vector<double> friction_weight, previous_weight;
     std::vector<std::size_t> live, candidates;
     std::vector<double> gap_seen, travel_seen;
@@ -323,7 +323,7 @@ using cluster::UEntry;
 /// ClusterScratch.
 class ClusterSolver {
 public:
-    ClusterSolver(const std::vector<StringState*>& strings, std::vector<SegmentContact>& contacts, RigidTable& rigids,
+    ClusterSolver(const std::vector<StringState*>& strings, std::vector<StringPairContact>& contacts, RigidTable& rigids,
                   const StepContext& ctx, ClusterScratch& work)
         : strings_(strings), contacts_(contacts), rigids_(rigids), ctx_(ctx), work_(work), sc_(*work.impl),
           count_(strings.size()), inv_h2_(ctx.inv_h * ctx.inv_h) {}
@@ -363,13 +363,13 @@ private:
     static Vec3 startPoint(const StringState& s, std::size_t j, double f) {
         return Vec3((1.0 - f) * s.x_prev[j] + f * s.x_prev[j + 1]);
     }
-    double gapAt(const SegmentContact& c, double alpha) const {
+    double gapAt(const StringPairContact& c, double alpha) const {
         const Vec3 pa = sidePoint(*strings_[c.string], c.segment, c.s, alpha);
         const Vec3 pb = sidePoint(*strings_[c.partner], c.partner_segment, c.partner_s, alpha);
         return c.normal.dot(pa - pb) - c.gap;
     }
     /// Relative tangential motion of the contact points over the step.
-    Vec3 slipAt(const SegmentContact& c, double alpha) const {
+    Vec3 slipAt(const StringPairContact& c, double alpha) const {
         const StringState& a = *strings_[c.string];
         const StringState& b = *strings_[c.partner];
         Vec3 rel = (sidePoint(a, c.segment, c.s, alpha) - startPoint(a, c.segment, c.s)) -
@@ -378,7 +378,7 @@ private:
     }
     /// The (up to four) particle entries of a contact direction e: +e at this side's ends by
     /// the fractions, -e at the other side's.
-    int entries(const SegmentContact& c, const Vec3& e, UEntry* out) const {
+    int entries(const StringPairContact& c, const Vec3& e, UEntry* out) const {
         int k = 0;
         const StringState& a = *strings_[c.string];
         const StringState& b = *strings_[c.partner];
@@ -401,7 +401,7 @@ private:
     /// within their stray of them (sideMet). Where the straight paths do not tell (strays
     /// near the gap: a torn rope whipping round its pin), only axes that went across each
     /// other do: the side of their common perpendicular flipped.
-    void linearise(SegmentContact& c, bool predicted) {
+    void linearise(StringPairContact& c, bool predicted) {
         const StringState& a = *strings_[c.string];
         const StringState& b = *strings_[c.partner];
         const std::vector<Vec3>& xa = predicted ? a.x_pred : a.x;
@@ -437,17 +437,12 @@ private:
     // shared particle lies on both): it is shadowed, so that the four pairs of two strings
     // crossing at particles do not push four times and toggle against each other.
 
-    static std::array<std::uint32_t, 4> keyOf(std::uint32_t sa, std::uint32_t ja, std::uint32_t sb, std::uint32_t jb) {
-        std::array<std::uint32_t, 4> k{sa, ja, sb, jb};
-        if (std::make_pair(sb, jb) < std::make_pair(sa, ja)) k = {sb, jb, sa, ja};
-        return k;
-    }
     /// The contacts' keys, sorted for the binary searches of `exists`.
     void sortKeys() {
         sc_.keys.resize(contacts_.size());
         for (std::size_t i = 0; i < contacts_.size(); ++i) {
-            const SegmentContact& c = contacts_[i];
-            sc_.keys[i] = keyOf(c.string, c.segment, c.partner, c.partner_segment);
+            const StringPairContact& c = contacts_[i];
+            sc_.keys[i] = c.key().unordered();
         }
         std::sort(sc_.keys.begin(), sc_.keys.end());
     }
@@ -455,20 +450,20 @@ private:
         if (ja < 0 || jb < 0 || ja >= static_cast<std::int64_t>(strings_[sa]->segments()) ||
             jb >= static_cast<std::int64_t>(strings_[sb]->segments()))
             return false;
-        const auto k = keyOf(sa, static_cast<std::uint32_t>(ja), sb, static_cast<std::uint32_t>(jb));
+        const PairKey k = PairKey{sa, static_cast<std::uint32_t>(ja), sb, static_cast<std::uint32_t>(jb)}.unordered();
         return std::binary_search(sc_.keys.begin(), sc_.keys.end(), k) && !strings_[sa]->broken[static_cast<std::size_t>(ja)] &&
                !strings_[sb]->broken[static_cast<std::size_t>(jb)];
     }
     void shadow() {
         for (std::size_t i = 0; i < contacts_.size(); ++i) {
-            const SegmentContact& c = contacts_[i];
+            const StringPairContact& c = contacts_[i];
             const std::int64_t j = c.segment, k = c.partner_segment;
             // Toward the next segment only, so that two pairs never shadow each other.
             sc_.shadowed[i] = (c.s == 1.0 && exists(c.string, j + 1, c.partner, k)) ||
                               (c.partner_s == 1.0 && exists(c.string, j, c.partner, k + 1));
         }
     }
-    bool skipped(const SegmentContact& c) const {
+    bool skipped(const StringPairContact& c) const {
         return sc_.shadowed[static_cast<std::size_t>(&c - contacts_.data())] || strings_[c.string]->broken[c.segment] ||
                strings_[c.partner]->broken[c.partner_segment];
     }
@@ -476,7 +471,7 @@ private:
     // --- friction ---------------------------------------------------------------------------
 
     /// Friction acts where the last pass (or step) found a pressing force.
-    bool frictional(const SegmentContact& c) const { return c.friction > 0.0 && c.force > 0.0 && !skipped(c); }
+    bool frictional(const StringPairContact& c) const { return c.friction > 0.0 && c.force > 0.0 && !skipped(c); }
     /// Friction of a pass: w/2 |u_t|^2 with w = mu F / max(|u_t|, eps) taken at the start of
     /// the pass (weighFriction), a smooth quadratic, so Newton converges as without it.
     double frictionEnergy(std::size_t i, double alpha) const {
@@ -484,7 +479,7 @@ private:
     }
     void weighFriction() {
         for (std::size_t i = 0; i < contacts_.size(); ++i) {
-            const SegmentContact& c = contacts_[i];
+            const StringPairContact& c = contacts_[i];
             sc_.friction_weight[i] =
                 frictional(c) ? c.friction * c.force / std::max(slipAt(c, 0.0).norm(), kStringSlip * c.gap) : 0.0;
         }
@@ -541,22 +536,22 @@ private:
         // shortest segment or kStringContactTolerance of the thinnest contact, whichever is
         // larger (the taut-but-slack segments of assembleChain make Newton linear near the end).
         double thinnest = 1e300;
-        for (const SegmentContact& c : contacts_) thinnest = std::min(thinnest, c.gap);
+        for (const StringPairContact& c : contacts_) thinnest = std::min(thinnest, c.gap);
         tol_ = std::max(ctx_.settings->strain_tolerance * shortest, kStringContactTolerance * thinnest);
 
         // Penalty of a contact: the stiffest spring or particle inertia of either side.
         std::vector<double>& stiffest = sc_.stiffest;
         stiffest.assign(count_, 0.0);
         for (std::size_t i = 0; i < count_; ++i) stiffest[i] = stiffestTerm(*strings_[i], inv_h2_);
-        for (SegmentContact& c : contacts_)
+        for (StringPairContact& c : contacts_)
             c.stiffness = kStringContactStiffness * std::max(stiffest[c.string], stiffest[c.partner]);
 
         sc_.shadowed.assign(contacts_.size(), 0);
         sortKeys();
         sc_.friction_weight.assign(contacts_.size(), 0.0);
-        for (SegmentContact& c : contacts_) linearise(c, true);
+        for (StringPairContact& c : contacts_) linearise(c, true);
         shadow();
-        for (SegmentContact& c : contacts_) c.active = !skipped(c) && gapAt(c, 0.0) < 0.0;
+        for (StringPairContact& c : contacts_) c.active = !skipped(c) && gapAt(c, 0.0) < 0.0;
         weighFriction();
         bool touching = false;
         for (std::size_t i = 0; i < contacts_.size(); ++i)
@@ -609,7 +604,7 @@ private:
         std::vector<Direction>& dirs = sc_.dirs;
         dirs.clear();
         for (std::size_t ci : sc_.live) {
-            SegmentContact& c = contacts_[ci];
+            StringPairContact& c = contacts_[ci];
             // The penalty k_c/2 min(0, g)^2 is one-sided: it never pulls, so a normal that
             // turned at a corner cannot drag the strings together.
             const double g = clear(ci, 0.0) ? 1.0 : seeGap(ci);
@@ -750,7 +745,7 @@ private:
         for (int round = 0; round < kStringPredictRounds; ++round) {
             bool added = false;
             for (std::size_t ci : sc_.candidates) {
-                SegmentContact& c = contacts_[ci];
+                StringPairContact& c = contacts_[ci];
                 if (c.active || !(gapAt(c, 1.0) < 0.0)) continue;
                 c.active = true;
                 Direction dn;
@@ -773,7 +768,7 @@ private:
         double e = 0.0;
         for (const StringState* s : strings_) e += stepEnergy(*s, rigids_, ctx_, alpha);
         for (std::size_t ci : sc_.candidates) {
-            const SegmentContact& c = contacts_[ci];
+            const StringPairContact& c = contacts_[ci];
             const double g = std::min(0.0, gapAt(c, alpha));
             e += 0.5 * c.stiffness * g * g;
             if (sc_.friction_weight[ci] > 0.0) e += frictionEnergy(ci, alpha);
@@ -805,8 +800,8 @@ private:
     bool endPass() {
         bool changed = false;
         double moved = 0.0;
-        for (SegmentContact& c : contacts_) c.force = skipped(c) ? 0.0 : c.stiffness * std::max(0.0, -gapAt(c, 0.0));
-        for (SegmentContact& c : contacts_) {
+        for (StringPairContact& c : contacts_) c.force = skipped(c) ? 0.0 : c.stiffness * std::max(0.0, -gapAt(c, 0.0));
+        for (StringPairContact& c : contacts_) {
             const std::size_t i = static_cast<std::size_t>(&c - contacts_.data());
             if (strings_[c.string]->broken[c.segment] || strings_[c.partner]->broken[c.partner_segment]) continue;
             const double s0 = c.s, t0 = c.partner_s;
@@ -818,7 +813,7 @@ private:
         sc_.was_shadowed = sc_.shadowed;
         shadow();
         changed = sc_.was_shadowed != sc_.shadowed;
-        for (SegmentContact& c : contacts_) c.active = !skipped(c) && gapAt(c, 0.0) < 0.0;
+        for (StringPairContact& c : contacts_) c.active = !skipped(c) && gapAt(c, 0.0) < 0.0;
         // The friction weights follow the new forces and slips: the fixed point of the
         // passes is Coulomb's law (mu F while sliding, a stiff spring below eps).
         std::vector<double>& previous = sc_.previous_weight;
@@ -835,7 +830,7 @@ private:
     /// contact presses lose the contact force's direction from their tension equations.
     void finish() {
         for (StringState* sp : strings_) finishChain(*sp, rigids_, ctx_);
-        for (const SegmentContact& c : contacts_) {
+        for (const StringPairContact& c : contacts_) {
             if (skipped(c) || gapAt(c, 0.0) > kContactSlop * c.gap) continue;
             Vec3 dirs_c[2] = {c.normal, Vec3::Zero()};
             if (frictional(c)) {
@@ -857,7 +852,7 @@ private:
     }
 
     const std::vector<StringState*>& strings_;
-    std::vector<SegmentContact>& contacts_;
+    std::vector<StringPairContact>& contacts_;
     RigidTable& rigids_;
     const StepContext& ctx_;
     ClusterScratch& work_;
@@ -872,7 +867,7 @@ private:
 
 }  // namespace
 
-void solveStringCluster(const std::vector<StringState*>& strings, std::vector<SegmentContact>& contacts,
+void solveStringCluster(const std::vector<StringState*>& strings, std::vector<StringPairContact>& contacts,
                         RigidTable& rigids, const StepContext& ctx, ClusterScratch& work) {
     ClusterSolver(strings, contacts, rigids, ctx, work).solve();
 }

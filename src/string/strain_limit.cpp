@@ -193,7 +193,7 @@ double stepEnergy(const StringState& s, const RigidTable& rigids, const StepCont
         const double effective = std::max(0.0, effectiveStretch(s, j, stretch, rate_gain));
         e += 0.5 / (s.compliance[j] * (1.0 + rate_gain)) * effective * effective;
     }
-    for (const SegmentContact& c : s.contacts) {
+    for (const RigidSegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         if (s.broken[j] || c.stiffness <= 0.0) continue;
         const Vec3 xs = (1.0 - c.s) * trial(j) + c.s * trial(j + 1);
@@ -607,7 +607,7 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
     if (s.rows_pressed)
         for (std::size_t p = 0; p < n; ++p) s.row_projector[p].setIdentity();
     s.rows_pressed = false;
-    for (const SegmentContact& c : s.contacts) {
+    for (const RigidSegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         if (s.broken[j]) continue;
         const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
@@ -763,10 +763,8 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
         node.displacement.setZero();
         node.linearised_at.setZero();
     }
-    // The segments' impulses reset and their stretch at the step's start, two roots at a
-    // time (one sqrtpd).
+    // The segments' stretch at the step's start, two roots at a time (one sqrtpd).
     forRanges(ctx.pool, m, kParallelItems, [&](std::size_t j0, std::size_t j1, std::size_t) {
-        std::fill(s.impulse.begin() + static_cast<std::ptrdiff_t>(j0), s.impulse.begin() + static_cast<std::ptrdiff_t>(j1), 0.0);
         std::size_t j = j0;
         for (; j + 1 < j1; j += 2) {
             const Lanes2 len = lengthPair(s.x_prev[j + 1] - s.x_prev[j], s.x_prev[j + 2] - s.x_prev[j + 1]);
@@ -808,7 +806,7 @@ public:
         // solved again, so that the step stops at it instead of passing through it.
         linearisePlanes(s, rigids);
         const double stiffest = s.contacts.empty() ? 0.0 : stiffestTerm(s, inv_h2);  // two passes over the string: only for contacts
-        for (SegmentContact& c : s.contacts) {
+        for (RigidSegmentContact& c : s.contacts) {
             // Stiff enough to dominate the rope's springs, the particles' and the body's
             // inertia: under a load F it gives way by F / k_c only. Fixed for the step, so
             // that the line search below sees one energy.
@@ -850,7 +848,7 @@ public:
         // solve's), until they settle.
         const int iterations = ctx.settings->strain_iterations * (s.contacts.empty() ? kChainIterationFactor : kContactIterationFactor);
         bool frictional = false;
-        for (const SegmentContact& c : s.contacts) frictional = frictional || c.friction > 0.0;
+        for (const RigidSegmentContact& c : s.contacts) frictional = frictional || c.friction > 0.0;
         for (int pass = 0; pass < (frictional ? kContactPasses : 1); ++pass) {
             bool converged = false;
             double last_move = -1.0;
@@ -893,18 +891,18 @@ public:
             const double change = weighRigidFriction(s);
             if (converged && change < kFrictionSettled) break;
         }
-        for (SegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
+        for (RigidSegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
         finishChain(s, rigids, ctx);
         return std::max(first_move, 0.0);
     }
 
 private:
-    double gapNow(const SegmentContact& c) const {
+    double gapNow(const RigidSegmentContact& c) const {
         const std::size_t j = c.segment;
         return rigidGap(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]);
     }
     /// The gap after the full step held in blk_rhs and node_step.
-    double gapAfterStep(const SegmentContact& c) const {
+    double gapAfterStep(const RigidSegmentContact& c) const {
         const std::size_t j = c.segment;
         auto moved = [&](std::size_t p) { return fixedRow(s, p) ? s.x[p] : Vec3(s.x[p] + s.blk_rhs[p]); };
         const Vec6 step = c.node >= 0 ? s.node_step[static_cast<std::size_t>(c.node)] : Vec6::Zero();
@@ -916,7 +914,7 @@ private:
     /// it would run into, the line search (`stalled` where it found no lower energy) and
     /// the move. Returns the largest move.
     double iterate(bool chord_next, double last_move, bool& chord, bool& stalled) {
-        for (SegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
+        for (RigidSegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
         if (chord_next && assembleChainGradient(s, ctx)) {
             chordSolveChain(n, s.blk_off.data(), s.blk_rhs.data(), s.blk_factor_gain.data(), s.chain_coupled.data(),
                             inverses);
@@ -948,7 +946,7 @@ private:
             node_rhs[b] = -(node.mass * node.displacement) * inv_h2;
             coupling[b].clear();
         }
-        for (const SegmentContact& c : s.contacts) {
+        for (const RigidSegmentContact& c : s.contacts) {
             if (!c.active) continue;
             const std::size_t j = c.segment;
             const Vec3& nrm = c.plane_normal;
@@ -968,7 +966,7 @@ private:
         // Friction: w/2 |T rel|^2 (T the tangent projector, rel the motion relative to the
         // body): gradient w T rel, Hessian w T on the string's side, w (TJ)^T (TJ) on the
         // body's (J = d rel / d(u, theta)).
-        for (const SegmentContact& c : s.contacts) {
+        for (const RigidSegmentContact& c : s.contacts) {
             const std::size_t j = c.segment;
             if (!(c.friction_weight > 0.0) || s.broken[j]) continue;
             const bool fa = !fixedRow(s, j), fb = !fixedRow(s, j + 1);
@@ -1040,7 +1038,7 @@ private:
     void addPredictedContacts() {
         for (int round = 0; round < kPredictRounds; ++round) {
             bool added = false;
-            for (SegmentContact& c : s.contacts)
+            for (RigidSegmentContact& c : s.contacts)
                 if (!c.active && !s.broken[c.segment] && gapAfterStep(c) < 0.0) c.active = added = true;
             if (!added) break;
             solveStep();

@@ -6,6 +6,7 @@
 #include "sim/material_curve.hpp"
 #include "sim/rigid_table.hpp"
 #include "sim/step_context.hpp"
+#include "string/contacts.hpp"
 #include "string/shape_matching.hpp"
 #include "tearables/string.hpp"
 #include "tearables/world.hpp"
@@ -19,42 +20,6 @@
 #include <vector>
 
 namespace tearables::detail {
-
-/// A contact of one segment with a rigid body for this step (from RigidContact).
-struct SegmentContact {
-    std::uint32_t segment = 0;
-    double s = 0.0;              ///< fraction along the segment
-    Vec3 normal = Vec3::UnitY(); ///< from the body toward the string (at collection; see local_normal)
-    Vec3 local_normal = Vec3::UnitY();  ///< the normal in the body's frame: it turns with the body
-    Vec3 local = Vec3::Zero();   ///< contact point in the body's frame (follows the body); world point without a body
-    RigidId body;                ///< invalid: a fixed world point
-    double gap = 0.0;            ///< required clearance along the normal, m (the radius for bodies)
-    double friction = 0.5;
-    int node = -1;               ///< index into body_nodes when the body is movable
-    double depth = 0.0;          ///< penetration of the predicted position, m (>= 0)
-    double stiffness = 0.0;      ///< penalty k_c used by the last solve, N/m
-    bool active = false;         ///< held as an equality in the current pass
-    // String-string contacts (string collision, solveStringCluster): this side is segment
-    // `segment` at `s` of the cluster's string `string`, the other side segment
-    // `partner_segment` at `partner_s` of string `partner` (may be the same string);
-    // `normal` points from the other side toward this one, `gap` is the axis distance
-    // to keep (the sum of the radii).
-    std::uint32_t string = 0;
-    std::uint32_t partner = 0;
-    std::uint32_t partner_segment = 0;
-    double partner_s = 0.0;
-    Vec3 start_normal = Vec3::UnitX();  ///< the normal at the start of the step
-    double start_distance = 0.0; ///< the axes' distance at the start of the step, m
-    double force = 0.0;          ///< normal force of the last solve, N (friction bound, warm start)
-    // The rigid contact's plane, linearised where the solve starts (contact_rows.cpp,
-    // rigidGap): its point and normal in the world, and d(gap)/d(rotation) of the body.
-    Vec3 plane_point = Vec3::Zero();
-    Vec3 plane_normal = Vec3::UnitY();
-    Vec3 plane_turn = Vec3::Zero();
-    Vec3 plane_arm = Vec3::Zero();    ///< plane_point minus the body's centre
-    Vec3 start_point = Vec3::Zero();  ///< the body's contact point where the step started
-    double friction_weight = 0.0;     ///< rigid friction's lagged weight mu F / max(slip, eps), N/m
-};
 
 struct StringState;
 class ThreadPool;
@@ -74,7 +39,7 @@ struct ClusterScratch {
     /// only the large clusters take (tests compare it with the Woodbury step).
     bool always_sparse = false;
 };
-void solveStringCluster(const std::vector<StringState*>& strings, std::vector<SegmentContact>& contacts,
+void solveStringCluster(const std::vector<StringState*>& strings, std::vector<StringPairContact>& contacts,
                         RigidTable& rigids, const StepContext& ctx, ClusterScratch& work);
 
 /// A movable body touched by a string's contacts: 6 unknowns (translation, rotation) in
@@ -124,8 +89,7 @@ struct StringState {
 
     // --- solver scratch (reused, no allocation in the step) ------------------------------
     std::vector<Vec3> dir;            ///< unit segment directions
-    std::vector<double> diag, off, rhs, scratch, violation;
-    std::vector<double> impulse;      ///< accumulated strain-limit impulse per segment this step, kg m
+    std::vector<double> diag, off, rhs, scratch;
     std::vector<std::uint8_t> active;
     std::vector<Mat3> blk_diag, blk_off;  ///< block-tridiagonal Newton system (particles)
     std::vector<Vec3> blk_rhs;
@@ -140,7 +104,7 @@ struct StringState {
     std::vector<std::uint8_t> blk_coupled;  ///< factorisation: particle i is coupled to i-1 (gain != 0)
 
     // --- rigid contacts (collision stage) -------------------------------------------------
-    std::vector<SegmentContact> contacts;
+    std::vector<RigidSegmentContact> contacts;
     std::vector<double> spring_force;     ///< per segment: k c of the last Newton iteration, N
     /// The strain solve started warm this step (strain_limit.cpp, warmStart) and has not
     /// made its first Newton iteration yet (scratch).

@@ -108,8 +108,6 @@ StringId StringSystem::add(const StringDesc& desc) {
     s.off.assign(m, 0.0);
     s.rhs.assign(m, 0.0);
     s.scratch.assign(m, 0.0);
-    s.violation.assign(m, 0.0);
-    s.impulse.assign(m, 0.0);
     s.active.assign(m, 0);
     s.blk_diag.assign(n, Mat3::Zero());
     s.blk_off.assign(n, Mat3::Zero());
@@ -316,7 +314,7 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host) {
             for (const ParticleHold& hold : s.hold)
                 glued = glued || (hold.kind == ParticleHold::Kind::Glue && hold.body == c.body);
         if (glued) continue;
-        SegmentContact sc;
+        RigidSegmentContact sc;
         sc.segment = c.segment;
         sc.s = std::clamp(c.s, 0.0, 1.0);
         sc.normal = c.normal / len;

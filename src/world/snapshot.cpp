@@ -193,11 +193,11 @@ void io(A& a, std::pair<T, U>& p) {
     io(a, p.second);
 }
 template <class A>
-void io(A& a, detail::DeepPair& t) {
-    io(a, std::get<0>(t));
-    io(a, std::get<1>(t));
-    io(a, std::get<2>(t));
-    io(a, std::get<3>(t));
+void io(A& a, detail::PairKey& k) {
+    io(a, k.string);
+    io(a, k.segment);
+    io(a, k.partner);
+    io(a, k.partner_segment);
 }
 template <class A>
 void io(A& a, StringId& id) {
@@ -283,16 +283,12 @@ void io(A& a, detail::SegmentMaterial& m) {
     io(a, m.torsion_rupture);
 }
 template <class A>
-void io(A& a, detail::SegmentContact& c) {
+void io(A& a, detail::StringPairContact& c) {
     io(a, c.segment);
     io(a, c.s);
     io(a, c.normal);
-    io(a, c.local);
-    io(a, c.body);
     io(a, c.gap);
     io(a, c.friction);
-    io(a, c.node);
-    io(a, c.depth);
     io(a, c.stiffness);
     io(a, c.active);
     io(a, c.string);
@@ -427,8 +423,6 @@ void io(A& a, detail::StringState& s) {
     io(a, s.off);
     io(a, s.rhs);
     io(a, s.scratch);
-    io(a, s.violation);
-    io(a, s.impulse);
     io(a, s.active);
     io(a, s.blk_diag);
     io(a, s.blk_off);
@@ -621,9 +615,8 @@ void checkString(const detail::StringState& s, const detail::RigidTable& rigids,
     size(s.csm_mass.size(), n, "csm_mass");
     size(s.twist_force.size(), n, "twist_force");
     for (const auto* v : {&s.rest_length, &s.max_length, &s.compliance, &s.tension, &s.twist, &s.radius,
-                          &s.original_length, &s.peak_stress, &s.diag, &s.off, &s.rhs, &s.scratch, &s.violation,
-                          &s.impulse, &s.spring_force, &s.prev_stretch, &s.twist_velocity, &s.twist_old,
-                          &s.twist_inertia, &s.twist_width})
+                          &s.original_length, &s.peak_stress, &s.diag, &s.off, &s.rhs, &s.scratch, &s.spring_force,
+                          &s.prev_stretch, &s.twist_velocity, &s.twist_old, &s.twist_inertia, &s.twist_width})
         size(v->size(), m, "a per-segment array");
     size(s.broken.size(), m, "broken");
     size(s.yielded.size(), m, "yielded");
@@ -813,8 +806,8 @@ struct Snapshot::Data {
     std::vector<detail::PaperSheet> papers;
     detail::RigidTable rigids;
     std::vector<Event> pending;
-    std::vector<detail::SegmentContact> previous_pairs;
-    std::vector<detail::DeepPair> deep_pairs;
+    std::vector<detail::StringPairContact> previous_pairs;
+    std::vector<detail::PairKey> deep_pairs;
     double time = 0.0;
     std::int64_t steps = 0;
     std::vector<SnapshotSection> host;
@@ -1025,7 +1018,7 @@ Snapshot Snapshot::read(std::istream& in) {
         file.fail("has " + std::to_string(d.cloths.size()) + " cloth sections for " + std::to_string(cloth_slots) + " cloth slots");
     if (d.papers.size() != paper_slots)
         file.fail("has " + std::to_string(d.papers.size()) + " paper sections for " + std::to_string(paper_slots) + " paper slots");
-    for (const detail::SegmentContact& c : d.previous_pairs) {
+    for (const detail::StringPairContact& c : d.previous_pairs) {
         auto ok = [&](std::uint32_t string, std::uint32_t segment) {
             return string < d.strings.size() && d.strings[string].alive && segment < d.strings[string].segments();
         };
