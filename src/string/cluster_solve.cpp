@@ -153,16 +153,16 @@ struct ChainSolver {
         inverse.resize(n);
         coupled.resize(n);
         for (std::size_t i = 0; i < n; ++i) {
-            inverse[i] = s.blk_factor[i].solve(Mat3(Mat3::Identity()));
-            coupled[i] = s.blk_coupled[i];
+            inverse[i] = s.scratch.blk_factor[i].solve(Mat3(Mat3::Identity()));
+            coupled[i] = s.scratch.blk_coupled[i];
         }
     }
     void solve(const StringState& s, std::vector<Vec3>& rhs, std::size_t first = 0) const {
         const std::size_t n = s.particles();
         for (std::size_t i = std::max<std::size_t>(first, 1); i < n; ++i)
-            if (coupled[i]) rhs[i] -= s.blk_factor_gain[i] * rhs[i - 1];
+            if (coupled[i]) rhs[i] -= s.scratch.blk_factor_gain[i] * rhs[i - 1];
         rhs[n - 1] = inverse[n - 1] * rhs[n - 1];
-        for (std::size_t i = n - 1; i-- > 0;) rhs[i] = inverse[i] * (rhs[i] - s.blk_off[i] * rhs[i + 1]);
+        for (std::size_t i = n - 1; i-- > 0;) rhs[i] = inverse[i] * (rhs[i] - s.scratch.blk_off[i] * rhs[i + 1]);
     }
 };
 
@@ -269,8 +269,8 @@ bool sparseClusterStep(const std::vector<StringState*>& strings, const std::vect
         const StringState& s = *strings[i];
         for (std::size_t p = 0; p < s.particles(); ++p) {
             const Eigen::Index row = offset[i] + 3 * static_cast<Eigen::Index>(p);
-            add(row, row, s.blk_diag[p]);
-            if (p + 1 < s.particles()) add(row + 3, row, s.blk_off[p].transpose());  // A(p+1, p)
+            add(row, row, s.scratch.blk_diag[p]);
+            if (p + 1 < s.particles()) add(row + 3, row, s.scratch.blk_off[p].transpose());  // A(p+1, p)
         }
     }
     // A direction's term w u u^T: its entries pairwise (the lower triangle is read).
@@ -295,7 +295,7 @@ bool sparseClusterStep(const std::vector<StringState*>& strings, const std::vect
     for (std::size_t i = 0; i < strings.size(); ++i) {
         StringState& s = *strings[i];
         for (std::size_t p = 0; p < s.particles(); ++p)
-            s.blk_rhs[p] = freeParticle(s, p) ? Vec3(sc.sparse_dx.segment<3>(offset[i] + 3 * static_cast<Eigen::Index>(p)))
+            s.scratch.blk_rhs[p] = freeParticle(s, p) ? Vec3(sc.sparse_dx.segment<3>(offset[i] + 3 * static_cast<Eigen::Index>(p)))
                                               : Vec3::Zero();
     }
     return true;
@@ -355,7 +355,7 @@ private:
 
     /// Positions along the current Newton step (held in blk_rhs), alpha of the way.
     static Vec3 at(const StringState& s, std::size_t p, double alpha) {
-        return freeParticle(s, p) ? Vec3(s.x[p] + alpha * s.blk_rhs[p]) : s.x[p];
+        return freeParticle(s, p) ? Vec3(s.x[p] + alpha * s.scratch.blk_rhs[p]) : s.x[p];
     }
     static Vec3 sidePoint(const StringState& s, std::size_t j, double f, double alpha) {
         return Vec3((1.0 - f) * at(s, j, alpha) + f * at(s, j + 1, alpha));
@@ -510,7 +510,7 @@ private:
         for (const StringState* sp : strings_)
             for (std::size_t p = 0; p < sp->particles(); ++p) {
                 if (!freeParticle(*sp, p)) continue;
-                const double d = sp->blk_rhs[p].squaredNorm();
+                const double d = sp->scratch.blk_rhs[p].squaredNorm();
                 largest = std::isfinite(d) ? std::max(largest, d) : std::numeric_limits<double>::infinity();
             }
         return 2.0 * std::sqrt(largest);
@@ -594,12 +594,12 @@ private:
             assembleRigidContacts(s);
             for (std::size_t p = 0; p < s.particles(); ++p) {
                 if (freeParticle(s, p)) continue;
-                s.blk_diag[p] = Mat3::Identity();
-                s.blk_rhs[p].setZero();
-                if (p > 0) s.blk_off[p - 1].setZero();
-                if (p < s.segments()) s.blk_off[p].setZero();
+                s.scratch.blk_diag[p] = Mat3::Identity();
+                s.scratch.blk_rhs[p].setZero();
+                if (p > 0) s.scratch.blk_off[p - 1].setZero();
+                if (p < s.segments()) s.scratch.blk_off[p].setZero();
             }
-            for (auto& step : s.node_step) step.setZero();
+            for (auto& step : s.scratch.node_step) step.setZero();
         }
         std::vector<Direction>& dirs = sc_.dirs;
         dirs.clear();
@@ -613,7 +613,7 @@ private:
                 // Normal: gradient k g u, Hessian k u u^T.
                 UEntry u[4];
                 const int k = entries(c, c.normal, u);
-                for (int i = 0; i < k; ++i) strings_[u[i].string]->blk_rhs[u[i].particle] -= c.stiffness * g * u[i].coef;
+                for (int i = 0; i < k; ++i) strings_[u[i].string]->scratch.blk_rhs[u[i].particle] -= c.stiffness * g * u[i].coef;
                 Direction dn;
                 dn.entries = entries(c, c.normal, dn.u);
                 dn.weight = c.stiffness;
@@ -628,7 +628,7 @@ private:
             const int kg = entries(c, Vec3::Ones(), ug);
             for (int i = 0; i < kg; ++i) {
                 const double f = ug[i].coef.x();  // the fraction (with its sign)
-                strings_[ug[i].string]->blk_rhs[ug[i].particle] -= f * grad;
+                strings_[ug[i].string]->scratch.blk_rhs[ug[i].particle] -= f * grad;
             }
             const Vec3 t1 = c.normal.unitOrthogonal();
             for (const Vec3& t : {t1, Vec3(c.normal.cross(t1))}) {
@@ -647,8 +647,8 @@ private:
             StringState& s = *strings_[i];
             std::vector<Vec3>& y = sc_.y[i];
             sc_.solvers[i].factor(s);
-            sc_.r[i] = s.blk_rhs;
-            y = s.blk_rhs;
+            sc_.r[i] = s.scratch.blk_rhs;
+            y = s.scratch.blk_rhs;
             sc_.solvers[i].solve(s, y);
             for (std::size_t p = 0; p < s.particles(); ++p)
                 if (!freeParticle(s, p) || !y[p].allFinite()) y[p].setZero();
@@ -701,7 +701,7 @@ private:
         if ((work_.always_sparse || sparseStepPays(dirs.size(), cluster_particles_)) && sparseClusterStep(strings_, dirs, sc_))
             return;
         columns();
-        for (std::size_t i = 0; i < count_; ++i) strings_[i]->blk_rhs = sc_.y[i];
+        for (std::size_t i = 0; i < count_; ++i) strings_[i]->scratch.blk_rhs = sc_.y[i];
         const auto dim = static_cast<Eigen::Index>(dirs.size());
         if (dim == 0) return;
         ClusterScratch::Impl::Woodbury& wb = sc_.woodbury(dim);
@@ -730,7 +730,7 @@ private:
         for (Eigen::Index r = 0; r < dim; ++r) {
             const Direction& d = dirs[static_cast<std::size_t>(r)];
             for (int i = 0; i < d.strings; ++i) {
-                std::vector<Vec3>& dx = strings_[d.string[i]]->blk_rhs;
+                std::vector<Vec3>& dx = strings_[d.string[i]]->scratch.blk_rhs;
                 const Vec3* zc = &sc_.pool[d.column[i]];
                 for (std::size_t p = 0; p < dx.size(); ++p) dx[p] -= z[r] * zc[p];
             }
@@ -786,7 +786,7 @@ private:
         for (StringState* sp : strings_)
             for (std::size_t p = 0; p < sp->particles(); ++p) {
                 if (!freeParticle(*sp, p)) continue;
-                const Vec3 dx = alpha * sp->blk_rhs[p];
+                const Vec3 dx = alpha * sp->scratch.blk_rhs[p];
                 if (!dx.allFinite()) continue;
                 sp->x[p] += dx;
                 worst = std::max(worst, dx.norm());
@@ -842,10 +842,10 @@ private:
             for (int i = 0; i < k; ++i) {
                 StringState& s = *strings_[u[i].string];
                 for (const Vec3& dir : dirs_c) {
-                    const Vec3 left = s.row_projector[u[i].particle] * dir;  // what is left of it
+                    const Vec3 left = s.scratch.row_projector[u[i].particle] * dir;  // what is left of it
                     const double len = left.norm();
-                    if (len > 1e-6) s.row_projector[u[i].particle] -= (left / len) * (left / len).transpose();
-                    s.rows_pressed = true;
+                    if (len > 1e-6) s.scratch.row_projector[u[i].particle] -= (left / len) * (left / len).transpose();
+                    s.scratch.rows_pressed = true;
                 }
             }
         }

@@ -116,14 +116,14 @@ void addPenaltyRows(StringState& s, const RigidSegmentContact& c, double g, bool
     const Mat3 nnt = nrm * nrm.transpose();
     const double wa = 1.0 - c.s, wb = c.s;
     if (fa) {
-        s.blk_diag[j] += kc * wa * wa * nnt;
-        s.blk_rhs[j] -= kc * g * wa * nrm;
+        s.scratch.blk_diag[j] += kc * wa * wa * nnt;
+        s.scratch.blk_rhs[j] -= kc * g * wa * nrm;
     }
     if (fb) {
-        s.blk_diag[j + 1] += kc * wb * wb * nnt;
-        s.blk_rhs[j + 1] -= kc * g * wb * nrm;
+        s.scratch.blk_diag[j + 1] += kc * wb * wb * nnt;
+        s.scratch.blk_rhs[j + 1] -= kc * g * wb * nrm;
     }
-    if (fa && fb) s.blk_off[j] += kc * wa * wb * nnt;
+    if (fa && fb) s.scratch.blk_off[j] += kc * wa * wb * nnt;
 }
 
 /// Gradient w T rel and Hessian w T.
@@ -133,14 +133,14 @@ FrictionTerm addFrictionRows(StringState& s, const RigidSegmentContact& c, bool 
     const FrictionTerm f{Mat3::Identity() - c.plane_normal * c.plane_normal.transpose(),
                          rigidSlip(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1])};
     if (fa) {
-        s.blk_diag[j] += (w * wa * wa) * f.tangent;
-        s.blk_rhs[j] -= (w * wa) * f.slip;
+        s.scratch.blk_diag[j] += (w * wa * wa) * f.tangent;
+        s.scratch.blk_rhs[j] -= (w * wa) * f.slip;
     }
     if (fb) {
-        s.blk_diag[j + 1] += (w * wb * wb) * f.tangent;
-        s.blk_rhs[j + 1] -= (w * wb) * f.slip;
+        s.scratch.blk_diag[j + 1] += (w * wb * wb) * f.tangent;
+        s.scratch.blk_rhs[j + 1] -= (w * wb) * f.slip;
     }
-    if (fa && fb) s.blk_off[j] += (w * wa * wb) * f.tangent;
+    if (fa && fb) s.scratch.blk_off[j] += (w * wa * wb) * f.tangent;
     return f;
 }
 

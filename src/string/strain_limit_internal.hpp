@@ -86,10 +86,10 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
 /// blk_factor_gain and blk_coupled.
 inline void factorChain(StringState& s) {
     const std::size_t n = s.particles();
-    s.blk_factor.resize(n);
-    s.blk_coupled.resize(n);
-    factorBlockTridiagonal(n, s.blk_diag.data(), s.blk_off.data(), s.blk_factor.data(), s.blk_factor_gain.data(),
-                           s.blk_coupled.data());
+    s.scratch.blk_factor.resize(n);
+    s.scratch.blk_coupled.resize(n);
+    factorBlockTridiagonal(n, s.scratch.blk_diag.data(), s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(),
+                           s.scratch.blk_coupled.data());
 }
 
 }  // namespace tearables::detail

@@ -418,23 +418,23 @@ void io(A& a, detail::StringState& s) {
     io(a, s.original_length);
     io(a, s.peak_stress);
     io(a, s.material);
-    io(a, s.dir);
-    io(a, s.diag);
-    io(a, s.off);
-    io(a, s.rhs);
-    io(a, s.scratch);
-    io(a, s.active);
-    io(a, s.blk_diag);
-    io(a, s.blk_off);
-    io(a, s.blk_rhs);
-    io(a, s.blk_factor_gain);
+    io(a, s.scratch.dir);
+    io(a, s.scratch.diag);
+    io(a, s.scratch.off);
+    io(a, s.scratch.rhs);
+    io(a, s.scratch.segment_work);
+    io(a, s.scratch.active);
+    io(a, s.scratch.blk_diag);
+    io(a, s.scratch.blk_off);
+    io(a, s.scratch.blk_rhs);
+    io(a, s.scratch.blk_factor_gain);
     io(a, s.spring_force);
-    io(a, s.row_projector);
+    io(a, s.scratch.row_projector);
     io(a, s.colliding);
     io(a, s.prev_stretch);
     io(a, s.rest_direction);
     io(a, s.rest_shape);
-    io(a, s.csm_goal);
+    io(a, s.scratch.csm_goal);
     io(a, s.csm_mass);
     io(a, s.twist_velocity);
     io(a, s.twist_old);
@@ -604,25 +604,25 @@ void checkString(const detail::StringState& s, const detail::RigidTable& rigids,
     size(s.hold.size(), n, "hold");
     size(s.glue_impulse.size(), n, "glue_impulse");
     size(s.glue_movable.size(), n, "glue_movable");
-    size(s.blk_diag.size(), n, "blk_diag");
-    size(s.blk_off.size(), n, "blk_off");
-    size(s.blk_rhs.size(), n, "blk_rhs");
-    size(s.blk_factor_gain.size(), n, "blk_factor_gain");
-    size(s.row_projector.size(), n, "row_projector");
+    size(s.scratch.blk_diag.size(), n, "blk_diag");
+    size(s.scratch.blk_off.size(), n, "blk_off");
+    size(s.scratch.blk_rhs.size(), n, "blk_rhs");
+    size(s.scratch.blk_factor_gain.size(), n, "blk_factor_gain");
+    size(s.scratch.row_projector.size(), n, "row_projector");
     size(s.colliding.size(), n, "colliding");
     size(s.rest_shape.size(), n, "rest_shape");
-    size(s.csm_goal.size(), n, "csm_goal");
+    size(s.scratch.csm_goal.size(), n, "csm_goal");
     size(s.csm_mass.size(), n, "csm_mass");
     size(s.twist_force.size(), n, "twist_force");
     for (const auto* v : {&s.rest_length, &s.max_length, &s.compliance, &s.tension, &s.twist, &s.radius,
-                          &s.original_length, &s.peak_stress, &s.diag, &s.off, &s.rhs, &s.scratch, &s.spring_force,
+                          &s.original_length, &s.peak_stress, &s.scratch.diag, &s.scratch.off, &s.scratch.rhs, &s.scratch.segment_work, &s.spring_force,
                           &s.prev_stretch, &s.twist_velocity, &s.twist_old, &s.twist_inertia, &s.twist_width})
         size(v->size(), m, "a per-segment array");
     size(s.broken.size(), m, "broken");
     size(s.yielded.size(), m, "yielded");
-    size(s.active.size(), m, "active");
+    size(s.scratch.active.size(), m, "active");
     size(s.material.size(), m, "material");
-    size(s.dir.size(), m, "dir");
+    size(s.scratch.dir.size(), m, "dir");
     size(s.rest_direction.size(), m, "rest_direction");
     for (const auto* v : {&s.rest_twist, &s.joint_stiffness, &s.torsion_peak, &s.joint_strain})
         size(v->size(), joints, "a per-joint array");
@@ -1104,13 +1104,13 @@ void Snapshot::restore(World& world) const {
     // inverses (scratch, written by a solve before a chord iteration reads them).
     for (detail::StringState& s : *w.strings)
         if (s.alive) {
-            s.blk_factor.resize(s.particles());
-            s.chain_inverse.assign(6 * s.particles() + 12, 0.0);
-            s.chain_coupled.assign(s.particles(), 0);
-            s.twist_skipped = s.twist_force_zero = false;  // scratch: the next step computes them
-            s.geometric_tension.assign(s.segments(), 0.0);
+            s.scratch.blk_factor.resize(s.particles());
+            s.scratch.chain_inverse.assign(6 * s.particles() + 12, 0.0);
+            s.scratch.chain_coupled.assign(s.particles(), 0);
+            s.scratch.twist_skipped = s.scratch.twist_force_zero = false;  // scratch: the next step computes them
+            s.scratch.geometric_tension.assign(s.segments(), 0.0);
             // Not in the snapshot's bytes: whether a row projector differs from I.
-            s.rows_pressed = std::any_of(s.row_projector.begin(), s.row_projector.end(),
+            s.scratch.rows_pressed = std::any_of(s.scratch.row_projector.begin(), s.scratch.row_projector.end(),
                                          [](const Mat3& r) { return r != Mat3::Identity(); });
         }
     *w.rigids = data_->rigids;
