@@ -295,8 +295,9 @@ bool sparseClusterStep(const std::vector<StringState*>& strings, const std::vect
     for (std::size_t i = 0; i < strings.size(); ++i) {
         StringState& s = *strings[i];
         for (std::size_t p = 0; p < s.particles(); ++p)
-            s.scratch.blk_rhs[p] = freeParticle(s, p) ? Vec3(sc.sparse_dx.segment<3>(offset[i] + 3 * static_cast<Eigen::Index>(p)))
-                                              : Vec3::Zero();
+            s.scratch.blk_rhs[p] = freeParticle(s, p)
+                                       ? Vec3(sc.sparse_dx.segment<3>(offset[i] + 3 * static_cast<Eigen::Index>(p)))
+                                       : Vec3::Zero();
     }
     return true;
 }
@@ -613,7 +614,8 @@ private:
                 // Normal: gradient k g u, Hessian k u u^T.
                 UEntry u[4];
                 const int k = entries(c, c.normal, u);
-                for (int i = 0; i < k; ++i) strings_[u[i].string]->scratch.blk_rhs[u[i].particle] -= c.stiffness * g * u[i].coef;
+                for (int i = 0; i < k; ++i)
+                    strings_[u[i].string]->scratch.blk_rhs[u[i].particle] -= c.stiffness * g * u[i].coef;
                 Direction dn;
                 dn.entries = entries(c, c.normal, dn.u);
                 dn.weight = c.stiffness;

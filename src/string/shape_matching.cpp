@@ -853,7 +853,8 @@ void shapeMatch(StringState& s, ThreadPool* pool) {
             });
             if (straight)
                 straightChainShapeMatchingGoals(s.x.data(), s.rest_shape.data(), s.csm_mass.data(), first, p,
-                                                s.desc.csm_half_width, along, s.scratch.csm_goal.data(), s.scratch.csm_scratch, pool);
+                                                s.desc.csm_half_width, along, s.scratch.csm_goal.data(),
+                                                s.scratch.csm_scratch, pool);
             else
                 chainShapeMatchingGoals(s.x.data(), s.rest_shape.data(), s.csm_mass.data(), first, p, s.desc.csm_half_width,
                                         s.scratch.csm_goal.data(), s.scratch.csm_scratch, pool);
@@ -862,7 +863,9 @@ void shapeMatch(StringState& s, ThreadPool* pool) {
             // puts them and only anchor the regions they belong to.
             forRanges(pool, p - first + 1, kParallelItems, [&](std::size_t k0, std::size_t k1, std::size_t) {
                 for (std::size_t q = first + k0; q < first + k1; ++q)
-                    s.scratch.csm_goal[q] = s.hold[q].kind == ParticleHold::Kind::Free ? Vec3(alpha * (s.scratch.csm_goal[q] - s.x[q])) : Vec3::Zero();
+                    s.scratch.csm_goal[q] = s.hold[q].kind == ParticleHold::Kind::Free
+                                                ? Vec3(alpha * (s.scratch.csm_goal[q] - s.x[q]))
+                                                : Vec3::Zero();
             });
         }
         first = p + 1;

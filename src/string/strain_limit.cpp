@@ -110,8 +110,8 @@ bool fixedRow(const StringState& s, std::size_t p) {
 
 /// solveFactored of the string's factorised system (factorChain) for `rhs` (n) in place.
 void solveFactored(const StringState& s, std::vector<Vec3>& rhs) {
-    solveFactored(s.particles(), s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(), s.scratch.blk_coupled.data(),
-                  rhs.data());
+    solveFactored(s.particles(), s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(),
+                  s.scratch.blk_coupled.data(), rhs.data());
 }
 
 /// A segment's spring in the chain's Newton system: Hessian and force, and to which of its
@@ -428,7 +428,8 @@ bool assembleChainGradient(StringState& s, const StepContext& ctx) {
 bool acceptChord(StringState& s, double last_move) {
     double worst_squared = 0.0;
     for (std::size_t p = 0; p < s.particles(); ++p)
-        if (s.hold[p].kind == ParticleHold::Kind::Free) worst_squared = std::max(worst_squared, s.scratch.blk_rhs[p].squaredNorm());
+        if (s.hold[p].kind == ParticleHold::Kind::Free)
+            worst_squared = std::max(worst_squared, s.scratch.blk_rhs[p].squaredNorm());
     const double limit = kQuadraticRegime * last_move;
     if (!(worst_squared < limit * limit)) return false;
     for (std::size_t j = 0; j < s.segments(); ++j)
@@ -448,7 +449,8 @@ void linearisedTension(StringState& s, const StepContext& ctx, std::size_t j0, s
     Vec3 da = fixedRow(s, j0) ? Vec3::Zero() : s.scratch.blk_rhs[j0];
     auto stretch = [&](std::size_t j) {
         const Vec3 db = fixedRow(s, j + 1) ? Vec3::Zero() : s.scratch.blk_rhs[j + 1];
-        const double effective = s.scratch.active[j] ? s.scratch.geometric_tension[j] + (1.0 + rate_gain) * s.scratch.dir[j].dot(db - da) : 0.0;
+        const double effective =
+            s.scratch.active[j] ? s.scratch.geometric_tension[j] + (1.0 + rate_gain) * s.scratch.dir[j].dot(db - da) : 0.0;
         da = db;
         return effective;
     };
@@ -834,7 +836,8 @@ public:
         // kParallelChainParticles: a longer one's iterations are the same on one thread as on
         // two (parallelChainStep), which has none.
         const bool chord_chain =
-            plain_chain && !glued && n < kParallelChainParticles && s.scratch.chain_inverse.size() >= 6 * n + 12 && !ctx.newton_strain_only;
+            plain_chain && !glued && n < kParallelChainParticles && s.scratch.chain_inverse.size() >= 6 * n + 12 &&
+            !ctx.newton_strain_only;
         inverses = chord_chain ? s.scratch.chain_inverse.data() : nullptr;
         warm_start = s.scratch.strain_warm_start;
     }
@@ -916,8 +919,8 @@ private:
     double iterate(bool chord_next, double last_move, bool& chord, bool& stalled) {
         for (RigidSegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
         if (chord_next && assembleChainGradient(s, ctx)) {
-            chordSolveChain(n, s.scratch.blk_off.data(), s.scratch.blk_rhs.data(), s.scratch.blk_factor_gain.data(), s.scratch.chain_coupled.data(),
-                            inverses);
+            chordSolveChain(n, s.scratch.blk_off.data(), s.scratch.blk_rhs.data(), s.scratch.blk_factor_gain.data(),
+                            s.scratch.chain_coupled.data(), inverses);
             chord = acceptChord(s, last_move);
         }
         if (!chord) solveStep();
@@ -990,8 +993,8 @@ private:
         auto& node_rhs = scratch.rhs;
         auto& coupling = scratch.coupling;
         if (plain_chain) {
-            solveChain(n, s.scratch.blk_diag.data(), s.scratch.blk_off.data(), s.scratch.blk_rhs.data(), s.scratch.blk_factor_gain.data(),
-                       s.scratch.chain_coupled.data(), inverses);
+            solveChain(n, s.scratch.blk_diag.data(), s.scratch.blk_off.data(), s.scratch.blk_rhs.data(),
+                       s.scratch.blk_factor_gain.data(), s.scratch.chain_coupled.data(), inverses);
             return;
         }
         factorChain(s);
@@ -1009,7 +1012,8 @@ private:
         for (std::size_t b = 0; b < nodes; ++b) {
             schur.block<6, 6>(static_cast<Eigen::Index>(6 * b), static_cast<Eigen::Index>(6 * b)) = node_diag[b];
             rs.segment<6>(static_cast<Eigen::Index>(6 * b)) = node_rhs[b];
-            for (const auto& [p, blk] : coupling[b]) rs.segment<6>(static_cast<Eigen::Index>(6 * b)) -= blk.transpose() * s.scratch.blk_rhs[p];
+            for (const auto& [p, blk] : coupling[b])
+                rs.segment<6>(static_cast<Eigen::Index>(6 * b)) -= blk.transpose() * s.scratch.blk_rhs[p];
             for (int col = 0; col < 6; ++col) {
                 std::vector<Vec3>& column = s.scratch.node_columns[6 * b + static_cast<std::size_t>(col)];
                 column.assign(n, Vec3::Zero());

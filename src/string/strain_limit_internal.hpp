@@ -88,8 +88,8 @@ inline void factorChain(StringState& s) {
     const std::size_t n = s.particles();
     s.scratch.blk_factor.resize(n);
     s.scratch.blk_coupled.resize(n);
-    factorBlockTridiagonal(n, s.scratch.blk_diag.data(), s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(),
-                           s.scratch.blk_coupled.data());
+    factorBlockTridiagonal(n, s.scratch.blk_diag.data(), s.scratch.blk_off.data(), s.scratch.blk_factor.data(),
+                           s.scratch.blk_factor_gain.data(), s.scratch.blk_coupled.data());
 }
 
 }  // namespace tearables::detail

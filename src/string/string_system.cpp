@@ -274,7 +274,8 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host) {
         StringState& s = strings_[i];
         s.contacts.clear();
         s.body_nodes.clear();
-        if (s.scratch.rows_pressed) std::fill(s.scratch.row_projector.begin(), s.scratch.row_projector.end(), Mat3::Identity());
+        if (s.scratch.rows_pressed)
+            std::fill(s.scratch.row_projector.begin(), s.scratch.row_projector.end(), Mat3::Identity());
         s.scratch.rows_pressed = false;
         std::fill(s.colliding.begin(), s.colliding.end(), 0);
     });

@@ -54,7 +54,9 @@ constexpr std::size_t kParallelSegments = kParallelItems;
 /// Whether particle p's equation is whole (no body presses it): its projector exactly I,
 /// compared entry by entry (what Eigen's isIdentity(0) tests, at a fraction of its cost),
 /// where any projector of the string may differ from I (rows_pressed).
-[[gnu::always_inline]] inline bool wholeRow(const StringState& s, std::size_t p) { return !s.scratch.rows_pressed || s.scratch.row_projector[p] == Mat3::Identity(); }
+[[gnu::always_inline]] inline bool wholeRow(const StringState& s, std::size_t p) {
+    return !s.scratch.rows_pressed || s.scratch.row_projector[p] == Mat3::Identity();
+}
 
 /// u . (P_p v) for particle p's projector P_p, with `whole` = wholeRow(s, p): then P_p = I
 /// and the product is u . v (I v is v exactly, up to the sign of a zero).
@@ -114,11 +116,13 @@ void momentumTension(StringState& s, const StepContext& ctx) {
                 continue;
             }
             const Vec3& e = s.scratch.dir[j];
-            s.scratch.diag[j] = a.weight * projectedDot(s, j, a.whole, e, e) + b.weight * projectedDot(s, j + 1, b.whole, e, e);
+            s.scratch.diag[j] =
+                a.weight * projectedDot(s, j, a.whole, e, e) + b.weight * projectedDot(s, j + 1, b.whole, e, e);
             s.scratch.rhs[j] = (a.weight > 0.0 ? a.weight * projectedDot(s, j, a.whole, e, a.impulse) : 0.0) -
                        (b.weight > 0.0 ? b.weight * projectedDot(s, j + 1, b.whole, e, b.impulse) : 0.0);
             s.scratch.off[j] = 0.0;
-            if (j + 1 < m && !s.broken[j + 1]) s.scratch.off[j] = -b.weight * projectedDot(s, j + 1, b.whole, e, s.scratch.dir[j + 1]);
+            if (j + 1 < m && !s.broken[j + 1])
+                s.scratch.off[j] = -b.weight * projectedDot(s, j + 1, b.whole, e, s.scratch.dir[j + 1]);
             most = std::max(most, s.scratch.diag[j]);
             a = b;
         }

@@ -180,7 +180,8 @@ void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         const std::size_t p = end == 0 ? 0 : n - 1;
         const std::size_t j = end == 0 ? 0 : m - 1;
         RigidState& b = rigids.bodies[s.hold[p].body.index];
-        const Vec3 rotation = b.inverseInertiaWorld() * (axis_inertia * (s.twist[j] - s.twist_glued_pred[end]) * s.scratch.dir[j]);
+        const Vec3 rotation =
+            b.inverseInertiaWorld() * (axis_inertia * (s.twist[j] - s.twist_glued_pred[end]) * s.scratch.dir[j]);
         const double angle = rotation.norm();
         if (angle > 0.0 && std::isfinite(angle))
             b.orientation = (Quat(Eigen::AngleAxisd(angle, rotation / angle)) * b.orientation).normalized();

@@ -615,8 +615,8 @@ void checkString(const detail::StringState& s, const detail::RigidTable& rigids,
     size(s.csm_mass.size(), n, "csm_mass");
     size(s.twist_force.size(), n, "twist_force");
     for (const auto* v : {&s.rest_length, &s.max_length, &s.compliance, &s.tension, &s.twist, &s.radius,
-                          &s.original_length, &s.peak_stress, &s.scratch.diag, &s.scratch.off, &s.scratch.rhs, &s.scratch.segment_work, &s.spring_force,
-                          &s.prev_stretch, &s.twist_velocity, &s.twist_old, &s.twist_inertia, &s.twist_width})
+                          &s.original_length, &s.peak_stress, &s.scratch.diag, &s.scratch.off, &s.scratch.rhs,
+                          &s.scratch.segment_work, &s.spring_force, &s.prev_stretch, &s.twist_velocity, &s.twist_old, &s.twist_inertia, &s.twist_width})
         size(v->size(), m, "a per-segment array");
     size(s.broken.size(), m, "broken");
     size(s.yielded.size(), m, "yielded");
