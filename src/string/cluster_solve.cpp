@@ -153,16 +153,16 @@ struct ChainSolver {
         inverse.resize(n);
         coupled.resize(n);
         for (std::size_t i = 0; i < n; ++i) {
-            inverse[i] = s.blk_factor[i].solve(Mat3(Mat3::Identity()));
-            coupled[i] = s.blk_coupled[i];
+            inverse[i] = s.scratch.blk_factor[i].solve(Mat3(Mat3::Identity()));
+            coupled[i] = s.scratch.blk_coupled[i];
         }
     }
     void solve(const StringState& s, std::vector<Vec3>& rhs, std::size_t first = 0) const {
         const std::size_t n = s.particles();
         for (std::size_t i = std::max<std::size_t>(first, 1); i < n; ++i)
-            if (coupled[i]) rhs[i] -= s.blk_factor_gain[i] * rhs[i - 1];
+            if (coupled[i]) rhs[i] -= s.scratch.blk_factor_gain[i] * rhs[i - 1];
         rhs[n - 1] = inverse[n - 1] * rhs[n - 1];
-        for (std::size_t i = n - 1; i-- > 0;) rhs[i] = inverse[i] * (rhs[i] - s.blk_off[i] * rhs[i + 1]);
+        for (std::size_t i = n - 1; i-- > 0;) rhs[i] = inverse[i] * (rhs[i] - s.scratch.blk_off[i] * rhs[i + 1]);
     }
 };
 
@@ -194,7 +194,7 @@ struct Direction {
 struct ClusterScratch::Impl {
     std::vector<double> stiffest;
     std::vector<char> shadowed, was_shadowed;
-    std::vector<std::array<std::uint32_t, 4>> keys;
+    std::vector<PairKey> keys;
     std::vector<double> friction_weight, previous_weight;
     std::vector<std::size_t> live, candidates;
     std::vector<double> gap_seen, travel_seen;
@@ -269,8 +269,8 @@ bool sparseClusterStep(const std::vector<StringState*>& strings, const std::vect
         const StringState& s = *strings[i];
         for (std::size_t p = 0; p < s.particles(); ++p) {
             const Eigen::Index row = offset[i] + 3 * static_cast<Eigen::Index>(p);
-            add(row, row, s.blk_diag[p]);
-            if (p + 1 < s.particles()) add(row + 3, row, s.blk_off[p].transpose());  // A(p+1, p)
+            add(row, row, s.scratch.blk_diag[p]);
+            if (p + 1 < s.particles()) add(row + 3, row, s.scratch.blk_off[p].transpose());  // A(p+1, p)
         }
     }
     // A direction's term w u u^T: its entries pairwise (the lower triangle is read).
@@ -295,8 +295,9 @@ bool sparseClusterStep(const std::vector<StringState*>& strings, const std::vect
     for (std::size_t i = 0; i < strings.size(); ++i) {
         StringState& s = *strings[i];
         for (std::size_t p = 0; p < s.particles(); ++p)
-            s.blk_rhs[p] = freeParticle(s, p) ? Vec3(sc.sparse_dx.segment<3>(offset[i] + 3 * static_cast<Eigen::Index>(p)))
-                                              : Vec3::Zero();
+            s.scratch.blk_rhs[p] = freeParticle(s, p)
+                                       ? Vec3(sc.sparse_dx.segment<3>(offset[i] + 3 * static_cast<Eigen::Index>(p)))
+                                       : Vec3::Zero();
     }
     return true;
 }
@@ -323,7 +324,7 @@ using cluster::UEntry;
 /// ClusterScratch.
 class ClusterSolver {
 public:
-    ClusterSolver(const std::vector<StringState*>& strings, std::vector<SegmentContact>& contacts, RigidTable& rigids,
+    ClusterSolver(const std::vector<StringState*>& strings, std::vector<StringPairContact>& contacts, RigidTable& rigids,
                   const StepContext& ctx, ClusterScratch& work)
         : strings_(strings), contacts_(contacts), rigids_(rigids), ctx_(ctx), work_(work), sc_(*work.impl),
           count_(strings.size()), inv_h2_(ctx.inv_h * ctx.inv_h) {}
@@ -355,7 +356,7 @@ private:
 
     /// Positions along the current Newton step (held in blk_rhs), alpha of the way.
     static Vec3 at(const StringState& s, std::size_t p, double alpha) {
-        return freeParticle(s, p) ? Vec3(s.x[p] + alpha * s.blk_rhs[p]) : s.x[p];
+        return freeParticle(s, p) ? Vec3(s.x[p] + alpha * s.scratch.blk_rhs[p]) : s.x[p];
     }
     static Vec3 sidePoint(const StringState& s, std::size_t j, double f, double alpha) {
         return Vec3((1.0 - f) * at(s, j, alpha) + f * at(s, j + 1, alpha));
@@ -363,13 +364,13 @@ private:
     static Vec3 startPoint(const StringState& s, std::size_t j, double f) {
         return Vec3((1.0 - f) * s.x_prev[j] + f * s.x_prev[j + 1]);
     }
-    double gapAt(const SegmentContact& c, double alpha) const {
+    double gapAt(const StringPairContact& c, double alpha) const {
         const Vec3 pa = sidePoint(*strings_[c.string], c.segment, c.s, alpha);
         const Vec3 pb = sidePoint(*strings_[c.partner], c.partner_segment, c.partner_s, alpha);
         return c.normal.dot(pa - pb) - c.gap;
     }
     /// Relative tangential motion of the contact points over the step.
-    Vec3 slipAt(const SegmentContact& c, double alpha) const {
+    Vec3 slipAt(const StringPairContact& c, double alpha) const {
         const StringState& a = *strings_[c.string];
         const StringState& b = *strings_[c.partner];
         Vec3 rel = (sidePoint(a, c.segment, c.s, alpha) - startPoint(a, c.segment, c.s)) -
@@ -378,7 +379,7 @@ private:
     }
     /// The (up to four) particle entries of a contact direction e: +e at this side's ends by
     /// the fractions, -e at the other side's.
-    int entries(const SegmentContact& c, const Vec3& e, UEntry* out) const {
+    int entries(const StringPairContact& c, const Vec3& e, UEntry* out) const {
         int k = 0;
         const StringState& a = *strings_[c.string];
         const StringState& b = *strings_[c.partner];
@@ -401,7 +402,7 @@ private:
     /// within their stray of them (sideMet). Where the straight paths do not tell (strays
     /// near the gap: a torn rope whipping round its pin), only axes that went across each
     /// other do: the side of their common perpendicular flipped.
-    void linearise(SegmentContact& c, bool predicted) {
+    void linearise(StringPairContact& c, bool predicted) {
         const StringState& a = *strings_[c.string];
         const StringState& b = *strings_[c.partner];
         const std::vector<Vec3>& xa = predicted ? a.x_pred : a.x;
@@ -437,17 +438,12 @@ private:
     // shared particle lies on both): it is shadowed, so that the four pairs of two strings
     // crossing at particles do not push four times and toggle against each other.
 
-    static std::array<std::uint32_t, 4> keyOf(std::uint32_t sa, std::uint32_t ja, std::uint32_t sb, std::uint32_t jb) {
-        std::array<std::uint32_t, 4> k{sa, ja, sb, jb};
-        if (std::make_pair(sb, jb) < std::make_pair(sa, ja)) k = {sb, jb, sa, ja};
-        return k;
-    }
     /// The contacts' keys, sorted for the binary searches of `exists`.
     void sortKeys() {
         sc_.keys.resize(contacts_.size());
         for (std::size_t i = 0; i < contacts_.size(); ++i) {
-            const SegmentContact& c = contacts_[i];
-            sc_.keys[i] = keyOf(c.string, c.segment, c.partner, c.partner_segment);
+            const StringPairContact& c = contacts_[i];
+            sc_.keys[i] = c.key().unordered();
         }
         std::sort(sc_.keys.begin(), sc_.keys.end());
     }
@@ -455,20 +451,20 @@ private:
         if (ja < 0 || jb < 0 || ja >= static_cast<std::int64_t>(strings_[sa]->segments()) ||
             jb >= static_cast<std::int64_t>(strings_[sb]->segments()))
             return false;
-        const auto k = keyOf(sa, static_cast<std::uint32_t>(ja), sb, static_cast<std::uint32_t>(jb));
+        const PairKey k = PairKey{sa, static_cast<std::uint32_t>(ja), sb, static_cast<std::uint32_t>(jb)}.unordered();
         return std::binary_search(sc_.keys.begin(), sc_.keys.end(), k) && !strings_[sa]->broken[static_cast<std::size_t>(ja)] &&
                !strings_[sb]->broken[static_cast<std::size_t>(jb)];
     }
     void shadow() {
         for (std::size_t i = 0; i < contacts_.size(); ++i) {
-            const SegmentContact& c = contacts_[i];
+            const StringPairContact& c = contacts_[i];
             const std::int64_t j = c.segment, k = c.partner_segment;
             // Toward the next segment only, so that two pairs never shadow each other.
             sc_.shadowed[i] = (c.s == 1.0 && exists(c.string, j + 1, c.partner, k)) ||
                               (c.partner_s == 1.0 && exists(c.string, j, c.partner, k + 1));
         }
     }
-    bool skipped(const SegmentContact& c) const {
+    bool skipped(const StringPairContact& c) const {
         return sc_.shadowed[static_cast<std::size_t>(&c - contacts_.data())] || strings_[c.string]->broken[c.segment] ||
                strings_[c.partner]->broken[c.partner_segment];
     }
@@ -476,7 +472,7 @@ private:
     // --- friction ---------------------------------------------------------------------------
 
     /// Friction acts where the last pass (or step) found a pressing force.
-    bool frictional(const SegmentContact& c) const { return c.friction > 0.0 && c.force > 0.0 && !skipped(c); }
+    bool frictional(const StringPairContact& c) const { return c.friction > 0.0 && c.force > 0.0 && !skipped(c); }
     /// Friction of a pass: w/2 |u_t|^2 with w = mu F / max(|u_t|, eps) taken at the start of
     /// the pass (weighFriction), a smooth quadratic, so Newton converges as without it.
     double frictionEnergy(std::size_t i, double alpha) const {
@@ -484,7 +480,7 @@ private:
     }
     void weighFriction() {
         for (std::size_t i = 0; i < contacts_.size(); ++i) {
-            const SegmentContact& c = contacts_[i];
+            const StringPairContact& c = contacts_[i];
             sc_.friction_weight[i] =
                 frictional(c) ? c.friction * c.force / std::max(slipAt(c, 0.0).norm(), kStringSlip * c.gap) : 0.0;
         }
@@ -515,7 +511,7 @@ private:
         for (const StringState* sp : strings_)
             for (std::size_t p = 0; p < sp->particles(); ++p) {
                 if (!freeParticle(*sp, p)) continue;
-                const double d = sp->blk_rhs[p].squaredNorm();
+                const double d = sp->scratch.blk_rhs[p].squaredNorm();
                 largest = std::isfinite(d) ? std::max(largest, d) : std::numeric_limits<double>::infinity();
             }
         return 2.0 * std::sqrt(largest);
@@ -541,22 +537,22 @@ private:
         // shortest segment or kStringContactTolerance of the thinnest contact, whichever is
         // larger (the taut-but-slack segments of assembleChain make Newton linear near the end).
         double thinnest = 1e300;
-        for (const SegmentContact& c : contacts_) thinnest = std::min(thinnest, c.gap);
+        for (const StringPairContact& c : contacts_) thinnest = std::min(thinnest, c.gap);
         tol_ = std::max(ctx_.settings->strain_tolerance * shortest, kStringContactTolerance * thinnest);
 
         // Penalty of a contact: the stiffest spring or particle inertia of either side.
         std::vector<double>& stiffest = sc_.stiffest;
         stiffest.assign(count_, 0.0);
         for (std::size_t i = 0; i < count_; ++i) stiffest[i] = stiffestTerm(*strings_[i], inv_h2_);
-        for (SegmentContact& c : contacts_)
+        for (StringPairContact& c : contacts_)
             c.stiffness = kStringContactStiffness * std::max(stiffest[c.string], stiffest[c.partner]);
 
         sc_.shadowed.assign(contacts_.size(), 0);
         sortKeys();
         sc_.friction_weight.assign(contacts_.size(), 0.0);
-        for (SegmentContact& c : contacts_) linearise(c, true);
+        for (StringPairContact& c : contacts_) linearise(c, true);
         shadow();
-        for (SegmentContact& c : contacts_) c.active = !skipped(c) && gapAt(c, 0.0) < 0.0;
+        for (StringPairContact& c : contacts_) c.active = !skipped(c) && gapAt(c, 0.0) < 0.0;
         weighFriction();
         bool touching = false;
         for (std::size_t i = 0; i < contacts_.size(); ++i)
@@ -599,17 +595,17 @@ private:
             assembleRigidContacts(s);
             for (std::size_t p = 0; p < s.particles(); ++p) {
                 if (freeParticle(s, p)) continue;
-                s.blk_diag[p] = Mat3::Identity();
-                s.blk_rhs[p].setZero();
-                if (p > 0) s.blk_off[p - 1].setZero();
-                if (p < s.segments()) s.blk_off[p].setZero();
+                s.scratch.blk_diag[p] = Mat3::Identity();
+                s.scratch.blk_rhs[p].setZero();
+                if (p > 0) s.scratch.blk_off[p - 1].setZero();
+                if (p < s.segments()) s.scratch.blk_off[p].setZero();
             }
-            for (auto& step : s.node_step) step.setZero();
+            for (auto& step : s.scratch.node_step) step.setZero();
         }
         std::vector<Direction>& dirs = sc_.dirs;
         dirs.clear();
         for (std::size_t ci : sc_.live) {
-            SegmentContact& c = contacts_[ci];
+            StringPairContact& c = contacts_[ci];
             // The penalty k_c/2 min(0, g)^2 is one-sided: it never pulls, so a normal that
             // turned at a corner cannot drag the strings together.
             const double g = clear(ci, 0.0) ? 1.0 : seeGap(ci);
@@ -618,7 +614,8 @@ private:
                 // Normal: gradient k g u, Hessian k u u^T.
                 UEntry u[4];
                 const int k = entries(c, c.normal, u);
-                for (int i = 0; i < k; ++i) strings_[u[i].string]->blk_rhs[u[i].particle] -= c.stiffness * g * u[i].coef;
+                for (int i = 0; i < k; ++i)
+                    strings_[u[i].string]->scratch.blk_rhs[u[i].particle] -= c.stiffness * g * u[i].coef;
                 Direction dn;
                 dn.entries = entries(c, c.normal, dn.u);
                 dn.weight = c.stiffness;
@@ -633,7 +630,7 @@ private:
             const int kg = entries(c, Vec3::Ones(), ug);
             for (int i = 0; i < kg; ++i) {
                 const double f = ug[i].coef.x();  // the fraction (with its sign)
-                strings_[ug[i].string]->blk_rhs[ug[i].particle] -= f * grad;
+                strings_[ug[i].string]->scratch.blk_rhs[ug[i].particle] -= f * grad;
             }
             const Vec3 t1 = c.normal.unitOrthogonal();
             for (const Vec3& t : {t1, Vec3(c.normal.cross(t1))}) {
@@ -652,8 +649,8 @@ private:
             StringState& s = *strings_[i];
             std::vector<Vec3>& y = sc_.y[i];
             sc_.solvers[i].factor(s);
-            sc_.r[i] = s.blk_rhs;
-            y = s.blk_rhs;
+            sc_.r[i] = s.scratch.blk_rhs;
+            y = s.scratch.blk_rhs;
             sc_.solvers[i].solve(s, y);
             for (std::size_t p = 0; p < s.particles(); ++p)
                 if (!freeParticle(s, p) || !y[p].allFinite()) y[p].setZero();
@@ -706,7 +703,7 @@ private:
         if ((work_.always_sparse || sparseStepPays(dirs.size(), cluster_particles_)) && sparseClusterStep(strings_, dirs, sc_))
             return;
         columns();
-        for (std::size_t i = 0; i < count_; ++i) strings_[i]->blk_rhs = sc_.y[i];
+        for (std::size_t i = 0; i < count_; ++i) strings_[i]->scratch.blk_rhs = sc_.y[i];
         const auto dim = static_cast<Eigen::Index>(dirs.size());
         if (dim == 0) return;
         ClusterScratch::Impl::Woodbury& wb = sc_.woodbury(dim);
@@ -735,7 +732,7 @@ private:
         for (Eigen::Index r = 0; r < dim; ++r) {
             const Direction& d = dirs[static_cast<std::size_t>(r)];
             for (int i = 0; i < d.strings; ++i) {
-                std::vector<Vec3>& dx = strings_[d.string[i]]->blk_rhs;
+                std::vector<Vec3>& dx = strings_[d.string[i]]->scratch.blk_rhs;
                 const Vec3* zc = &sc_.pool[d.column[i]];
                 for (std::size_t p = 0; p < dx.size(); ++p) dx[p] -= z[r] * zc[p];
             }
@@ -750,7 +747,7 @@ private:
         for (int round = 0; round < kStringPredictRounds; ++round) {
             bool added = false;
             for (std::size_t ci : sc_.candidates) {
-                SegmentContact& c = contacts_[ci];
+                StringPairContact& c = contacts_[ci];
                 if (c.active || !(gapAt(c, 1.0) < 0.0)) continue;
                 c.active = true;
                 Direction dn;
@@ -773,7 +770,7 @@ private:
         double e = 0.0;
         for (const StringState* s : strings_) e += stepEnergy(*s, rigids_, ctx_, alpha);
         for (std::size_t ci : sc_.candidates) {
-            const SegmentContact& c = contacts_[ci];
+            const StringPairContact& c = contacts_[ci];
             const double g = std::min(0.0, gapAt(c, alpha));
             e += 0.5 * c.stiffness * g * g;
             if (sc_.friction_weight[ci] > 0.0) e += frictionEnergy(ci, alpha);
@@ -791,7 +788,7 @@ private:
         for (StringState* sp : strings_)
             for (std::size_t p = 0; p < sp->particles(); ++p) {
                 if (!freeParticle(*sp, p)) continue;
-                const Vec3 dx = alpha * sp->blk_rhs[p];
+                const Vec3 dx = alpha * sp->scratch.blk_rhs[p];
                 if (!dx.allFinite()) continue;
                 sp->x[p] += dx;
                 worst = std::max(worst, dx.norm());
@@ -805,8 +802,8 @@ private:
     bool endPass() {
         bool changed = false;
         double moved = 0.0;
-        for (SegmentContact& c : contacts_) c.force = skipped(c) ? 0.0 : c.stiffness * std::max(0.0, -gapAt(c, 0.0));
-        for (SegmentContact& c : contacts_) {
+        for (StringPairContact& c : contacts_) c.force = skipped(c) ? 0.0 : c.stiffness * std::max(0.0, -gapAt(c, 0.0));
+        for (StringPairContact& c : contacts_) {
             const std::size_t i = static_cast<std::size_t>(&c - contacts_.data());
             if (strings_[c.string]->broken[c.segment] || strings_[c.partner]->broken[c.partner_segment]) continue;
             const double s0 = c.s, t0 = c.partner_s;
@@ -818,7 +815,7 @@ private:
         sc_.was_shadowed = sc_.shadowed;
         shadow();
         changed = sc_.was_shadowed != sc_.shadowed;
-        for (SegmentContact& c : contacts_) c.active = !skipped(c) && gapAt(c, 0.0) < 0.0;
+        for (StringPairContact& c : contacts_) c.active = !skipped(c) && gapAt(c, 0.0) < 0.0;
         // The friction weights follow the new forces and slips: the fixed point of the
         // passes is Coulomb's law (mu F while sliding, a stiff spring below eps).
         std::vector<double>& previous = sc_.previous_weight;
@@ -835,7 +832,7 @@ private:
     /// contact presses lose the contact force's direction from their tension equations.
     void finish() {
         for (StringState* sp : strings_) finishChain(*sp, rigids_, ctx_);
-        for (const SegmentContact& c : contacts_) {
+        for (const StringPairContact& c : contacts_) {
             if (skipped(c) || gapAt(c, 0.0) > kContactSlop * c.gap) continue;
             Vec3 dirs_c[2] = {c.normal, Vec3::Zero()};
             if (frictional(c)) {
@@ -847,17 +844,17 @@ private:
             for (int i = 0; i < k; ++i) {
                 StringState& s = *strings_[u[i].string];
                 for (const Vec3& dir : dirs_c) {
-                    const Vec3 left = s.row_projector[u[i].particle] * dir;  // what is left of it
+                    const Vec3 left = s.scratch.row_projector[u[i].particle] * dir;  // what is left of it
                     const double len = left.norm();
-                    if (len > 1e-6) s.row_projector[u[i].particle] -= (left / len) * (left / len).transpose();
-                    s.rows_pressed = true;
+                    if (len > 1e-6) s.scratch.row_projector[u[i].particle] -= (left / len) * (left / len).transpose();
+                    s.scratch.rows_pressed = true;
                 }
             }
         }
     }
 
     const std::vector<StringState*>& strings_;
-    std::vector<SegmentContact>& contacts_;
+    std::vector<StringPairContact>& contacts_;
     RigidTable& rigids_;
     const StepContext& ctx_;
     ClusterScratch& work_;
@@ -872,7 +869,7 @@ private:
 
 }  // namespace
 
-void solveStringCluster(const std::vector<StringState*>& strings, std::vector<SegmentContact>& contacts,
+void solveStringCluster(const std::vector<StringState*>& strings, std::vector<StringPairContact>& contacts,
                         RigidTable& rigids, const StepContext& ctx, ClusterScratch& work) {
     ClusterSolver(strings, contacts, rigids, ctx, work).solve();
 }

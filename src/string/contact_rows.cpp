@@ -14,7 +14,7 @@ namespace {
 
 /// Where a contact's surface point is now: on its body (following it), or a fixed point
 /// (another string's segment, for string-string contacts).
-Vec3 contactPoint(const SegmentContact& c, const RigidTable& rigids) {
+Vec3 contactPoint(const RigidSegmentContact& c, const RigidTable& rigids) {
     return c.body.valid() ? gluePoint(rigids.bodies[c.body.index], c.local) : c.local;
 }
 
@@ -22,13 +22,13 @@ Vec3 contactPoint(const SegmentContact& c, const RigidTable& rigids) {
 /// surface plane at the contact point (point and normal fixed in the body), so that a
 /// body that rolls on a rope does not lift off it (a normal fixed in the world lets a box
 /// lower its penalty energy by spinning about the rope, and slip through it).
-Vec3 contactNormal(const SegmentContact& c, const RigidTable& rigids) {
+Vec3 contactNormal(const RigidSegmentContact& c, const RigidTable& rigids) {
     return c.body.valid() ? Vec3(rigids.bodies[c.body.index].orientation * c.local_normal) : c.normal;
 }
 
 /// How far contact c's movable body has moved since its planes were linearised, plus
 /// `extra` (a trial step) when given.
-Vec6 bodyMotion(const StringState& s, const SegmentContact& c, const Vec6* extra) {
+Vec6 bodyMotion(const StringState& s, const RigidSegmentContact& c, const Vec6* extra) {
     const BodyNode& node = s.body_nodes[static_cast<std::size_t>(c.node)];
     Vec6 u = node.displacement - node.linearised_at;
     if (extra) u += *extra;
@@ -47,7 +47,7 @@ Vec6 bodyMotion(const StringState& s, const SegmentContact& c, const Vec6* extra
 /// with a line search converges from any start. The plane's second-order motion is met
 /// by the next step's contacts, found at the new pose.
 void linearisePlanes(StringState& s, const RigidTable& rigids) {
-    for (SegmentContact& c : s.contacts) {
+    for (RigidSegmentContact& c : s.contacts) {
         c.plane_point = contactPoint(c, rigids);
         c.plane_normal = contactNormal(c, rigids);
         c.plane_turn.setZero();
@@ -63,7 +63,7 @@ void linearisePlanes(StringState& s, const RigidTable& rigids) {
     for (BodyNode& node : s.body_nodes) node.linearised_at = node.displacement;
 }
 
-double rigidGap(const StringState& s, const SegmentContact& c, const Vec3& xs, const Vec6* extra) {
+double rigidGap(const StringState& s, const RigidSegmentContact& c, const Vec3& xs, const Vec6* extra) {
     double g = c.plane_normal.dot(xs - c.plane_point) - c.gap;
     if (c.node >= 0) {
         const Vec6 u = bodyMotion(s, c, extra);
@@ -72,7 +72,7 @@ double rigidGap(const StringState& s, const SegmentContact& c, const Vec3& xs, c
     return g;
 }
 
-Vec6 rigidGapBodyGradient(const SegmentContact& c) {
+Vec6 rigidGapBodyGradient(const RigidSegmentContact& c) {
     Vec6 a;
     a.head<3>() = -c.plane_normal;
     a.tail<3>() = c.plane_turn;
@@ -89,7 +89,7 @@ Vec6 rigidGapBodyGradient(const SegmentContact& c) {
 /// below which the contact sticks.
 constexpr double kRigidSlip = 1e-3;
 
-Vec3 rigidSlip(const StringState& s, const SegmentContact& c, const Vec3& xs, const Vec6* extra) {
+Vec3 rigidSlip(const StringState& s, const RigidSegmentContact& c, const Vec3& xs, const Vec6* extra) {
     const std::size_t j = c.segment;
     const Vec3 xs0 = (1.0 - c.s) * s.x_prev[j] + c.s * s.x_prev[j + 1];
     Vec3 body_point = c.plane_point;
@@ -101,7 +101,7 @@ Vec3 rigidSlip(const StringState& s, const SegmentContact& c, const Vec3& xs, co
     return rel - c.plane_normal * c.plane_normal.dot(rel);
 }
 
-Mat36 rigidSlipBodyJacobian(const SegmentContact& c, const Mat3& tangent) {
+Mat36 rigidSlipBodyJacobian(const RigidSegmentContact& c, const Mat3& tangent) {
     Mat36 j;
     j.leftCols<3>() = -tangent;
     j.rightCols<3>() = tangent * cross(c.plane_arm);
@@ -109,44 +109,44 @@ Mat36 rigidSlipBodyJacobian(const SegmentContact& c, const Mat3& tangent) {
 }
 
 /// Gradient k_c g u and Hessian k_c u u^T with u = dg/dx.
-void addPenaltyRows(StringState& s, const SegmentContact& c, double g, bool fa, bool fb) {
+void addPenaltyRows(StringState& s, const RigidSegmentContact& c, double g, bool fa, bool fb) {
     const std::size_t j = c.segment;
     const Vec3& nrm = c.plane_normal;
     const double kc = c.stiffness;
     const Mat3 nnt = nrm * nrm.transpose();
     const double wa = 1.0 - c.s, wb = c.s;
     if (fa) {
-        s.blk_diag[j] += kc * wa * wa * nnt;
-        s.blk_rhs[j] -= kc * g * wa * nrm;
+        s.scratch.blk_diag[j] += kc * wa * wa * nnt;
+        s.scratch.blk_rhs[j] -= kc * g * wa * nrm;
     }
     if (fb) {
-        s.blk_diag[j + 1] += kc * wb * wb * nnt;
-        s.blk_rhs[j + 1] -= kc * g * wb * nrm;
+        s.scratch.blk_diag[j + 1] += kc * wb * wb * nnt;
+        s.scratch.blk_rhs[j + 1] -= kc * g * wb * nrm;
     }
-    if (fa && fb) s.blk_off[j] += kc * wa * wb * nnt;
+    if (fa && fb) s.scratch.blk_off[j] += kc * wa * wb * nnt;
 }
 
 /// Gradient w T rel and Hessian w T.
-FrictionTerm addFrictionRows(StringState& s, const SegmentContact& c, bool fa, bool fb) {
+FrictionTerm addFrictionRows(StringState& s, const RigidSegmentContact& c, bool fa, bool fb) {
     const std::size_t j = c.segment;
     const double w = c.friction_weight, wa = 1.0 - c.s, wb = c.s;
     const FrictionTerm f{Mat3::Identity() - c.plane_normal * c.plane_normal.transpose(),
                          rigidSlip(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1])};
     if (fa) {
-        s.blk_diag[j] += (w * wa * wa) * f.tangent;
-        s.blk_rhs[j] -= (w * wa) * f.slip;
+        s.scratch.blk_diag[j] += (w * wa * wa) * f.tangent;
+        s.scratch.blk_rhs[j] -= (w * wa) * f.slip;
     }
     if (fb) {
-        s.blk_diag[j + 1] += (w * wb * wb) * f.tangent;
-        s.blk_rhs[j + 1] -= (w * wb) * f.slip;
+        s.scratch.blk_diag[j + 1] += (w * wb * wb) * f.tangent;
+        s.scratch.blk_rhs[j + 1] -= (w * wb) * f.slip;
     }
-    if (fa && fb) s.blk_off[j] += (w * wa * wb) * f.tangent;
+    if (fa && fb) s.scratch.blk_off[j] += (w * wa * wb) * f.tangent;
     return f;
 }
 
 double weighRigidFriction(StringState& s) {
     double change = 0.0;
-    for (SegmentContact& c : s.contacts) {
+    for (RigidSegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         double w = 0.0;
         const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
@@ -168,14 +168,14 @@ double stiffestTerm(const StringState& s, double inv_h2) {
 
 /// The stiffness is the one limitStrain set.
 void assembleRigidContacts(StringState& s) {
-    for (SegmentContact& c : s.contacts) {
+    for (RigidSegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         const double g = rigidGap(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]);
         c.active = !s.broken[j] && c.stiffness > 0.0 && g < 0.0;
         if (c.active) addPenaltyRows(s, c, g, freeParticle(s, j), freeParticle(s, j + 1));
     }
     // Their friction, with the weights of the string's own solve (the bodies held).
-    for (const SegmentContact& c : s.contacts) {
+    for (const RigidSegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         if (!(c.friction_weight > 0.0) || s.broken[j]) continue;
         addFrictionRows(s, c, freeParticle(s, j), freeParticle(s, j + 1));

@@ -41,7 +41,7 @@ void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
                     }
                     const Vec3 v = damp * s.v[p] + h * (ctx.gravity + s.inv_mass[p] * (s.force[p] + twist));
                     s.v[p] = v;
-                    s.x[p] += h * v + s.csm_goal[p];  // plus the bending correction (shape_matching.cpp)
+                    s.x[p] += h * v + s.scratch.csm_goal[p];  // plus the bending correction (shape_matching.cpp)
                     break;
                 }
             }

@@ -814,7 +814,7 @@ constexpr double kStraightRest = 1e-12;
 void shapeMatch(StringState& s, ThreadPool* pool) {
     const std::size_t n = s.particles();
     if (n < 3 || s.desc.bending <= 0.0) {  // nothing to bend
-        std::fill(s.csm_goal.begin(), s.csm_goal.end(), Vec3::Zero());
+        std::fill(s.scratch.csm_goal.begin(), s.scratch.csm_goal.end(), Vec3::Zero());
         return;
     }
     updateRestShape(s);
@@ -834,7 +834,7 @@ void shapeMatch(StringState& s, ThreadPool* pool) {
     forRanges(pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {
         for (std::size_t p = p0; p < p1; ++p) {
             s.csm_mass[p] = s.hold[p].kind == ParticleHold::Kind::Free ? s.mass[p] * (s.colliding[p] ? 3.0 : 1.0) : 1e6 * heaviest;
-            s.csm_goal[p] = Vec3::Zero();  // where no piece is matched
+            s.scratch.csm_goal[p] = Vec3::Zero();  // where no piece is matched
         }
     });
     std::size_t first = 0;
@@ -853,16 +853,19 @@ void shapeMatch(StringState& s, ThreadPool* pool) {
             });
             if (straight)
                 straightChainShapeMatchingGoals(s.x.data(), s.rest_shape.data(), s.csm_mass.data(), first, p,
-                                                s.desc.csm_half_width, along, s.csm_goal.data(), s.csm_scratch, pool);
+                                                s.desc.csm_half_width, along, s.scratch.csm_goal.data(),
+                                                s.scratch.csm_scratch, pool);
             else
                 chainShapeMatchingGoals(s.x.data(), s.rest_shape.data(), s.csm_mass.data(), first, p, s.desc.csm_half_width,
-                                        s.csm_goal.data(), s.csm_scratch, pool);
+                                        s.scratch.csm_goal.data(), s.scratch.csm_scratch, pool);
             // Particles move all the way to their goals (the paper's full step): the goal
             // displacement is kept for the prediction. Held particles stay where their hold
             // puts them and only anchor the regions they belong to.
             forRanges(pool, p - first + 1, kParallelItems, [&](std::size_t k0, std::size_t k1, std::size_t) {
                 for (std::size_t q = first + k0; q < first + k1; ++q)
-                    s.csm_goal[q] = s.hold[q].kind == ParticleHold::Kind::Free ? Vec3(alpha * (s.csm_goal[q] - s.x[q])) : Vec3::Zero();
+                    s.scratch.csm_goal[q] = s.hold[q].kind == ParticleHold::Kind::Free
+                                                ? Vec3(alpha * (s.scratch.csm_goal[q] - s.x[q]))
+                                                : Vec3::Zero();
             });
         }
         first = p + 1;

@@ -110,8 +110,8 @@ bool fixedRow(const StringState& s, std::size_t p) {
 
 /// solveFactored of the string's factorised system (factorChain) for `rhs` (n) in place.
 void solveFactored(const StringState& s, std::vector<Vec3>& rhs) {
-    solveFactored(s.particles(), s.blk_off.data(), s.blk_factor.data(), s.blk_factor_gain.data(), s.blk_coupled.data(),
-                  rhs.data());
+    solveFactored(s.particles(), s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(),
+                  s.scratch.blk_coupled.data(), rhs.data());
 }
 
 /// A segment's spring in the chain's Newton system: Hessian and force, and to which of its
@@ -170,20 +170,20 @@ double stepEnergy(const StringState& s, const RigidTable& rigids, const StepCont
     const std::size_t m = s.segments();
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
     double e = 0.0;
-    auto trial = [&](std::size_t p) -> Vec3 { return fixedRow(s, p) ? s.x[p] : Vec3(s.x[p] + alpha * s.blk_rhs[p]); };
+    auto trial = [&](std::size_t p) -> Vec3 { return fixedRow(s, p) ? s.x[p] : Vec3(s.x[p] + alpha * s.scratch.blk_rhs[p]); };
     for (std::size_t p = 0; p < n; ++p) {
         if (fixedRow(s, p)) continue;
         if (s.hold[p].kind == ParticleHold::Kind::Free) {
             e += 0.5 * s.mass[p] * inv_h2 * (trial(p) - s.x_pred[p]).squaredNorm();
         } else {  // glued to a movable body: its displacement this step is K P
             const Mat3 k = mobility(s, rigids, p).K;
-            const Vec3 u = k * s.glue_impulse[p] + alpha * s.blk_rhs[p];
+            const Vec3 u = k * s.glue_impulse[p] + alpha * s.scratch.blk_rhs[p];
             e += 0.5 * inv_h2 * u.dot(k.ldlt().solve(u));
         }
     }
     for (std::size_t b = 0; b < s.body_nodes.size(); ++b) {
         const BodyNode& node = s.body_nodes[b];
-        const Vec6 u = node.displacement + alpha * s.node_step[b];
+        const Vec6 u = node.displacement + alpha * s.scratch.node_step[b];
         e += 0.5 * inv_h2 * u.dot(node.mass * u);
     }
     const double rate_gain = s.desc.axial_damping * ctx.inv_h;
@@ -193,12 +193,12 @@ double stepEnergy(const StringState& s, const RigidTable& rigids, const StepCont
         const double effective = std::max(0.0, effectiveStretch(s, j, stretch, rate_gain));
         e += 0.5 / (s.compliance[j] * (1.0 + rate_gain)) * effective * effective;
     }
-    for (const SegmentContact& c : s.contacts) {
+    for (const RigidSegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         if (s.broken[j] || c.stiffness <= 0.0) continue;
         const Vec3 xs = (1.0 - c.s) * trial(j) + c.s * trial(j + 1);
         Vec6 extra = Vec6::Zero();
-        if (c.node >= 0) extra = alpha * s.node_step[static_cast<std::size_t>(c.node)];
+        if (c.node >= 0) extra = alpha * s.scratch.node_step[static_cast<std::size_t>(c.node)];
         const double g = std::min(0.0, rigidGap(s, c, xs, &extra));
         e += 0.5 * c.stiffness * g * g;
         if (c.friction_weight > 0.0) e += 0.5 * c.friction_weight * rigidSlip(s, c, xs, &extra).squaredNorm();
@@ -233,10 +233,10 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
     // each iteration on the body (which absorbed the earlier corrections).
     for (std::size_t p = p0; p < p1; ++p) {
         const ParticleHold& hold = s.hold[p];
-        s.blk_rhs[p].setZero();
+        s.scratch.blk_rhs[p].setZero();
         switch (hold.kind) {
             case ParticleHold::Kind::Free:
-                inertiaRow(s, p, inv_h2, s.blk_diag[p], s.blk_rhs[p]);
+                inertiaRow(s, p, inv_h2, s.scratch.blk_diag[p], s.scratch.blk_rhs[p]);
                 break;
             case ParticleHold::Kind::Glue:
                 s.x[p] = gluePoint(rigids.bodies[hold.body.index], hold.point);
@@ -244,13 +244,13 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
                     // The body's inertia resists this string's own accumulated pull
                     // (what other strings did to the body is, for this string, part
                     // of the body's prediction): M_eff (x - x') / h^2 = P / h^2.
-                    s.blk_diag[p] = mobility(s, rigids, p).K.inverse() * inv_h2;
-                    s.blk_rhs[p] = -s.glue_impulse[p] * inv_h2;
+                    s.scratch.blk_diag[p] = mobility(s, rigids, p).K.inverse() * inv_h2;
+                    s.scratch.blk_rhs[p] = -s.glue_impulse[p] * inv_h2;
                     break;
                 }
                 [[fallthrough]];
             case ParticleHold::Kind::Pin:
-                s.blk_diag[p] = Mat3::Identity();  // fixed: its row is dx = 0
+                s.scratch.blk_diag[p] = Mat3::Identity();  // fixed: its row is dx = 0
                 break;
         }
     }
@@ -263,11 +263,11 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
 template <bool kHessian>
 [[gnu::always_inline]] inline bool springForce(StringState& s, const StepContext& ctx, std::size_t j, double* tension_estimate,
                                                double len, const Vec3& e_new, double k, SpringTerm& term, double& geometric) {
-    s.active[j] = 0;
+    s.scratch.active[j] = 0;
     s.spring_force[j] = 0.0;
-    if (kHessian) s.blk_off[j].setZero();
+    if (kHessian) s.scratch.blk_off[j].setZero();
     if (s.broken[j]) return false;
-    if (len > 1e-15) s.dir[j] = e_new;
+    if (len > 1e-15) s.scratch.dir[j] = e_new;
     const double stretch = len - s.rest_length[j];
     // Kelvin-Voigt: the segment's force is k (C + tau dC/dt), tau the material's
     // retardation time; it damps the rope's axial (bungee) vibration, which a
@@ -280,9 +280,9 @@ template <bool kHessian>
     // segment the step compresses leaves again at the next iteration.
     if (slackSegment(s, j, stretch, effective)) return false;
     const double c = std::max(effective, 0.0);
-    s.active[j] = 1;
+    s.scratch.active[j] = 1;
     s.spring_force[j] = k * c;
-    term.force = k * c * s.dir[j];
+    term.force = k * c * s.scratch.dir[j];
     term.to_a = !fixedRow(s, j);
     term.to_b = !fixedRow(s, j + 1);
     if (!kHessian) {
@@ -296,7 +296,7 @@ template <bool kHessian>
         // where the start left the segment a little less stretched, k C would make the
         // step transversely too soft.
         const double estimate = tension_estimate[j] * s.compliance[j];
-        if (tension_estimate[j] > 0.0) geometric = s.strain_warm_start ? estimate : std::min(c, estimate);
+        if (tension_estimate[j] > 0.0) geometric = s.scratch.strain_warm_start ? estimate : std::min(c, estimate);
         tension_estimate[j] = effective;
     }
     return true;
@@ -308,7 +308,7 @@ template <bool kHessian>
 [[gnu::always_inline]] inline void springHessian(StringState& s, const StepContext& ctx, std::size_t j, double k, double q,
                                                  SpringTerm& term) {
     const double g = 1.0 + s.desc.axial_damping * ctx.inv_h;
-    const Vec3& e = s.dir[j];
+    const Vec3& e = s.scratch.dir[j];
     const double e00 = e.x() * e.x(), e11 = e.y() * e.y(), e22 = e.z() * e.z();
     const double e10 = e.y() * e.x(), e20 = e.z() * e.x(), e21 = e.z() * e.y();
     const double h10 = k * (g * e10 + q * (0.0 - e10)), h20 = k * (g * e20 + q * (0.0 - e20));
@@ -316,7 +316,7 @@ template <bool kHessian>
     term.hess << k * (g * e00 + q * (1.0 - e00)), h10, h20,  //
         h10, k * (g * e11 + q * (1.0 - e11)), h21,           //
         h20, h21, k * (g * e22 + q * (1.0 - e22));
-    if (term.to_a && term.to_b) s.blk_off[j] = -term.hess;
+    if (term.to_a && term.to_b) s.scratch.blk_off[j] = -term.hess;
 }
 
 /// Segment j's spring of the material's stiffness k = E A / L_rest, if stretched: gradient
@@ -361,8 +361,8 @@ template <bool kHessian = true>
 /// The springs of segments [j0, j1) (springTerm) added to blk_diag and blk_rhs.
 void assembleSprings(StringState& s, const StepContext& ctx, std::size_t j0, std::size_t j1, double* tension_estimate) {
     auto add = [&s](std::size_t j, const SpringTerm& term) {
-        addSprings(SpringTerm{}, term, s.blk_diag[j], s.blk_rhs[j]);
-        addSprings(term, SpringTerm{}, s.blk_diag[j + 1], s.blk_rhs[j + 1]);
+        addSprings(SpringTerm{}, term, s.scratch.blk_diag[j], s.scratch.blk_rhs[j]);
+        addSprings(term, SpringTerm{}, s.scratch.blk_diag[j + 1], s.scratch.blk_rhs[j + 1]);
     };
     std::size_t j = j0;
     for (; j + 1 < j1; j += 2) {
@@ -390,32 +390,32 @@ namespace {
 /// now, for a chain of free and pinned particles), without the Hessian, whose blocks stay
 /// those solveChain factorised. False where a segment went slack or taut since: the
 /// factorised Hessian then lacks its spring or has one it no longer has. The effective
-/// stretches of the active segments, which linearisedTension reads, go into s.scratch
+/// stretches of the active segments, which linearisedTension reads, go into s.scratch.segment_work
 /// (the tension stage's) and not into geometric_tension, which the Newton iteration that
 /// replaces a chord iteration that fails or is refused reads as it was (acceptChord).
 bool assembleChainGradient(StringState& s, const StepContext& ctx) {
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
     for (std::size_t p = 0; p < s.particles(); ++p)
-        s.blk_rhs[p] = s.hold[p].kind == ParticleHold::Kind::Free ? inertiaRhs(s, p, inv_h2) : Vec3::Zero();
+        s.scratch.blk_rhs[p] = s.hold[p].kind == ParticleHold::Kind::Free ? inertiaRhs(s, p, inv_h2) : Vec3::Zero();
     bool same = true;
     auto add = [&s](std::size_t j, const SpringTerm& term) {
-        if (term.to_a) s.blk_rhs[j] += term.force;
-        if (term.to_b) s.blk_rhs[j + 1] -= term.force;
+        if (term.to_a) s.scratch.blk_rhs[j] += term.force;
+        if (term.to_b) s.scratch.blk_rhs[j + 1] -= term.force;
     };
     const std::size_t m = s.segments();
     std::size_t j = 0;
     for (; j + 1 < m; j += 2) {
-        const std::uint8_t was[2] = {s.active[j], s.active[j + 1]};
+        const std::uint8_t was[2] = {s.scratch.active[j], s.scratch.active[j + 1]};
         SpringTerm term[2];
-        springTerms<false>(s, ctx, j, s.scratch.data(), term);
-        same = same && s.active[j] == was[0] && s.active[j + 1] == was[1];
+        springTerms<false>(s, ctx, j, s.scratch.segment_work.data(), term);
+        same = same && s.scratch.active[j] == was[0] && s.scratch.active[j + 1] == was[1];
         add(j, term[0]);
         add(j + 1, term[1]);
     }
     if (j < m) {
-        const std::uint8_t was = s.active[j];
-        add(j, springTerm<false>(s, ctx, j, s.scratch.data()));
-        same = same && s.active[j] == was;
+        const std::uint8_t was = s.scratch.active[j];
+        add(j, springTerm<false>(s, ctx, j, s.scratch.segment_work.data()));
+        same = same && s.scratch.active[j] == was;
     }
     return same;
 }
@@ -428,11 +428,12 @@ bool assembleChainGradient(StringState& s, const StepContext& ctx) {
 bool acceptChord(StringState& s, double last_move) {
     double worst_squared = 0.0;
     for (std::size_t p = 0; p < s.particles(); ++p)
-        if (s.hold[p].kind == ParticleHold::Kind::Free) worst_squared = std::max(worst_squared, s.blk_rhs[p].squaredNorm());
+        if (s.hold[p].kind == ParticleHold::Kind::Free)
+            worst_squared = std::max(worst_squared, s.scratch.blk_rhs[p].squaredNorm());
     const double limit = kQuadraticRegime * last_move;
     if (!(worst_squared < limit * limit)) return false;
     for (std::size_t j = 0; j < s.segments(); ++j)
-        if (s.active[j]) s.geometric_tension[j] = s.scratch[j];
+        if (s.scratch.active[j]) s.scratch.geometric_tension[j] = s.scratch.segment_work[j];
     return true;
 }
 
@@ -445,10 +446,11 @@ void linearisedTension(StringState& s, const StepContext& ctx, std::size_t j0, s
     // Segment j's linearised effective stretch (0 where it took no part: then its tension
     // is max(0, 0) / compliance = +0, as set); each particle's step found once, carried
     // to the next segment.
-    Vec3 da = fixedRow(s, j0) ? Vec3::Zero() : s.blk_rhs[j0];
+    Vec3 da = fixedRow(s, j0) ? Vec3::Zero() : s.scratch.blk_rhs[j0];
     auto stretch = [&](std::size_t j) {
-        const Vec3 db = fixedRow(s, j + 1) ? Vec3::Zero() : s.blk_rhs[j + 1];
-        const double effective = s.active[j] ? s.geometric_tension[j] + (1.0 + rate_gain) * s.dir[j].dot(db - da) : 0.0;
+        const Vec3 db = fixedRow(s, j + 1) ? Vec3::Zero() : s.scratch.blk_rhs[j + 1];
+        const double effective =
+            s.scratch.active[j] ? s.scratch.geometric_tension[j] + (1.0 + rate_gain) * s.scratch.dir[j].dot(db - da) : 0.0;
         da = db;
         return effective;
     };
@@ -457,10 +459,10 @@ void linearisedTension(StringState& s, const StepContext& ctx, std::size_t j0, s
     for (; j + 1 < j1; j += 2) {
         const double e0 = stretch(j), e1 = stretch(j + 1);
         const Lanes2 t = Lanes2{std::max(0.0, e0), std::max(0.0, e1)} / Lanes2{s.compliance[j], s.compliance[j + 1]};
-        s.geometric_tension[j] = t[0];
-        s.geometric_tension[j + 1] = t[1];
+        s.scratch.geometric_tension[j] = t[0];
+        s.scratch.geometric_tension[j + 1] = t[1];
     }
-    if (j < j1) s.geometric_tension[j] = std::max(0.0, stretch(j)) / s.compliance[j];
+    if (j < j1) s.scratch.geometric_tension[j] = std::max(0.0, stretch(j)) / s.compliance[j];
 }
 
 /// solveChain's sweep from the top alone, over particles [0, mid), with the springs of
@@ -485,11 +487,11 @@ chain::Carry<double> sweepFromTop(StringState& s, const StepContext& ctx, std::s
         double r[3], y[3], gain[9];
         chain::Sym<double> inv;
         chain::load(rhs, r);
-        chain::eliminate(carry, chain::lower(d), r, chain::lower(s.blk_off[t]), y, gain, inv);
-        chain::store(y, s.blk_rhs[t]);
-        std::memcpy(s.blk_factor_gain[t].data(), gain, sizeof gain);
+        chain::eliminate(carry, chain::lower(d), r, chain::lower(s.scratch.blk_off[t]), y, gain, inv);
+        chain::store(y, s.scratch.blk_rhs[t]);
+        std::memcpy(s.scratch.blk_factor_gain[t].data(), gain, sizeof gain);
     }
-    addSprings(last, SpringTerm{}, s.blk_diag[mid], s.blk_rhs[mid]);
+    addSprings(last, SpringTerm{}, s.scratch.blk_diag[mid], s.scratch.blk_rhs[mid]);
     return carry;
 }
 
@@ -511,9 +513,9 @@ chain::Carry<double> sweepFromBottom(StringState& s, const StepContext& ctx, std
         double r[3], y[3], gain[9];
         chain::Sym<double> inv;
         chain::load(rhs, r);
-        chain::eliminate(carry, chain::lower(d), r, chain::lower(s.blk_off[i - 1]), y, gain, inv);
-        chain::store(y, s.blk_rhs[i]);
-        std::memcpy(s.blk_factor_gain[i].data(), gain, sizeof gain);
+        chain::eliminate(carry, chain::lower(d), r, chain::lower(s.scratch.blk_off[i - 1]), y, gain, inv);
+        chain::store(y, s.scratch.blk_rhs[i]);
+        std::memcpy(s.scratch.blk_factor_gain[i].data(), gain, sizeof gain);
     }
     held = last;
     return carry;
@@ -525,7 +527,7 @@ double applyChainStep(StringState& s, std::size_t p0, std::size_t p1) {
     double worst_squared = 0.0;
     for (std::size_t p = p0; p < p1; ++p) {
         if (fixedRow(s, p)) continue;
-        const Vec3& dx = s.blk_rhs[p];
+        const Vec3& dx = s.scratch.blk_rhs[p];
         if (!dx.allFinite()) continue;
         worst_squared = std::max(worst_squared, dx.squaredNorm());
         s.x[p] += dx;
@@ -544,7 +546,7 @@ double parallelChainStep(StringState& s, RigidTable& rigids, const StepContext& 
     const std::size_t n = s.particles();
     const std::size_t m = s.segments();
     const std::size_t mid = n / 2;
-    double* tension_estimate = s.geometric_tension.data();
+    double* tension_estimate = s.scratch.geometric_tension.data();
     SpringTerm held;  // segment mid, whose share of the middle particle waits for it
     chain::Carry<double> top, bottom;
     pool.forEach(2, [&](std::size_t half) {
@@ -555,17 +557,17 @@ double parallelChainStep(StringState& s, RigidTable& rigids, const StepContext& 
             bottom = sweepFromBottom(s, ctx, mid, tension_estimate, held);
         }
     });
-    addSprings(SpringTerm{}, held, s.blk_diag[mid], s.blk_rhs[mid]);
+    addSprings(SpringTerm{}, held, s.scratch.blk_diag[mid], s.scratch.blk_rhs[mid]);
     chain::Sym<double> middle_inverse;
-    chain::solveMiddle(top, bottom, s.blk_diag[mid], s.blk_rhs[mid], middle_inverse);
+    chain::solveMiddle(top, bottom, s.scratch.blk_diag[mid], s.scratch.blk_rhs[mid], middle_inverse);
     double worst_squared[2] = {0.0, 0.0};
     pool.forEach(2, [&](std::size_t half) {
         if (half == 0) {
-            substituteHalf(n, mid, true, s.blk_rhs.data(), s.blk_factor_gain.data());
+            substituteHalf(n, mid, true, s.scratch.blk_rhs.data(), s.scratch.blk_factor_gain.data());
             linearisedTension(s, ctx, 0, mid);
             worst_squared[0] = applyChainStep(s, 0, mid + 1);
         } else {
-            substituteHalf(n, mid, false, s.blk_rhs.data(), s.blk_factor_gain.data());
+            substituteHalf(n, mid, false, s.scratch.blk_rhs.data(), s.scratch.blk_factor_gain.data());
             linearisedTension(s, ctx, mid, m);
             worst_squared[1] = applyChainStep(s, mid + 1, n);
         }
@@ -604,10 +606,10 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
     // Particles pressed by a body carry an unknown contact force along its normal: the
     // tension solve uses only their equations across the normal (tension.cpp).
     // (All are I already where none was pressed since they were last reset.)
-    if (s.rows_pressed)
-        for (std::size_t p = 0; p < n; ++p) s.row_projector[p].setIdentity();
-    s.rows_pressed = false;
-    for (const SegmentContact& c : s.contacts) {
+    if (s.scratch.rows_pressed)
+        for (std::size_t p = 0; p < n; ++p) s.scratch.row_projector[p].setIdentity();
+    s.scratch.rows_pressed = false;
+    for (const RigidSegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         if (s.broken[j]) continue;
         const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
@@ -621,10 +623,10 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
         }
         for (const Vec3& along : dirs)
             for (std::size_t q : {j, j + 1}) {
-                const Vec3 dir = s.row_projector[q] * along;  // what is left of this direction
+                const Vec3 dir = s.scratch.row_projector[q] * along;  // what is left of this direction
                 const double len = dir.norm();
-                if (len > 1e-6) s.row_projector[q] -= (dir / len) * (dir / len).transpose();
-                s.rows_pressed = true;
+                if (len > 1e-6) s.scratch.row_projector[q] -= (dir / len) * (dir / len).transpose();
+                s.scratch.rows_pressed = true;
             }
     }
 }
@@ -641,7 +643,7 @@ struct WarmSums {
 };
 WarmSums warmSums(const StringState& s, double rate_gain, std::size_t j0, std::size_t j1, std::size_t p0, std::size_t p1) {
     const Vec3* x = s.x.data();
-    const Vec3* shift = s.blk_rhs.data();
+    const Vec3* shift = s.scratch.blk_rhs.data();
     WarmSums sum;
     for (std::size_t p = p0; p < p1; ++p) sum.inertia += s.mass[p] * shift[p].squaredNorm();
     for (std::size_t j = j0; j < j1; ++j) {
@@ -713,7 +715,7 @@ bool warmStart(StringState& s, const StepContext& ctx) {
     const double warm = total.warm * (0.5 / (1.0 + rate_gain)) + 0.5 * inv_h2 * total.inertia;
     if (!(warm < cold)) return false;
     forRanges(ctx.pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {
-        for (std::size_t p = p0; p < p1; ++p) s.x[p] += s.blk_rhs[p];
+        for (std::size_t p = p0; p < p1; ++p) s.x[p] += s.scratch.blk_rhs[p];
     });
     return true;
 }
@@ -753,7 +755,7 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
         for (std::size_t p = p0; p < p1; ++p) {
             const Vec3 correction = s.x_prev[p] - s.x_pred[p];
             const bool free = s.hold[p].kind == ParticleHold::Kind::Free;
-            s.blk_rhs[p] = free && correction.allFinite() ? correction : Vec3::Zero();
+            s.scratch.blk_rhs[p] = free && correction.allFinite() ? correction : Vec3::Zero();
             s.x_pred[p] = s.x[p];
         }
     });
@@ -763,10 +765,8 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
         node.displacement.setZero();
         node.linearised_at.setZero();
     }
-    // The segments' impulses reset and their stretch at the step's start, two roots at a
-    // time (one sqrtpd).
+    // The segments' stretch at the step's start, two roots at a time (one sqrtpd).
     forRanges(ctx.pool, m, kParallelItems, [&](std::size_t j0, std::size_t j1, std::size_t) {
-        std::fill(s.impulse.begin() + static_cast<std::ptrdiff_t>(j0), s.impulse.begin() + static_cast<std::ptrdiff_t>(j1), 0.0);
         std::size_t j = j0;
         for (; j + 1 < j1; j += 2) {
             const Lanes2 len = lengthPair(s.x_prev[j + 1] - s.x_prev[j], s.x_prev[j + 2] - s.x_prev[j + 1]);
@@ -775,9 +775,9 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
         }
         if (j < j1) s.prev_stretch[j] = (s.x_prev[j + 1] - s.x_prev[j]).norm() - s.rest_length[j];
     });
-    s.strain_newton_iterations = 0;
-    s.strain_chord_iterations = 0;
-    s.strain_warm_start = s.contacts.empty() && s.body_nodes.empty() && !ctx.cold_strain_starts && warmStart(s, ctx);
+    s.diagnostics.strain_newton_iterations = 0;
+    s.diagnostics.strain_chord_iterations = 0;
+    s.scratch.strain_warm_start = s.contacts.empty() && s.body_nodes.empty() && !ctx.cold_strain_starts && warmStart(s, ctx);
 }
 
 namespace {
@@ -791,7 +791,7 @@ class StrainSolve {
 public:
     StrainSolve(StringState& string, RigidTable& rigid_table, const StepContext& context)
         : s(string), rigids(rigid_table), ctx(context), n(string.particles()), inv_h2(context.inv_h * context.inv_h),
-          tol(context.settings->strain_tolerance), nodes(string.body_nodes.size()), scratch(string.node_scratch) {
+          tol(context.settings->strain_tolerance), nodes(string.body_nodes.size()), scratch(string.scratch.node_scratch) {
         // Body unknowns (contacts with movable bodies): scratch kept in the string (grown to
         // the most nodes seen, never shrunk, so that a running step does not allocate).
         if (scratch.diag.size() < nodes) {
@@ -808,7 +808,7 @@ public:
         // solved again, so that the step stops at it instead of passing through it.
         linearisePlanes(s, rigids);
         const double stiffest = s.contacts.empty() ? 0.0 : stiffestTerm(s, inv_h2);  // two passes over the string: only for contacts
-        for (SegmentContact& c : s.contacts) {
+        for (RigidSegmentContact& c : s.contacts) {
             // Stiff enough to dominate the rope's springs, the particles' and the body's
             // inertia: under a load F it gives way by F / k_c only. Fixed for the step, so
             // that the line search below sees one energy.
@@ -821,7 +821,7 @@ public:
         // linearised tension (starting from the last step's), its system is solved by
         // solveChain, and it stops on a quadratic prediction of its next move (run).
         plain_chain = s.contacts.empty() && nodes == 0;
-        if (plain_chain) std::copy(s.spring_force.begin(), s.spring_force.end(), s.geometric_tension.begin());
+        if (plain_chain) std::copy(s.spring_force.begin(), s.spring_force.end(), s.scratch.geometric_tension.begin());
         // A long one, alone on the pool (not nested in a forEach over strings), is split over
         // two threads (parallelChainStep); glued particles move bodies, so not with those.
         const bool glued = plain_chain && std::any_of(s.hold.begin(), s.hold.end(), [](const ParticleHold& hold) {
@@ -836,9 +836,10 @@ public:
         // kParallelChainParticles: a longer one's iterations are the same on one thread as on
         // two (parallelChainStep), which has none.
         const bool chord_chain =
-            plain_chain && !glued && n < kParallelChainParticles && s.chain_inverse.size() >= 6 * n + 12 && !ctx.newton_strain_only;
-        inverses = chord_chain ? s.chain_inverse.data() : nullptr;
-        warm_start = s.strain_warm_start;
+            plain_chain && !glued && n < kParallelChainParticles && s.scratch.chain_inverse.size() >= 6 * n + 12 &&
+            !ctx.newton_strain_only;
+        inverses = chord_chain ? s.scratch.chain_inverse.data() : nullptr;
+        warm_start = s.scratch.strain_warm_start;
     }
 
     /// Runs the solve; returns the largest move of its first iteration.
@@ -850,7 +851,7 @@ public:
         // solve's), until they settle.
         const int iterations = ctx.settings->strain_iterations * (s.contacts.empty() ? kChainIterationFactor : kContactIterationFactor);
         bool frictional = false;
-        for (const SegmentContact& c : s.contacts) frictional = frictional || c.friction > 0.0;
+        for (const RigidSegmentContact& c : s.contacts) frictional = frictional || c.friction > 0.0;
         for (int pass = 0; pass < (frictional ? kContactPasses : 1); ++pass) {
             bool converged = false;
             double last_move = -1.0;
@@ -864,9 +865,9 @@ public:
                 else
                     worst = iterate(chord_next, last_move, chord, stalled);
                 if (first_move < 0.0) first_move = worst;
-                ++s.strain_newton_iterations;
-                s.strain_chord_iterations += chord;
-                s.strain_warm_start = false;
+                ++s.diagnostics.strain_newton_iterations;
+                s.diagnostics.strain_chord_iterations += chord;
+                s.scratch.strain_warm_start = false;
                 // Without contacts the iteration converges quadratically once it is close
                 // (each move ~ C times the last one squared): where the moves fall that fast,
                 // the move the next iteration would make, predicted with C from the last two,
@@ -893,21 +894,21 @@ public:
             const double change = weighRigidFriction(s);
             if (converged && change < kFrictionSettled) break;
         }
-        for (SegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
+        for (RigidSegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
         finishChain(s, rigids, ctx);
         return std::max(first_move, 0.0);
     }
 
 private:
-    double gapNow(const SegmentContact& c) const {
+    double gapNow(const RigidSegmentContact& c) const {
         const std::size_t j = c.segment;
         return rigidGap(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]);
     }
     /// The gap after the full step held in blk_rhs and node_step.
-    double gapAfterStep(const SegmentContact& c) const {
+    double gapAfterStep(const RigidSegmentContact& c) const {
         const std::size_t j = c.segment;
-        auto moved = [&](std::size_t p) { return fixedRow(s, p) ? s.x[p] : Vec3(s.x[p] + s.blk_rhs[p]); };
-        const Vec6 step = c.node >= 0 ? s.node_step[static_cast<std::size_t>(c.node)] : Vec6::Zero();
+        auto moved = [&](std::size_t p) { return fixedRow(s, p) ? s.x[p] : Vec3(s.x[p] + s.scratch.blk_rhs[p]); };
+        const Vec6 step = c.node >= 0 ? s.scratch.node_step[static_cast<std::size_t>(c.node)] : Vec6::Zero();
         return rigidGap(s, c, (1.0 - c.s) * moved(j) + c.s * moved(j + 1), &step);
     }
 
@@ -916,10 +917,10 @@ private:
     /// it would run into, the line search (`stalled` where it found no lower energy) and
     /// the move. Returns the largest move.
     double iterate(bool chord_next, double last_move, bool& chord, bool& stalled) {
-        for (SegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
+        for (RigidSegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
         if (chord_next && assembleChainGradient(s, ctx)) {
-            chordSolveChain(n, s.blk_off.data(), s.blk_rhs.data(), s.blk_factor_gain.data(), s.chain_coupled.data(),
-                            inverses);
+            chordSolveChain(n, s.scratch.blk_off.data(), s.scratch.blk_rhs.data(), s.scratch.blk_factor_gain.data(),
+                            s.scratch.chain_coupled.data(), inverses);
             chord = acceptChord(s, last_move);
         }
         if (!chord) solveStep();
@@ -941,14 +942,14 @@ private:
         auto& node_diag = scratch.diag;
         auto& node_rhs = scratch.rhs;
         auto& coupling = scratch.coupling;
-        assembleChain(s, rigids, ctx, plain_chain ? s.geometric_tension.data() : nullptr);
+        assembleChain(s, rigids, ctx, plain_chain ? s.scratch.geometric_tension.data() : nullptr);
         for (std::size_t b = 0; b < nodes; ++b) {
             const BodyNode& node = s.body_nodes[b];
             node_diag[b] = node.mass * inv_h2;
             node_rhs[b] = -(node.mass * node.displacement) * inv_h2;
             coupling[b].clear();
         }
-        for (const SegmentContact& c : s.contacts) {
+        for (const RigidSegmentContact& c : s.contacts) {
             if (!c.active) continue;
             const std::size_t j = c.segment;
             const Vec3& nrm = c.plane_normal;
@@ -968,7 +969,7 @@ private:
         // Friction: w/2 |T rel|^2 (T the tangent projector, rel the motion relative to the
         // body): gradient w T rel, Hessian w T on the string's side, w (TJ)^T (TJ) on the
         // body's (J = d rel / d(u, theta)).
-        for (const SegmentContact& c : s.contacts) {
+        for (const RigidSegmentContact& c : s.contacts) {
             const std::size_t j = c.segment;
             if (!(c.friction_weight > 0.0) || s.broken[j]) continue;
             const bool fa = !fixedRow(s, j), fb = !fixedRow(s, j + 1);
@@ -992,13 +993,13 @@ private:
         auto& node_rhs = scratch.rhs;
         auto& coupling = scratch.coupling;
         if (plain_chain) {
-            solveChain(n, s.blk_diag.data(), s.blk_off.data(), s.blk_rhs.data(), s.blk_factor_gain.data(),
-                       s.chain_coupled.data(), inverses);
+            solveChain(n, s.scratch.blk_diag.data(), s.scratch.blk_off.data(), s.scratch.blk_rhs.data(),
+                       s.scratch.blk_factor_gain.data(), s.scratch.chain_coupled.data(), inverses);
             return;
         }
         factorChain(s);
-        solveFactored(s, s.blk_rhs);  // y = A^-1 r
-        for (std::size_t b = 0; b < nodes; ++b) s.node_step[b].setZero();
+        solveFactored(s, s.scratch.blk_rhs);  // y = A^-1 r
+        for (std::size_t b = 0; b < nodes; ++b) s.scratch.node_step[b].setZero();
         if (nodes == 0) return;
         // Schur complement on the bodies' unknowns: (D - C^T A^-1 C) du = r_b - C^T y,
         // then dx = y - A^-1 C du. Each body costs six more O(n) solves.
@@ -1007,13 +1008,14 @@ private:
         Eigen::VectorXd& rs = scratch.rs;
         schur.setZero(static_cast<Eigen::Index>(dim), static_cast<Eigen::Index>(dim));
         rs.resize(static_cast<Eigen::Index>(dim));
-        if (s.node_columns.size() < dim) s.node_columns.resize(dim);
+        if (s.scratch.node_columns.size() < dim) s.scratch.node_columns.resize(dim);
         for (std::size_t b = 0; b < nodes; ++b) {
             schur.block<6, 6>(static_cast<Eigen::Index>(6 * b), static_cast<Eigen::Index>(6 * b)) = node_diag[b];
             rs.segment<6>(static_cast<Eigen::Index>(6 * b)) = node_rhs[b];
-            for (const auto& [p, blk] : coupling[b]) rs.segment<6>(static_cast<Eigen::Index>(6 * b)) -= blk.transpose() * s.blk_rhs[p];
+            for (const auto& [p, blk] : coupling[b])
+                rs.segment<6>(static_cast<Eigen::Index>(6 * b)) -= blk.transpose() * s.scratch.blk_rhs[p];
             for (int col = 0; col < 6; ++col) {
-                std::vector<Vec3>& column = s.node_columns[6 * b + static_cast<std::size_t>(col)];
+                std::vector<Vec3>& column = s.scratch.node_columns[6 * b + static_cast<std::size_t>(col)];
                 column.assign(n, Vec3::Zero());
                 for (const auto& [p, blk] : coupling[b]) column[p] += blk.col(col);
                 solveFactored(s, column);
@@ -1023,16 +1025,16 @@ private:
             for (std::size_t c = 0; c < dim; ++c)
                 for (const auto& [p, blk] : coupling[b])
                     schur.block<6, 1>(static_cast<Eigen::Index>(6 * b), static_cast<Eigen::Index>(c)) -=
-                        blk.transpose() * s.node_columns[c][p];
+                        blk.transpose() * s.scratch.node_columns[c][p];
         scratch.ldlt.compute(schur);
         Eigen::VectorXd& du = scratch.du;
         du = scratch.ldlt.solve(rs);
         for (std::size_t c = 0; c < dim; ++c) {
             const double f = du[static_cast<Eigen::Index>(c)];
             if (f != 0.0)
-                for (std::size_t p = 0; p < n; ++p) s.blk_rhs[p] -= f * s.node_columns[c][p];
+                for (std::size_t p = 0; p < n; ++p) s.scratch.blk_rhs[p] -= f * s.scratch.node_columns[c][p];
         }
-        for (std::size_t b = 0; b < nodes; ++b) s.node_step[b] = du.segment<6>(static_cast<Eigen::Index>(6 * b));
+        for (std::size_t b = 0; b < nodes; ++b) s.scratch.node_step[b] = du.segment<6>(static_cast<Eigen::Index>(6 * b));
     }
 
     /// A separated contact that the full Newton step would run into joins the Hessian (not
@@ -1040,7 +1042,7 @@ private:
     void addPredictedContacts() {
         for (int round = 0; round < kPredictRounds; ++round) {
             bool added = false;
-            for (SegmentContact& c : s.contacts)
+            for (RigidSegmentContact& c : s.contacts)
                 if (!c.active && !s.broken[c.segment] && gapAfterStep(c) < 0.0) c.active = added = true;
             if (!added) break;
             solveStep();
@@ -1070,9 +1072,9 @@ private:
     double applyStep(double alpha) {
         double worst = 0.0;
         if (alpha != 1.0)
-            for (std::size_t p = 0; p < n; ++p) s.blk_rhs[p] *= alpha;
+            for (std::size_t p = 0; p < n; ++p) s.scratch.blk_rhs[p] *= alpha;
         for (std::size_t b = 0; b < nodes; ++b) {
-            const Vec6 u = alpha * s.node_step[b];
+            const Vec6 u = alpha * s.scratch.node_step[b];
             if (!u.allFinite()) continue;
             BodyNode& node = s.body_nodes[b];
             RigidState& body = rigids.bodies[node.body.index];
@@ -1089,7 +1091,7 @@ private:
         double worst_squared = 0.0;
         for (std::size_t p = 0; p < n; ++p) {
             if (fixedRow(s, p)) continue;
-            const Vec3& dx = s.blk_rhs[p];
+            const Vec3& dx = s.scratch.blk_rhs[p];
             if (!dx.allFinite()) continue;
             worst_squared = std::max(worst_squared, dx.squaredNorm());
             if (s.hold[p].kind == ParticleHold::Kind::Free) {
@@ -1112,7 +1114,7 @@ private:
     const double inv_h2;
     const double tol;
     const std::size_t nodes;
-    StringState::NodeScratch& scratch;
+    StringScratch::NodeScratch& scratch;
     /// A chain without contacts or body unknowns, on two threads, and its chord iterations'
     /// store of pivot inverses (null: none).
     bool plain_chain = false;

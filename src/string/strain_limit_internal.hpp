@@ -40,24 +40,24 @@ inline bool freeParticle(const StringState& s, std::size_t p) { return s.hold[p]
 void linearisePlanes(StringState& s, const RigidTable& rigids);
 /// The gap of contact c (linearised by linearisePlanes) at string point xs: >= 0 when the
 /// string is clear of the plane. `extra`: a further displacement of the body (a trial step).
-double rigidGap(const StringState& s, const SegmentContact& c, const Vec3& xs, const Vec6* extra = nullptr);
+double rigidGap(const StringState& s, const RigidSegmentContact& c, const Vec3& xs, const Vec6* extra = nullptr);
 /// The gradient of rigidGap with respect to the body's displacement (u, theta).
-Vec6 rigidGapBodyGradient(const SegmentContact& c);
+Vec6 rigidGapBodyGradient(const RigidSegmentContact& c);
 /// The tangential motion u_t of contact c over the step (relative to the body), with the
 /// string's contact point at xs and the body moved by `extra` beyond its displacement.
-Vec3 rigidSlip(const StringState& s, const SegmentContact& c, const Vec3& xs, const Vec6* extra = nullptr);
+Vec3 rigidSlip(const StringState& s, const RigidSegmentContact& c, const Vec3& xs, const Vec6* extra = nullptr);
 /// d(u_t)/d(body displacement): T [-I, [arm]x], T the tangent projector.
-Mat36 rigidSlipBodyJacobian(const SegmentContact& c, const Mat3& tangent);
+Mat36 rigidSlipBodyJacobian(const RigidSegmentContact& c, const Mat3& tangent);
 /// Rigid contact c's penalty k_c g^2 / 2 on the string's own rows (g: its gap, or 0 where
 /// it only joins the Hessian) at the segment's ends that move (`fa`, `fb`).
-void addPenaltyRows(StringState& s, const SegmentContact& c, double g, bool fa, bool fb);
+void addPenaltyRows(StringState& s, const RigidSegmentContact& c, double g, bool fa, bool fb);
 /// Rigid contact c's friction w/2 |T rel|^2 on the string's own rows, at the segment's ends
 /// that move (`fa`, `fb`). Returns T and T rel.
 struct FrictionTerm {
     Mat3 tangent;
     Vec3 slip;
 };
-FrictionTerm addFrictionRows(StringState& s, const SegmentContact& c, bool fa, bool fb);
+FrictionTerm addFrictionRows(StringState& s, const RigidSegmentContact& c, bool fa, bool fb);
 /// The friction weights of a pass, from each contact's penalty force and slip now.
 /// Returns the largest relative change of a weight.
 double weighRigidFriction(StringState& s);
@@ -86,10 +86,10 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
 /// blk_factor_gain and blk_coupled.
 inline void factorChain(StringState& s) {
     const std::size_t n = s.particles();
-    s.blk_factor.resize(n);
-    s.blk_coupled.resize(n);
-    factorBlockTridiagonal(n, s.blk_diag.data(), s.blk_off.data(), s.blk_factor.data(), s.blk_factor_gain.data(),
-                           s.blk_coupled.data());
+    s.scratch.blk_factor.resize(n);
+    s.scratch.blk_coupled.resize(n);
+    factorBlockTridiagonal(n, s.scratch.blk_diag.data(), s.scratch.blk_off.data(), s.scratch.blk_factor.data(),
+                           s.scratch.blk_factor_gain.data(), s.scratch.blk_coupled.data());
 }
 
 }  // namespace tearables::detail

@@ -145,8 +145,8 @@ void StringPairs::searchTree(std::uint32_t skip) {
     ThreadPool& pool = *pool_;
     auto keep = [](const void* self, const SegmentPair& pair) {
         // judgePair writes what it reads of the contact first: a scratch per thread,
-        // not a SegmentContact (~330 bytes of defaults) built for every candidate.
-        thread_local SegmentContact scratch;
+        // not a StringPairContact of defaults built for every candidate.
+        thread_local StringPairContact scratch;
         return static_cast<const StringPairs*>(self)->judgePair(pair, scratch) != kPairDropped;
     };
     auto reject = [](const void* self, std::uint32_t i, std::uint32_t j) {
@@ -175,13 +175,13 @@ void StringPairs::searchTree(std::uint32_t skip) {
 /// The contacts sorted by key (string, segment, partner, partner segment): the warm
 /// start merges with the last step's pairs, and the deep pairs are binary-searched.
 /// The keys are sorted with the contacts' indices and the contacts copied once, in that
-/// order (not the ~330-byte contacts sorted). A key names one pair of segments, which
+/// order (not the contacts sorted). A key names one pair of segments, which
 /// the search reports once, so the order is the one sorting the contacts gives.
 void StringPairs::sortContacts() {
     contact_order_.clear();
     for (std::size_t i = 0; i < grid_pairs_.size(); ++i) {
-        const SegmentContact& c = pair_contact_[i];
-        const PairKey key = pairKey(c);
+        const StringPairContact& c = pair_contact_[i];
+        const PairKey key = c.key();
         if (pair_verdict_[i] == kPairDeep) deep_next_.push_back(key);
         if (pair_verdict_[i] == kPairContact) contact_order_.emplace_back(key, static_cast<std::uint32_t>(i));
     }
@@ -316,7 +316,7 @@ bool StringPairs::selfPairFree(const PairString& ps, std::uint32_t skip) const {
 
 /// What findPairs makes of a pair of the swept search: no contact, a pair that
 /// is (still) deep (c's key is remembered), or a contact (c). Reads only.
-std::uint8_t StringPairs::judgePair(const SegmentPair& pair, SegmentContact& c) const {
+std::uint8_t StringPairs::judgePair(const SegmentPair& pair, StringPairContact& c) const {
     const std::vector<StringState>& strings = *strings_;
     const CollisionSegment& a = grid_segments_[pair.first];
     const CollisionSegment& b = grid_segments_[pair.second];
@@ -328,7 +328,7 @@ std::uint8_t StringPairs::judgePair(const SegmentPair& pair, SegmentContact& c) 
     c.gap = strings[c.string].radius[c.segment] + strings[c.partner].radius[c.partner_segment];
     // Deep at the start, or still coming apart from being deep: no contact (see
     // kStringDeepStart), and remembered for the next step.
-    const PairKey key = pairKey(c);
+    const PairKey key = c.key();
     const bool was_deep = std::binary_search(deep_pairs_.begin(), deep_pairs_.end(), key);
     if (pair.distance < (was_deep ? 1.0 : kStringDeepStart) * c.gap) {
         return kPairDeep;
@@ -366,7 +366,7 @@ std::uint8_t StringPairs::judgePair(const SegmentPair& pair, SegmentContact& c) 
         sa.x[c.segment], sa.x[c.segment + 1], sb.x[c.partner_segment], sb.x[c.partner_segment + 1]);
     if (now.distance > apart && (now.p - now.q).dot(pair.normal) > 0.0) return kPairDropped;
     const double gap = c.gap;
-    c = SegmentContact{};
+    c = StringPairContact{};
     c.string = a.chain;
     c.segment = a.index_in_chain;
     c.partner = b.chain;
@@ -459,9 +459,9 @@ void StringPairs::couple(std::vector<StringState>& strings, RigidTable& rigids, 
 /// first pass (both lists sorted by key).
 void StringPairs::warmStart() {
     std::size_t k = 0;
-    for (SegmentContact& c : string_pairs_) {
-        while (k < previous_pairs_.size() && pairKey(previous_pairs_[k]) < pairKey(c)) ++k;
-        if (k < previous_pairs_.size() && pairKey(previous_pairs_[k]) == pairKey(c)) c.force = previous_pairs_[k].force;
+    for (StringPairContact& c : string_pairs_) {
+        while (k < previous_pairs_.size() && previous_pairs_[k].key() < c.key()) ++k;
+        if (k < previous_pairs_.size() && previous_pairs_[k].key() == c.key()) c.force = previous_pairs_[k].force;
     }
 }
 
@@ -475,7 +475,7 @@ std::size_t StringPairs::groupClusters() {
         while (cluster_root_[i] != i) i = cluster_root_[i] = cluster_root_[cluster_root_[i]];
         return i;
     };
-    for (const SegmentContact& c : string_pairs_) cluster_root_[root(c.string)] = root(c.partner);
+    for (const StringPairContact& c : string_pairs_) cluster_root_[root(c.string)] = root(c.partner);
     // The pairs grouped by cluster (clusters in the order of their root slot, pairs in
     // their order within each: a counting sort by root), each cluster's strings in the
     // order its pairs name them first.
@@ -502,13 +502,13 @@ std::size_t StringPairs::groupClusters() {
         cl.index.reserve(cluster_first_[r + 1] - cluster_first_[r]);
         for (std::size_t q = cluster_first_[r]; q < cluster_first_[r + 1]; ++q) {
             const std::size_t i = cluster_order_[q];
-            const SegmentContact& c = string_pairs_[i];
+            const StringPairContact& c = string_pairs_[i];
             for (std::uint32_t sidx : {c.string, c.partner})
                 if (cluster_local_[sidx] == ~std::uint32_t{0}) {
                     cluster_local_[sidx] = static_cast<std::uint32_t>(cl.strings.size());
                     cl.strings.push_back(&strings[sidx]);
                 }
-            SegmentContact local = c;
+            StringPairContact local = c;
             local.string = cluster_local_[c.string];
             local.partner = cluster_local_[c.partner];
             cl.contacts.push_back(local);
@@ -526,7 +526,7 @@ void StringPairs::solveClusters(std::size_t count, RigidTable& rigids, const Ste
         cl.scratch.always_sparse = sparse_joint_steps;
         solveStringCluster(cl.strings, cl.contacts, rigids, ctx, cl.scratch);
         for (std::size_t i = 0; i < cl.contacts.size(); ++i) {
-            SegmentContact& c = string_pairs_[cl.index[i]];
+            StringPairContact& c = string_pairs_[cl.index[i]];
             c.force = cl.contacts[i].force;
             c.normal = cl.contacts[i].normal;
         }
@@ -548,7 +548,7 @@ void StringPairs::finish(std::vector<StringState>& strings) {
     };
     // The gap at the closest points now. The joint solve kept every pair on its side,
     // so the closest-point direction is the normal (the solve's where the axes touch).
-    auto measure = [&](SegmentContact& c) {
+    auto measure = [&](StringPairContact& c) {
         const StringState& sa = strings[c.string];
         const StringState& sb = strings[c.partner];
         const SegmentClosest cp = closestPointsOfSegments(
@@ -561,7 +561,7 @@ void StringPairs::finish(std::vector<StringState>& strings) {
     };
     for (int sweep = 0; sweep < kStringCleanupSweeps; ++sweep) {
         double worst = 0.0;
-        for (SegmentContact& c : string_pairs_) {
+        for (StringPairContact& c : string_pairs_) {
             if (strings[c.string].broken[c.segment] || strings[c.partner].broken[c.partner_segment]) continue;
             const double gap = measure(c);
             if (gap >= 0.0) continue;
@@ -582,7 +582,7 @@ void StringPairs::finish(std::vector<StringState>& strings) {
         if (worst <= kStringCleanupTolerance) break;
     }
     // Colliding particles weigh 3x in the next step's shape matching (Sec. 6).
-    for (SegmentContact& c : string_pairs_) {
+    for (StringPairContact& c : string_pairs_) {
         if (c.force > 0.0) previous_pairs_.push_back(c);
         if (measure(c) > kStringTouchSlop * c.gap) continue;
         strings[c.string].colliding[c.segment] = strings[c.string].colliding[c.segment + 1] = 1;

@@ -14,15 +14,10 @@
 #include "string/string_state.hpp"
 
 #include <cstdint>
-#include <tuple>
 #include <utility>
 #include <vector>
 
 namespace tearables::detail {
-
-/// One pair of segments: (string, segment, partner string, partner segment).
-using PairKey = std::tuple<std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t>;
-inline PairKey pairKey(const SegmentContact& c) { return PairKey(c.string, c.segment, c.partner, c.partner_segment); }
 
 /// The string-string contacts of a step and what persists of them between steps.
 class StringPairs {
@@ -66,7 +61,7 @@ private:
     // Strings that touch, their pairs (cluster-local string numbers) and the pairs' indices.
     struct Cluster {
         std::vector<StringState*> strings;
-        std::vector<SegmentContact> contacts;
+        std::vector<StringPairContact> contacts;
         std::vector<std::size_t> index;
         ClusterScratch scratch;  // kept so that a running step does not allocate
     };
@@ -78,7 +73,7 @@ private:
     template <bool fill>
     void scanString(PairString& ps);
     bool selfPairFree(const PairString& ps, std::uint32_t skip) const;
-    std::uint8_t judgePair(const SegmentPair& pair, SegmentContact& c) const;
+    std::uint8_t judgePair(const SegmentPair& pair, StringPairContact& c) const;
     bool surelyDropped(std::uint32_t i, std::uint32_t j) const;
     double nodesSeparationNeeded(const ChainTree::NodeBounds& a, const ChainTree::NodeBounds& b) const;
     void warmStart();
@@ -99,11 +94,11 @@ private:
     std::vector<PairString> pair_strings_;
     std::vector<std::uint8_t> self_free_;  // per entry of pair_strings_: selfPairFree held
     std::vector<std::uint8_t> pair_verdict_;  // per pair of grid_pairs_
-    std::vector<SegmentContact> pair_contact_;
+    std::vector<StringPairContact> pair_contact_;
     std::vector<std::pair<PairKey, std::uint32_t>> contact_order_;  // key, index into pair_contact_
     // This step's contacts (global string indices, sorted by key) and the last step's
     // that pressed (warm start).
-    std::vector<SegmentContact> string_pairs_, previous_pairs_;
+    std::vector<StringPairContact> string_pairs_, previous_pairs_;
     // Pairs that started a step deeper than kStringDeepStart (sorted) and have not come
     // apart since: no contacts until they have.
     std::vector<PairKey> deep_pairs_, deep_next_;

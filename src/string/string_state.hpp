@@ -6,6 +6,7 @@
 #include "sim/material_curve.hpp"
 #include "sim/rigid_table.hpp"
 #include "sim/step_context.hpp"
+#include "string/contacts.hpp"
 #include "string/shape_matching.hpp"
 #include "tearables/string.hpp"
 #include "tearables/world.hpp"
@@ -19,42 +20,6 @@
 #include <vector>
 
 namespace tearables::detail {
-
-/// A contact of one segment with a rigid body for this step (from RigidContact).
-struct SegmentContact {
-    std::uint32_t segment = 0;
-    double s = 0.0;              ///< fraction along the segment
-    Vec3 normal = Vec3::UnitY(); ///< from the body toward the string (at collection; see local_normal)
-    Vec3 local_normal = Vec3::UnitY();  ///< the normal in the body's frame: it turns with the body
-    Vec3 local = Vec3::Zero();   ///< contact point in the body's frame (follows the body); world point without a body
-    RigidId body;                ///< invalid: a fixed world point
-    double gap = 0.0;            ///< required clearance along the normal, m (the radius for bodies)
-    double friction = 0.5;
-    int node = -1;               ///< index into body_nodes when the body is movable
-    double depth = 0.0;          ///< penetration of the predicted position, m (>= 0)
-    double stiffness = 0.0;      ///< penalty k_c used by the last solve, N/m
-    bool active = false;         ///< held as an equality in the current pass
-    // String-string contacts (string collision, solveStringCluster): this side is segment
-    // `segment` at `s` of the cluster's string `string`, the other side segment
-    // `partner_segment` at `partner_s` of string `partner` (may be the same string);
-    // `normal` points from the other side toward this one, `gap` is the axis distance
-    // to keep (the sum of the radii).
-    std::uint32_t string = 0;
-    std::uint32_t partner = 0;
-    std::uint32_t partner_segment = 0;
-    double partner_s = 0.0;
-    Vec3 start_normal = Vec3::UnitX();  ///< the normal at the start of the step
-    double start_distance = 0.0; ///< the axes' distance at the start of the step, m
-    double force = 0.0;          ///< normal force of the last solve, N (friction bound, warm start)
-    // The rigid contact's plane, linearised where the solve starts (contact_rows.cpp,
-    // rigidGap): its point and normal in the world, and d(gap)/d(rotation) of the body.
-    Vec3 plane_point = Vec3::Zero();
-    Vec3 plane_normal = Vec3::UnitY();
-    Vec3 plane_turn = Vec3::Zero();
-    Vec3 plane_arm = Vec3::Zero();    ///< plane_point minus the body's centre
-    Vec3 start_point = Vec3::Zero();  ///< the body's contact point where the step started
-    double friction_weight = 0.0;     ///< rigid friction's lagged weight mu F / max(slip, eps), N/m
-};
 
 struct StringState;
 class ThreadPool;
@@ -74,7 +39,7 @@ struct ClusterScratch {
     /// only the large clusters take (tests compare it with the Woodbury step).
     bool always_sparse = false;
 };
-void solveStringCluster(const std::vector<StringState*>& strings, std::vector<SegmentContact>& contacts,
+void solveStringCluster(const std::vector<StringState*>& strings, std::vector<StringPairContact>& contacts,
                         RigidTable& rigids, const StepContext& ctx, ClusterScratch& work);
 
 /// A movable body touched by a string's contacts: 6 unknowns (translation, rotation) in
@@ -90,6 +55,72 @@ struct BodyNode {
     Eigen::Matrix<double, 6, 1> linearised_at = Eigen::Matrix<double, 6, 1>::Zero();
     BodyNode() = default;
     explicit BodyNode(RigidId b) : body(b) {}
+};
+
+/// What a step recomputes before it reads it, kept between steps only so that a running
+/// step does not allocate. A snapshot keeps the part a step may read before writing
+/// (src/world/snapshot.cpp) and rebuilds the rest.
+struct StringScratch {
+    // --- the tension and twist solves: one tridiagonal system per string (segments) --------
+    std::vector<Vec3> dir;            ///< unit segment directions
+    std::vector<double> diag, off, rhs;
+    std::vector<double> segment_work; ///< solveSymmetricTridiagonal's gains; the strain solve's active stretches
+    std::vector<std::uint8_t> active;
+
+    // --- the strain solve: block-tridiagonal Newton system (particles) ----------------------
+    std::vector<Mat3> blk_diag, blk_off;
+    std::vector<Vec3> blk_rhs;
+    std::vector<Mat3> blk_factor_gain;    ///< factorisation: U_{i-1}^T D'_{i-1}^-1 (per particle)
+    std::vector<Cholesky3> blk_factor;    ///< factorisation: Cholesky of D'_i
+    /// The contact-free chain's factorisation: its pivots' inverses, 6 n + 12 doubles
+    /// (solveChain, linalg/block_tridiagonal.hpp), kept for a chord iteration.
+    std::vector<double> chain_inverse;
+    /// solveChain's pairs (t, n - 1 - t): bit 0 where t couples to t + 1, bit 1 where
+    /// n - 1 - t couples to n - 2 - t, for the back substitution (n entries).
+    std::vector<std::uint8_t> chain_coupled;
+    std::vector<std::uint8_t> blk_coupled;  ///< factorisation: particle i is coupled to i-1 (gain != 0)
+    /// The strain solve started warm this step (strain_limit.cpp, warmStart) and has not
+    /// made its first Newton iteration yet.
+    bool strain_warm_start = false;
+    std::vector<double> geometric_tension;  ///< per segment: the tension estimate of the chain Hessian's geometric term, N
+    std::vector<Mat3> row_projector;      ///< per particle: I, or I minus the normals of the bodies pressing it
+    bool rows_pressed = false;            ///< whether any row_projector may differ from I (none does where false)
+
+    // --- the strain solve's body unknowns ---------------------------------------------------
+    std::vector<Eigen::Matrix<double, 6, 1>> node_step;  ///< per body node: this iteration's Newton step
+    std::vector<std::vector<Vec3>> node_columns;  ///< A^-1 C, 6 columns per body node (n each; grown, never shrunk)
+    /// The body unknowns' Schur complement (limitStrain): per node its 6x6 block,
+    /// right-hand side and coupling rows (particle, 3x6 block); the dense Schur system and
+    /// its factorisation.
+    struct NodeScratch {
+        std::vector<Eigen::Matrix<double, 6, 6>> diag;
+        std::vector<Eigen::Matrix<double, 6, 1>> rhs;
+        std::vector<std::vector<std::pair<std::size_t, Eigen::Matrix<double, 3, 6>>>> coupling;
+        Eigen::MatrixXd schur;
+        Eigen::VectorXd rs, du;
+        Eigen::LDLT<Eigen::MatrixXd> ldlt;
+        NodeScratch() = default;
+        // A copy starts empty: it is scratch, and an Eigen::LDLT that has not factorised
+        // yet holds an uninitialised status that copying it would read (UBSan).
+        NodeScratch(const NodeScratch&) {}
+        NodeScratch& operator=(const NodeScratch&) { return *this; }
+    } node_scratch;
+
+    // --- chain shape matching (Strings Sec. 3) ----------------------------------------------
+    std::vector<Vec3> csm_goal;           ///< per particle: goal displacement for this step's prediction
+    CsmScratch csm_scratch;
+
+    // --- twist (Strings Sec. 4) -------------------------------------------------------------
+    /// This step's twist solve was skipped: the string is untwisted (solveTwist), so every
+    /// twist moment is zero; and twist_force is all zero (computeTwistForces).
+    bool twist_skipped = false;
+    bool twist_force_zero = false;
+};
+
+/// Counters of the last step, for tests and benchmarks; nothing reads them in the step.
+struct StringDiagnostics {
+    int strain_newton_iterations = 0;     ///< iterations of this step's strain solves, chord ones included
+    int strain_chord_iterations = 0;      ///< of which chord iterations
 };
 
 struct StringState {
@@ -121,63 +152,18 @@ struct StringState {
     std::vector<double> original_length;  ///< L0 at creation, m
     std::vector<double> peak_stress;      ///< highest tensile stress past yield so far, Pa (hardening)
     std::vector<SegmentMaterial> material;
-
-    // --- solver scratch (reused, no allocation in the step) ------------------------------
-    std::vector<Vec3> dir;            ///< unit segment directions
-    std::vector<double> diag, off, rhs, scratch, violation;
-    std::vector<double> impulse;      ///< accumulated strain-limit impulse per segment this step, kg m
-    std::vector<std::uint8_t> active;
-    std::vector<Mat3> blk_diag, blk_off;  ///< block-tridiagonal Newton system (particles)
-    std::vector<Vec3> blk_rhs;
-    std::vector<Mat3> blk_factor_gain;    ///< factorisation: U_{i-1}^T D'_{i-1}^-1 (per particle)
-    std::vector<Cholesky3> blk_factor;    ///< factorisation: Cholesky of D'_i
-    /// The contact-free chain's factorisation: its pivots' inverses, 6 n + 12 doubles
-    /// (solveChain, linalg/block_tridiagonal.hpp), kept for a chord iteration (scratch).
-    std::vector<double> chain_inverse;
-    /// solveChain's pairs (t, n - 1 - t): bit 0 where t couples to t + 1, bit 1 where
-    /// n - 1 - t couples to n - 2 - t, for the back substitution (scratch, n entries).
-    std::vector<std::uint8_t> chain_coupled;
-    std::vector<std::uint8_t> blk_coupled;  ///< factorisation: particle i is coupled to i-1 (gain != 0)
+    std::vector<double> spring_force;     ///< per segment: k c of the last Newton iteration, N
+    std::vector<double> prev_stretch;     ///< segment stretch at the start of the step, m
 
     // --- rigid contacts (collision stage) -------------------------------------------------
-    std::vector<SegmentContact> contacts;
-    std::vector<double> spring_force;     ///< per segment: k c of the last Newton iteration, N
-    /// The strain solve started warm this step (strain_limit.cpp, warmStart) and has not
-    /// made its first Newton iteration yet (scratch).
-    bool strain_warm_start = false;
-    int strain_newton_iterations = 0;     ///< iterations of this step's strain solves, chord ones included (diagnostic)
-    int strain_chord_iterations = 0;      ///< of which chord iterations (diagnostic)
-    std::vector<double> geometric_tension;  ///< per segment: the tension estimate of the chain Hessian's geometric term, N (scratch)
-    std::vector<Mat3> row_projector;      ///< per particle: I, or I minus the normals of the bodies pressing it
-    bool rows_pressed = false;            ///< whether any row_projector may differ from I (none does where false)
-    std::vector<std::uint8_t> colliding;  ///< per particle: in a string-string contact last step (3x heavier in CSM)
+    std::vector<RigidSegmentContact> contacts;
     std::vector<BodyNode> body_nodes;
-    std::vector<Eigen::Matrix<double, 6, 1>> node_step;  ///< per body node: this iteration's Newton step
-    std::vector<std::vector<Vec3>> node_columns;  ///< A^-1 C, 6 columns per body node (n each; grown, never shrunk)
-    /// Scratch of the body unknowns' Schur complement (limitStrain), kept between steps so
-    /// that a running step does not allocate: per node its 6x6 block, right-hand side and
-    /// coupling rows (particle, 3x6 block); the dense Schur system and its factorisation.
-    struct NodeScratch {
-        std::vector<Eigen::Matrix<double, 6, 6>> diag;
-        std::vector<Eigen::Matrix<double, 6, 1>> rhs;
-        std::vector<std::vector<std::pair<std::size_t, Eigen::Matrix<double, 3, 6>>>> coupling;
-        Eigen::MatrixXd schur;
-        Eigen::VectorXd rs, du;
-        Eigen::LDLT<Eigen::MatrixXd> ldlt;
-        NodeScratch() = default;
-        // A copy starts empty: it is scratch, and an Eigen::LDLT that has not factorised
-        // yet holds an uninitialised status that copying it would read (UBSan).
-        NodeScratch(const NodeScratch&) {}
-        NodeScratch& operator=(const NodeScratch&) { return *this; }
-    } node_scratch;
-    std::vector<double> prev_stretch;     ///< segment stretch at the start of the step, m
+    std::vector<std::uint8_t> colliding;  ///< per particle: in a string-string contact last step (3x heavier in CSM)
 
     // --- chain shape matching (Strings Sec. 3) -----------------------------------------
     std::vector<Vec3> rest_direction;     ///< per segment, unit direction at creation
     std::vector<Vec3> rest_shape;         ///< per particle, rest positions from the rest lengths
-    std::vector<Vec3> csm_goal;           ///< per particle: goal displacement for this step's prediction
     std::vector<double> csm_mass;         ///< per particle (colliding particles weigh 3x, Sec. 6)
-    CsmScratch csm_scratch;
 
     // --- twist (Strings Sec. 4) --------------------------------------------------------
     std::vector<double> twist_velocity;   ///< per segment, rad/s
@@ -193,13 +179,12 @@ struct StringState {
     double end_twist[2] = {0.0, 0.0};     ///< held angle of clamped ends (first, last segment), rad
     double twist_glued_pred[2] = {0.0, 0.0};
     double twist_glued_axis_inertia[2] = {0.0, 0.0};
-    /// This step's twist solve was skipped: the string is untwisted (solveTwist), so every
-    /// twist moment is zero; and twist_force is all zero (computeTwistForces). Scratch.
-    bool twist_skipped = false;
-    bool twist_force_zero = false;
     double shortest_rest = 0.0;           ///< m, for the convergence tolerance
 
     std::mt19937_64 rng;
+
+    StringScratch scratch;        ///< the solvers' work arrays (no allocation in the step)
+    StringDiagnostics diagnostics;
 
     std::size_t particles() const { return x.size(); }
     std::size_t segments() const { return rest_length.size(); }

@@ -102,31 +102,29 @@ StringId StringSystem::add(const StringDesc& desc) {
     }
     s.compliance.resize(m);
     for (std::size_t j = 0; j < m; ++j) s.compliance[j] = s.rest_length[j] / (s.material[j].young * area);
-    s.dir.resize(m);
-    for (std::size_t j = 0; j < m; ++j) s.dir[j] = (s.x[j + 1] - s.x[j]) / s.rest_length[j];
-    s.diag.assign(m, 0.0);
-    s.off.assign(m, 0.0);
-    s.rhs.assign(m, 0.0);
-    s.scratch.assign(m, 0.0);
-    s.violation.assign(m, 0.0);
-    s.impulse.assign(m, 0.0);
-    s.active.assign(m, 0);
-    s.blk_diag.assign(n, Mat3::Zero());
-    s.blk_off.assign(n, Mat3::Zero());
-    s.blk_rhs.assign(n, Vec3::Zero());
-    s.blk_factor_gain.assign(n, Mat3::Zero());
-    s.blk_factor.resize(n);
-    s.chain_inverse.assign(6 * n + 12, 0.0);
-    s.chain_coupled.assign(n, 0);
-    s.row_projector.assign(n, Mat3::Identity());
+    s.scratch.dir.resize(m);
+    for (std::size_t j = 0; j < m; ++j) s.scratch.dir[j] = (s.x[j + 1] - s.x[j]) / s.rest_length[j];
+    s.scratch.diag.assign(m, 0.0);
+    s.scratch.off.assign(m, 0.0);
+    s.scratch.rhs.assign(m, 0.0);
+    s.scratch.segment_work.assign(m, 0.0);
+    s.scratch.active.assign(m, 0);
+    s.scratch.blk_diag.assign(n, Mat3::Zero());
+    s.scratch.blk_off.assign(n, Mat3::Zero());
+    s.scratch.blk_rhs.assign(n, Vec3::Zero());
+    s.scratch.blk_factor_gain.assign(n, Mat3::Zero());
+    s.scratch.blk_factor.resize(n);
+    s.scratch.chain_inverse.assign(6 * n + 12, 0.0);
+    s.scratch.chain_coupled.assign(n, 0);
+    s.scratch.row_projector.assign(n, Mat3::Identity());
     s.colliding.assign(n, 0);
     s.spring_force.assign(m, 0.0);
-    s.geometric_tension.assign(m, 0.0);
+    s.scratch.geometric_tension.assign(m, 0.0);
     s.prev_stretch.assign(m, 0.0);
     s.rest_direction.resize(m);
     for (std::size_t j = 0; j < m; ++j) s.rest_direction[j] = (desc.points[j + 1] - desc.points[j]) / s.rest_length[j];
     s.rest_shape.assign(n, Vec3::Zero());
-    s.csm_goal.assign(n, Vec3::Zero());
+    s.scratch.csm_goal.assign(n, Vec3::Zero());
     s.csm_mass = s.mass;
     updateRestShape(s);
     s.twist_velocity.assign(m, 0.0);
@@ -276,8 +274,9 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host) {
         StringState& s = strings_[i];
         s.contacts.clear();
         s.body_nodes.clear();
-        if (s.rows_pressed) std::fill(s.row_projector.begin(), s.row_projector.end(), Mat3::Identity());
-        s.rows_pressed = false;
+        if (s.scratch.rows_pressed)
+            std::fill(s.scratch.row_projector.begin(), s.scratch.row_projector.end(), Mat3::Identity());
+        s.scratch.rows_pressed = false;
         std::fill(s.colliding.begin(), s.colliding.end(), 0);
     });
     contacts_.clear();
@@ -316,7 +315,7 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host) {
             for (const ParticleHold& hold : s.hold)
                 glued = glued || (hold.kind == ParticleHold::Kind::Glue && hold.body == c.body);
         if (glued) continue;
-        SegmentContact sc;
+        RigidSegmentContact sc;
         sc.segment = c.segment;
         sc.s = std::clamp(c.s, 0.0, 1.0);
         sc.normal = c.normal / len;
@@ -334,7 +333,7 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host) {
                 if (s.body_nodes[b].body == c.body) node = static_cast<int>(b);
             if (node < 0) {
                 s.body_nodes.emplace_back(c.body);
-                s.node_step.resize(s.body_nodes.size());
+                s.scratch.node_step.resize(s.body_nodes.size());
                 node = static_cast<int>(s.body_nodes.size() - 1);
             }
             sc.node = node;

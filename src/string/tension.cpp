@@ -54,12 +54,14 @@ constexpr std::size_t kParallelSegments = kParallelItems;
 /// Whether particle p's equation is whole (no body presses it): its projector exactly I,
 /// compared entry by entry (what Eigen's isIdentity(0) tests, at a fraction of its cost),
 /// where any projector of the string may differ from I (rows_pressed).
-[[gnu::always_inline]] inline bool wholeRow(const StringState& s, std::size_t p) { return !s.rows_pressed || s.row_projector[p] == Mat3::Identity(); }
+[[gnu::always_inline]] inline bool wholeRow(const StringState& s, std::size_t p) {
+    return !s.scratch.rows_pressed || s.scratch.row_projector[p] == Mat3::Identity();
+}
 
 /// u . (P_p v) for particle p's projector P_p, with `whole` = wholeRow(s, p): then P_p = I
 /// and the product is u . v (I v is v exactly, up to the sign of a zero).
 [[gnu::always_inline]] inline double projectedDot(const StringState& s, std::size_t p, bool whole, const Vec3& u, const Vec3& v) {
-    return whole ? u.dot(v) : u.dot(s.row_projector[p] * v);
+    return whole ? u.dot(v) : u.dot(s.scratch.row_projector[p] * v);
 }
 
 /// b_p: the impulse (x h, kg m) the segments gave particle p: its motion away from the
@@ -79,13 +81,13 @@ void momentumTension(StringState& s, const StepContext& ctx) {
         std::size_t j = j0;
         for (; j + 1 < j1; j += 2) {
             const UnitPair d = unitPair(s.x[j + 1] - s.x[j], s.x[j + 2] - s.x[j + 1]);
-            if (d.length[0] > 1e-15) s.dir[j] = d.unit[0];
-            if (d.length[1] > 1e-15) s.dir[j + 1] = d.unit[1];
+            if (d.length[0] > 1e-15) s.scratch.dir[j] = d.unit[0];
+            if (d.length[1] > 1e-15) s.scratch.dir[j + 1] = d.unit[1];
         }
         if (j < j1) {
             const Vec3 d = s.x[j + 1] - s.x[j];
             const double len = d.norm();
-            if (len > 1e-15) s.dir[j] = d / len;
+            if (len > 1e-15) s.scratch.dir[j] = d / len;
         }
     });
     // Each particle's weight, whether its row is whole, and its impulse are found once and
@@ -107,19 +109,21 @@ void momentumTension(StringState& s, const StepContext& ctx) {
         for (std::size_t j = j0; j < j1; ++j) {
             const Row b = row(j + 1);
             if (s.broken[j]) {
-                s.diag[j] = 1.0;
-                s.off[j] = 0.0;
-                s.rhs[j] = 0.0;
+                s.scratch.diag[j] = 1.0;
+                s.scratch.off[j] = 0.0;
+                s.scratch.rhs[j] = 0.0;
                 a = b;
                 continue;
             }
-            const Vec3& e = s.dir[j];
-            s.diag[j] = a.weight * projectedDot(s, j, a.whole, e, e) + b.weight * projectedDot(s, j + 1, b.whole, e, e);
-            s.rhs[j] = (a.weight > 0.0 ? a.weight * projectedDot(s, j, a.whole, e, a.impulse) : 0.0) -
+            const Vec3& e = s.scratch.dir[j];
+            s.scratch.diag[j] =
+                a.weight * projectedDot(s, j, a.whole, e, e) + b.weight * projectedDot(s, j + 1, b.whole, e, e);
+            s.scratch.rhs[j] = (a.weight > 0.0 ? a.weight * projectedDot(s, j, a.whole, e, a.impulse) : 0.0) -
                        (b.weight > 0.0 ? b.weight * projectedDot(s, j + 1, b.whole, e, b.impulse) : 0.0);
-            s.off[j] = 0.0;
-            if (j + 1 < m && !s.broken[j + 1]) s.off[j] = -b.weight * projectedDot(s, j + 1, b.whole, e, s.dir[j + 1]);
-            most = std::max(most, s.diag[j]);
+            s.scratch.off[j] = 0.0;
+            if (j + 1 < m && !s.broken[j + 1])
+                s.scratch.off[j] = -b.weight * projectedDot(s, j + 1, b.whole, e, s.scratch.dir[j + 1]);
+            most = std::max(most, s.scratch.diag[j]);
             a = b;
         }
         return most;
@@ -127,9 +131,9 @@ void momentumTension(StringState& s, const StepContext& ctx) {
     const double reg = kRegularisation * (max_diag > 0.0 ? max_diag : 1.0) / static_cast<double>(m);
     forRanges(ctx.pool, m, kParallelSegments, [&](std::size_t j0, std::size_t j1, std::size_t) {
         for (std::size_t j = j0; j < j1; ++j)
-            if (!s.broken[j]) s.diag[j] += reg;
+            if (!s.broken[j]) s.scratch.diag[j] += reg;
     });
-    solveSymmetricTridiagonal(s.diag, s.off, s.rhs, s.scratch);
+    solveSymmetricTridiagonal(s.scratch.diag, s.scratch.off, s.scratch.rhs, s.scratch.segment_work);
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
     // Where a body presses the string, its motion cannot tell tension from contact force:
     // there the tension is the spring force of the converged solve (the same quantity,
@@ -138,7 +142,7 @@ void momentumTension(StringState& s, const StepContext& ctx) {
         bool whole_a = wholeRow(s, j0);
         for (std::size_t j = j0; j < j1; ++j) {
             const bool whole_b = wholeRow(s, j + 1);
-            s.tension[j] = s.broken[j] ? 0.0 : s.rhs[j] * inv_h2;
+            s.tension[j] = s.broken[j] ? 0.0 : s.scratch.rhs[j] * inv_h2;
             if (!s.broken[j] && (!whole_a || !whole_b)) s.tension[j] = s.spring_force[j];
             whole_a = whole_b;
         }

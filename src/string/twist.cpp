@@ -89,7 +89,7 @@ void updateTwistStiffness(StringState& s) {
 void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     const std::size_t m = s.segments();
     const std::size_t n = s.particles();
-    s.twist_skipped = false;
+    s.scratch.twist_skipped = false;
     if (m < 2 && !(clamped(s, 0) || clamped(s, n - 1))) {
         // A single free segment: nothing resists its spin but its own inertia.
         for (std::size_t j = 0; j < m; ++j) s.twist[j] += ctx.h * s.twist_velocity[j];
@@ -101,8 +101,8 @@ void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     // result: the same bits, without the assembly and the tridiagonal solve. The joints'
     // stiffnesses are refreshed by the next solve that runs; until then nothing reads
     // them but computeTwistForces, whose moments are zero whatever they hold.
-    s.twist_skipped = untwisted(s);
-    if (s.twist_skipped) {
+    s.scratch.twist_skipped = untwisted(s);
+    if (s.scratch.twist_skipped) {
         std::copy(s.twist.begin(), s.twist.end(), s.twist_old.begin());
         s.twist_glued_axis_inertia[0] = s.twist_glued_axis_inertia[1] = 0.0;
         return;
@@ -112,9 +112,9 @@ void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     // Rows: inertia about the axis (or fixed for a clamped end), springs between joints.
     for (std::size_t j = 0; j < m; ++j) {
         s.twist_old[j] = s.twist[j];
-        s.diag[j] = s.twist_inertia[j] * inv_h2;
-        s.rhs[j] = s.twist_inertia[j] * inv_h2 * (s.twist[j] + ctx.h * s.twist_velocity[j]);
-        s.off[j] = 0.0;
+        s.scratch.diag[j] = s.twist_inertia[j] * inv_h2;
+        s.scratch.rhs[j] = s.twist_inertia[j] * inv_h2 * (s.twist[j] + ctx.h * s.twist_velocity[j]);
+        s.scratch.off[j] = 0.0;
     }
     // Ends glued to a body: the segment turns with the body; the body's moment of
     // inertia about the segment axis joins the row.
@@ -125,50 +125,50 @@ void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         const ParticleHold& hold = s.hold[p];
         if (hold.kind != ParticleHold::Kind::Glue) continue;
         const RigidState& b = rigids.bodies[hold.body.index];
-        const Vec3& e = s.dir[j];
+        const Vec3& e = s.scratch.dir[j];
         const double predicted = s.twist[j] + ctx.h * b.angular_velocity.dot(e);  // turned with the body
         s.twist_glued_pred[end] = predicted;
         if (!s.glue_movable[p]) {
-            s.diag[j] = 1.0;
-            s.rhs[j] = predicted;
+            s.scratch.diag[j] = 1.0;
+            s.scratch.rhs[j] = predicted;
             continue;
         }
         const double inv_axis = e.dot(b.inverseInertiaWorld() * e);
         const double axis_inertia = inv_axis > 0.0 ? 1.0 / inv_axis : 0.0;
         s.twist_glued_axis_inertia[end] = axis_inertia;
-        s.diag[j] = (s.twist_inertia[j] + axis_inertia) * inv_h2;
-        s.rhs[j] = s.diag[j] * predicted;
+        s.scratch.diag[j] = (s.twist_inertia[j] + axis_inertia) * inv_h2;
+        s.scratch.rhs[j] = s.scratch.diag[j] * predicted;
     }
     for (std::size_t k = 0; k + 1 < m; ++k) {
         const double kk = s.joint_stiffness[k];
         if (kk <= 0.0) continue;
-        s.diag[k] += kk;
-        s.diag[k + 1] += kk;
-        s.off[k] = -kk;
-        s.rhs[k] -= kk * s.rest_twist[k];
-        s.rhs[k + 1] += kk * s.rest_twist[k];
+        s.scratch.diag[k] += kk;
+        s.scratch.diag[k + 1] += kk;
+        s.scratch.off[k] = -kk;
+        s.scratch.rhs[k] -= kk * s.rest_twist[k];
+        s.scratch.rhs[k + 1] += kk * s.rest_twist[k];
     }
     // Clamped ends hold their angle (set by twist drivers).
     if (clamped(s, 0)) {
-        s.diag[0] = 1.0;
-        s.rhs[0] = s.end_twist[0];
-        s.off[0] = 0.0;
-        if (m > 1) s.rhs[1] += s.joint_stiffness[0] * s.end_twist[0];
+        s.scratch.diag[0] = 1.0;
+        s.scratch.rhs[0] = s.end_twist[0];
+        s.scratch.off[0] = 0.0;
+        if (m > 1) s.scratch.rhs[1] += s.joint_stiffness[0] * s.end_twist[0];
     }
     if (clamped(s, n - 1)) {
         const std::size_t j = m - 1;
-        s.diag[j] = 1.0;
-        s.rhs[j] = s.end_twist[1];
+        s.scratch.diag[j] = 1.0;
+        s.scratch.rhs[j] = s.end_twist[1];
         if (j > 0) {
-            s.off[j - 1] = 0.0;
-            s.rhs[j - 1] += s.joint_stiffness[j - 1] * s.end_twist[1];
+            s.scratch.off[j - 1] = 0.0;
+            s.scratch.rhs[j - 1] += s.joint_stiffness[j - 1] * s.end_twist[1];
         }
     }
     // The clamped rows were decoupled above by moving their known angle to the right.
-    if (clamped(s, 0) && m > 1) s.off[0] = 0.0;
-    solveSymmetricTridiagonal(s.diag, s.off, s.rhs, s.scratch);
+    if (clamped(s, 0) && m > 1) s.scratch.off[0] = 0.0;
+    solveSymmetricTridiagonal(s.scratch.diag, s.scratch.off, s.scratch.rhs, s.scratch.segment_work);
     for (std::size_t j = 0; j < m; ++j) {
-        s.twist[j] = s.rhs[j];
+        s.twist[j] = s.scratch.rhs[j];
         s.twist_velocity[j] = (s.twist[j] - s.twist_old[j]) * ctx.inv_h;
     }
     // The string's torque back on glued bodies: the body turns by what the solve moved
@@ -180,7 +180,8 @@ void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         const std::size_t p = end == 0 ? 0 : n - 1;
         const std::size_t j = end == 0 ? 0 : m - 1;
         RigidState& b = rigids.bodies[s.hold[p].body.index];
-        const Vec3 rotation = b.inverseInertiaWorld() * (axis_inertia * (s.twist[j] - s.twist_glued_pred[end]) * s.dir[j]);
+        const Vec3 rotation =
+            b.inverseInertiaWorld() * (axis_inertia * (s.twist[j] - s.twist_glued_pred[end]) * s.scratch.dir[j]);
         const double angle = rotation.norm();
         if (angle > 0.0 && std::isfinite(angle))
             b.orientation = (Quat(Eigen::AngleAxisd(angle, rotation / angle)) * b.orientation).normalized();
@@ -191,12 +192,12 @@ void computeTwistForces(StringState& s) {
     const std::size_t n = s.particles();
     // After a skipped twist solve every moment is zero: the forces are zero, and already
     // are where they were cleared before.
-    if (s.twist_skipped) {
-        if (!s.twist_force_zero) std::fill(s.twist_force.begin(), s.twist_force.end(), Vec3::Zero());
-        s.twist_force_zero = true;
+    if (s.scratch.twist_skipped) {
+        if (!s.scratch.twist_force_zero) std::fill(s.twist_force.begin(), s.twist_force.end(), Vec3::Zero());
+        s.scratch.twist_force_zero = true;
         return;
     }
-    s.twist_force_zero = false;
+    s.scratch.twist_force_zero = false;
     std::fill(s.twist_force.begin(), s.twist_force.end(), Vec3::Zero());
     for (std::size_t p = 1; p + 1 < n; ++p) {
         const std::size_t a = p - 1, b = p;  // segments meeting at particle p (joint a)

@@ -193,11 +193,11 @@ void io(A& a, std::pair<T, U>& p) {
     io(a, p.second);
 }
 template <class A>
-void io(A& a, detail::DeepPair& t) {
-    io(a, std::get<0>(t));
-    io(a, std::get<1>(t));
-    io(a, std::get<2>(t));
-    io(a, std::get<3>(t));
+void io(A& a, detail::PairKey& k) {
+    io(a, k.string);
+    io(a, k.segment);
+    io(a, k.partner);
+    io(a, k.partner_segment);
 }
 template <class A>
 void io(A& a, StringId& id) {
@@ -283,16 +283,12 @@ void io(A& a, detail::SegmentMaterial& m) {
     io(a, m.torsion_rupture);
 }
 template <class A>
-void io(A& a, detail::SegmentContact& c) {
+void io(A& a, detail::StringPairContact& c) {
     io(a, c.segment);
     io(a, c.s);
     io(a, c.normal);
-    io(a, c.local);
-    io(a, c.body);
     io(a, c.gap);
     io(a, c.friction);
-    io(a, c.node);
-    io(a, c.depth);
     io(a, c.stiffness);
     io(a, c.active);
     io(a, c.string);
@@ -416,25 +412,23 @@ void io(A& a, detail::StringState& s) {
     io(a, s.original_length);
     io(a, s.peak_stress);
     io(a, s.material);
-    io(a, s.dir);
-    io(a, s.diag);
-    io(a, s.off);
-    io(a, s.rhs);
-    io(a, s.scratch);
-    io(a, s.violation);
-    io(a, s.impulse);
-    io(a, s.active);
-    io(a, s.blk_diag);
-    io(a, s.blk_off);
-    io(a, s.blk_rhs);
-    io(a, s.blk_factor_gain);
+    io(a, s.scratch.dir);
+    io(a, s.scratch.diag);
+    io(a, s.scratch.off);
+    io(a, s.scratch.rhs);
+    io(a, s.scratch.segment_work);
+    io(a, s.scratch.active);
+    io(a, s.scratch.blk_diag);
+    io(a, s.scratch.blk_off);
+    io(a, s.scratch.blk_rhs);
+    io(a, s.scratch.blk_factor_gain);
     io(a, s.spring_force);
-    io(a, s.row_projector);
+    io(a, s.scratch.row_projector);
     io(a, s.colliding);
     io(a, s.prev_stretch);
     io(a, s.rest_direction);
     io(a, s.rest_shape);
-    io(a, s.csm_goal);
+    io(a, s.scratch.csm_goal);
     io(a, s.csm_mass);
     io(a, s.twist_velocity);
     io(a, s.twist_old);
@@ -604,26 +598,25 @@ void checkString(const detail::StringState& s, const detail::RigidTable& rigids,
     size(s.hold.size(), n, "hold");
     size(s.glue_impulse.size(), n, "glue_impulse");
     size(s.glue_movable.size(), n, "glue_movable");
-    size(s.blk_diag.size(), n, "blk_diag");
-    size(s.blk_off.size(), n, "blk_off");
-    size(s.blk_rhs.size(), n, "blk_rhs");
-    size(s.blk_factor_gain.size(), n, "blk_factor_gain");
-    size(s.row_projector.size(), n, "row_projector");
+    size(s.scratch.blk_diag.size(), n, "blk_diag");
+    size(s.scratch.blk_off.size(), n, "blk_off");
+    size(s.scratch.blk_rhs.size(), n, "blk_rhs");
+    size(s.scratch.blk_factor_gain.size(), n, "blk_factor_gain");
+    size(s.scratch.row_projector.size(), n, "row_projector");
     size(s.colliding.size(), n, "colliding");
     size(s.rest_shape.size(), n, "rest_shape");
-    size(s.csm_goal.size(), n, "csm_goal");
+    size(s.scratch.csm_goal.size(), n, "csm_goal");
     size(s.csm_mass.size(), n, "csm_mass");
     size(s.twist_force.size(), n, "twist_force");
     for (const auto* v : {&s.rest_length, &s.max_length, &s.compliance, &s.tension, &s.twist, &s.radius,
-                          &s.original_length, &s.peak_stress, &s.diag, &s.off, &s.rhs, &s.scratch, &s.violation,
-                          &s.impulse, &s.spring_force, &s.prev_stretch, &s.twist_velocity, &s.twist_old,
-                          &s.twist_inertia, &s.twist_width})
+                          &s.original_length, &s.peak_stress, &s.scratch.diag, &s.scratch.off, &s.scratch.rhs,
+                          &s.scratch.segment_work, &s.spring_force, &s.prev_stretch, &s.twist_velocity, &s.twist_old, &s.twist_inertia, &s.twist_width})
         size(v->size(), m, "a per-segment array");
     size(s.broken.size(), m, "broken");
     size(s.yielded.size(), m, "yielded");
-    size(s.active.size(), m, "active");
+    size(s.scratch.active.size(), m, "active");
     size(s.material.size(), m, "material");
-    size(s.dir.size(), m, "dir");
+    size(s.scratch.dir.size(), m, "dir");
     size(s.rest_direction.size(), m, "rest_direction");
     for (const auto* v : {&s.rest_twist, &s.joint_stiffness, &s.torsion_peak, &s.joint_strain})
         size(v->size(), joints, "a per-joint array");
@@ -807,8 +800,8 @@ struct Snapshot::Data {
     std::vector<detail::PaperSheet> papers;
     detail::RigidTable rigids;
     std::vector<Event> pending;
-    std::vector<detail::SegmentContact> previous_pairs;
-    std::vector<detail::DeepPair> deep_pairs;
+    std::vector<detail::StringPairContact> previous_pairs;
+    std::vector<detail::PairKey> deep_pairs;
     double time = 0.0;
     std::int64_t steps = 0;
     std::vector<SnapshotSection> host;
@@ -1019,7 +1012,7 @@ Snapshot Snapshot::read(std::istream& in) {
         file.fail("has " + std::to_string(d.cloths.size()) + " cloth sections for " + std::to_string(cloth_slots) + " cloth slots");
     if (d.papers.size() != paper_slots)
         file.fail("has " + std::to_string(d.papers.size()) + " paper sections for " + std::to_string(paper_slots) + " paper slots");
-    for (const detail::SegmentContact& c : d.previous_pairs) {
+    for (const detail::StringPairContact& c : d.previous_pairs) {
         auto ok = [&](std::uint32_t string, std::uint32_t segment) {
             return string < d.strings.size() && d.strings[string].alive && segment < d.strings[string].segments();
         };
@@ -1105,13 +1098,13 @@ void Snapshot::restore(World& world) const {
     // inverses (scratch, written by a solve before a chord iteration reads them).
     for (detail::StringState& s : *w.strings)
         if (s.alive) {
-            s.blk_factor.resize(s.particles());
-            s.chain_inverse.assign(6 * s.particles() + 12, 0.0);
-            s.chain_coupled.assign(s.particles(), 0);
-            s.twist_skipped = s.twist_force_zero = false;  // scratch: the next step computes them
-            s.geometric_tension.assign(s.segments(), 0.0);
+            s.scratch.blk_factor.resize(s.particles());
+            s.scratch.chain_inverse.assign(6 * s.particles() + 12, 0.0);
+            s.scratch.chain_coupled.assign(s.particles(), 0);
+            s.scratch.twist_skipped = s.scratch.twist_force_zero = false;  // scratch: the next step computes them
+            s.scratch.geometric_tension.assign(s.segments(), 0.0);
             // Not in the snapshot's bytes: whether a row projector differs from I.
-            s.rows_pressed = std::any_of(s.row_projector.begin(), s.row_projector.end(),
+            s.scratch.rows_pressed = std::any_of(s.scratch.row_projector.begin(), s.scratch.row_projector.end(),
                                          [](const Mat3& r) { return r != Mat3::Identity(); });
         }
     *w.rigids = data_->rigids;

@@ -14,9 +14,6 @@
 
 namespace tearables::detail {
 
-/// A string-string pair that started a step too deep (string_pairs.cpp, kStringDeepStart).
-using DeepPair = PairKey;
-
 /// Pointers into a World's state; valid while the world lives.
 struct WorldParts {
     WorldSettings* settings;
@@ -26,8 +23,8 @@ struct WorldParts {
     RigidTable* rigids;                         ///< by slot
     std::vector<Event>* pending;                ///< emitted between steps, reported with the next
     std::vector<Event>* events;                 ///< of the last step
-    std::vector<SegmentContact>* previous_pairs;///< string-string warm start
-    std::vector<DeepPair>* deep_pairs;          ///< string-string pairs not yet apart
+    std::vector<StringPairContact>* previous_pairs;///< string-string warm start
+    std::vector<PairKey>* deep_pairs;           ///< string-string pairs not yet apart
     double* time;
     std::int64_t* steps;
 };

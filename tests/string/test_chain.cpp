@@ -336,7 +336,8 @@ TEST(Chain, WarmStartChangesTheIterationsNotTheMotion) {
             for (int w = 0; w < 2; ++w) {
                 if (c == kReleased && step < 100) worlds[w].applyForce(ids[w], -1, {0, -45.0, 0});
                 worlds[w].step(0.01);
-                iterations[w] += (*tearables::detail::WorldAccess::parts(worlds[w]).strings)[0].strain_newton_iterations;
+                const auto& s = (*tearables::detail::WorldAccess::parts(worlds[w]).strings)[0];
+                iterations[w] += s.diagnostics.strain_newton_iterations;
             }
             const auto& warm = *worlds[0].view(ids[0]).positions;
             const auto& cold = *worlds[1].view(ids[1]).positions;
@@ -382,8 +383,9 @@ TEST(Chain, ChordIterationsChangeTheCostNotTheMotion) {
             for (int w = 0; w < 2; ++w) {
                 worlds[w].step(0.01);
                 const auto& s = (*tearables::detail::WorldAccess::parts(worlds[w]).strings)[0];
-                if (step >= 150) factorisations[w] += s.strain_newton_iterations - s.strain_chord_iterations;
-                if (w == 0) chords += s.strain_chord_iterations;
+                if (step >= 150)
+                    factorisations[w] += s.diagnostics.strain_newton_iterations - s.diagnostics.strain_chord_iterations;
+                if (w == 0) chords += s.diagnostics.strain_chord_iterations;
             }
             const auto& a = *worlds[0].view(ids[0]).positions;
             const auto& b = *worlds[1].view(ids[1]).positions;

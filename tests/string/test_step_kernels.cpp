@@ -370,8 +370,9 @@ TEST(StepKernels, StepFlushesSubnormalsAndRestoresTheCallersMode) {
         world.step(0.01);
         EXPECT_EQ(_mm_getcsr(), caller) << "step " << step;
         const auto& s = (*detail::WorldAccess::parts(world).strings)[0];
-        EXPECT_EQ(subnormals(s.blk_factor_gain.data()->data(), 9 * s.blk_factor_gain.size()), 0u) << "step " << step;
-        EXPECT_EQ(subnormals(s.blk_rhs.data()->data(), 3 * s.blk_rhs.size()), 0u) << "step " << step;
+        const auto& gains = s.scratch.blk_factor_gain;
+        EXPECT_EQ(subnormals(gains.data()->data(), 9 * gains.size()), 0u) << "step " << step;
+        EXPECT_EQ(subnormals(s.scratch.blk_rhs.data()->data(), 3 * s.scratch.blk_rhs.size()), 0u) << "step " << step;
     }
     // A caller that flushes already keeps its mode too.
     _mm_setcsr(caller | kFlushBits);

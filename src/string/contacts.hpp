@@ -1,0 +1,89 @@
+// The two kinds of string contact a step solves: a segment against a rigid body
+// (contact_rows.cpp, strain_limit.cpp) and a segment against a segment of a string
+// (string_pairs.cpp, cluster_solve.cpp), and the key that names such a pair.
+#pragma once
+
+#include "sim/rigid_table.hpp"
+#include "tearables/types.hpp"
+
+#include <cstdint>
+#include <tuple>
+#include <utility>
+
+namespace tearables::detail {
+
+/// A contact of one segment with a rigid body for this step (from RigidContact).
+struct RigidSegmentContact {
+    std::uint32_t segment = 0;
+    double s = 0.0;              ///< fraction along the segment
+    Vec3 normal = Vec3::UnitY(); ///< from the body toward the string (at collection; see local_normal)
+    Vec3 local_normal = Vec3::UnitY();  ///< the normal in the body's frame: it turns with the body
+    Vec3 local = Vec3::Zero();   ///< contact point in the body's frame (follows the body); world point without a body
+    RigidId body;                ///< invalid: a fixed world point
+    double gap = 0.0;            ///< required clearance along the normal, m (the radius for bodies)
+    double friction = 0.5;
+    int node = -1;               ///< index into body_nodes when the body is movable
+    double depth = 0.0;          ///< penetration of the predicted position, m (>= 0)
+    double stiffness = 0.0;      ///< penalty k_c used by the last solve, N/m
+    bool active = false;         ///< held as an equality in the current pass
+    double force = 0.0;          ///< normal force of the last solve, N (friction bound)
+    // The plane, linearised where the solve starts (contact_rows.cpp, rigidGap): its point
+    // and normal in the world, and d(gap)/d(rotation) of the body.
+    Vec3 plane_point = Vec3::Zero();
+    Vec3 plane_normal = Vec3::UnitY();
+    Vec3 plane_turn = Vec3::Zero();
+    Vec3 plane_arm = Vec3::Zero();    ///< plane_point minus the body's centre
+    Vec3 start_point = Vec3::Zero();  ///< the body's contact point where the step started
+    double friction_weight = 0.0;     ///< friction's lagged weight mu F / max(slip, eps), N/m
+};
+
+/// One pair of segments, named from one side: segment `segment` of string `string` against
+/// segment `partner_segment` of string `partner` (may be the same string). Ordered by
+/// (string, segment, partner, partner_segment).
+struct PairKey {
+    std::uint32_t string = 0;
+    std::uint32_t segment = 0;
+    std::uint32_t partner = 0;
+    std::uint32_t partner_segment = 0;
+
+    /// The same pair named from the side with the lower (string, segment): one key for
+    /// both namings.
+    PairKey unordered() const {
+        if (std::make_pair(partner, partner_segment) < std::make_pair(string, segment))
+            return {partner, partner_segment, string, segment};
+        return *this;
+    }
+    friend bool operator<(const PairKey& a, const PairKey& b) {
+        return std::tie(a.string, a.segment, a.partner, a.partner_segment) <
+               std::tie(b.string, b.segment, b.partner, b.partner_segment);
+    }
+    friend bool operator==(const PairKey& a, const PairKey& b) {
+        return a.string == b.string && a.segment == b.segment && a.partner == b.partner &&
+               a.partner_segment == b.partner_segment;
+    }
+};
+
+/// A string-string contact (string_pairs.cpp, cluster_solve.cpp): this side is segment
+/// `segment` at `s` of string `string`, the other side segment `partner_segment` at
+/// `partner_s` of string `partner`. `normal` points from the other side toward this one,
+/// `gap` is the axis distance to keep (the sum of the radii).
+struct StringPairContact {
+    std::uint32_t string = 0;
+    std::uint32_t segment = 0;
+    std::uint32_t partner = 0;
+    std::uint32_t partner_segment = 0;
+    double s = 0.0;                     ///< fraction along this side's segment
+    double partner_s = 0.0;             ///< fraction along the other side's segment
+    Vec3 normal = Vec3::UnitY();
+    double gap = 0.0;                   ///< m
+    double friction = 0.5;
+    Vec3 start_normal = Vec3::UnitX();  ///< the normal at the start of the step
+    double start_distance = 0.0;        ///< the axes' distance at the start of the step, m
+    double stiffness = 0.0;             ///< penalty k_c used by the last solve, N/m
+    bool active = false;                ///< held as an equality in the current pass
+    double force = 0.0;                 ///< normal force of the last solve, N (friction bound, warm start)
+
+    PairKey key() const { return {string, segment, partner, partner_segment}; }
+};
+
+}  // namespace tearables::detail
