@@ -130,12 +130,12 @@ btScalar IslandClaimSolver::solveGroup(btCollisionObject** bodies, int numBodies
     passConstraints_.clear();
     for (int i = 0; i < numBodies; ++i) {
         btCollisionObject* object = bodies[i];
-        btRigidBody* body = btRigidBody::upcast(object);
-        if (body != nullptr && withholds(*object))
+        if (!withholds(*object)) {
+            passBodies_.push_back(object);
+        } else if (btRigidBody* body = btRigidBody::upcast(object)) {
             claimedBodies_.push_back(
                 ClaimedBody{body, body->getWorldTransform(), body->getLinearVelocity(), body->getAngularVelocity()});
-        else
-            passBodies_.push_back(object);
+        }
     }
     for (int i = 0; i < numManifolds; ++i)
         (withheldManifold(*manifolds[i]) ? withheldManifolds_ : passManifolds_).push_back(manifolds[i]);
