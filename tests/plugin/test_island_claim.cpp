@@ -5,6 +5,7 @@
 
 #include "bullet_fixture.hpp"
 
+#include <BulletCollision/CollisionDispatch/btSimulationIslandManager.h>
 #include <btBulletDynamicsCommon.h>
 #include <gtest/gtest.h>
 
@@ -145,10 +146,23 @@ bool sameBits(const btRigidBody& a, const btRigidBody& b) {
            same(a.getAngularVelocity(), b.getAngularVelocity());
 }
 
-TEST(IslandClaim, ClaimingOneStackLeavesTheOtherBitForBit) {
+/// How Bullet hands islands to the solver (docs/bullet-island-claim.md): batched (the
+/// default, m_minimumSolverBatchSize 128), one island per call, or everything in one call.
+enum class Handing { Batched, PerIsland, Unsplit };
+
+void setHanding(btDiscreteDynamicsWorld& world, Handing h) {
+    if (h == Handing::PerIsland) world.getSolverInfo().m_minimumSolverBatchSize = 1;
+    if (h == Handing::Unsplit) world.getSimulationIslandManager()->setSplitIslands(false);
+}
+
+class IslandClaimStacks : public ::testing::TestWithParam<Handing> {};
+
+TEST_P(IslandClaimStacks, ClaimingOneStackLeavesTheOtherBitForBit) {
     Physics plain, wrapped;
     const std::vector<btRigidBody*> a = addStacks(plain);
     const std::vector<btRigidBody*> b = addStacks(wrapped);
+    setHanding(*plain.world, GetParam());
+    setHanding(*wrapped.world, GetParam());
     IslandClaimSolver claims(*wrapped.world);  // Island scope: the whole left stack
     claims.claim(*b[0]);
     for (int s = 0; s < 150; ++s) {
@@ -166,6 +180,9 @@ TEST(IslandClaim, ClaimingOneStackLeavesTheOtherBitForBit) {
     EXPECT_NEAR(a[0]->getWorldTransform().getOrigin().y(), 0.5f, 0.01f);
     EXPECT_EQ(b[0]->getWorldTransform().getOrigin().y(), 0.52f);
 }
+
+INSTANTIATE_TEST_SUITE_P(IslandClaim, IslandClaimStacks,
+                         ::testing::Values(Handing::Batched, Handing::PerIsland, Handing::Unsplit));
 
 TEST(IslandClaim, UsersSolverGetsTheRestAndIsRestored) {
     Physics p;
