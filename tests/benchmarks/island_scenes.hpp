@@ -47,10 +47,17 @@ inline double ropeMass(const World& w, StringId id) {
 
 /// The swing (the built-in `swing` scene without its crate): a 10 kg board, 1 x 0.05 x
 /// 0.3 m, hung from two 60-segment ropes of 1.475 m. `pinned`: the same ropes with the
-/// lower ends pinned where the board would hold them, and no board.
-inline std::vector<StringId> buildSwing(Rig& rig, bool pinned) {
+/// lower ends pinned where the board would hold them, and no board. `crate`: a 20 kg
+/// crate (0.24 m cube, as the scene drops) set at rest on the board 0.15 m off centre, so
+/// that the island holds a body-body contact.
+inline std::vector<StringId> buildSwing(Rig& rig, bool pinned, bool crate = false) {
     btRigidBody* board = nullptr;
     if (!pinned) board = &rig.phys.box(btVector3(0.5f, 0.025f, 0.15f), 10.0, btVector3(0, 1.0f, 0));
+    if (!pinned && crate) {
+        btRigidBody& c = rig.phys.box(btVector3(0.12f, 0.12f, 0.12f), 20.0, btVector3(0.15f, 1.0f + 0.025f + 0.12f + 0.0005f, 0));
+        c.setFriction(0.8f);
+        board->setFriction(0.8f);
+    }
     std::vector<StringId> ids;
     for (double x : {-0.4, 0.4}) {
         StringDesc d = StringDesc::straight({x, 2.5, 0}, {x, 1.025, 0}, 60);
