@@ -4,8 +4,8 @@
 //     ropes with their lower ends pinned; /1: an 8-board bridge (as the `bridge` scene,
 //     no crates) against its 18 ropes with every end pinned; /2: the swing with a 20 kg
 //     crate resting on its board (a body-body contact inside the island). Target: ratio <= 3.
-//   BM_BridgeCoupled: the built-in `bridge` scene, 600 steps of 1/100 s. Target: <= 0.5 ms
-//     a step.
+//   BM_BridgeCoupled/600: the built-in `bridge` scene, 600 steps of 1/100 s; /100: its first
+//     100 steps, before the first crate. Target: <= 0.5 ms a step.
 //   BM_FloorRopeWithBox/1/64: a 64-segment rope on the ground, a 5 kg box dropped on it,
 //     stepSimulation(1/60, 10, 1/240) as games step; /0/64: the rope alone; /1/128: 128 segments
 //     and the box. Target: <= 1 ms a frame (64 segments, box).
