@@ -29,18 +29,19 @@ std::string fmt(const char* f, double a, double b = 0, double c = 0, double d = 
 }
 
 // Item 2: a crate set down at rest on the middle board of a 7-board bridge (3 kg boards,
-// 3 cm thick, the issue's scene), after the bridge settled for 1 s; 2 s after.
+// 3 cm thick, the issue's scene), after the bridge settled for `settle` s; 2 s after.
 // Penetration: how far the crate's centre is below where it would rest, in the board's
-// frame (board half thickness + crate half size - local y), until it falls through, and,
+// frame (board half thickness + crate half size - local y), until it goes through, and,
 // independently, the deepest Bullet contact point between the two (-getDistance()).
-// Falls through: the crate's centre goes below the board's mid-plane.
-void heavyCrate(double crate_mass) {
+// Through: the penetration passes the board's thickness (the crate's bottom face below
+// the board's).
+void heavyCrate(double crate_mass, double settle) {
     const double board_half = 0.015, crate_half = 0.1;
-    const int boards = 7, middle = 3, settle_steps = 100, steps = 200;
+    const int boards = 7, middle = 3, steps = 200;
     Rig rig;
     const auto bridge = island::buildBridge(rig, {boards, 3.0, board_half, 0.8, false});
     for (auto* b : bridge.boards) b->setActivationState(DISABLE_DEACTIVATION);
-    for (int i = 0; i < settle_steps; ++i) rig.step();
+    for (int i = 0; i < static_cast<int>(std::lround(settle / 0.01)); ++i) rig.step();
     btRigidBody& board = *bridge.boards[middle];
     const btTransform at = board.getWorldTransform();
     const btVector3 up = at.getBasis().getColumn(1);
@@ -49,15 +50,16 @@ void heavyCrate(double crate_mass) {
     crate.setWorldTransform(btTransform(at.getRotation(), crate.getWorldTransform().getOrigin()));
     crate.setFriction(0.8f);
     crate.setActivationState(DISABLE_DEACTIVATION);
-    double worst_geometric = 0, worst_manifold = 0, at_01 = 0, fell_at = -1;
+    double worst_geometric = 0, worst_manifold = 0, at_01 = 0, through_at = -1, last = 0;
     for (int i = 1; i <= steps; ++i) {
         rig.step();
         const btTransform b = board.getWorldTransform();
         const btVector3 local = b.invXform(crate.getCenterOfMassPosition());
         const double sink = (board_half + crate_half) - local.y();
-        if (local.y() < 0 && fell_at < 0) fell_at = 0.01 * i;
-        if (fell_at < 0) worst_geometric = std::max(worst_geometric, sink);
+        if (sink > 2 * board_half && through_at < 0) through_at = 0.01 * i;
+        if (through_at < 0) worst_geometric = std::max(worst_geometric, sink);
         if (i == 10) at_01 = sink;
+        last = sink;
         auto* dispatcher = rig.phys.world->getDispatcher();
         for (int m = 0; m < dispatcher->getNumManifolds(); ++m) {
             const auto* manifold = dispatcher->getManifoldByIndexInternal(m);
@@ -68,11 +70,12 @@ void heavyCrate(double crate_mass) {
                 worst_manifold = std::max(worst_manifold, -static_cast<double>(manifold->getContactPoint(c).getDistance()));
         }
     }
-    const std::string name = fmt("crate %.0f kg on a 3 kg roped board (%.0fx)", crate_mass, crate_mass / 3.0);
-    std::string value = fmt("max penetration %.1f mm (contacts %.1f mm), at 0.1 s %.1f mm", 1e3 * worst_geometric,
+    const std::string name =
+        fmt("crate %.0f kg (%.1fx) on a 3 kg board, after %.0f s", crate_mass, crate_mass / 3.0, settle);
+    std::string value = fmt("penetration up to %.1f mm (contacts %.1f), at 0.1 s %.1f", 1e3 * worst_geometric,
                             1e3 * worst_manifold, 1e3 * at_01);
-    value += fell_at >= 0 ? fmt(", falls through at %.2f s", fell_at) : ", stays";
-    line(name.c_str(), value, "< 2 mm, stays", worst_geometric < 0.002 && fell_at < 0);
+    value += through_at >= 0 ? fmt("; through at %.2f s", through_at) : fmt("; stays, %.1f mm at 2 s", 1e3 * last);
+    line(name.c_str(), value, "< 2 mm, stays", worst_geometric < 0.002 && through_at < 0);
 }
 
 // Item 3: the bridge's statics. The `bridge` scene's bridge (island_scenes.hpp: 8 boards of
@@ -344,7 +347,8 @@ int main(int argc, char** argv) {
     auto want = [&](const char* group) { return only.empty() || only == group; };
     std::printf("issue 30, items 2-5: today's values against the targets\n");
     if (want("crate"))
-        for (double m : {5.0, 10.0, 60.0}) heavyCrate(m);
+        for (double settle : {1.0, 3.0})
+            for (double m : {5.0, 10.0, 60.0}) heavyCrate(m, settle);
     if (want("statics"))
         for (int c : {0, 1, 2}) bridgeStatics(c);
     if (want("capstan")) {
