@@ -1,4 +1,5 @@
-// Stages 2 and 8 of a step: unconstrained prediction x' and velocities from positions.
+// The prediction and velocity stages of StringSystem::step: unconstrained prediction x'
+// and velocities from positions.
 #include "base/thread_pool.hpp"
 #include "string/string_state.hpp"
 
@@ -27,12 +28,10 @@ void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
                     break;
                 case ParticleHold::Kind::Free: {
                     // Drag damps the motion, not the load: a rope at rest still feels all of
-                    // gravity (damping the whole update would hide a fraction of the weight
-                    // from the momentum-balance tension).
-                    // The twist force of the previous step (Eq. 6) is explicit: cap the
-                    // displacement it can cause in one step at a tenth of a segment, a
-                    // safety limit that only acts on a string twisted far past its strength.
-                    // (Most of a rope is untwisted: no square root for a zero force.)
+                    // gravity (else the momentum-balance tension would miss part of the weight).
+                    // The previous step's twist force (Eq. 6) is explicit: the displacement
+                    // it causes is capped at a tenth of a segment, a safety limit that only
+                    // acts on a string twisted far past its strength.
                     Vec3 twist = s.twist_force[p];
                     if (twist != Vec3::Zero()) {
                         const double cap = 0.1 * s.shortest_rest * s.mass[p] * ctx.inv_h * ctx.inv_h;
