@@ -14,7 +14,6 @@ namespace tearables::detail {
 void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
     const double h = ctx.h;
     const double damp = 1.0 / (1.0 + s.desc.damping * h);
-    // Particle by particle (on the pool for a long string: the same bits).
     forRanges(ctx.pool, s.particles(), kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {
         for (std::size_t p = p0; p < p1; ++p) {
             s.x_prev[p] = s.x[p];
@@ -48,11 +47,9 @@ void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
     });
 }
 
-// The speed clamp on positions: after the strain limit, no free particle has
-// moved farther than max_speed * h this step. A finite but absurd user force (1e30 N)
-// otherwise flings a torn piece 1e26 m in one step, where the swept collision search sees
-// it cross every other string and the joint solve drags them along. Held particles follow
-// their hold and are left alone; below the clamp nothing changes.
+// The speed clamp on positions: after the strain limit, no free particle has moved farther
+// than max_speed * h this step (an absurd finite force, 1e30 N, would fling a torn piece
+// 1e26 m, across every other string's swept search). Held particles are left alone.
 void clampTravel(StringState& s, const StepContext& ctx) {
     const double reach = ctx.settings->max_speed * ctx.h;
     const std::size_t n = s.particles();
@@ -74,10 +71,9 @@ void clampTravel(StringState& s, const StepContext& ctx) {
     });
 }
 
-// Position-based velocity update: v = (x - x_prev) / h, for every particle (held ones
-// included, so a moved pin or a swinging body gives its particle the right velocity).
-// The speed clamp (a guard against blow-ups) acts here, on the constrained result: a
-// force on a light particle may predict a huge speed that the limiter then removes.
+// Position-based velocity update: v = (x - x_prev) / h for every particle (held ones too:
+// a moved pin or a swinging body gives its particle its velocity), clamped to max_speed on
+// the constrained result, as a prediction's huge speed may be removed by the limiter.
 void updateVelocities(StringState& s, const StepContext& ctx) {
     const double max_speed = ctx.settings->max_speed;
     forRanges(ctx.pool, s.particles(), kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {
