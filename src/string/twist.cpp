@@ -2,7 +2,7 @@
 //
 // Strings Sec. 4: segment j has a twist angle theta_j between its twist-free (Bishop) and
 // material frames. The paper spreads twist by averaging increments over regions of
-// half-width w_twist (Eq. 1-5), whose fixed point is the same linear twist whatever the
+// half-width w_twist (Eq. 1-3), whose fixed point is the same linear twist whatever the
 // widths and so cannot give Fig. 6e (a more rigid range twists less). We solve the balance
 // the averaging approximates, implicitly (backward Euler, stable at any stiffness):
 //
@@ -11,7 +11,8 @@
 // theta'_j = theta_j + h omega_j (Eq. 5), I_j = m_j r^2 / 2 (a solid cylinder), k_k =
 // G J w_k / (2 l_k), J = pi r^4 / 2, l_k between the segments' centres, tau0_k the joint's
 // rest twist (plasticity). w/2 is a rigidity factor: w_twist = 2 (the paper's default) is
-// the material's G J. Tridiagonal, O(n); then omega_j = (theta_j - theta_j^old) / h (Eq. 4).
+// the material's G J, twice the width twice as rigid (Fig. 6d-e). Tridiagonal, O(n); then
+// omega_j = (theta_j - theta_j^old) / h (Eq. 4).
 // Ends: a pinned end clamps its segment's twist (twist drivers turn it), a free end is
 // torque-free, a glued end turns with its body, whose inertia about the axis joins the solve.
 #include "linalg/tridiagonal.hpp"
