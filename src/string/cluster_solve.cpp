@@ -1,5 +1,5 @@
 // The joint strain-limit solve of strings that touch each other (string-string and self
-// contacts; World gathers the clusters). The cluster's energy is the sum of the strings'
+// contacts; StringPairs gathers the clusters). The cluster's energy is the sum of the strings'
 // own step energies (strain_limit.cpp) plus, per contact between segment j of string a at
 // s and segment k of string b at t (b may be a),
 //     k_c/2 min(0, g)^2,   g = n . (x_a(s) - x_b(t)) - (r_a + r_b),
@@ -49,12 +49,9 @@ constexpr int kStringPredictRounds = 3;
 constexpr int kStringLineSearchHalvings = 10;
 /// When a joint Newton step is solved by one sparse factorisation of the cluster's whole
 /// Hessian (sparseClusterStep) instead of the Woodbury identity: past kWoodburyDirections
-/// contact directions (normals and friction tangents), or past kWoodburyCachedDirections
-/// when directions times the cluster's particles exceed kWoodburyWork. Woodbury costs one
-/// chain solve and one stored column of the cluster's length per direction, and a dense
-/// system of their number: cheap for the few crossings of ropes lying on each other, not
-/// for the thousands of a long rope folded onto itself, where the sparse factorisation's
-/// fill follows where the contacts join the strings.
+/// contact directions, or past kWoodburyCachedDirections when directions times particles
+/// exceed kWoodburyWork. Woodbury costs a chain solve, a stored column and a dense system
+/// row per direction: cheap for a few crossings, not for a long rope folded onto itself.
 constexpr std::size_t kWoodburyDirections = 256;
 constexpr std::size_t kWoodburyCachedDirections = 64;
 constexpr std::size_t kWoodburyWork = 100000;
@@ -116,17 +113,13 @@ struct StraightPaths {
     }
 };
 
-/// The side on which two segments that were apart at the start of the step met during
-/// it, as far as the motion from the start tells: true when it does, with `side` the
-/// direction from the second toward the first where they met, and `met` whether they
-/// did. Their real paths are not known, only that each strays from its straight one by
-/// about `stray` (pathStray, both segments' summed), so the straight paths decide only
-/// what every path within `stray` of them would: that the pair met at all (the straight
-/// paths come within gap - stray: the real ones within gap; never within gap + stray: the
-/// real ones never within gap), and on which side of `now` (the direction of the pair at
-/// the end) it met, the real meeting lying between the straight paths' touches of
-/// gap + stray and gap - stray: decided when those touches, and the touch of the gap
-/// itself (`side`), see `now` on the same side.
+/// The side on which two segments that were apart at the start of the step met during it,
+/// as far as the motion tells: true when it does, with `side` the direction from the second
+/// toward the first where they met and `met` whether they did. The real paths stray from
+/// the straight ones by about `stray` (pathStray, summed), so the straight paths decide only
+/// what every path within `stray` would: whether they met (within gap - stray: yes; never
+/// within gap + stray: no), and on which side of `now` (the pair's direction at the end),
+/// when the touches at gap + stray, gap - stray and gap (`side`) all see `now` on one side.
 bool sideMet(const StraightPaths& path, double gap, double stray, const Vec3& now, bool& met, Vec3& side) {
     met = false;
     if (!(stray < gap)) return false;
@@ -203,11 +196,9 @@ struct ClusterScratch::Impl {
     std::vector<ChainSolver> solvers;
     std::vector<std::vector<Vec3>> y;
     /// The Woodbury system of `dim` contact directions and its factorisation, one set per
-    /// dim up to kCachedDims: Eigen's dynamic matrices keep no spare capacity (a resize to
-    /// another size reallocates, and so does LDLT::compute), and the number of directions
-    /// changes from step to step. Each set is allocated when its size first occurs, with
-    /// the sets up to twice it (a draped rope's directions come and go by a few); a running
-    /// scene then steps without allocating. Larger systems share one set, allocating.
+    /// dim up to kCachedDims, each allocated with the sets up to twice it when its size first
+    /// occurs (Eigen's dynamic matrices reallocate on any resize): a running scene steps
+    /// without allocating. Larger systems share one set, allocating.
     struct Woodbury {
         Eigen::MatrixXd sys;
         Eigen::VectorXd rhs, z;
@@ -244,16 +235,12 @@ struct ClusterScratch::Impl {
 
 namespace {
 
-/// The joint Newton step of many contact directions: (A + U W U^T) dx = r, A the strings'
-/// own block-tridiagonal systems (blk_diag, blk_off as the strings hold them after
-/// assembly; fixed rows are identity rows), U W U^T the directions' rank-1 terms, r the
-/// right-hand sides kept in sc.r, as one sparse symmetric matrix of the cluster's 3n
-/// unknowns, factorised by Eigen's SimplicialLDLT (AMD ordering). The same step as the
-/// Woodbury identity's, to rounding. Writes dx into the strings' blk_rhs (zero for
-/// particles that are not free); false, with blk_rhs untouched, if the factorisation fails
-/// or the step is not finite. It allocates (the pattern is new each time); it only runs
-/// for the large clusters of sparseStepPays (past kWoodburyCachedDirections directions,
-/// where the Woodbury path allocates too), or where a test asks for it.
+/// The joint Newton step of many contact directions, (A + U W U^T) dx = r (A the strings'
+/// block-tridiagonal systems as assembled, fixed rows identity; r in sc.r), as one sparse
+/// symmetric matrix of the cluster's 3n unknowns, factorised by SimplicialLDLT (AMD): the
+/// Woodbury step to rounding. dx into the strings' blk_rhs (zero where not free); false,
+/// blk_rhs untouched, if the factorisation fails or the step is not finite. It allocates;
+/// it runs for the large clusters of sparseStepPays, or where a test asks for it.
 bool sparseClusterStep(const std::vector<StringState*>& strings, const std::vector<cluster::Direction>& dirs,
                        ClusterScratch::Impl& sc) {
     std::vector<Eigen::Index> offset(strings.size() + 1, 0);
@@ -391,17 +378,12 @@ private:
     }
 
     /// Closest points and normal at the given positions: the predicted ones in the first
-    /// pass (the strings' own solves, which ignored each other, may have pulled one
-    /// through the other), the current ones later (the passes keep them apart). The
-    /// contact takes the closest-point direction there, which may turn freely while the
-    /// pair comes into reach (e.g. end against side), unless the positions have carried
-    /// the pair through itself: then it takes the normal of the side it was on, which the
-    /// motion from the start of the step tells. A pair that touched at the start is on
-    /// its start normal's side; one that came into reach during the step, on the side it
-    /// met the other on, as far as the straight paths from the start tell it for any path
-    /// within their stray of them (sideMet). Where the straight paths do not tell (strays
-    /// near the gap: a torn rope whipping round its pin), only axes that went across each
-    /// other do: the side of their common perpendicular flipped.
+    /// pass (the strings' own solves may have pulled one through the other), the current
+    /// ones later. The contact takes the closest-point direction, free to turn while the
+    /// pair comes into reach, unless the positions carried the pair through itself: then the
+    /// side it was on, from the motion since the start (a pair touching at the start: its
+    /// start normal; one that came into reach: sideMet; where the straight paths do not tell,
+    /// e.g. a torn rope whipping round its pin, only axes that crossed: a flipped perpendicular).
     void linearise(StringPairContact& c, bool predicted) {
         const StringState& a = *strings_[c.string];
         const StringState& b = *strings_[c.partner];
@@ -488,13 +470,11 @@ private:
 
     // --- contacts known to stay apart ---------------------------------------------------
     // Each contact keeps a lower bound of its gap: the gap last computed, less twice the
-    // largest move of any particle since (`travel_`: a contact point is a convex
-    // combination of two particles, and the normal is a unit vector, so the gap moves by at
-    // most the two sides' moves). A contact whose bound clears what a step can close is
-    // known to stay apart, and is left out of the loops that would only find that (the
-    // same contacts, the same sums). `live`: the contacts not skipped in this pass;
-    // `candidates`: those of them a step of `reach` could bring to touch, or with
-    // friction, in order.
+    // largest particle move since (`travel_`; a contact point is a convex combination of two
+    // particles and the normal is unit). A contact whose bound clears what a step can close
+    // stays apart and is left out of the loops (the same sums). `live`: the contacts not
+    // skipped in this pass; `candidates`: those a step of `reach` could bring to touch, or
+    // with friction, in order.
 
     bool clear(std::size_t ci, double reach) const {
         return sc_.gap_seen[ci] - (travel_ - sc_.travel_seen[ci]) > reach * (1.0 + 1e-6) + 1e-6 * contacts_[ci].gap;

@@ -12,8 +12,8 @@ namespace tearables::detail {
 
 namespace {
 
-/// Where a contact's surface point is now: on its body (following it), or a fixed point
-/// (another string's segment, for string-string contacts).
+/// Where a contact's surface point is now: on its body (following it), or a fixed world
+/// point where it has none.
 Vec3 contactPoint(const RigidSegmentContact& c, const RigidTable& rigids) {
     return c.body.valid() ? gluePoint(rigids.bodies[c.body.index], c.local) : c.local;
 }

@@ -1,24 +1,18 @@
-// Stage 7: material response to the estimated tension (Strings, Sec. 5.3-5.4; Yarn,
+// The material stage: response to the estimated tension (Strings Sec. 5.3-5.4; Yarn
 // Sec. 3.3-3.4).
 //
 // Stress sigma = T / (pi r0^2) (Strings Eq. 8, engineering stress on the original
 // section). The tensile curve is bilinear: strain sigma/E up to the yield stress, then
-// yield/E + (sigma - yield)/E_p (Strings Sec. 5.1: "a line with a constant slope that fits
-// the curve best"). Choices where the papers are vague:
-//  - L_max = L_rest (1 + sigma/E): the strain limit follows the elastic strain of the
-//    current stress (Strings Sec. 5.4, Yarn Sec. 3.3), so an unloaded rope is
-//    inextensible and a loaded one lengthens as its modulus says. The limiter meets it
-//    implicitly through the compliance L_rest / (E A) (strain_limit.cpp); L_max is
-//    kept for the trace.
-//  - Past yield the material hardens: the peak stress reached sets a permanent strain
-//    eps_perm = eps_curve(peak) - peak/E (unloading runs parallel to the elastic line),
-//    and the rest length becomes L0 (1 + eps_perm) (Yarn Sec. 3.4: rest length grows).
+// yield/E + (sigma - yield)/E_p (Strings Sec. 5.1). Choices where the papers are vague:
+//  - L_max = L_rest (1 + sigma/E) (Strings Sec. 5.4, Yarn Sec. 3.3): an unloaded rope is
+//    inextensible, a loaded one lengthens as its modulus says. The limiter meets it through
+//    the compliance L_rest / (E A) (strain_limit.cpp); L_max is kept for the trace.
+//  - Past yield the peak stress sets a permanent strain eps_perm = eps_curve(peak) - peak/E
+//    (unloading parallel to the elastic line); rest length L0 (1 + eps_perm) (Yarn Sec. 3.4).
 //  - The radius keeps the segment's volume: r = r0 sqrt(L0 / L_max).
-//  - A segment whose stress reaches its rupture stress breaks (if the string is
-//    tearable): it is removed, its two particles stay, and a Tear event is emitted. Per
-//    string and step only the most overloaded segment breaks (a uniform rope would
-//    otherwise shatter into all its segments at once; after the first tear the rest
-//    is unloaded).
+//  - A segment at its rupture stress breaks (if the string is tearable): removed, its
+//    particles stay, a Tear event. Only the most overloaded segment of a string breaks per
+//    step (a uniform rope would shatter at once; after the first tear the rest is unloaded).
 #include "base/lanes.hpp"
 #include "base/thread_pool.hpp"
 #include "sim/material_curve.hpp"
@@ -53,10 +47,8 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
     const std::size_t m = s.segments();
     const double r0 = s.desc.radius;
     const double area0 = kPi * r0 * r0;
-    // The segments' tensile response, on the pool for a long string (forRanges): each
-    // range keeps its own most overloaded segment and its own yield events, merged in
-    // range order after, as one loop would have found them (the first of equal ratios;
-    // the events by segment).
+    // The tensile response, on the pool for a long string: each range keeps its own most
+    // overloaded segment and yield events, merged in range order as one loop would have.
     struct Worst {
         int index = -1;
         double ratio = 0.0, stress = 0.0;
@@ -102,11 +94,9 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
             }
             return true;
         };
-        // The geometry two segments at a time: their four divisions and root in the two lanes
-        // of one register (one costs what a scalar one does; the same operations lane by lane,
-        // so the same bits). Engineering stress, force over the original section, as
-        // stress-strain curves and rupture stresses are measured; the thinned radius is
-        // geometry. Lanes of segments that keep their geometry are computed and dropped.
+        // The geometry two segments at a time, divisions and root in lanes (the same bits;
+        // lanes of segments that keep their geometry are dropped). Engineering stress, as
+        // stress-strain curves and rupture stresses are measured; the thinned radius is geometry.
         for (std::size_t j = j0; j < j1; j += 2) {
             const std::size_t k = j + 1 < j1 ? j + 1 : j;  // an odd count: the last one twice
             const Lanes2 stress = Lanes2{std::max(0.0, s.tension[j]), std::max(0.0, s.tension[k])} / area0;

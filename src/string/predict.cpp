@@ -1,4 +1,5 @@
-// Stages 2 and 8 of a step: unconstrained prediction x' and velocities from positions.
+// The prediction and velocity stages of StringSystem::step: unconstrained prediction x'
+// and velocities from positions.
 #include "base/thread_pool.hpp"
 #include "string/string_state.hpp"
 
@@ -13,7 +14,6 @@ namespace tearables::detail {
 void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
     const double h = ctx.h;
     const double damp = 1.0 / (1.0 + s.desc.damping * h);
-    // Particle by particle (on the pool for a long string: the same bits).
     forRanges(ctx.pool, s.particles(), kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {
         for (std::size_t p = p0; p < p1; ++p) {
             s.x_prev[p] = s.x[p];
@@ -27,12 +27,10 @@ void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
                     break;
                 case ParticleHold::Kind::Free: {
                     // Drag damps the motion, not the load: a rope at rest still feels all of
-                    // gravity (damping the whole update would hide a fraction of the weight
-                    // from the momentum-balance tension).
-                    // The twist force of the previous step (Eq. 6) is explicit: cap the
-                    // displacement it can cause in one step at a tenth of a segment, a
-                    // safety limit that only acts on a string twisted far past its strength.
-                    // (Most of a rope is untwisted: no square root for a zero force.)
+                    // gravity (else the momentum-balance tension would miss part of the weight).
+                    // The previous step's twist force (Eq. 6) is explicit: the displacement
+                    // it causes is capped at a tenth of a segment, a safety limit that only
+                    // acts on a string twisted far past its strength.
                     Vec3 twist = s.twist_force[p];
                     if (twist != Vec3::Zero()) {
                         const double cap = 0.1 * s.shortest_rest * s.mass[p] * ctx.inv_h * ctx.inv_h;
@@ -49,11 +47,9 @@ void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
     });
 }
 
-// The speed clamp on positions: after the strain limit, no free particle has
-// moved farther than max_speed * h this step. A finite but absurd user force (1e30 N)
-// otherwise flings a torn piece 1e26 m in one step, where the swept collision search sees
-// it cross every other string and the joint solve drags them along. Held particles follow
-// their hold and are left alone; below the clamp nothing changes.
+// The speed clamp on positions: after the strain limit, no free particle has moved farther
+// than max_speed * h this step (an absurd finite force, 1e30 N, would fling a torn piece
+// 1e26 m, across every other string's swept search). Held particles are left alone.
 void clampTravel(StringState& s, const StepContext& ctx) {
     const double reach = ctx.settings->max_speed * ctx.h;
     const std::size_t n = s.particles();
@@ -75,10 +71,9 @@ void clampTravel(StringState& s, const StepContext& ctx) {
     });
 }
 
-// Position-based velocity update: v = (x - x_prev) / h, for every particle (held ones
-// included, so a moved pin or a swinging body gives its particle the right velocity).
-// The speed clamp (a guard against blow-ups) acts here, on the constrained result: a
-// force on a light particle may predict a huge speed that the limiter then removes.
+// Position-based velocity update: v = (x - x_prev) / h for every particle (held ones too:
+// a moved pin or a swinging body gives its particle its velocity), clamped to max_speed on
+// the constrained result, as a prediction's huge speed may be removed by the limiter.
 void updateVelocities(StringState& s, const StepContext& ctx) {
     const double max_speed = ctx.settings->max_speed;
     forRanges(ctx.pool, s.particles(), kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {

@@ -1,31 +1,20 @@
-// Named material presets, with where each number comes from.
+// Named material presets, with where each number comes from: typical handbook and trade
+// figures for a common grade, quoted from memory (no measurement behind this table, and
+// not a specification); "estimate" marks a number we derived from others.
 //
-// Sources are standard handbook and trade figures, quoted from memory: no measurement was
-// made for this table, and every value is a typical value for a common grade, not a
-// specification. The kind of source is named next to each number; "estimate" marks a
-// number derived by us from others rather than read off a data sheet.
-//
-// Conventions (see material.hpp and SCENE_FORMAT.md):
-// - Tensile curve, bilinear (Strings, Sec. 5.1): slope `young` up to `yield`, then
-//   `plastic_modulus` up to `rupture`. Engineering stress over the full circle pi r^2. For
-//   threads and ropes these are *apparent* values: rope breaking load / (pi r^2), with air
-//   between the fibres, so they are lower than the fibre's own (packing ~0.6-0.7).
+// Conventions (material.hpp, SCENE_FORMAT.md):
+// - Tensile curve, bilinear (Strings Sec. 5.1): slope `young` up to `yield`, then
+//   `plastic_modulus` up to `rupture`; engineering stress over pi r^2. Threads and ropes
+//   have apparent values (breaking load / pi r^2, air between the fibres: packing ~0.6-0.7).
 //   Strain at rupture = yield/young + (rupture - yield)/plastic_modulus.
 // - Torsion curve: `modulus` is the shear modulus G (Pa); yield and rupture are surface
-//   shear strains gamma = r dtheta/ds (dimensionless). How we estimated them:
-//     * yield: gamma_y = tau_y / G with tau_y = tensile yield / sqrt(3) (von Mises) - an
-//       estimate from shear strength over G, no torsion test behind it;
-//     * rupture gamma_r: fibre structures (thread, ropes): the outer fibres follow a helix
-//       and stretch by sqrt(1 + gamma^2) - 1, so they break at gamma_r = sqrt((1+e_b)^2 - 1)
-//       (classical yarn-twist geometry, e.g. Hearle, Grosberg & Backer, "Structural
-//       Mechanics of Fibers, Yarns and Fabrics"); isotropic solids (rubber, spaghetti):
-//       the surface is in simple shear, whose largest principal stretch lambda satisfies
-//       lambda - 1/lambda = gamma, taken to fail at lambda = 1 + e_b (max principal strain);
-//       fibre and wire: measured twist-to-break where that is known (noted at the preset);
-//     * plastic_modulus = (tau_r - tau_y) / (gamma_r - gamma_y), so the torsional stress at
-//       rupture is about the shear strength, tensile rupture / sqrt(3) (von Mises).
-//   All torsional values are estimates.
-// - variation 1e-4: the 0.01 % per-segment spread of Strings, Sec. 7.
+//   shear strains gamma = r dtheta/ds. All estimates: gamma_y = tau_y / G, tau_y = tensile
+//   yield / sqrt(3) (von Mises); gamma_r of fibre structures from the outer fibres' helix,
+//   sqrt(1 + gamma^2) = 1 + e_b (Hearle, Grosberg & Backer, "Structural Mechanics of Fibers,
+//   Yarns and Fabrics"), of isotropic solids from simple shear, lambda - 1/lambda = gamma at
+//   lambda = 1 + e_b, of fibre and wire a measured twist-to-break where known (at the preset);
+//   plastic_modulus = (tau_r - tau_y) / (gamma_r - gamma_y), tau_r = tensile rupture / sqrt(3).
+// - variation 1e-4: the 0.01 % per-segment spread of Strings Sec. 7.
 #include "tearables/presets.hpp"
 
 namespace tearables {
@@ -65,12 +54,9 @@ MaterialPreset rubberCord() {
     p.radius = 2.0e-3;  // m; 4 mm rubber cord, a common stock size
     p.density = 950.0;  // kg/m^3; NR gum vulcanizate 920-930, lightly filled ~950-1000 (rubber handbooks, e.g. Mark, Erman &
                         // Roland, "The Science and Technology of Rubber")
-    // Rubber is hyperelastic (S-shaped curve: initial E 1-5 MPa, softening, then a strain-crystallisation
-    // upturn), elastic to near break, and has no true yield. This bilinear fit is crude: it only
-    // reproduces the rupture stress and the strain at break roughly. The first slope is a secant
-    // through the S-curve; "yield" is put at 500 % strain, past which real rubber keeps a small
-    // permanent set (Mullins effect/set after near-break stretch), and the steeper second slope
-    // stands for the upturn.
+    // Rubber is hyperelastic (an S-shaped curve), elastic to near break, with no true yield:
+    // this bilinear fit only reproduces the rupture stress and the strain at break. The first
+    // slope is a secant; "yield" sits at 500 % strain; the steeper second slope is the upturn.
     TensileCurve& t = p.material.tensile;
     t.young = 2.5e6;          // Pa; NR small-strain E 1-5 MPa (handbook range; E = 3G, G 0.4-1 MPa), secant to 500 % strain
     t.yield = 1.25e7;         // Pa; at 500 % strain (2.5 MPa x 5), fit point, not a material yield
@@ -138,9 +124,8 @@ MaterialPreset spaghetti() {
     p.radius = 1.2e-3;   // m; dry spaghetti n.5 is 1.7-1.9 mm, swelling to ~2.2-2.6 mm when cooked (pasta makers' data)
     p.density = 1100.0;  // kg/m^3; cooked pasta ~60 % water + starch/protein ~1450: 1 / (0.6/1000 + 0.4/1450) = 1140,
                          // less some entrapped air (estimate)
-    // Cooked pasta is a soft viscoelastic starch-protein gel; published tensile data vary a lot
-    // with cooking time. The numbers below are order-of-magnitude estimates from food-rheology
-    // measurements of cooked pasta, not a data sheet.
+    // Cooked pasta, a soft viscoelastic gel whose tensile data vary with cooking time:
+    // order-of-magnitude estimates from food-rheology measurements, not a data sheet.
     TensileCurve& t = p.material.tensile;
     t.young = 3e6;            // Pa; cooked spaghetti E ~1-5 MPa (food rheology measurements of cooked pasta), estimate
     t.yield = 5e4;            // Pa; gel yields early and flows (necks) before breaking: ~half the breaking stress, estimate

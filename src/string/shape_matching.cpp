@@ -1,53 +1,17 @@
-// Chain shape matching (Strings, Sec. 3; Rungjiratananon, Kanamori, Nishita 2010).
+// Chain shape matching, CSM (Strings Sec. 3; Rungjiratananon, Kanamori, Nishita 2010).
 //
-// Regions. On a piece [first, last] of N particles, region k holds the particles
-// max(first, k-w) .. min(last, k+w); particle i belongs to N_i = min(last, i+w) -
-// max(first, i-w) + 1 regions (2w+1 inside the chain, fewer near the piece's ends).
-//
-// Per-region mass. The paper weighs "the goal position of each particle in the
-// overlapping regions by particle per-region mass". We read this as in lattice shape
-// matching (Rivers & James, FastLSM 2007), which CSM simplifies: a particle's mass is split
-// equally among the regions that contain it, m~_i = m_i / N_i, and m~_i is the mass the
-// particle has in each of its regions, both when a region is fitted (centroids and the
-// moment matrix A) and when its goals are blended. Blending then is a plain average over
-// the particle's regions,
-//     g_i = sum_k m~_i g_ik / sum_k m~_i = (1/N_i) sum_{k containing i} g_ik,
-// and, because every region conserves the momentum of its per-region masses, the goals
-// conserve the linear momentum of the piece exactly: sum_i m_i g_i = sum_i m_i x_i
-// (fitting with the full m_i instead would break this at the piece's ends, where N_i
-// varies). A heavier particle (e.g. a colliding one, made 3x heavier by the caller, Sec.
-// 6) pulls its regions' centroids and rotations towards itself and so moves less.
-//
-// Fit of region k (per-region masses): c = sum m~ x / M, c0 = sum m~ x0 / M,
+// On a piece [first, last], region k holds the particles max(first, k-w) .. min(last, k+w);
+// particle i lies in N_i of them. As in lattice shape matching (Rivers & James, FastLSM
+// 2007), which CSM simplifies, i has the per-region mass m~_i = m_i / N_i in each of its
+// regions, in the fit and in the blend, so the goals conserve the piece's momentum exactly,
+// sum_i m_i g_i = sum_i m_i x_i (the full m_i would not, at the piece's ends). A heavier
+// particle (a colliding one, 3x, Sec. 6) pulls its regions towards itself and moves less.
+// Fit of region k: c = sum m~ x / M, c0 = sum m~ x0 / M,
 //     A = sum m~ (x - c)(x0 - c0)^T = sum m~ x x0^T - M c c0^T,
-// R = rotational part of A, goals g_ik = R (x0_i - c0) + c.
-//
-// O(1) per region. Global prefix sums of m, m x, m x0 and m x x0^T along the chain with
-// A_k = S_k - M c c0^T would cancel catastrophically: their terms grow with the distance from the origin and with the
-// chain's length, while A_k is of the order of the region's own (small) extent squared
-// (a 746-particle rope of 1 cm segments would lose about 8 digits in A of a w = 2 region).
-// We keep the O(1) cost without any subtraction (the van Herk / Gil-Werman sliding-window
-// scheme): the piece is cut into blocks of B = 2w+1 particles; inside each block we keep
-// prefix sums (block start .. i) about the block's first particle and suffix sums
-// (i .. block end) about the next block's first particle (the last block's about its own
-// first). A region has at most B particles, so it is a suffix of one block plus a prefix
-// of the next, both about the same particle of the region, which simply add (or, at the
-// piece's ends, a prefix or a suffix of one block, about its first particle); every
-// quantity then has the size of a few regions, and A_k = S - M c c0^T (about a particle
-// of the region) loses only a couple of digits. Goals are blended as
-// x_i + mean_k [R_k (x0_i - c0_k) + (c_k - x_i)], again with local differences only.
-//
-// Rotation: the rotational part of each region's A (csmRotation; see the rotation helpers
-// below for its derivation and the paths that compute it).
-//
-// Straight rest shapes (straightChainShapeMatchingGoals). A string created along one line
-// (StringDesc::straight, the common rope) has every region of rank 1, A = a v^T with v the
-// line's direction, and only R v = a / |a| enters its goals (the rest offsets lie along
-// v): c + ((x0_i - c0) . v) a / |a|. So a second kernel keeps 8 moment sums instead of 16
-// (m, m x, m s and m x s, s the rest offset along v) and fits a region with one square
-// root and no rotation. Its goals are the rank-1 path's to rounding (tested against it);
-// the stage takes it where a piece's rest directions agree to 1e-12. The structure
-// (blocks, chunks, passes) is the same.
+// R = rotational part of A (csmRotation), goals g_ik = R (x0_i - c0) + c, blended as
+//     g_i = (1/N_i) sum_{k containing i} g_ik.
+// The sums cost O(1) a region without cancellation (sliding windows: PieceLayout); a
+// straight rest shape has a cheaper kernel (straightChainShapeMatchingGoals).
 #include "string/shape_matching.hpp"
 
 #include "base/lanes.hpp"
@@ -61,7 +25,6 @@
 
 namespace tearables::detail {
 
-
 namespace {
 
 /// sigma_2 / sigma_1 at or below which a region's A counts as rank 1 (collinear region).
@@ -69,11 +32,8 @@ namespace {
 /// the rotation about the line would be picked by round-off.
 constexpr double kRankOneTolerance = 1e-12;
 
-/// The 16 sums of CsmMoments as one flat array: m, mx, mx0, mxx0 (column-major). The
-/// passes accumulate, store and add moments in this form, element by element over an even
-/// count, which the compiler keeps in registers or moves in aligned pairs (on Eigen's 3-
-/// and 9-element objects it mixes packet and scalar accesses to the same spilled values,
-/// and a value stored one way and reloaded the other misses store forwarding).
+/// The 16 sums of CsmMoments as one flat array: m, mx, mx0, mxx0 (column-major), added
+/// element by element (Eigen's 3- and 9-element objects here missed store forwarding).
 struct FlatMoments {
     alignas(16) double v[16] = {};
 };
@@ -118,49 +78,24 @@ inline FlatMoments flat(const CsmMoments& s) {
     return f;
 }
 
-// The rotation of a region. csmRotation returns the rotation R maximising tr(R^T A): with
-// A = U S V^T (an SVD, S >= 0), R = U diag(1, 1, det(U V^T)) V^T (a reflection is fixed
-// by flipping the singular vector of the smallest singular value). It handles planar regions
-// (rank 2) and sign-indefinite A. When A has rank <= 1 (sigma_2 <= 1e-12 sigma_1: all
-// particles of the region collinear, now or at rest: a straight chain being stretched or a
-// straight rest shape), every rotation taking the rest direction v_1 to the current one u_1
-// is optimal and the rotation about the line is undetermined; we then take the smallest
-// such rotation (about v_1 x u_1), the one closest to identity, so a curved rest shape
-// pulled straight keeps its plane instead of a spin picked by round-off. A straight rest
-// shape makes every region rank 1; its goals only depend on R v_1 = u_1.
+// The rotation of a region (csmRotation): R maximising tr(R^T A). With A = U S V^T,
+// R = U diag(1, 1, det(U V^T)) V^T. When A has rank <= 1 (sigma_2 <= 1e-12 sigma_1: the
+// region collinear now or at rest) the rotation about the line is undetermined; we take the
+// smallest rotation taking v_1 to u_1, so a curved rest shape pulled straight keeps its
+// plane. A = 0 or non-finite A gives identity.
 //
-// How R is computed. A 3x3 JacobiSVD per region is costly and most regions are easy, so the
-// SVD is kept only for the cases the two cheap paths below are not sure of. Both are
-// stateless (no warm start: results do not depend on call order) and agree with the SVD's R
-// to rounding times the problem's own condition number sigma_1 / (sigma_2 + det-signed
-// sigma_3) (tested against JacobiSVD on random, reflected, planar, nearly planar and nearly
-// rank-1 matrices). The cofactor matrix cof A = det(A) A^-T (columns a_1 x a_2, a_2 x a_0,
-// a_0 x a_1) gives q = |cof A|_F / |A|_F^2, which brackets the rank test: q / sqrt(3) <=
-// sigma_2 / sigma_1 <= 3 q. (A with |A|_F^2 outside [1e-100, 1e100] is first scaled by a
-// power of two, so that |A|^4 cannot overflow.)
-//   - q <= 1e-12 / 6 (surely rank 1; every region of a straight rest shape): v_1 and u_1
-//     (up to their lengths) by power steps from A's longest column u, p = A^T u / |A|_F^2,
-//     q = A p (the pair has consistent signs), and R = the smallest rotation taking p to q
-//     as above, from the quaternion (|p||q| + p.q, p x q).
-//   - q >= 1e-7 (sigma_2 / sigma_1 >= 5.7e-8): Higham's scaled Newton iteration for the
-//     polar factor, X <- (z X + X^-T / z) / 2, z = (|X^-1|_F / |X|_F)^(1/2), X^-T =
-//     cof X / det X, started from B = A + cof(A) / s with s ~ sigma_1. In the SVD with
-//     rotations U, V and signed s_3 = det-sign sigma_3, cof A = U diag(s2 s3, s1 s3, s1 s2)
-//     V^T, so B = U diag(s1 + s2 s3/s, s2 + s1 s3/s, s3 + s1 s2/s) V^T: the same singular
-//     vectors, all signed values positive (also for planar A, where A^-T does not exist,
-//     and for reflected A if s is close enough to sigma_1: there s is refined from |A|_F by
-//     Newton on A^T A's characteristic cubic), so the iteration converges to exactly the
-//     R above, in 4-6 steps (its smallest value is sigma_2 + s3 ~ the problem's
-//     conditioning). q >= 1e-7 keeps B's cofactors and determinant accurate enough (det B
-//     to about 1e-16 / q^2 relative: a percent; the iteration only needs its sign and
-//     size). For reflected A the converged R is checked to be the maximiser (tr(S) I - S >=
-//     0 with S = R^T A symmetric), since a determinant of the wrong sign there would
-//     converge to another stationary rotation.
-//   - Otherwise (1e-12/6 < q < 1e-7: nearly rank 1, where cofactors lose their digits or
-//     the rank test is close, or a Newton iteration that does not converge in 12 steps or
-//     fails its check), JacobiSVD.
-// A = 0 or non-finite A gives identity. These paths are not bit for bit the SVD: R
-// differs in the last bits.
+// Three stateless paths, equal to the SVD's R to rounding times the condition number
+// sigma_1 / (sigma_2 + signed sigma_3) (tested against JacobiSVD). With cof A = det(A) A^-T
+// and q = |cof A|_F / |A|_F^2, q / sqrt(3) <= sigma_2 / sigma_1 <= 3 q (A is first scaled
+// by a power of two so that |A|_F^2 is in [1e-100, 1e100]):
+//   - q <= 1e-12 / 6, surely rank 1: v_1 and u_1 by power steps (RankOneBatch).
+//   - q >= 1e-7: Higham's scaled Newton iteration for the polar factor,
+//     X <- (z X + X^-T / z) / 2, z = (|X^-1|_F / |X|_F)^(1/2), from B = A + cof(A) / s,
+//     s ~ sigma_1. As cof A = U diag(s2 s3, s1 s3, s1 s2) V^T (s3 signed), B has A's
+//     singular vectors and all signed values positive (planar A too; reflected A once s is
+//     refined towards sigma_1), so it converges to R in 4-6 steps; for reflected A the
+//     result is checked to be the maximiser (newtonRotation).
+//   - otherwise, or when the iteration fails: JacobiSVD.
 
 /// q = |cof A|_F / |A|_F^2 at or above which the Newton iteration is used (see above).
 constexpr double kNewtonMinQ = 1e-7;
@@ -174,8 +109,8 @@ inline Mat3 cofactor(const Mat3& a) {
     return c;
 }
 
-/// |cof A|_F^2 = |cofactor(a)|_F^2, in scalars: the fast path needs only this, and the
-/// Mat3 of cofactor(), spilled and reloaded in mixed widths, missed store forwarding.
+/// |cof A|_F^2 in scalars (the fast path needs only this; cofactor()'s Mat3 here missed
+/// store forwarding).
 inline double cofactorSquaredNorm(const Mat3& a) {
     double sum = 0.0;
     for (int j = 0; j < 3; ++j) {
@@ -210,34 +145,22 @@ EIGEN_DONT_INLINE void halfTurnRotation(const Vec3& p, const Vec3& q, Mat3& r) {
     r = Quat::FromTwoVectors(p, q).normalized().toRotationMatrix();
 }
 
-/// Rotations of A of rank 1 (sigma_2 <= 5e-13 sigma_1), |A|_F^2 = n2 in [1e-100, 1e100],
-/// queued and computed kLanes at a time: the smallest rotation taking v_1 to u_1.
+/// Rotations of rank-1 A (|A|_F^2 = n2 in [1e-100, 1e100]), kLanes at a time: the
+/// smallest rotation taking v_1 to u_1.
 ///
-/// The longest column a_j is sigma_1 u_1 v_1j with |v_1j| >= 1/sqrt(3); two power steps
-/// after it, p = A^T a_j / n2 (along v_1, of length in [1/sqrt(3), 1]: dividing by n2
-/// keeps every product below within range) and q = A p (along u_1, of length ~ sigma_1;
-/// the pair has consistent signs), leave an error of (sigma_2/sigma_1)^2 in the
-/// directions, below rounding. The rotation from p to q is the unnormalised quaternion
-/// (w, k), k = p x q, w = |p||q| + p.q = |p||q| (1 + c): one square root (normalising p
-/// and q first took two, and the divisions by their lengths). w is
-/// computed as |k|^2 / (|p||q| + |p.q|) + (p.q + |p.q|), which for an obtuse angle avoids
-/// the cancellation of |p||q| + p.q, without a branch (see add()). Near a half turn
-/// (1 + c < 1e-6) halfTurnRotation.
-///
-/// Why a batch: the computation is some 130 scalar operations with no data-dependent
-/// control flow but selections, and SSE2 code for one 3x3 matrix spends as many
-/// instructions again on register moves and shuffles. Stored as structure of arrays, the
-/// loops over the lanes below vectorise (two regions per instruction), with the same
-/// operations, so the same bits, as one region at a time. A queued rotation is written when
-/// the batch fills or at solve(); its A is copied in, so it may be written over A.
+/// From A's longest column a_j = sigma_1 u_1 v_1j (|v_1j| >= 1/sqrt(3)), p = A^T a_j / n2
+/// lies along v_1 and q = A p along u_1, with consistent signs and an error of
+/// (sigma_2/sigma_1)^2. R comes from the unnormalised quaternion (w, k), k = p x q,
+/// w = |p||q| + p.q, computed as |k|^2 / (|p||q| + |p.q|) + (p.q + |p.q|) so that an obtuse
+/// angle does not cancel; near a half turn (1 + cos < 1e-6) halfTurnRotation. Structure of
+/// arrays, so the lane loops vectorise with the bits of one region at a time. A queued
+/// rotation is written when the batch fills or at solve(); A is copied in.
 class RankOneBatch {
 public:
     void add(const Mat3& a, double n2, Mat3& r) {
         for (int e = 0; e < 9; ++e) a_[e][count_] = a.data()[e];
-        // The longest column is picked here, one region at a time: in the loops over the
-        // lanes, the compiler makes branches of any selection ahead of arithmetic (it does
-        // not if-convert arithmetic, which might raise a floating-point exception), and a
-        // loop with branches does not vectorise.
+        // The longest column is picked here, one region at a time: a selection in the lane
+        // loops would become a branch and stop them vectorising.
         const double n0 = a.col(0).squaredNorm(), n1 = a.col(1).squaredNorm(), nn2 = a.col(2).squaredNorm();
         const int j = n0 >= n1 ? (n0 >= nn2 ? 0 : 2) : (n1 >= nn2 ? 1 : 2);
         for (int i = 0; i < 3; ++i) u_[i][count_] = a(i, j);
@@ -320,9 +243,7 @@ private:
 };
 
 /// One step of the scaled Newton iteration X <- (zeta X + X^-T / zeta) / 2 on x (3x3,
-/// column-major), in scalars (Eigen's 3x3 expressions under SSE2 spend most of their
-/// instructions on shuffles, and divided cof X by zeta det X entry by entry). False when
-/// det X <= 0; else delta2 = |X_next - X|_F^2.
+/// column-major), in scalars. False when det X <= 0; else delta2 = |X_next - X|_F^2.
 inline bool newtonStep(double (&x)[9], double& delta2) {
     auto cross = [](const double* u, const double* v, double* out) {
         out[0] = u[1] * v[2] - u[2] * v[1];
@@ -422,9 +343,7 @@ EIGEN_DONT_INLINE void rotationOutOfRange(const Mat3& a_in, Mat3& r) {
 }
 
 /// csmRotation into r, which may be a itself (every path reads all of a before it writes
-/// r): the fit pass turns A_k in place into R_k, and the result is stored straight where it
-/// belongs (a copy into place would reload it in other widths than it was stored in).
-/// Rank 1: r is written at batch.solve().
+/// r): pass 3 turns A_k into R_k in place. Rank 1: r is written at batch.solve().
 inline void rotationInto(const Mat3& a, Mat3& r, RankOneBatch& batch) {
     const double n2 = a.squaredNorm();  // NaN or infinite for non-finite A
     if (n2 >= 1e-100 && n2 <= 1e100) return rotationInRange(a, n2, r, batch);
@@ -444,12 +363,13 @@ Mat3 csmRotation(const Mat3& a) {
 namespace {
 
 /// The regions, blocks and chunks of a piece of n particles at half-width w (both kernels).
-/// The piece is done in chunks of whole blocks, each through all four passes while its
-/// moments and regions are in cache (on a long piece, pass by pass, the passes streamed
-/// ~0.9 kB a particle through memory, and the stage ran at the memory's speed on one
-/// thread and on two). A chunk's particles need the regions up to hw beyond it, and those
-/// the blocks next to it: both are computed again by the neighbouring chunk, from the same
-/// particles by the same operations, so the bits are those of one pass over the whole piece.
+/// Sliding windows (van Herk / Gil-Werman): blocks of B = 2w+1 particles keep prefix sums
+/// about the block's first particle and suffix sums about the next block's first. A region
+/// (at most B particles) is a suffix plus the next block's prefix, about the same particle,
+/// so every sum is local and A = S - M c c0^T loses only a couple of digits (global prefix
+/// sums cancel catastrophically: docs/notes-strings.md). Chunks of whole blocks go through
+/// all passes while in cache; the regions and blocks a chunk shares with a neighbour are
+/// computed again by the same operations, so the bits are those of one pass.
 struct PieceLayout {
     struct Chunk {
         std::size_t p0, p1;  // its particles
@@ -560,10 +480,7 @@ void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass
         const auto rest_centroid = [rest_centroid_base, r0](std::size_t k) -> Vec3& { return rest_centroid_base[k - r0]; };
 
         // Pass 1: per block, prefix moments about the block's first particle and suffix
-        // moments about the next block's first particle (the last block's about its own),
-        // with per-region masses m_i / N_i (N_i = number of regions containing i = size of
-        // region i). A region spanning two blocks is a suffix of the first plus a prefix of
-        // the second, both about the second's first particle: they add without a shift.
+        // moments about the next block's (the last block's about its own), mass m_i / N_i.
         for (std::size_t b = h.b0; b < h.b1; ++b) {
             const std::size_t s = b * block;
             const std::size_t e = std::min(s + block, n) - 1;
@@ -582,10 +499,8 @@ void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass
             }
         }
 
-        // Pass 2: fit every region, with its moments about a particle r of the region (the
-        // second block's first particle, or the one block's first: within a block of the
-        // centre, so A = S - M c c0^T still loses only a couple of digits). A_k is kept in
-        // rot(k) for pass 3.
+        // Pass 2: fit every region about its reference particle r (PieceLayout::Region);
+        // A_k is kept in rot(k) for pass 3.
         for (std::size_t k = h.r0; k < h.r1; ++k) {
             const PieceLayout::Region g = layout.region(k);
             const std::size_t r = g.reference;
@@ -601,16 +516,14 @@ void chainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass
             rest_centroid(k) = rest[r] + dc0;
         }
 
-        // Pass 3: R_k from A_k, in place, in a pass of its own: A_k, stored long before, is
-        // reloaded from cache; handed over straight after its computation, its reload (in
-        // other widths than Eigen stored it in) missed store forwarding.
+        // Pass 3: R_k from A_k, in place, in a pass of its own (A_k reloaded straight after
+        // its computation missed store forwarding).
         RankOneBatch batch;
         for (std::size_t k = h.r0; k < h.r1; ++k) rotationInto(rot(k), rot(k), batch);
         batch.solve();
 
-        // Pass 4: blend, g_i = x_i + mean over regions k containing i of (g_ik - x_i).
-        // Region k contains i iff |k - i| <= hw, so those regions are regionLo(i) ..
-        // regionHi(i).
+        // Pass 4: blend, g_i = x_i + mean over regions k containing i of (g_ik - x_i);
+        // those are regionLo(i) .. regionHi(i).
         for (std::size_t i = h.p0; i < h.p1; ++i) {
             const std::size_t lo = layout.regionLo(i);
             const std::size_t hi = layout.regionHi(i);
@@ -679,6 +592,9 @@ Vec3 unitOr(const Vec3& a, const Vec3& fallback) {
 
 }  // namespace
 
+// Straight rest shape (StringDesc::straight): every region has rank 1, A = a v^T, and only
+// R v = a / |a| enters the goals, c + ((x0_i - c0) . v) a / |a|: 8 moment sums instead of
+// 16, no rotation. The same goals as the general kernel to rounding (tested).
 void straightChainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const double* mass, std::size_t first,
                                      std::size_t last, int w, const Vec3& direction, Vec3* goal, CsmScratch& scratch,
                                      ThreadPool* pool) {
@@ -706,11 +622,8 @@ void straightChainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const doub
         const auto rest_centroid = [&work, r0](std::size_t k) -> Vec3& { return work.rest_centroid[k - r0]; };
         const auto along = [&work, r0](std::size_t k) -> Vec3& { return work.direction[k - r0]; };
 
-        // Pass 1: the blocks' prefix and suffix sums, as chainShapeMatchingGoals' pass 1,
-        // with the rest offsets taken along v. A particle's per-region mass is found once
-        // for both, and the eight running sums are four pairs of lanes stored straight
-        // from registers: (m, m dx), (m dy, m dz), (m s, m dx s), (m dy s, m dz s), the
-        // products and sums of addParticle, so the same bits (not through the stack).
+        // Pass 1: as chainShapeMatchingGoals' pass 1, rest offsets along v; the eight
+        // running sums are four lane pairs with addParticle's products (the same bits).
         for (std::size_t b = h.b0; b < h.b1; ++b) {
             const std::size_t s = b * block;
             const std::size_t e = std::min(s + block, n) - 1;
@@ -739,8 +652,7 @@ void straightChainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const doub
         for (std::size_t k = h.r0; k < h.r1; ++k) {
             const PieceLayout::Region g = layout.region(k);
             const std::size_t r = g.reference;
-            // The sums straight from the buffers into registers (a copy into a local array
-            // would be reloaded in other widths than it was stored in).
+            // The sums straight from the buffers into registers (not through a local copy).
             const double* one = g.prefix_only ? prefix(g.hi) : suffix(g.lo);
             const double* other = g.two_blocks ? prefix(g.hi) : nullptr;
             LineMoments f;
@@ -777,21 +689,15 @@ void straightChainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const doub
 
 }  // namespace tearables::detail
 
-// ---------------------------------------------------------------------------------------
-// The stage: CSM on every piece of a string (Strings Sec. 3), after the prediction.
-// ---------------------------------------------------------------------------------------
+// The stage: CSM on every piece of a string (Strings Sec. 3).
 #include "string/string_state.hpp"
 
 namespace tearables::detail {
 
 void updateRestShape(StringState& s) {
-    // The rest shape follows the lengths the material currently allows, L_max = L_rest
-    // (1 + sigma/E) of the last step (L_rest grows with plasticity), along the directions
-    // the string was created with. Shape matching fits rigid motions, so it resists
-    // stretching as well as bending; with the loaded lengths in its rest shape it leaves
-    // the stretch to the material and only bends.
-    // The running point carried in registers (read back from rest_shape, each point's
-    // stores reached the next one's loads through memory, on the sum's dependency chain).
+    // The rest shape has the lengths the material currently allows, L_max = L_rest
+    // (1 + sigma/E), along the directions the string was created with: shape matching,
+    // which fits rigid motions, then leaves the stretch to the material and only bends.
     Vec3 point = s.desc.points[0];
     s.rest_shape[0] = point;
     for (std::size_t j = 0; j < s.segments(); ++j) {
@@ -800,12 +706,10 @@ void updateRestShape(StringState& s) {
     }
 }
 
-// Deviation from the paper's order (prediction, then CSM): we match the shape the string
-// has at the start of the step, after the last strain limiting, and add the goal
-// displacement to the prediction. Shape matching conserves momentum and so spreads a
-// force on one particle over its region; run on the prediction it would carry part of
-// every external load itself, and the momentum-balance tension, which must carry all of
-// it, would read low. Run on the constrained shape it sees bending only.
+// Deviation from the paper's order (prediction, then CSM): we match the shape at the start
+// of the step, after the last strain limiting, and add the goal displacement to the
+// prediction. CSM conserves momentum, so on the prediction it would carry part of every
+// external load and the momentum-balance tension would read low; here it sees bending only.
 /// Rest directions within this of each other (per coordinate) make a straight rest shape:
 /// a rest point then lies off the line by at most this times its distance along it, and
 /// the goals differ from those of chainShapeMatchingGoals by as little.
@@ -819,13 +723,9 @@ void shapeMatch(StringState& s, ThreadPool* pool) {
     }
     updateRestShape(s);
     const double alpha = s.desc.bending;
-    // The passes over the particles below run on the pool for a long string (each item
-    // writes its own entries; the maxima and the straightness test do not depend on the
-    // cut): the same bits on any thread count.
-    // Held particles do not move, so in the fits they weigh as if immovable: a clamp then
-    // holds the direction of the string (a cantilever), instead of being rotated along.
-    // Particles that collided with another string last step weigh three times their mass
-    // (Strings Sec. 6), so that bending barely moves them back into the contact.
+    // Long strings run on the pool, each item writing its own entries: the same bits on any
+    // thread count. Held particles weigh as if immovable (a clamp holds the string's
+    // direction, a cantilever); particles that hit a string last step weigh 3x (Sec. 6).
     const double heaviest = forRangesMax(pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1) {
         double most = 0.0;
         for (std::size_t p = p0; p < p1; ++p) most = std::max(most, s.mass[p]);
@@ -842,9 +742,7 @@ void shapeMatch(StringState& s, ThreadPool* pool) {
         const bool piece_ends = p + 1 == n || s.broken[p];
         if (!piece_ends) continue;
         if (p > first + 1) {
-            // A piece created straight keeps a straight rest shape (plasticity only
-            // lengthens its segments): the straight kernel, without polar factors. Its
-            // directions are those of points laid out along one line, equal to rounding.
+            // A piece created straight stays straight (plasticity only lengthens segments).
             const Vec3& along = s.rest_direction[first];
             const bool straight = !forRangesAny(pool, p - first - 1, kParallelItems, [&](std::size_t k0, std::size_t k1) {
                 for (std::size_t j = first + 1 + k0; j < first + 1 + k1; ++j)
@@ -858,9 +756,8 @@ void shapeMatch(StringState& s, ThreadPool* pool) {
             else
                 chainShapeMatchingGoals(s.x.data(), s.rest_shape.data(), s.csm_mass.data(), first, p, s.desc.csm_half_width,
                                         s.scratch.csm_goal.data(), s.scratch.csm_scratch, pool);
-            // Particles move all the way to their goals (the paper's full step): the goal
-            // displacement is kept for the prediction. Held particles stay where their hold
-            // puts them and only anchor the regions they belong to.
+            // Particles move all the way to their goals (the paper's full step); held
+            // particles stay at their hold and only anchor their regions.
             forRanges(pool, p - first + 1, kParallelItems, [&](std::size_t k0, std::size_t k1, std::size_t) {
                 for (std::size_t q = first + k0; q < first + k1; ++q)
                     s.scratch.csm_goal[q] = s.hold[q].kind == ParticleHold::Kind::Free

@@ -1,22 +1,20 @@
-// Stage 5: strain limiting and rigid attachments, one Newton solve per chain.
+// Strain limiting and rigid attachments: one Newton solve per chain (the strain-limit
+// stage of StringSystem::step).
 //
-// Strings, Sec. 5.2 limits every segment to L <= L_max by sweeping position corrections
-// from the clamped ends. We take the exact mass-weighted projection instead, which covers
-// the paper's three cases (one end, both ends, several points clamped) at once:
+// Strings Sec. 5.2 limits every segment to L <= L_max by sweeping corrections from the
+// clamped ends; we take the exact mass-weighted projection instead, which covers the
+// paper's three cases (one end, both ends, several points clamped) at once:
 //
 //   x = argmin  sum_p m_p/(2h^2) |x_p - x'_p|^2  +  sum_j k_j/2 max(0, |x_{j+1}-x_j| - L_j)^2
 //
-// backward Euler on segments of the material's stiffness k_j = E A / L_j: the compliance
-// form of strain limiting, which meets L_max = L (1 + sigma/E) of Sec. 5.4 within the
-// solve. Newton's method with each stretched segment's geometric stiffness gives a
-// symmetric block-tridiagonal system, solved directly in O(n) (linalg/block_tridiagonal).
-// In a chain without contacts the geometric term takes the tension predicted to first
-// order, k (C + e . (dx_{j+1} - dx_j)), or k C where smaller (a primal-dual update: k C of
-// a stiff spring overstates the tension by the second-order stretch of a transverse move);
-// such a chain may start from the last step's correction (warmStart) and reuse its
-// factorisation for chord iterations, which converge linearly at ~2 m_c / m_N (m_N the
-// Newton move, m_c the first chord move). Pinned particles are fixed rows; a particle glued
-// to a body carries its effective mass K^-1, K = 1/M - [r]x I^-1 [r]x. Rigid contacts:
+// backward Euler on segments of stiffness k_j = E A / L_j (the compliance form, which meets
+// L_max = L (1 + sigma/E) of Sec. 5.4 within the solve). Newton with each stretched
+// segment's geometric stiffness gives a symmetric block-tridiagonal system, O(n)
+// (linalg/block_tridiagonal). Without contacts the geometric term takes the first-order
+// tension k (C + e . (dx_{j+1} - dx_j)), or k C where smaller (k C of a stiff spring
+// overstates it by a transverse move's second-order stretch), and chord iterations reuse
+// the factorisation (rate ~2 m_c / m_N). Pinned particles are fixed rows; a glued particle
+// carries its body's effective mass K^-1, K = 1/M - [r]x I^-1 [r]x. Rigid contacts:
 // contact_rows.cpp; strings touching each other: cluster_solve.cpp.
 #include "base/lanes.hpp"
 #include "base/thread_pool.hpp"
@@ -31,7 +29,6 @@
 namespace tearables::detail {
 
 namespace {
-
 /// A segment shorter than its rest length by less than this fraction counts as taut.
 constexpr double kTautSlack = 1e-4;
 /// Contact penalty over the stiffest spring, particle and body inertia it competes with.
@@ -228,8 +225,7 @@ inline void inertiaRow(const StringState& s, std::size_t p, double inv_h2, Mat3&
 /// for pins, into blk_diag and blk_rhs.
 void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx, std::size_t p0, std::size_t p1) {
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
-    // Inertia: free particles are pulled back toward their prediction x'; a glued
-    // particle carries its body's effective mass K^-1 at the glue point and starts
+    // A glued particle carries its body's effective mass K^-1 at the glue point and starts
     // each iteration on the body (which absorbed the earlier corrections).
     for (std::size_t p = p0; p < p1; ++p) {
         const ParticleHold& hold = s.hold[p];
@@ -340,9 +336,8 @@ template <bool kHessian = true>
     return term;
 }
 
-/// springTerm of segments j and j + 1, their square roots and divisions in the two lanes
-/// of one register: a root or a division of two lanes costs what one of one lane does,
-/// and they are most of a spring's time. The same operations lane by lane: the same bits.
+/// springTerm of segments j and j + 1 with their roots and divisions in the two lanes of
+/// one register (most of a spring's time); the same operations lane by lane: the same bits.
 template <bool kHessian = true>
 [[gnu::always_inline]] inline void springTerms(StringState& s, const StepContext& ctx, std::size_t j, double* tension_estimate,
                                                SpringTerm (&term)[2]) {
@@ -386,13 +381,10 @@ void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx, d
 namespace {
 
 
-/// A chord iteration's right-hand side: assembleChain's (the gradient of the step's energy
-/// now, for a chain of free and pinned particles), without the Hessian, whose blocks stay
-/// those solveChain factorised. False where a segment went slack or taut since: the
-/// factorised Hessian then lacks its spring or has one it no longer has. The effective
-/// stretches of the active segments, which linearisedTension reads, go into s.scratch.segment_work
-/// (the tension stage's) and not into geometric_tension, which the Newton iteration that
-/// replaces a chord iteration that fails or is refused reads as it was (acceptChord).
+/// A chord iteration's right-hand side: assembleChain's gradient, without the Hessian,
+/// whose blocks stay those solveChain factorised. False where a segment went slack or taut
+/// since. The effective stretches go into s.scratch.segment_work, not geometric_tension,
+/// which a Newton iteration replacing a refused chord iteration reads as it was (acceptChord).
 bool assembleChainGradient(StringState& s, const StepContext& ctx) {
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
     for (std::size_t p = 0; p < s.particles(); ++p)
@@ -465,14 +457,12 @@ void linearisedTension(StringState& s, const StepContext& ctx, std::size_t j0, s
     if (j < j1) s.scratch.geometric_tension[j] = std::max(0.0, stretch(j)) / s.compliance[j];
 }
 
-/// solveChain's sweep from the top alone, over particles [0, mid), with the springs of
-/// segments [0, mid) assembled as it goes (their sums in assembleChain's order: particle t
-/// takes segment t-1's share, then segment t's), and segment mid-1's share of particle mid
-/// added at the end; the gains per particle into blk_factor_gain. One sweep alone leaves
-/// the core idle while a pivot's divisions run; the assembly fills that time.
-/// parallelChainStep runs it on one thread and sweepFromBottom on another: the operations
-/// of the serial iteration's lanes, so the same bits. Returns what it carries to the
-/// middle particle.
+/// solveChain's sweep from the top alone, over particles [0, mid), assembling the springs
+/// of segments [0, mid) as it goes (in assembleChain's order) and adding segment mid-1's
+/// share of particle mid at the end; gains into blk_factor_gain. The assembly fills the
+/// time a pivot's divisions leave the core idle. With sweepFromBottom on another thread
+/// (parallelChainStep): the serial iteration's operations, so the same bits. Returns what
+/// it carries to the middle particle.
 chain::Carry<double> sweepFromTop(StringState& s, const StepContext& ctx, std::size_t mid, double* tension_estimate) {
     chain::Carry<double> carry;
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
@@ -536,12 +526,10 @@ double applyChainStep(StringState& s, std::size_t p0, std::size_t p1) {
 }
 
 /// One Newton iteration of a contact-free chain without glued particles, split over two
-/// threads at the middle particle: each half assembles its rows and springs and runs its
-/// sweep of solveChain, the middle particle is solved on this thread, and each half then
-/// back-substitutes, updates its segments' linearised tension and moves its particles.
-/// The sums and products are those of assembleChain and solveChain in the same order
-/// (the middle particle's share of segment mid is held back and added in the same place),
-/// so the bits are those of the serial iteration. Returns the largest move.
+/// threads at the middle particle: each half assembles, sweeps, back-substitutes, updates
+/// its linearised tension and moves its particles; the middle particle is solved here. The
+/// sums are assembleChain's and solveChain's in the same order (segment mid's share of the
+/// middle particle held back and added in place): the bits of the serial iteration.
 double parallelChainStep(StringState& s, RigidTable& rigids, const StepContext& ctx, ThreadPool& pool) {
     const std::size_t n = s.particles();
     const std::size_t m = s.segments();
@@ -725,9 +713,8 @@ bool warmStart(StringState& s, const StepContext& ctx) {
 void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     const std::size_t n = s.particles();
     const std::size_t m = s.segments();
-    // The passes over a long string's particles and segments run on the pool (forRanges:
-    // per-item writes); only the glued particles' loads on their bodies are applied here,
-    // in particle order.
+    // A long string's passes run on the pool (per-item writes); only the glued particles'
+    // loads on their bodies are applied here, in particle order.
     const bool glued = forRangesAny(ctx.pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1) {
         bool any = false;
         for (std::size_t p = p0; p < p1; ++p) {
@@ -800,12 +787,10 @@ public:
             scratch.coupling.resize(nodes);
         }
         // Contacts with rigid bodies: g >= 0 on linearised planes (linearisePlanes), a stiff
-        // one-sided penalty k_c min(0, g)^2 / 2, with x(s) = (1-s) x_j + s x_{j+1}. A movable
-        // body takes part with its 6 unknowns and its mass and inertia, so a rope catches a
-        // crate with its tension. The penalty only pushes: a contact takes part in an
-        // iteration where the current state penetrates it, and a separated contact that the
-        // full Newton step would run into joins the Hessian (not the gradient) and the step is
-        // solved again, so that the step stops at it instead of passing through it.
+        // one-sided penalty k_c min(0, g)^2 / 2, x(s) = (1-s) x_j + s x_{j+1}. A movable body
+        // takes part with its 6 unknowns, so a rope catches a crate with its tension. A
+        // separated contact the full Newton step would run into joins the Hessian (not the
+        // gradient) and the step is solved again, so that it stops at the contact.
         linearisePlanes(s, rigids);
         const double stiffest = s.contacts.empty() ? 0.0 : stiffestTerm(s, inv_h2);  // two passes over the string: only for contacts
         for (RigidSegmentContact& c : s.contacts) {
@@ -828,13 +813,10 @@ public:
             return hold.kind == ParticleHold::Kind::Glue;
         });
         parallel_chain = plain_chain && !glued && n >= kParallelChainParticles && ctx.pool && ctx.pool->parallel();
-        // Chord iterations: the gradient assembled, the factorisation of the last Newton
-        // iteration reused (the pivots' inverses solveChain keeps), products only. Only after
+        // Chord iterations (the last Newton factorisation reused, products only): only after
         // the first Newton iteration from a warm start, whose geometric term took the last
-        // step's converged tension (after cold iterations it is a first-order estimate, too far
-        // off for a linear rate), and only in a chain of free and pinned particles shorter than
-        // kParallelChainParticles: a longer one's iterations are the same on one thread as on
-        // two (parallelChainStep), which has none.
+        // step's converged tension (a cold first-order estimate is too far off for a linear
+        // rate), and only below kParallelChainParticles (parallelChainStep has none).
         const bool chord_chain =
             plain_chain && !glued && n < kParallelChainParticles && s.scratch.chain_inverse.size() >= 6 * n + 12 &&
             !ctx.newton_strain_only;
@@ -845,10 +827,8 @@ public:
     /// Runs the solve; returns the largest move of its first iteration.
     double run() {
         double first_move = -1.0;  // the first iteration's largest move
-        // Impacts are strongly nonlinear (a rope deflected by centimetres in one step): with
-        // contacts the solve may take more iterations. Friction's passes: the weights from the
-        // last pass's forces and slips (the first pass of a step has none, or a repeated
-        // solve's), until they settle.
+        // Impacts are strongly nonlinear: with contacts the solve may take more iterations.
+        // Friction's passes reweigh from the last pass's forces and slips until they settle.
         const int iterations = ctx.settings->strain_iterations * (s.contacts.empty() ? kChainIterationFactor : kContactIterationFactor);
         bool frictional = false;
         for (const RigidSegmentContact& c : s.contacts) frictional = frictional || c.friction > 0.0;
@@ -868,14 +848,12 @@ public:
                 ++s.diagnostics.strain_newton_iterations;
                 s.diagnostics.strain_chord_iterations += chord;
                 s.scratch.strain_warm_start = false;
-                // Without contacts the iteration converges quadratically once it is close
-                // (each move ~ C times the last one squared): where the moves fall that fast,
-                // the move the next iteration would make, predicted with C from the last two,
-                // is checked against the tolerance (with a margin of 100) instead of being
-                // made. After a chord iteration the next move is predicted linearly, ~2 C
-                // m_last times this one (the Hessian changed by O(m_N) over the Newton move
-                // m_N), and a move within the tolerance ends the solve only where it fell that
-                // fast too.
+                // Without contacts the iteration converges quadratically near the solution
+                // (move ~ C times the last one squared): where the moves fall that fast, the
+                // next move, predicted with C from the last two, is checked against the
+                // tolerance (margin 100) instead of being made. After a chord iteration the
+                // next move is ~2 C m_last times this one (linear), and ends the solve only
+                // where the move fell that fast too.
                 const bool quadratic = last_move > 0.0 && worst < kQuadraticRegime * last_move;
                 const double margin = kPredictionMargin * worst * worst;
                 const bool next_within = plain_chain && quadratic &&
@@ -1086,8 +1064,7 @@ private:
             worst = std::max(worst, u.head<3>().norm());
         }
         if (plain_chain) linearisedTension(s, ctx, 0, s.segments());
-        // Apply: free particles move, glued ones move their body by the impulse K^-1 dx.
-        // The largest move from the largest square (one square root: the same bits).
+        // Free particles move; glued ones move their body by the impulse K^-1 dx.
         double worst_squared = 0.0;
         for (std::size_t p = 0; p < n; ++p) {
             if (fixedRow(s, p)) continue;

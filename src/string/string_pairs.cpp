@@ -1,27 +1,15 @@
-// String-string and self collision (Strings Sec. 6): every segment is a capsule, two
+// String-string and self collision (Strings Sec. 6): every segment is a capsule; two
 // capsules overlap when their axes come closer than the sum of the radii.
 //
-// The strings that touch are solved together (solveStringCluster): one Newton method on
-// the sum of their energies, the contact penalties and Coulomb friction on the contact
-// points' motion relative to each other, both sides of every contact moving with their
-// masses, springs and tensions; momentum is exchanged, the strain limit stays exact and
-// the step ends without overlaps. The strings' own solves run first and give the
-// starting point; a cluster whose pairs they already keep apart is left as it is.
-// (Why not a fixed partner point, a projection or a linearised coupling:
-// docs/notes-string-collision.md.)
-//
-// Pairs come from the segments at the START of the step, each capsule grown by its ends'
-// travel in the step (and kStringReach of its radius), so every pair that came within
-// reach during the step, also one that passed through, is found (ChainTree); the start
-// direction of each pair says which side is which when the axes touch or have crossed.
-// A pair that starts the step deeper than kStringDeepStart is left to come apart by
-// itself. A string that hangs or swings nearly straight is proved free of self pairs
-// from its shape (selfPairFree) and its self search is skipped: the same pairs, none.
-//
-// Momentum-balance tension: the particles a string contact presses lose the contact
-// force's directions from their tension equations (row_projector, as for rigid
-// contacts); what else the joint solve moved is the springs' doing and counts as tension.
-// The clean-up projection (finish) runs after the tension stage.
+// The strings that touch are solved together (solveStringCluster, cluster_solve.cpp): one
+// Newton method on their energies plus contact penalties and Coulomb friction on the
+// contact points' relative motion, so momentum is exchanged, the strain limit stays exact
+// and the step ends without overlaps (why: docs/notes-string-collision.md). Pairs come
+// from the segments at the start of the step, each capsule grown by its ends' travel
+// (ChainTree), so a pair that passed through is found and its start direction tells the
+// sides. In the momentum-balance tension a pressed particle loses the contact force's
+// directions (row_projector, as for rigid contacts). The clean-up projection (finish)
+// runs after the tension stage.
 #include "string/string_pairs.hpp"
 
 #include "collision/capsule.hpp"
@@ -41,12 +29,10 @@ constexpr double kStringFriction = 0.3;
 /// (fraction of its thickness).
 constexpr int kStringCleanupSweeps = 8;
 constexpr double kStringCleanupTolerance = 1e-3;
-/// A pair whose axes are closer than this fraction of the thickness at the start of a
-/// step is no contact this step: no step of the solver ends that deep, so something else
-/// put it there (strings created through each other, a pin moved through a string, a
-/// string pinned back onto itself), and it has no side to be pushed to (the axes may
-/// even be collinear). It is left to come apart by itself and is a contact again once its
-/// axes are apart by the thickness at the start of a step.
+/// A pair whose axes are closer than this fraction of the thickness at the start of a step
+/// is no contact: no solver step ends that deep, so something else put it there (strings
+/// created through each other, a pin moved through one), and it has no side to be pushed
+/// to. It comes apart by itself and is a contact again once apart by the thickness.
 constexpr double kStringDeepStart = 0.5;
 /// Axes closer than this fraction of the thickness have no reliable direction of their
 /// own: the direction at the start of the step is used.
@@ -55,11 +41,9 @@ constexpr double kStringAxisContact = 1e-3;
 /// this fraction of its radius (slack for what the joint solve changes): every pair that
 /// can meet during the step is found, and no pair that cannot.
 constexpr double kStringReach = 1.0;
-/// A pair of the swept search whose axes are farther apart after the strings' own solves
-/// than (1 + this) times the thickness plus twice the relative travel of its ends in the
-/// step, on their starting side, is not solved: the joint solve moves a string by about
-/// that (a fast arm meeting another is deflected by a step's motion); the pairs of a
-/// swinging or resting straight rope (every third segment) are dropped.
+/// A pair of the swept search whose axes are, after the strings' own solves, farther apart
+/// on their starting side than (1 + this) times the thickness plus twice the relative
+/// travel of its ends is not solved: the joint solve moves a string by about that.
 constexpr double kStringNear = 0.25;
 /// Pairs within this fraction of the thickness of touching count as colliding.
 constexpr double kStringTouchSlop = 0.1;
@@ -98,9 +82,8 @@ void StringPairs::findPairs() {
     grid_travel_.resize(particle_count);
     grid_thickness_.resize(segment_count);
     grid_segments_.resize(segment_count);
-    // A single string is scanned for selfPairFree alone first: proved free of self
-    // pairs, it needs nothing more (the search would keep none). Otherwise each
-    // string's scan fills its run of the search's arrays as well.
+    // A single string is first scanned for selfPairFree alone: proved free of self pairs,
+    // it needs no search. Otherwise each scan fills its run of the search's arrays too.
     const bool alone = pair_strings_.size() == 1;
     pool.forEach(pair_strings_.size(), [&](std::size_t k) {
         if (alone)
@@ -136,11 +119,9 @@ void StringPairs::findPairs() {
     sortContacts();
 }
 
-/// The swept capsules' overlaps through a box tree per string (collision/grid.hpp,
-/// ChainTree). The tree asks judgePair about each pair as it finds it and keeps only
-/// those that are not dropped (a swinging rope's swept search finds thousands, nearly
-/// all dropped); the kept ones are judged again on the pool in chunks, their verdicts
-/// in the pairs' order.
+/// The swept capsules' overlaps through a box tree per string (ChainTree): the tree asks
+/// judgePair about each pair as it finds it and keeps those not dropped (most are); the
+/// kept ones are judged again on the pool, their verdicts in the pairs' order.
 void StringPairs::searchTree(std::uint32_t skip) {
     ThreadPool& pool = *pool_;
     auto keep = [](const void* self, const SegmentPair& pair) {
@@ -152,9 +133,8 @@ void StringPairs::searchTree(std::uint32_t skip) {
     auto reject = [](const void* self, std::uint32_t i, std::uint32_t j) {
         return static_cast<const StringPairs*>(self)->surelyDropped(i, j);
     };
-    // Whole node pairs of the tree dropped at once (nodesSeparationNeeded): a rope
-    // swinging as a whole has its swept boxes overlap far along it, their relative
-    // travel small.
+    // Whole node pairs dropped at once (nodesSeparationNeeded): a rope swinging as a whole
+    // has its swept boxes overlap far along it, their relative travel small.
     auto separation_needed = [](const void* self, const ChainTree::NodeBounds& a,
                                 const ChainTree::NodeBounds& b) {
         return static_cast<const StringPairs*>(self)->nodesSeparationNeeded(a, b);
@@ -172,11 +152,9 @@ void StringPairs::searchTree(std::uint32_t skip) {
     });
 }
 
-/// The contacts sorted by key (string, segment, partner, partner segment): the warm
-/// start merges with the last step's pairs, and the deep pairs are binary-searched.
-/// The keys are sorted with the contacts' indices and the contacts copied once, in that
-/// order (not the contacts sorted). A key names one pair of segments, which
-/// the search reports once, so the order is the one sorting the contacts gives.
+/// The contacts sorted by key (string, segment, partner, partner segment), for the warm
+/// start's merge and the deep pairs' binary search: the keys sorted with their indices,
+/// the contacts copied once. A key is unique (the search reports a pair once).
 void StringPairs::sortContacts() {
     contact_order_.clear();
     for (std::size_t i = 0; i < grid_pairs_.size(); ++i) {
@@ -193,15 +171,11 @@ void StringPairs::sortContacts() {
 }
 
 /// Scans a live string for the search: its largest |x|_1 and |x_prev|_1 (ps.extent),
-/// thickest radius, and selfPairFree's sums: the least advance of a segment along the
-/// unit chord u of the start positions, d . u - 1e-14 |d|_1 (d = x_prev[j+1] - x_prev[j];
-/// -1 where the chord has no direction or a segment does not advance), and the largest
-/// |t_{j+1} - t_j| of the travels t = x - x_prev, times 1 + 1e-12. With `fill`, also its
-/// run of grid_positions_ (the start positions), grid_travel_ (t), grid_segments_ (each
-/// capsule at the start, grown by its ends' travel) and grid_thickness_, and ps.finite.
-/// A long string's particles in ranges on the pool (each writes its own entries; the
-/// least, largest and finiteness do not depend on the cut). A NaN makes the sums fail
-/// the test, not vanish from it.
+/// thickest radius and selfPairFree's sums: the least advance of a segment along the unit
+/// chord u of the start positions, d . u - 1e-14 |d|_1 (d = x_prev[j+1] - x_prev[j]; -1
+/// where u or an advance is missing), and the largest |t_{j+1} - t_j| of the travels
+/// t = x - x_prev, times 1 + 1e-12. With `fill`, also its run of the search's arrays and
+/// ps.finite. Ranges on the pool give the same result for any cut; a NaN fails the test.
 template <bool fill>
 void StringPairs::scanString(PairString& ps) {
     const std::vector<StringState>& strings = *strings_;
@@ -233,8 +207,7 @@ void StringPairs::scanString(PairString& ps) {
     Sums range_sums[kMaxRanges];
     forRanges(&pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t part) {
         Sums sums;
-        // The particle before's travel vector and (with `fill`) travel, carried: each
-        // particle's found once, both its segments use them.
+        // The previous particle's travel, carried: each particle's is found once.
         Vec3 before = p0 > 0 ? Vec3(s.x[p0 - 1] - s.x_prev[p0 - 1]) : Vec3::Zero();
         double previous = 0.0;
         if constexpr (fill) previous = p0 > 0 ? travel(p0 - 1, before) : 0.0;
@@ -259,9 +232,8 @@ void StringPairs::scanString(PairString& ps) {
                     seg.b = seg.a + 1;
                     seg.chain = ps.string;
                     seg.index_in_chain = static_cast<std::uint32_t>(j);
-                    // The capsule at the start of the step, swept: grown by the travel
-                    // of its ends, and by kStringReach of its radius for what the joint
-                    // solve changes.
+                    // The capsule at the start of the step, grown by its ends' travel and
+                    // by kStringReach of its radius for what the joint solve changes.
                     seg.radius = s.radius[j] * (1.0 + kStringReach) + std::max(previous, now);
                     seg.skip = s.broken[j] != 0;
                     thickness[j] = s.radius[j];
@@ -288,25 +260,18 @@ void StringPairs::scanString(PairString& ps) {
     ps.finite = total.finite;
 }
 
-/// True when judgePair would drop every pair of a string's own segments this step, by
-/// the string's shape alone (ps's sums, scanString): a rope that
-/// swings or hangs nearly straight, whose self search otherwise descends its whole
-/// tree along the diagonal (its neighbouring nodes' boxes overlap) to drop every pair.
+/// True when judgePair would drop every pair of a string's own segments this step, by its
+/// shape alone (scanString's sums): a rope swinging or hanging nearly straight, whose self
+/// search would otherwise descend its whole tree along the diagonal to drop every pair.
 ///
-/// With u the unit chord of the string's start positions, every segment advancing along
-/// u by at least `advance` > 0 (less a rounding margin of 1e-14 |d|_1 per segment, far
-/// above the dot product's), segments i < j with g = j - i are separated along u, at
-/// the start, by at least (g - 1) advance (the segments between them, each forward);
-/// and the relative travel of any end of one and any end of the other is at most
-/// (g + 1) `shear` (shear: the largest |t_{k+1} - t_k| of the travels t = x - x_prev
-/// judgePair reads, with a relative 1e-12 for the norms' rounding). surelyDropped's
-/// argument (any unit direction will do) drops a pair separated by sep along u when
-/// sep > c + k r (k = 1 + 2 (1 + 1e-6)); this takes 4 for k, and for c the string's
-/// largest gap, 2 (1 + kStringNear) (1 + 1e-6) times its thickest radius, plus
-/// grid_rounding_. The pairs that exist have g > skip (closer ones are never pairs), and
-/// (g - 1) advance - 4 (g + 1) shear grows with g where advance > 4 shear: so the
-/// pairs with g = skip + 1 decide for all. Such a pair is not deep either: its start
-/// distance exceeds c > the gap.
+/// With u the unit chord of the start positions and every segment advancing along u by at
+/// least `advance` > 0 (less 1e-14 |d|_1 a segment for rounding), segments i < j, g = j - i,
+/// are separated along u at the start by at least (g - 1) advance, and the relative travel
+/// of their ends is at most (g + 1) `shear`. surelyDropped's argument drops a pair with
+/// separation sep > c + k r (k = 1 + 2 (1 + 1e-6) <= 4; c = 2 (1 + kStringNear)(1 + 1e-6)
+/// times the thickest radius, plus grid_rounding_). Pairs have g > skip, and
+/// (g - 1) advance - 4 (g + 1) shear grows with g where advance > 4 shear, so g = skip + 1
+/// decides for all. Such a pair is not deep either: its start distance exceeds c > the gap.
 bool StringPairs::selfPairFree(const PairString& ps, std::uint32_t skip) const {
     const double c = 2.0 * (1.0 + kStringNear) * ps.thickest * (1.0 + 1e-6) + grid_rounding_;
     const double travel = 4.0 * ps.shear;
@@ -333,9 +298,8 @@ std::uint8_t StringPairs::judgePair(const SegmentPair& pair, StringPairContact& 
     if (pair.distance < (was_deep ? 1.0 : kStringDeepStart) * c.gap) {
         return kPairDeep;
     }
-    // Apart after the strings' own solves, by more than kStringNear of the
-    // thickness and on the side they started on: no contact this step (most pairs
-    // of the swept search, e.g. every third segment of a straight rope).
+    // Apart after the strings' own solves, by more than kStringNear of the thickness and
+    // on their starting side: no contact this step (most pairs of the swept search).
     const StringState& sa = strings[c.string];
     const StringState& sb = strings[c.partner];
     // Relative travel of the pair's ends over the step: the axes' distance at any
@@ -346,12 +310,10 @@ std::uint8_t StringPairs::judgePair(const SegmentPair& pair, StringPairContact& 
             relative = std::max(relative, ((sa.x[i] - sa.x_prev[i]) - (sb.x[k] - sb.x_prev[k])).squaredNorm());
     relative = std::sqrt(relative);
     const double apart = (1.0 + kStringNear) * c.gap + 2.0 * relative;
-    // Most pairs of the swept search are dropped here without their closest points:
-    // when the segments are separated along the start normal n by more than
-    // `apart` (every point of this side beyond every point of the other), the
-    // closest points p, q have (p - q).n >= that > 0 and |p - q| >= (p - q).n, so
-    // the test below would drop the pair too. A margin of 1e-6 and of the
-    // positions' rounding keeps that true in floating point.
+    // Most pairs are dropped here without their closest points: separated along the start
+    // normal n by more than `apart`, the closest points p, q have |p - q| >= (p - q).n >
+    // apart, so the test below would drop the pair too (margins of 1e-6 and the positions'
+    // rounding keep that true in floating point).
     {
         const Vec3& a0 = sa.x[c.segment];
         const Vec3& a1 = sa.x[c.segment + 1];
@@ -381,25 +343,19 @@ std::uint8_t StringPairs::judgePair(const SegmentPair& pair, StringPairContact& 
     return kPairContact;
 }
 
-/// True when judgePair would drop the pair of segments i < j (of grid_segments_) for
-/// sure, decided before their closest points at the start of the step: when at the
-/// start they are separated along some unit u (here the direction between their
-/// midpoints) by sep > the relative travel r of their ends, then for every point a of
-/// one and b of the other, now, (a - b).n0 >= d0 - r > 0 (n0, d0: the start closest
-/// points' direction and distance; d0 >= sep, and the motion of a - b is a convex
-/// combination of the ends' relative motions), so the pair is on its starting side, not
-/// deep, and its axes are now at least sep - r apart. Dropped when that is beyond
-/// judgePair's distance, with a margin for rounding: judgePair would drop it too.
+/// True when judgePair would surely drop the pair of segments i < j (of grid_segments_),
+/// decided before their closest points: separated at the start along some unit u (here
+/// between their midpoints) by sep > r, the relative travel of their ends, every point a of
+/// one and b of the other has now (a - b).n0 >= d0 - r > 0 (n0, d0: the start closest
+/// points' direction and distance, d0 >= sep; a - b moves by a convex combination of the
+/// ends' relative motions). So the pair is on its starting side, not deep, and at least
+/// sep - r apart: dropped when that is beyond judgePair's distance, with a rounding margin.
 ///
-/// In the arithmetic (most of a swinging rope's candidates, ~3 a segment, meet this
-/// test): with w = (a0 + a1) - (b0 + b1) (twice the midpoints' difference), L = |w|,
-/// the separation along u = w / L is (L^2 - |w.(a1 - a0)| - |w.(b1 - b0)|) / (2 L);
-/// the test sep - r > k r + c (k = 1 + 2 (1 + 1e-6), c = (1 + kStringNear) gap (1 + 1e-6)
-/// + rounding) is multiplied by 2 L and squared (both sides positive) so that it needs
-/// one square root (for L) and none for r (r^2 is the max of the squared relative
-/// travels, computed as judgePair does; a relative 1e-12 on it for the square root's
-/// rounding). The errors of the rearranged expression are of the order of
-/// 1e-16 |x|, far below the rounding term (grid_rounding_ >= judgePair's own).
+/// With w = (a0 + a1) - (b0 + b1), L = |w|, the separation along u = w / L is
+/// (L^2 - |w.(a1 - a0)| - |w.(b1 - b0)|) / (2 L); the test sep - r > k r + c
+/// (k = 1 + 2 (1 + 1e-6), c = (1 + kStringNear) gap (1 + 1e-6) + rounding) is multiplied by
+/// 2 L and squared, for one square root (L) and none for r (r^2 with a relative 1e-12).
+/// Its errors, ~1e-16 |x|, are far below grid_rounding_ (>= judgePair's own).
 bool StringPairs::surelyDropped(std::uint32_t i, std::uint32_t j) const {
     const CollisionSegment& a = grid_segments_[i];
     const CollisionSegment& b = grid_segments_[j];
@@ -423,20 +379,15 @@ bool StringPairs::surelyDropped(std::uint32_t i, std::uint32_t j) const {
     return room * room > 4.0 * length2 * (k * k * (1.0 + 1e-12)) * relative2;
 }
 
-/// The separation along any unit direction u beyond which judgePair drops every pair of
-/// node a's segments with node b's (the tree tests it along the coordinate axes and
-/// along directions it finds, ChainTree::NodeSeparation). surelyDropped's argument for
-/// all the pairs at once: a separation sep of the nodes' start boxes (of the axes' ends,
-/// grid_positions_) along u bounds every pair's separation along u from below; the
-/// travel boxes bound every end pair's relative travel: |t_a - t_b| <= |max(ta_hi -
-/// tb_lo, tb_hi - ta_lo)| (per coordinate), >= each pair's `relative`; the thicknesses
-/// bound each pair's gap. So when sep - R > (1 + kStringNear) (g_a + g_b) + 2 R, every
-/// pair meets surelyDropped's condition with its own (smaller) gap and travel, on u.
-/// The relative margins: 1e-12 on R for the order of the sums in judgePair's norms (a
-/// few ulps), 1e-6 and grid_rounding_ (from the largest |x|_1 of the strings' particles,
-/// start or now, >= judgePair's) as in surelyDropped; the rounding of a separation
-/// along a direction the tree finds (a dot product of positions, along a direction
-/// unit to 1e-16) is within the second grid_rounding_.
+/// The separation along a unit direction u beyond which judgePair drops every pair of node
+/// a's segments with node b's (ChainTree::NodeSeparation tests it along the axes and along
+/// directions it finds): surelyDropped's argument for all pairs at once. The start boxes'
+/// separation along u bounds each pair's from below; the travel boxes bound each end pair's
+/// relative travel, |t_a - t_b| <= |max(ta_hi - tb_lo, tb_hi - ta_lo)| per coordinate, by R;
+/// the thicknesses bound each gap. So sep - R > (1 + kStringNear) (g_a + g_b) + 2 R meets
+/// surelyDropped's condition for every pair. Margins: 1e-12 on R for the norms' summation
+/// order, 1e-6 and grid_rounding_ as in surelyDropped, and a second grid_rounding_ for a
+/// separation along a direction the tree found.
 double StringPairs::nodesSeparationNeeded(const ChainTree::NodeBounds& a, const ChainTree::NodeBounds& b) const {
     const Vec3 d = (a.travel_hi - b.travel_lo).cwiseMax(b.travel_hi - a.travel_lo);
     const double relative = std::sqrt(d.x() * d.x() + d.y() * d.y() + d.z() * d.z()) * (1.0 + 1e-12);
@@ -533,13 +484,10 @@ void StringPairs::solveClusters(std::size_t count, RigidTable& rigids, const Ste
     });
 }
 
-/// After the tension stage: a mass-weighted projection of whatever overlap the joint
-/// solve left (its penalty gives way by F / k_c, and the closest points move while s
-/// and t are held within a pass; usually nothing), moving the four ends by the
-/// fractions s and t as the Strings paper does (the least mass-weighted motion that
-/// moves the closest points apart by the overlap d: impulse d / (w_a + w_b),
-/// w_a = (1-s)^2 w_j + s^2 w_{j+1}); then the colliding flags of the next shape
-/// matching and the warm start of the next step.
+/// After the tension stage: a mass-weighted projection of the overlap the joint solve left
+/// (its penalty gives way by F / k_c; usually none), moving the four ends by the fractions
+/// s and t as the Strings paper does: impulse d / (w_a + w_b), w_a = (1-s)^2 w_j + s^2 w_{j+1}.
+/// Then the colliding flags of the next shape matching and the next step's warm start.
 void StringPairs::finish(std::vector<StringState>& strings) {
     previous_pairs_.clear();
     if (string_pairs_.empty()) return;

@@ -194,8 +194,8 @@ struct StringState {
 void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx);
 void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& ctx);
 /// Returns the largest move (m) of its first Newton iteration: how far the string was
-/// from its solution when called (World::step stops the sweeps over strings that share
-/// bodies when every string is already there).
+/// from its solution when called (StringSystem::limitStrain stops the sweeps over strings
+/// that share bodies when every string is already there).
 double limitStrain(StringState& s, RigidTable& rigids, const StepContext& ctx);
 void estimateTension(StringState& s, const StepContext& ctx);
 void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::vector<Event>& events);

@@ -1,27 +1,19 @@
-// Stage 6: per-segment tension.
+// Per-segment tension (the tension stage of StringSystem::step).
 //
-// Momentum (default; Yarn, Sec. 3.2). With forward Euler, a particle i of mass m_i whose
-// constrained motion is x''_i must satisfy
-//     m_i (x''_i - x'_i) / h^2 = sum_j T_j a_ij,     a_ij = +e_j if i starts segment j, -e_j if it ends it,
-// where x'_i is its position before strain limiting. Stacking the free particles gives
-// A T = b with 3 equations per particle and one unknown per segment. We solve it in the
-// least-squares sense, (A^T A + lambda) T = A^T b (every equation in newtons, as Yarn
-// writes it; the weighting does not matter where the system is consistent), which for a
-// chain is tridiagonal (segments j and j+1 share one particle) and is solved
-// directly in O(n). Clamped particles carry an unknown support force and give no equation;
-// a particle glued to a rigid body gives the equation "the segments pull the body with
-// the impulse the limiter applied to it" (accumulated in glue_impulse), so the chain stays
-// determined when it ends on a body. Tikhonov lambda = 1e-6 (Yarn's value, relative to
-// the largest diagonal entry) keeps a straight segment between two clamps determined;
-// we divide it by the number of segments because on a chain its pull adds up along the
-// length (a uniform tension t is biased by t * n * lambda), so the bias stays 1e-6.
+// Momentum balance (default; Yarn Sec. 3.2). With forward Euler, a particle i of mass m_i
+// whose constrained motion is x''_i, x'_i its position before strain limiting, satisfies
+//     m_i (x''_i - x'_i) / h^2 = sum_j T_j a_ij,     a_ij = +e_j if i starts segment j, -e_j if it ends it.
+// The free particles' equations A T = b (3 per particle, one unknown per segment) are solved
+// in least squares, (A^T A + lambda) T = A^T b, in newtons as Yarn writes them: tridiagonal
+// on a chain, O(n). Clamped particles carry an unknown support force and give no equation;
+// a particle glued to a body gives "the segments pull the body with the impulse the limiter
+// gave it" (glue_impulse). Tikhonov lambda = 1e-6 of the largest diagonal (Yarn's value),
+// divided by the segment count: a uniform tension t is biased by t n lambda.
 //
-// Local (Strings, Eq. 12): T_j = k (|x'_{j+1} - x'_j| - |x_{j+1} - x_j|) with k chosen
-// as the reduced mass of the segment's ends over h^2, so that a single free segment gives
-// the same value as the momentum solve. It only sees the stretch this step produced: a
-// rope hanging at rest, whose particles all fall by the same g h^2 before limiting, reads
-// about one particle's weight at its clamp and almost zero below it. Momentum balance
-// sees the weight below every segment; that is why it is the default.
+// Local (Strings Eq. 12): T_j = k (|x'_{j+1} - x'_j| - |x_{j+1} - x_j|), k the reduced mass
+// of the segment's ends over h^2 (a single free segment then agrees with the momentum
+// solve). It sees only this step's stretch: a rope hanging at rest reads one particle's
+// weight at its clamp and ~0 below; momentum balance sees the weight below every segment.
 #include "base/lanes.hpp"
 #include "base/thread_pool.hpp"
 #include "linalg/tridiagonal.hpp"
@@ -39,8 +31,7 @@ constexpr double kRegularisation = 1e-6;
 /// segment).
 constexpr std::size_t kParallelSegments = kParallelItems;
 
-// The row helpers below are forced inline: GCC otherwise keeps rowImpulse as a call in the
-// assembly loop, with its return through memory (the same bits either way).
+// The row helpers are forced inline (GCC kept rowImpulse a call; the same bits either way).
 
 /// Weight of particle p's equation (1), or 0 when it gives none: clamped, or glued to an
 /// immovable body; both carry an unknown support force.
@@ -51,9 +42,8 @@ constexpr std::size_t kParallelSegments = kParallelItems;
     return 1.0;
 }
 
-/// Whether particle p's equation is whole (no body presses it): its projector exactly I,
-/// compared entry by entry (what Eigen's isIdentity(0) tests, at a fraction of its cost),
-/// where any projector of the string may differ from I (rows_pressed).
+/// Whether particle p's projector is exactly I (no body presses it), entry by entry, where
+/// any projector of the string may differ from I (rows_pressed).
 [[gnu::always_inline]] inline bool wholeRow(const StringState& s, std::size_t p) {
     return !s.scratch.rows_pressed || s.scratch.row_projector[p] == Mat3::Identity();
 }
@@ -90,9 +80,8 @@ void momentumTension(StringState& s, const StepContext& ctx) {
             if (len > 1e-15) s.scratch.dir[j] = d / len;
         }
     });
-    // Each particle's weight, whether its row is whole, and its impulse are found once and
-    // carried from the segment it ends to the segment it starts (the same values, so the
-    // same bits, as finding them per segment).
+    // Each particle's weight, whole row and impulse are found once and carried from the
+    // segment it ends to the one it starts (the same bits as per segment).
     struct Row {
         double weight;
         bool whole;

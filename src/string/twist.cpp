@@ -1,35 +1,20 @@
 // The twist stage (after strain limiting, so that it sees this step's geometry).
 //
-// Strings, Sec. 4 gives every segment j a twist angle theta_j between its twist-free
-// (Bishop) frame and its material frame, and spreads a twist applied at an end along the
-// string by averaging the increments over overlapping regions of half-width w_twist
-// (Eq. 1-3), with a rotational velocity (Eq. 4-5). The averaging's fixed point is the
-// same linear twist whatever the widths, so it cannot give the paper's Fig. 6e, where a
-// more rigid range twists less. We therefore solve the balance the averaging
-// approximates, implicitly (backward Euler, stable at any stiffness):
+// Strings Sec. 4: segment j has a twist angle theta_j between its twist-free (Bishop) and
+// material frames. The paper spreads twist by averaging increments over regions of
+// half-width w_twist (Eq. 1-3), whose fixed point is the same linear twist whatever the
+// widths and so cannot give Fig. 6e (a more rigid range twists less). We solve the balance
+// the averaging approximates, implicitly (backward Euler, stable at any stiffness):
 //
 //   minimise  sum_j I_j/(2h^2) (theta_j - theta'_j)^2 + sum_k k_k/2 (theta_{k+1} - theta_k - tau0_k)^2
 //
-// with theta'_j = theta_j + h omega_j (Eq. 5: first rotated by the rotational velocity),
-// I_j = m_j r^2 / 2 (a solid cylinder about its axis), joint stiffness
-// k_k = G J w_k / (2 l_k), J = pi r^4 / 2, l_k the distance between the segments' centres,
-// and tau0_k the rest twist of the joint (plasticity). The paper's knob survives as a
-// rigidity factor w/2: w_twist = 2 (the paper's default) is the material's own G J, and
-// a range with twice the width is twice as rigid, so at rest it twists half as much
-// (Fig. 6d-e). The system is tridiagonal: O(n). omega_j = (theta_j - theta_j^old) / h
-// afterwards (the rotational velocity of Eq. 4, from the solve instead of "I dtheta").
-//
-// Ends: a pinned end particle clamps its segment's twist (twist drivers turn it); a free
-// end is torque-free; an end glued to a rigid body turns with the body about the segment
-// axis and the body feels the string's torque (implicitly: its moment of inertia about
-// that axis joins the solve).
-//
-// The twist force on the particles (Strings Eq. 6) is the gradient of the same twist
-// energy with respect to positions, in the general form of Bergou et al. 2008 that Eq. 6
-// is derived from: with m_p = theta_p - theta_{p-1} at interior particle p and its moment
-// M_p = k (m_p - tau0), dm_p/dx_{p-1} = kb_p / (2|e_{p-1}|), dm_p/dx_{p+1} = -kb_p / (2|e_p|),
-// and dm_p/dx_p = -(the sum), kb_p = 2 e_{p-1} x e_p / (|e_{p-1}||e_p| + e_{p-1}.e_p)
-// (Eq. 7). It acts in the next step's prediction.
+// theta'_j = theta_j + h omega_j (Eq. 5), I_j = m_j r^2 / 2 (a solid cylinder), k_k =
+// G J w_k / (2 l_k), J = pi r^4 / 2, l_k between the segments' centres, tau0_k the joint's
+// rest twist (plasticity). w/2 is a rigidity factor: w_twist = 2 (the paper's default) is
+// the material's G J, twice the width twice as rigid (Fig. 6d-e). Tridiagonal, O(n); then
+// omega_j = (theta_j - theta_j^old) / h (Eq. 4).
+// Ends: a pinned end clamps its segment's twist (twist drivers turn it), a free end is
+// torque-free, a glued end turns with its body, whose inertia about the axis joins the solve.
 #include "linalg/tridiagonal.hpp"
 #include "string/string_state.hpp"
 
@@ -96,11 +81,9 @@ void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         return;
     }
     // An untwisted string that nothing twists (the common rope): every angle, velocity,
-    // rest twist and clamped end angle +0 and no end glued to a body. The solve would
-    // give +0 everywhere (rows with +0 right-hand sides), so it is skipped with its
-    // result: the same bits, without the assembly and the tridiagonal solve. The joints'
-    // stiffnesses are refreshed by the next solve that runs; until then nothing reads
-    // them but computeTwistForces, whose moments are zero whatever they hold.
+    // rest twist and clamped end angle +0, no end glued. The solve would give +0 everywhere,
+    // so it is skipped: the same bits. The joint stiffnesses it leaves stale are read only by
+    // computeTwistForces, whose moments are zero whatever they hold.
     s.scratch.twist_skipped = untwisted(s);
     if (s.scratch.twist_skipped) {
         std::copy(s.twist.begin(), s.twist.end(), s.twist_old.begin());
@@ -171,9 +154,9 @@ void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx) {
         s.twist[j] = s.scratch.rhs[j];
         s.twist_velocity[j] = (s.twist[j] - s.twist_old[j]) * ctx.inv_h;
     }
-    // The string's torque back on glued bodies: the body turns by what the solve moved
-    // its end away from where the body alone would have taken it (World::step turns that
-    // rotation into angular velocity, like the strain limiter's corrections).
+    // The string's torque back on glued bodies: the body turns by what the solve moved its
+    // end away from where the body alone would have taken it (World's applyBodyVelocities
+    // turns that rotation into angular velocity, like the strain limiter's corrections).
     for (int end = 0; end < 2; ++end) {
         const double axis_inertia = s.twist_glued_axis_inertia[end];
         if (axis_inertia <= 0.0) continue;
@@ -188,6 +171,11 @@ void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     }
 }
 
+// The twist force (Strings Eq. 6): the gradient of the same energy with respect to the
+// positions, in the general form of Bergou et al. 2008: with m_p = theta_p - theta_{p-1} and
+// M_p = k (m_p - tau0) at interior particle p, dm_p/dx_{p-1} = kb_p / (2|e_{p-1}|),
+// dm_p/dx_{p+1} = -kb_p / (2|e_p|), dm_p/dx_p = -(the sum), kb_p = 2 e_{p-1} x e_p /
+// (|e_{p-1}||e_p| + e_{p-1}.e_p) (Eq. 7). It acts in the next step's prediction.
 void computeTwistForces(StringState& s) {
     const std::size_t n = s.particles();
     // After a skipped twist solve every moment is zero: the forces are zero, and already

@@ -1091,11 +1091,10 @@ void Snapshot::restore(World& world) const {
     *w.papers = data_->papers;
     *w.settings = data_->settings;
     *w.strings = data_->strings;
-    // The block factorisation is rebuilt by every step; it is sized here, not copied
-    // (a default-constructed Eigen::LLT has an uninitialised status that UBSan flags
-    // when copied: found by the sanitizer build). So are the chain solve's tension
-    // estimate (scratch, filled from spring_force at every solve) and its pivots'
-    // inverses (scratch, written by a solve before a chord iteration reads them).
+    // The block factorisation is rebuilt by every step; it is sized here, not copied (a
+    // default-constructed Eigen::LLT has an uninitialised status, which UBSan flags when
+    // copied). So are the chain solve's tension estimate (filled from spring_force at every
+    // solve) and its pivots' inverses (written by a solve before a chord iteration reads them).
     for (detail::StringState& s : *w.strings)
         if (s.alive) {
             s.scratch.blk_factor.resize(s.particles());
