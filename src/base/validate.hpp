@@ -21,6 +21,9 @@ inline std::string num(double v) {
     return s.str();
 }
 
+/// Whether every coordinate of `v` is finite.
+inline bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
+
 inline void requireFinite(std::string_view field, double v) {
     if (!std::isfinite(v)) throw InvalidInput(std::string(field), "must be a finite number (got " + num(v) + ")");
 }

@@ -14,6 +14,7 @@
 //    vertices stay) with the soft springs that depend on it, and a Tear event is emitted.
 //    Only the most overloaded yarn per cloth and step breaks; the next step's tensions say
 //    whether its neighbours follow (Yarn: "tears where the stress is highest").
+#include "base/constants.hpp"
 #include "cloth/cloth_state.hpp"
 #include "sim/material_curve.hpp"
 
@@ -21,10 +22,6 @@
 #include <cmath>
 
 namespace tearables::detail {
-
-namespace {
-constexpr double kPi = 3.14159265358979323846;
-}  // namespace
 
 void respondClothMaterial(ClothState& c, const StepContext& ctx, std::vector<Event>& events) {
     const double area = kPi * c.desc.yarn_radius * c.desc.yarn_radius;

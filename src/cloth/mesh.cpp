@@ -1,23 +1,12 @@
 // The weave: vertices, yarn edges (warp then weft), soft shear and bending springs, masses
 // and per-edge material; and the prediction stage.
+#include "base/constants.hpp"
 #include "cloth/cloth_state.hpp"
 
 #include <algorithm>
 #include <cmath>
 
 namespace tearables::detail {
-
-namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-
-double vary(std::mt19937_64& rng, double value, double variation) {
-    if (variation <= 0.0) return value;
-    std::uniform_real_distribution<double> u(-1.0, 1.0);
-    return value * (1.0 + variation * u(rng));
-}
-
-}  // namespace
 
 ClothState makeCloth(const ClothDesc& desc) {
     ClothState c;

@@ -13,6 +13,7 @@
 //  - A segment at its rupture stress breaks (if the string is tearable): removed, its
 //    particles stay, a Tear event. Only the most overloaded segment of a string breaks per
 //    step (a uniform rope would shatter at once; after the first tear the rest is unloaded).
+#include "base/constants.hpp"
 #include "base/lanes.hpp"
 #include "base/thread_pool.hpp"
 #include "sim/material_curve.hpp"
@@ -24,8 +25,6 @@
 namespace tearables::detail {
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 Event makeEvent(const StringState& s, StringId id, EventType type, EventCause cause, int segment, double stress,
                 const StepContext& ctx) {

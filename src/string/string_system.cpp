@@ -4,8 +4,10 @@
 // contacts, events) stays on this thread, in slot order.
 #include "string/string_system.hpp"
 
+#include "base/constants.hpp"
 #include "base/stage_timer.hpp"
 #include "base/thread_pool.hpp"
+#include "base/validate.hpp"
 #include "sim/freeze.hpp"
 
 #include <algorithm>
@@ -15,16 +17,6 @@
 namespace tearables::detail {
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-
-double vary(std::mt19937_64& rng, double value, double variation) {
-    if (variation <= 0.0) return value;
-    std::uniform_real_distribution<double> u(-1.0, 1.0);
-    return value * (1.0 + variation * u(rng));
-}
-
-bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
 
 bool live(const StringState& s) { return s.alive && !s.frozen; }
 

@@ -15,6 +15,7 @@
 // omega_j = (theta_j - theta_j^old) / h (Eq. 4).
 // Ends: a pinned end clamps its segment's twist (twist drivers turn it), a free end is
 // torque-free, a glued end turns with its body, whose inertia about the axis joins the solve.
+#include "base/constants.hpp"
 #include "linalg/tridiagonal.hpp"
 #include "string/string_state.hpp"
 
@@ -26,8 +27,6 @@
 namespace tearables::detail {
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 bool clamped(const StringState& s, std::size_t particle) { return s.hold[particle].kind == ParticleHold::Kind::Pin; }
 

@@ -4,9 +4,11 @@
 // velocities from what the materials moved them by.
 #include "tearables/world.hpp"
 
+#include "base/constants.hpp"
 #include "base/float_mode.hpp"
 #include "base/stage_timer.hpp"
 #include "base/thread_pool.hpp"
+#include "base/validate.hpp"
 #include "cloth/cloth_state.hpp"
 #include "paper/system.hpp"
 #include "sim/host_contacts.hpp"
@@ -19,6 +21,8 @@
 
 namespace tearables {
 
+using detail::finite;
+using detail::kPi;
 using detail::ParticleHold;
 using detail::RigidTable;
 using detail::StageTimer;
@@ -40,14 +44,10 @@ StageTimes& StageTimes::operator+=(const StageTimes& o) {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
 /// The time steps World::step takes, s: shorter ones make 1/h and the penalties overflow,
 /// longer ones are no simulation.
 constexpr double kMinStep = 1e-7;
 constexpr double kMaxStep = 1.0;
-
-bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
 
 }  // namespace
 
