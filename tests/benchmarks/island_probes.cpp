@@ -4,6 +4,8 @@
 // solver's effect on each can be read. Every step is 1/100 s (one internal Bullet step)
 // unless a probe says otherwise.
 // Run: build/tests/benchmarks/tearables_island_probes [crate|statics|capstan|momentum|overlap]
+// or `momentum-trace` (not in the default run): item 3's scene step by step; with
+// tools/momentum_stage_trace.patch applied and TEARABLES_MTRACE set, each stage's share.
 #include "island_scenes.hpp"
 
 #include <algorithm>
@@ -301,6 +303,49 @@ void momentum(bool crossing, double density) {
          drift < 0.001 && gain <= 1.0 + 1e-9);
 }
 
+// Item 3's trace: the scene of `momentum` (one rope), stepped 40 times (the box meets the
+// rope at t = 0.05 s), printing per step the linear momentum (kg m/s, y component: the
+// throw is along -y, x and z stay ~0) of the rope, the two end bodies and the box, and
+// the change of the total. `kick`: no box; the left end body is given 1 m/s along y
+// instead, so only the glue couples (no contact rows).
+void momentumTrace(double density, bool kick) {
+    Rig rig(0.0);
+    StringDesc d = StringDesc::straight({-0.5, 0, 0}, {0.5, 0, 0}, 40);
+    d.radius = 0.005;
+    d.density = density;
+    d.tearable = false;
+    d.material.variation = 0.0;
+    const StringId id = rig.ropes->addString(d);
+    btRigidBody* ends[2];
+    for (int end : {0, 1}) {
+        const double sx = end == 0 ? -1.0 : 1.0;
+        btRigidBody& b = rig.phys.box(btVector3(0.05f, 0.05f, 0.05f), 1.0, btVector3(static_cast<float>(0.56 * sx), 0, 0));
+        b.setActivationState(DISABLE_DEACTIVATION);
+        rig.ropes->attach(id, end == 0 ? 0 : -1, b, btVector3(static_cast<float>(-0.06 * sx), 0, 0));
+        ends[end] = &b;
+    }
+    btRigidBody* thrown = nullptr;
+    if (kick) {
+        ends[0]->setLinearVelocity(btVector3(0, 1, 0));
+    } else {
+        thrown = &rig.phys.box(btVector3(0.1f, 0.1f, 0.1f), 2.0, btVector3(0.02f, 0.3f, 0));
+        thrown->setLinearVelocity(btVector3(0, -4, 0));
+        thrown->setActivationState(DISABLE_DEACTIVATION);
+    }
+    auto py = [](const btRigidBody* b) { return b ? static_cast<double>(b->getLinearVelocity().y()) / b->getInvMass() : 0.0; };
+    std::printf("  %s, rope %.3f kg\n", kick ? "left end kicked 1 m/s" : "box thrown", island::ropeMass(rig.ropes->core(), id));
+    std::printf("    step   rope Py   ends Py    box Py   total Py  dTotal\n");
+    double last = island::ropeMomentum(rig.ropes->core(), id).y() + py(ends[0]) + py(ends[1]) + py(thrown);
+    for (int i = 1; i <= 40; ++i) {
+        rig.step();
+        const double rope = island::ropeMomentum(rig.ropes->core(), id).y();
+        const double e = py(ends[0]) + py(ends[1]);
+        const double total = rope + e + py(thrown);
+        std::printf("    %4d %9.5f %9.5f %9.5f %9.5f %+.2e\n", i, rope, e, py(thrown), total, total - last);
+        last = total;
+    }
+}
+
 // Item 5: a rope (1 m, 50 segments, radius 2 mm, default nylon) hanging from the centre of
 // a static 0.2 m cube, so its first 5 segments start inside the cube; held there by a glue
 // to the cube or by a pin. The control (`inside` false): the cube raised so that its
@@ -356,6 +401,12 @@ int main(int argc, char** argv) {
         capstan(kPi / 2, "capstan, quarter turn (end forces)", false);
         capstan(kPi, "capstan, half turn (end forces)", false);
         capstan(2 * kPi, "capstan, full turn (end forces)", false);
+    }
+    if (only == "momentum-trace") {
+        for (double density : {1150.0, 20000.0}) {
+            momentumTrace(density, false);
+            momentumTrace(density, true);
+        }
     }
     if (want("momentum")) {
         momentum(false, 1150);
