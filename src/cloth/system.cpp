@@ -5,6 +5,7 @@
 #include "cloth/cloth_state.hpp"
 
 #include "base/stage_timer.hpp"
+#include "base/validate.hpp"
 #include "sim/freeze.hpp"
 
 #include <algorithm>
@@ -13,8 +14,6 @@
 namespace tearables::detail {
 
 namespace {
-
-bool finite(const Vec3& v) { return v.allFinite(); }
 
 Event releaseEvent(const ClothState& c, std::size_t vertex, EventCause cause, double time, std::int64_t step) {
     Event e;
@@ -89,8 +88,7 @@ void ClothSystem::bounds(double h, const Vec3& gravity, std::vector<std::pair<Ve
 bool ClothSystem::usesBody(RigidId body) const {
     for (const ClothState& c : cloths_) {
         if (!c.alive) continue;
-        for (const ParticleHold& hold : c.hold)
-            if (hold.kind == ParticleHold::Kind::Glue && hold.body == body) return true;
+        if (holdsBody(c.hold, body)) return true;
     }
     return false;
 }
@@ -100,7 +98,7 @@ void ClothSystem::releaseBody(RigidId body, double time, std::int64_t step, std:
         ClothState& c = cloths_[i];
         if (!c.alive) continue;
         for (std::size_t p = 0; p < c.vertices(); ++p)
-            if (c.hold[p].kind == ParticleHold::Kind::Glue && c.hold[p].body == body)
+            if (c.hold[p].gluedTo(body))
                 release(ClothId{static_cast<std::uint32_t>(i)}, p, EventCause::BodyRemoved, time, step, pending);
     }
 }
@@ -161,9 +159,7 @@ void ClothSystem::collideBodies(const RigidTable& rigids, const HostContacts& ho
         if (c.hold[pc.vertex].kind != ParticleHold::Kind::Free) continue;
         // A cloth does not collide with a body it is glued to (as strings): the glue
         // already couples them.
-        bool glued = false;
-        for (const ParticleHold& hold : c.hold) glued = glued || (hold.kind == ParticleHold::Kind::Glue && hold.body == pc.body);
-        if (glued) continue;
+        if (holdsBody(c.hold, pc.body)) continue;
         VertexContact vc;
         vc.vertex = pc.vertex;
         vc.normal = pc.normal;

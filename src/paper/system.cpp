@@ -147,7 +147,7 @@ void PaperSystem::releaseBody(RigidId body, double time, std::int64_t step, std:
     for (std::size_t i = 0; i < sheets_.size(); ++i) {
         if (!sheets_[i].alive) continue;
         for (std::size_t v = 0; v < sheets_[i].vertices(); ++v)
-            if (sheets_[i].hold[v].kind == ParticleHold::Kind::Glue && sheets_[i].hold[v].body == body)
+            if (sheets_[i].hold[v].gluedTo(body))
                 release(PaperId{static_cast<std::uint32_t>(i)}, static_cast<std::uint32_t>(v), EventCause::BodyRemoved, time, step, events);
     }
 }
@@ -155,8 +155,7 @@ void PaperSystem::releaseBody(RigidId body, double time, std::int64_t step, std:
 bool PaperSystem::usesBody(RigidId body) const {
     for (const PaperSheet& s : sheets_) {
         if (!s.alive) continue;
-        for (const ParticleHold& hold : s.hold)
-            if (hold.kind == ParticleHold::Kind::Glue && hold.body == body) return true;
+        if (holdsBody(s.hold, body)) return true;
     }
     return false;
 }

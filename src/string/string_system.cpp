@@ -181,8 +181,7 @@ std::vector<StringId> StringSystem::ids() const {
 bool StringSystem::usesBody(RigidId body) const {
     for (const StringState& s : strings_) {
         if (!s.alive) continue;
-        for (const ParticleHold& hold : s.hold)
-            if (hold.kind == ParticleHold::Kind::Glue && hold.body == body) return true;
+        if (holdsBody(s.hold, body)) return true;
     }
     return false;
 }
@@ -192,7 +191,7 @@ void StringSystem::releaseBody(RigidId body, double time, std::int64_t step, std
         StringState& s = strings_[i];
         if (!s.alive) continue;
         for (std::size_t p = 0; p < s.particles(); ++p)
-            if (s.hold[p].kind == ParticleHold::Kind::Glue && s.hold[p].body == body)
+            if (s.hold[p].gluedTo(body))
                 release(StringId{static_cast<std::uint32_t>(i)}, p, EventCause::BodyRemoved, time, step, pending);
     }
 }
@@ -302,11 +301,7 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host) {
         // wrap around the crate it holds). A static or kinematic body is no unknown,
         // so a string glued to it (a winch drum) collides with it (glue it on the
         // surface: the contacts push the rest of the string out of the body).
-        bool glued = false;
-        if (rigids.bodies[c.body.index].inverse_mass > 0.0)
-            for (const ParticleHold& hold : s.hold)
-                glued = glued || (hold.kind == ParticleHold::Kind::Glue && hold.body == c.body);
-        if (glued) continue;
+        if (rigids.bodies[c.body.index].inverse_mass > 0.0 && holdsBody(s.hold, c.body)) continue;
         RigidSegmentContact sc;
         sc.segment = c.segment;
         sc.s = std::clamp(c.s, 0.0, 1.0);
