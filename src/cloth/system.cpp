@@ -13,21 +13,6 @@
 
 namespace tearables::detail {
 
-namespace {
-
-Event releaseEvent(const ClothState& c, std::size_t vertex, EventCause cause, double time, std::int64_t step) {
-    Event e;
-    e.type = EventType::Release;
-    e.cause = cause;
-    e.object = c.desc.name;
-    e.particle = static_cast<int>(vertex);
-    e.time = time;
-    e.step = step;
-    return e;
-}
-
-}  // namespace
-
 ClothId ClothSystem::add(const ClothDesc& desc) {
     validate(desc);
     ClothState state = makeCloth(desc);
@@ -106,9 +91,7 @@ void ClothSystem::releaseBody(RigidId body, double time, std::int64_t step, std:
 void ClothSystem::release(ClothId id, std::size_t vertex, EventCause cause, double time, std::int64_t step,
                           std::vector<Event>& pending) {
     ClothState& c = get(id);
-    if (c.hold[vertex].kind == ParticleHold::Kind::Free) return;
-    c.hold[vertex] = ParticleHold{};
-    pending.push_back(releaseEvent(c, vertex, cause, time, step));
+    releaseHold(c.hold, vertex, c.desc.name, cause, time, step, pending);
 }
 
 namespace {

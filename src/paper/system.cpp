@@ -124,16 +124,7 @@ void PaperSystem::movePin(PaperId id, std::uint32_t vertex, const Vec3& point) {
 void PaperSystem::release(PaperId id, std::uint32_t vertex, EventCause cause, double time, std::int64_t step, std::vector<Event>& events) {
     PaperSheet& s = get(id);
     checkVertex(s, vertex);
-    if (s.hold[vertex].kind == ParticleHold::Kind::Free) return;
-    s.hold[vertex] = ParticleHold{};
-    Event e;
-    e.type = EventType::Release;
-    e.cause = cause;
-    e.object = s.desc.name;
-    e.particle = static_cast<int>(vertex);
-    e.time = time;
-    e.step = step;
-    events.push_back(e);
+    releaseHold(s.hold, vertex, s.desc.name, cause, time, step, events);
 }
 
 void PaperSystem::applyForce(PaperId id, std::uint32_t vertex, const Vec3& force) {

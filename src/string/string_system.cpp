@@ -199,17 +199,7 @@ void StringSystem::releaseBody(RigidId body, double time, std::int64_t step, std
 void StringSystem::release(StringId id, std::size_t particle, EventCause cause, double time, std::int64_t step,
                            std::vector<Event>& pending) {
     StringState& s = get(id);
-    if (s.hold[particle].kind == ParticleHold::Kind::Free) return;
-    s.hold[particle] = ParticleHold{};
-    Event e;
-    e.type = EventType::Release;
-    e.cause = cause;
-    e.string = id;
-    e.object = s.desc.name;
-    e.particle = static_cast<int>(particle);
-    e.time = time;
-    e.step = step;
-    pending.push_back(e);
+    if (releaseHold(s.hold, particle, s.desc.name, cause, time, step, pending)) pending.back().string = id;
 }
 
 void StringSystem::step(RigidTable& rigids, const StepContext& ctx, const HostContacts& host, std::vector<Event>& events) {
