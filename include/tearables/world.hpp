@@ -96,6 +96,17 @@ struct CollisionQuery {
     std::vector<const std::vector<std::uint8_t>*> broken;  ///< per string, per segment
 };
 
+/// One island of the last step: strings coupled through the movable bodies they hold or
+/// touch, solved as one system with those bodies (see README, "How it works"). The solve
+/// converged where `residual` < 1: its last Newton iteration moved nothing by more than
+/// WorldSettings::strain_tolerance of a segment.
+struct IslandSummary {
+    std::size_t strings = 0;
+    std::size_t bodies = 0;
+    int iterations = 0;     ///< Newton iterations, all friction passes
+    double residual = 0.0;  ///< the last iteration's largest move over its tolerance
+};
+
 /// Vertices of meshes (paper sheets, cloths) for a host's collision query: each object's
 /// vertices are spheres of the object's radius (its half thickness), swept from where they
 /// were at the start of the step to where they are predicted to go.
@@ -233,6 +244,9 @@ public:
     void setContactProvider(ContactProvider* provider);
     /// The host's string contacts of the last step as it reported them, for inspection and tests.
     const std::vector<RigidContact>& lastContacts() const;
+    /// The islands of the last step, in the order of their first string (none where no
+    /// string holds or touches a movable body).
+    const std::vector<IslandSummary>& lastIslands() const;
 
     /// Advances all strings, cloths and paper sheets by `h` seconds, [1e-7, 1]. Throws
     /// InvalidInput ("h", or the name of a setting made invalid through settings()) before

@@ -8,6 +8,7 @@
 namespace tearables::detail {
 
 class ThreadPool;
+class IslandSolve;
 
 /// Per-step context rebuilt each step (Box2D's b2StepContext).
 struct StepContext {
@@ -27,6 +28,9 @@ struct StepContext {
     /// Chains' strain solves make Newton iterations only, no chord iterations (src/string/):
     /// tests compare the two.
     bool newton_strain_only = false;
+    /// Solves the strings coupled through movable bodies as islands (src/island/); null:
+    /// each string alone, the bodies moved by each in turn.
+    IslandSolve* islands = nullptr;
 };
 
 }  // namespace tearables::detail

@@ -99,12 +99,6 @@ inline bool slackSegment(const StringState& s, std::size_t j, double stretch, do
     return stretch <= -kTautSlack * s.rest_length[j] && effective <= 0.0;
 }
 
-/// True when particle p does not move in the solve (pinned, or glued to an immovable body).
-bool fixedRow(const StringState& s, std::size_t p) {
-    const ParticleHold& hold = s.hold[p];
-    return hold.kind == ParticleHold::Kind::Pin || (hold.kind == ParticleHold::Kind::Glue && !s.glue_movable[p]);
-}
-
 /// solveFactored of the string's factorised system (factorChain) for `rhs` (n) in place.
 void solveFactored(const StringState& s, std::vector<Vec3>& rhs) {
     solveFactored(s.particles(), s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(),
@@ -132,29 +126,6 @@ struct SpringTerm {
         d += after.hess;
         rhs += after.force;
     }
-}
-
-/// Generalised mass of a body (translation, rotation about its centre), world frame.
-Mat6 bodyMass(const RigidState& b) {
-    Mat6 m = Mat6::Zero();
-    m.topLeftCorner<3, 3>() = Mat3::Identity() / b.inverse_mass;
-    m.bottomRightCorner<3, 3>() = b.inverseInertiaWorld().inverse();
-    return m;
-}
-
-/// The rotation by a rotation vector.
-Quat rotationBy(const Vec3& v) {
-    const double angle = v.norm();
-    return angle > 0.0 ? Quat(Eigen::AngleAxisd(angle, v / angle)) : Quat::Identity();
-}
-
-/// Moves a body whose displacement in the solve goes from `before` to `after`
-/// (translation, rotation vector; from where its planes were linearised). The rotation is
-/// set from the total, not composed from the iterations' steps: rotations do not commute,
-/// and iterates that turn a body and back must leave it where it was.
-void displaceBody(RigidState& b, const Vec6& before, const Vec6& after) {
-    b.position += after.head<3>() - before.head<3>();
-    b.orientation = (rotationBy(after.tail<3>()) * rotationBy(before.tail<3>()).conjugate() * b.orientation).normalized();
 }
 
 }  // namespace
@@ -236,7 +207,7 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
                 break;
             case ParticleHold::Kind::Glue:
                 s.x[p] = gluePoint(rigids.bodies[hold.body.index], hold.point);
-                if (s.glue_movable[p]) {
+                if (s.glue_movable[p] && !s.island_glue) {
                     // The body's inertia resists this string's own accumulated pull
                     // (what other strings did to the body is, for this string, part
                     // of the body's prediction): M_eff (x - x') / h^2 = P / h^2.
@@ -767,6 +738,110 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
     s.scratch.strain_warm_start = s.contacts.empty() && s.body_nodes.empty() && !ctx.cold_strain_starts && warmStart(s, ctx);
 }
 
+void setContactStiffness(StringState& s, const RigidTable& rigids, double inv_h2) {
+    const double stiffest = s.contacts.empty() ? 0.0 : stiffestTerm(s, inv_h2);  // two passes over the string: only for contacts
+    for (RigidSegmentContact& c : s.contacts) {
+        // Under a load F the contact gives way by F / k_c only.
+        if (c.stiffness > 0.0) continue;
+        double kc = stiffest;
+        if (c.node >= 0) kc = std::max(kc, inv_h2 / rigids.bodies[c.body.index].inverse_mass);
+        c.stiffness = kc * kContactStiffnessFactor;
+    }
+}
+
+void assembleContactCoupling(StringState& s, StringScratch::NodeScratch& nodes) {
+    auto& node_diag = nodes.diag;
+    auto& node_rhs = nodes.rhs;
+    auto& coupling = nodes.coupling;
+    for (const RigidSegmentContact& c : s.contacts) {
+        if (!c.active) continue;
+        const std::size_t j = c.segment;
+        const Vec3& nrm = c.plane_normal;
+        // The gradient only where it penetrates.
+        const double g = std::min(0.0, rigidGap(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]));
+        const double kc = c.stiffness;
+        const double wa = 1.0 - c.s, wb = c.s;
+        const bool fa = !fixedRow(s, j), fb = !fixedRow(s, j + 1);
+        addPenaltyRows(s, c, g, fa, fb);
+        if (c.node < 0) continue;
+        const std::size_t b = static_cast<std::size_t>(c.node);
+        const Vec6 au = rigidGapBodyGradient(c);
+        node_diag[b] += kc * au * au.transpose();
+        node_rhs[b] -= kc * g * au;
+        if (fa) coupling[b].emplace_back(j, kc * wa * nrm * au.transpose());
+        if (fb) coupling[b].emplace_back(j + 1, kc * wb * nrm * au.transpose());
+    }
+    // Friction: w/2 |T rel|^2 (T the tangent projector, rel the motion relative to the
+    // body): gradient w T rel, Hessian w T on the string's side, w (TJ)^T (TJ) on the
+    // body's (J = d rel / d(u, theta)).
+    for (const RigidSegmentContact& c : s.contacts) {
+        const std::size_t j = c.segment;
+        if (!(c.friction_weight > 0.0) || s.broken[j]) continue;
+        const bool fa = !fixedRow(s, j), fb = !fixedRow(s, j + 1);
+        const FrictionTerm f = addFrictionRows(s, c, fa, fb);
+        if (c.node < 0) continue;
+        const std::size_t b = static_cast<std::size_t>(c.node);
+        const double w = c.friction_weight, wa = 1.0 - c.s, wb = c.s;
+        const Vec3& slip = f.slip;
+        const Mat36 jb = rigidSlipBodyJacobian(c, f.tangent);
+        node_diag[b] += w * jb.transpose() * jb;
+        node_rhs[b] -= w * jb.transpose() * slip;
+        if (fa) coupling[b].emplace_back(j, (w * wa) * jb);
+        if (fb) coupling[b].emplace_back(j + 1, (w * wb) * jb);
+    }
+}
+
+void condenseNodes(StringState& s, StringScratch::NodeScratch& nodes_scratch) {
+    const std::size_t n = s.particles();
+    const std::size_t nodes = s.body_nodes.size();
+    const auto& node_diag = nodes_scratch.diag;
+    const auto& node_rhs = nodes_scratch.rhs;
+    const auto& coupling = nodes_scratch.coupling;
+    // Schur complement on the bodies' unknowns: (D - C^T A^-1 C) du = r_b - C^T y,
+    // then dx = y - A^-1 C du. Each body costs six more O(n) solves.
+    const std::size_t dim = 6 * nodes;
+    Eigen::MatrixXd& schur = nodes_scratch.schur;
+    Eigen::VectorXd& rs = nodes_scratch.rs;
+    schur.setZero(static_cast<Eigen::Index>(dim), static_cast<Eigen::Index>(dim));
+    rs.resize(static_cast<Eigen::Index>(dim));
+    if (s.scratch.node_columns.size() < dim) s.scratch.node_columns.resize(dim);
+    for (std::size_t b = 0; b < nodes; ++b) {
+        schur.block<6, 6>(static_cast<Eigen::Index>(6 * b), static_cast<Eigen::Index>(6 * b)) = node_diag[b];
+        rs.segment<6>(static_cast<Eigen::Index>(6 * b)) = node_rhs[b];
+        for (const auto& [p, blk] : coupling[b])
+            rs.segment<6>(static_cast<Eigen::Index>(6 * b)) -= blk.transpose() * s.scratch.blk_rhs[p];
+        for (int col = 0; col < 6; ++col) {
+            std::vector<Vec3>& column = s.scratch.node_columns[6 * b + static_cast<std::size_t>(col)];
+            column.assign(n, Vec3::Zero());
+            for (const auto& [p, blk] : coupling[b]) column[p] += blk.col(col);
+            solveFactored(s, column);
+        }
+    }
+    for (std::size_t b = 0; b < nodes; ++b)
+        for (std::size_t c = 0; c < dim; ++c)
+            for (const auto& [p, blk] : coupling[b])
+                schur.block<6, 1>(static_cast<Eigen::Index>(6 * b), static_cast<Eigen::Index>(c)) -=
+                    blk.transpose() * s.scratch.node_columns[c][p];
+}
+
+void backSubstituteNodes(StringState& s, const Eigen::VectorXd& du) {
+    const std::size_t n = s.particles();
+    const std::size_t nodes = s.body_nodes.size();
+    for (std::size_t c = 0; c < 6 * nodes; ++c) {
+        const double f = du[static_cast<Eigen::Index>(c)];
+        if (f != 0.0)
+            for (std::size_t p = 0; p < n; ++p) s.scratch.blk_rhs[p] -= f * s.scratch.node_columns[c][p];
+    }
+    for (std::size_t b = 0; b < nodes; ++b) s.scratch.node_step[b] = du.segment<6>(static_cast<Eigen::Index>(6 * b));
+}
+
+bool springRow(StringState& s, const StepContext& ctx, std::size_t j, Mat3& hess, Vec3& force) {
+    const SpringTerm term = springTerm(s, ctx, j, nullptr);
+    hess = term.hess;
+    force = term.force;
+    return s.scratch.active[j] != 0;
+}
+
 namespace {
 
 /// limitStrain's Newton iterations on one string (see the file's header): passes of
@@ -792,16 +867,7 @@ public:
         // separated contact the full Newton step would run into joins the Hessian (not the
         // gradient) and the step is solved again, so that it stops at the contact.
         linearisePlanes(s, rigids);
-        const double stiffest = s.contacts.empty() ? 0.0 : stiffestTerm(s, inv_h2);  // two passes over the string: only for contacts
-        for (RigidSegmentContact& c : s.contacts) {
-            // Stiff enough to dominate the rope's springs, the particles' and the body's
-            // inertia: under a load F it gives way by F / k_c only. Fixed for the step, so
-            // that the line search below sees one energy.
-            if (c.stiffness > 0.0) continue;
-            double kc = stiffest;
-            if (c.node >= 0) kc = std::max(kc, inv_h2 / rigids.bodies[c.body.index].inverse_mass);
-            c.stiffness = kc * kContactStiffnessFactor;
-        }
+        setContactStiffness(s, rigids, inv_h2);
         // A chain without contacts or body unknowns: its Hessian's geometric term takes the
         // linearised tension (starting from the last step's), its system is solved by
         // solveChain, and it stops on a quadratic prediction of its next move (run).
@@ -927,49 +993,12 @@ private:
             node_rhs[b] = -(node.mass * node.displacement) * inv_h2;
             coupling[b].clear();
         }
-        for (const RigidSegmentContact& c : s.contacts) {
-            if (!c.active) continue;
-            const std::size_t j = c.segment;
-            const Vec3& nrm = c.plane_normal;
-            const double g = std::min(0.0, gapNow(c));  // the gradient only where it penetrates
-            const double kc = c.stiffness;
-            const double wa = 1.0 - c.s, wb = c.s;
-            const bool fa = !fixedRow(s, j), fb = !fixedRow(s, j + 1);
-            addPenaltyRows(s, c, g, fa, fb);
-            if (c.node < 0) continue;
-            const std::size_t b = static_cast<std::size_t>(c.node);
-            const Vec6 au = rigidGapBodyGradient(c);
-            node_diag[b] += kc * au * au.transpose();
-            node_rhs[b] -= kc * g * au;
-            if (fa) coupling[b].emplace_back(j, kc * wa * nrm * au.transpose());
-            if (fb) coupling[b].emplace_back(j + 1, kc * wb * nrm * au.transpose());
-        }
-        // Friction: w/2 |T rel|^2 (T the tangent projector, rel the motion relative to the
-        // body): gradient w T rel, Hessian w T on the string's side, w (TJ)^T (TJ) on the
-        // body's (J = d rel / d(u, theta)).
-        for (const RigidSegmentContact& c : s.contacts) {
-            const std::size_t j = c.segment;
-            if (!(c.friction_weight > 0.0) || s.broken[j]) continue;
-            const bool fa = !fixedRow(s, j), fb = !fixedRow(s, j + 1);
-            const FrictionTerm f = addFrictionRows(s, c, fa, fb);
-            if (c.node < 0) continue;
-            const std::size_t b = static_cast<std::size_t>(c.node);
-            const double w = c.friction_weight, wa = 1.0 - c.s, wb = c.s;
-            const Vec3& slip = f.slip;
-            const Mat36 jb = rigidSlipBodyJacobian(c, f.tangent);
-            node_diag[b] += w * jb.transpose() * jb;
-            node_rhs[b] -= w * jb.transpose() * slip;
-            if (fa) coupling[b].emplace_back(j, (w * wa) * jb);
-            if (fb) coupling[b].emplace_back(j + 1, (w * wb) * jb);
-        }
+        assembleContactCoupling(s, scratch);
     }
 
     /// solveChain for a plain chain; else the factorised chain, with the Schur complement
     /// on the touched bodies' unknowns.
     void solve() {
-        auto& node_diag = scratch.diag;
-        auto& node_rhs = scratch.rhs;
-        auto& coupling = scratch.coupling;
         if (plain_chain) {
             solveChain(n, s.scratch.blk_diag.data(), s.scratch.blk_off.data(), s.scratch.blk_rhs.data(),
                        s.scratch.blk_factor_gain.data(), s.scratch.chain_coupled.data(), inverses);
@@ -979,40 +1008,10 @@ private:
         solveFactored(s, s.scratch.blk_rhs);  // y = A^-1 r
         for (std::size_t b = 0; b < nodes; ++b) s.scratch.node_step[b].setZero();
         if (nodes == 0) return;
-        // Schur complement on the bodies' unknowns: (D - C^T A^-1 C) du = r_b - C^T y,
-        // then dx = y - A^-1 C du. Each body costs six more O(n) solves.
-        const std::size_t dim = 6 * nodes;
-        Eigen::MatrixXd& schur = scratch.schur;
-        Eigen::VectorXd& rs = scratch.rs;
-        schur.setZero(static_cast<Eigen::Index>(dim), static_cast<Eigen::Index>(dim));
-        rs.resize(static_cast<Eigen::Index>(dim));
-        if (s.scratch.node_columns.size() < dim) s.scratch.node_columns.resize(dim);
-        for (std::size_t b = 0; b < nodes; ++b) {
-            schur.block<6, 6>(static_cast<Eigen::Index>(6 * b), static_cast<Eigen::Index>(6 * b)) = node_diag[b];
-            rs.segment<6>(static_cast<Eigen::Index>(6 * b)) = node_rhs[b];
-            for (const auto& [p, blk] : coupling[b])
-                rs.segment<6>(static_cast<Eigen::Index>(6 * b)) -= blk.transpose() * s.scratch.blk_rhs[p];
-            for (int col = 0; col < 6; ++col) {
-                std::vector<Vec3>& column = s.scratch.node_columns[6 * b + static_cast<std::size_t>(col)];
-                column.assign(n, Vec3::Zero());
-                for (const auto& [p, blk] : coupling[b]) column[p] += blk.col(col);
-                solveFactored(s, column);
-            }
-        }
-        for (std::size_t b = 0; b < nodes; ++b)
-            for (std::size_t c = 0; c < dim; ++c)
-                for (const auto& [p, blk] : coupling[b])
-                    schur.block<6, 1>(static_cast<Eigen::Index>(6 * b), static_cast<Eigen::Index>(c)) -=
-                        blk.transpose() * s.scratch.node_columns[c][p];
-        scratch.ldlt.compute(schur);
-        Eigen::VectorXd& du = scratch.du;
-        du = scratch.ldlt.solve(rs);
-        for (std::size_t c = 0; c < dim; ++c) {
-            const double f = du[static_cast<Eigen::Index>(c)];
-            if (f != 0.0)
-                for (std::size_t p = 0; p < n; ++p) s.scratch.blk_rhs[p] -= f * s.scratch.node_columns[c][p];
-        }
-        for (std::size_t b = 0; b < nodes; ++b) s.scratch.node_step[b] = du.segment<6>(static_cast<Eigen::Index>(6 * b));
+        condenseNodes(s, scratch);
+        scratch.ldlt.compute(scratch.schur);
+        scratch.du = scratch.ldlt.solve(scratch.rs);
+        backSubstituteNodes(s, scratch.du);
     }
 
     /// A separated contact that the full Newton step would run into joins the Hessian (not

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "linalg/block_tridiagonal.hpp"
+#include "sim/body_motion.hpp"
 #include "string/string_state.hpp"
 
 #include <Eigen/Core>
@@ -20,17 +21,6 @@ constexpr int kContactIterationFactor = 4;
 /// A segment within this fraction of its radius of a body (or of the contact's thickness)
 /// counts as touching it.
 constexpr double kContactSlop = 0.1;
-
-using Vec6 = Eigen::Matrix<double, 6, 1>;
-using Mat6 = Eigen::Matrix<double, 6, 6>;
-using Mat36 = Eigen::Matrix<double, 3, 6>;
-
-/// The cross-product matrix [r]x.
-inline Mat3 cross(const Vec3& r) {
-    Mat3 m;
-    m << 0.0, -r.z(), r.y(), r.z(), 0.0, -r.x(), -r.y(), r.x(), 0.0;
-    return m;
-}
 
 inline bool freeParticle(const StringState& s, std::size_t p) { return s.hold[p].kind == ParticleHold::Kind::Free; }
 
@@ -81,6 +71,32 @@ double stepEnergy(const StringState& s, const RigidTable& rigids, const StepCont
 /// After a solve: glued particles back on their bodies, the springs' forces in the final
 /// state and the row projectors of the particles that rigid bodies press.
 void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ctx);
+
+/// Each rigid contact's penalty stiffness for this step (where not set yet): stiff enough
+/// to dominate the rope's springs, the particles' and the body's inertia, fixed for the
+/// step so that a line search sees one energy.
+void setContactStiffness(StringState& s, const RigidTable& rigids, double inv_h2);
+/// The body nodes' rows of the active contacts' penalties and of all contacts' friction:
+/// added to `nodes` (diag, rhs, coupling; the caller zeroes or seeds them) and, on the
+/// string's side, to blk_diag and blk_rhs.
+void assembleContactCoupling(StringState& s, StringScratch::NodeScratch& nodes);
+/// After factorChain and y = A^-1 r in blk_rhs: the Schur complement of the chain on its
+/// body nodes, D - C^T A^-1 C into nodes.schur, r_b - C^T y into nodes.rs, and the
+/// columns A^-1 C into node_columns.
+void condenseNodes(StringState& s, StringScratch::NodeScratch& nodes);
+/// The particles' step for the bodies' step du (6 per node): dx = y - A^-1 C du in
+/// blk_rhs, du into node_step.
+void backSubstituteNodes(StringState& s, const Eigen::VectorXd& du);
+/// Segment j's spring (Hessian, force pulling j toward j + 1) where it is stretched or
+/// taut; false where it carries nothing (slack or broken).
+bool springRow(StringState& s, const StepContext& ctx, std::size_t j, Mat3& hess, Vec3& force);
+/// True when particle p does not move in the string's own rows: pinned, glued to an
+/// immovable body, or glued to a body of an island (the island moves it with the body).
+inline bool fixedRow(const StringState& s, std::size_t p) {
+    const ParticleHold& hold = s.hold[p];
+    return hold.kind == ParticleHold::Kind::Pin ||
+           (hold.kind == ParticleHold::Kind::Glue && (!s.glue_movable[p] || s.island_glue));
+}
 
 /// factorBlockTridiagonal of the string's system (blk_diag, blk_off) into blk_factor,
 /// blk_factor_gain and blk_coupled.

@@ -139,6 +139,9 @@ struct StringState {
     std::vector<ParticleHold> hold;
     std::vector<Vec3> glue_impulse;  ///< Glue: impulse x h the segments gave the body this step, kg m
     std::vector<std::uint8_t> glue_movable;  ///< Glue: the body could move this step (dynamic and awake)
+    /// The string is solved in an island (src/island/) this stage: its particles glued to
+    /// movable bodies are fixed rows that follow their bodies' unknowns.
+    bool island_glue = false;
 
     // --- segments (n) ---------------------------------------------------------------------
     std::vector<double> rest_length;  ///< L0, m (grows with plasticity)

@@ -319,41 +319,44 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host) {
     }
 }
 
-/// Strain limiting. Strings that neither hold nor touch a movable body are solved once
-/// (their solve is exact), in parallel; the others are coupled through the bodies they
-/// move and are swept Gauss-Seidel in order on this thread. prepareStrainLimit touches
-/// bodies only for glued particles: strings that hold none are prepared in parallel.
+/// Strain limiting. Strings that neither hold nor touch a movable body are solved alone
+/// (their solve is exact), in parallel. Those that do are members of islands, each island
+/// solved as one system with its bodies (src/island/, through ctx.islands); without an
+/// island solve, each alone in turn. The rest (holding only bodies that do not move) are
+/// solved alone in order. prepareStrainLimit touches bodies only for glued particles:
+/// strings that hold none are prepared in parallel.
 void StringSystem::limitStrain(RigidTable& rigids, const StepContext& ctx) {
     eachLive([&](StringState& s) {
         if (ownsNothing(s)) prepareStrainLimit(s, rigids, ctx);
     });
-    bool coupled = false;
     own_.clear();
     is_own_.assign(strings_.size(), 0);
+    used_members_ = 0;
     for (std::size_t i = 0; i < strings_.size(); ++i) {
         StringState& s = strings_[i];
         if (!live(s)) continue;
         const bool owns_nothing = ownsNothing(s);
         if (!owns_nothing) prepareStrainLimit(s, rigids, ctx);
-        coupled = coupled || touchesMovableBody(s);
         if (!touchesMovableBody(s) && owns_nothing) {
             own_.push_back(static_cast<std::uint32_t>(i));
             is_own_[i] = 1;
         }
     }
     pool_->forEach(own_.size(), [&](std::size_t k) { detail::limitStrain(strings_[own_[k]], rigids, ctx); });
-    // The sweeps end early once a sweep finds every string at its solution already (its
-    // first Newton step within the strain tolerance): the bodies no longer move.
-    const int sweeps = coupled ? ctx.settings->coupling_iterations : 1;
-    for (int sweep = 0; sweep < sweeps; ++sweep) {
-        double moved = 0.0;
-        for (std::size_t i = 0; i < strings_.size(); ++i) {
-            StringState& s = strings_[i];
-            if (!live(s) || is_own_[i]) continue;
-            if (sweep == 0 || touchesMovableBody(s))
-                moved = std::max(moved, detail::limitStrain(s, rigids, ctx) / s.shortest_rest);
+    for (std::size_t i = 0; i < strings_.size(); ++i) {
+        StringState& s = strings_[i];
+        if (!live(s) || is_own_[i]) continue;
+        if (ctx.islands && touchesMovableBody(s)) {
+            if (members_.size() == used_members_) members_.emplace_back();
+            members_[used_members_++].start(s, rigids, ctx);
+        } else {
+            detail::limitStrain(s, rigids, ctx);
         }
-        if (sweep > 0 && moved < ctx.settings->strain_tolerance) break;
+    }
+    if (used_members_ > 0) {
+        member_list_.clear();
+        for (std::size_t k = 0; k < used_members_; ++k) member_list_.push_back(&members_[k]);
+        ctx.islands->solve(member_list_, rigids, ctx);
     }
     eachLive([&](StringState& s) { clampTravel(s, ctx); });
 }

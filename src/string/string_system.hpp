@@ -8,6 +8,7 @@
 #include "sim/host_contacts.hpp"
 #include "sim/rigid_table.hpp"
 #include "sim/step_context.hpp"
+#include "string/string_island.hpp"
 #include "string/string_pairs.hpp"
 #include "string/string_state.hpp"
 #include "tearables/world.hpp"
@@ -74,6 +75,9 @@ private:
     std::vector<std::uint32_t> live_;        // this step's live strings
     std::vector<std::uint32_t> own_;         // those that neither hold nor touch a movable body
     std::vector<std::uint8_t> is_own_;       // per slot: in own_ this step
+    std::vector<StringIslandMember> members_;  // the others that touch a movable body (kept: reused)
+    std::size_t used_members_ = 0;             // of which this step's
+    std::vector<IslandMember*> member_list_;
     std::vector<std::uint8_t> bad_state_;    // per live string: non-finite after the step
     std::vector<std::vector<Event>> live_events_;  // per live string: its material events of this step
     CollisionQuery query_;

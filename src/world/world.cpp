@@ -10,6 +10,7 @@
 #include "base/thread_pool.hpp"
 #include "base/validate.hpp"
 #include "cloth/cloth_state.hpp"
+#include "island/island_solver.hpp"
 #include "paper/system.hpp"
 #include "sim/host_contacts.hpp"
 #include "string/string_system.hpp"
@@ -58,6 +59,7 @@ struct World::Impl {
     detail::ClothSystem cloths;
     detail::PaperSystem papers;
     detail::ThreadPool pool;  // independent strings' stages (WorldSettings::threads)
+    detail::IslandSolver islands;  // strings coupled through movable bodies
     std::vector<Event> events;
     std::vector<Event> pending;  // emitted between steps, reported with the next step
     StageTimes last;
@@ -85,6 +87,8 @@ struct World::Impl {
         ctx.time = time + h;
         ctx.step = steps + 1;
         ctx.pool = &pool;
+        ctx.islands = &islands;
+        islands.clearReports();
         ctx.cold_strain_starts = cold_strain_starts;
         ctx.newton_strain_only = newton_strain_only;
         for (std::size_t i = 0; i < rigids.bodies.size(); ++i) {
@@ -365,6 +369,8 @@ void World::applyPaperForce(PaperId id, std::uint32_t vertex, const Vec3& force)
 const PaperTimes& World::lastPaperTimes() const { return impl_->papers.lastTimes(); }
 void World::setContactProvider(ContactProvider* provider) { impl_->contact_provider = provider; }
 const std::vector<RigidContact>& World::lastContacts() const { return impl_->strings.lastContacts(); }
+
+const std::vector<IslandSummary>& World::lastIslands() const { return impl_->islands.reports(); }
 const StageTimes& World::lastStageTimes() const { return impl_->last; }
 detail::ClothSystem& World::clothSystem() { return impl_->cloths; }
 const detail::ClothSystem& World::clothSystem() const { return impl_->cloths; }

@@ -63,9 +63,11 @@ TEST(RigidCollision, FreeBoxThrownAtAFreeRopeNeverGainsEnergy) {
             }
             EXPECT_TRUE(touched) << "speed " << speed << " m/s, offset " << offset << " m";
             EXPECT_LT(worst, 1.01) << "speed " << speed << " m/s, offset " << offset << " m";
-            // Momentum: exchanged between box and rope, except what the joint solve of the
-            // rope's contacts with itself withholds from the box (cluster_solve.cpp).
-            EXPECT_LT(drift, 0.01) << "speed " << speed << " m/s, offset " << offset << " m";
+            // Momentum: exchanged between box and rope (the island solve of box and rope
+            // conserves it to rounding), except what the joint solve of the rope's
+            // contacts with itself withholds from the box, which holds the box still
+            // (cluster_solve.cpp): up to 1.2% in these cases (docs/island-plan.md).
+            EXPECT_LT(drift, 0.015) << "speed " << speed << " m/s, offset " << offset << " m";
             // The impact took energy: the box drags the rope along.
             EXPECT_LT(testing::kineticEnergy(box), 0.99 * start) << "speed " << speed << " m/s, offset " << offset << " m";
         }

@@ -1,0 +1,179 @@
+// Islands (sim/island.hpp): members that share a movable body are solved together.
+//
+// Grouping: union-find over the bodies, each member joining the bodies it touches. Each
+// island is then one Newton solve of E = sum_b u_b^T M_b u_b / (2 h^2) + sum E_member:
+// per iteration every member condenses its Newton system onto its bodies (Schur
+// complement), the island solves the dense body system (6 per body) by LDL^T, every
+// member substitutes back, a backtracking line search on E, and the bodies move by the
+// accepted step (their velocities follow from the displacement, World::applyBodyVelocities).
+// Members with lagged friction take passes that reweigh it between converged solves, as
+// a string alone does.
+#include "island/island_solver.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace tearables::detail {
+
+namespace {
+
+/// The iteration budget of a pass relative to WorldSettings::strain_iterations (as for a
+/// string with contacts alone), the passes friction may take, when they are settled, and
+/// the halvings of the line search before it gives up (the energy at its minimum to
+/// rounding along the step).
+constexpr int kIterationFactor = 4;
+constexpr int kFrictionPasses = 4;
+constexpr double kFrictionSettled = 1e-2;
+constexpr int kLineSearchHalvings = 30;
+/// Times per iteration that contacts the step would run into are added and the system
+/// solved again.
+constexpr int kPredictRounds = 3;
+
+int find(std::vector<int>& parent, int i) {
+    while (parent[static_cast<std::size_t>(i)] != i) {
+        parent[static_cast<std::size_t>(i)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(i)])];
+        i = parent[static_cast<std::size_t>(i)];
+    }
+    return i;
+}
+
+}  // namespace
+
+void IslandSolver::solve(const std::vector<IslandMember*>& members, RigidTable& rigids, const StepContext& ctx) {
+    reports_.clear();
+    group(members, rigids);
+    inv_h2_ = ctx.inv_h * ctx.inv_h;
+    for (std::size_t i = 0; i < used_; ++i) reports_.push_back(solveIsland(islands_[i], rigids, ctx));
+}
+
+void IslandSolver::group(const std::vector<IslandMember*>& members, const RigidTable& rigids) {
+    const std::size_t table = rigids.bodies.size();
+    parent_.resize(table);
+    std::iota(parent_.begin(), parent_.end(), 0);
+    for (const IslandMember* m : members) {
+        const std::vector<RigidId>& bodies = m->bodies();
+        for (std::size_t k = 1; k < bodies.size(); ++k) {
+            const int a = find(parent_, static_cast<int>(bodies[0].index));
+            const int b = find(parent_, static_cast<int>(bodies[k].index));
+            if (a != b) parent_[static_cast<std::size_t>(std::max(a, b))] = std::min(a, b);
+        }
+    }
+    used_ = 0;
+    island_of_.assign(table, -1);
+    slot_of_.assign(table, -1);
+    for (IslandMember* m : members) {
+        const std::vector<RigidId>& bodies = m->bodies();
+        if (bodies.empty()) continue;
+        const std::size_t root = static_cast<std::size_t>(find(parent_, static_cast<int>(bodies[0].index)));
+        if (island_of_[root] < 0) {
+            island_of_[root] = static_cast<int>(used_);
+            if (islands_.size() == used_) islands_.emplace_back();
+            Island& fresh = islands_[used_++];
+            fresh.members.clear();
+            fresh.bodies.clear();
+            fresh.used_slots = 0;
+        }
+        Island& island = islands_[static_cast<std::size_t>(island_of_[root])];
+        if (island.slots.size() == island.used_slots) island.slots.emplace_back();
+        std::vector<int>& slots = island.slots[island.used_slots++];
+        slots.clear();
+        for (RigidId b : bodies) {
+            if (slot_of_[b.index] < 0) {
+                slot_of_[b.index] = static_cast<int>(island.bodies.size());
+                island.bodies.push_back(b);
+            }
+            slots.push_back(slot_of_[b.index]);
+        }
+        island.members.push_back(m);
+    }
+}
+
+void IslandSolver::solveSystem(Island& island, bool fresh) {
+    const Eigen::Index dim = static_cast<Eigen::Index>(6 * island.bodies.size());
+    system_.setZero(dim, dim);
+    rhs_.setZero(dim);
+    for (std::size_t b = 0; b < island.bodies.size(); ++b) {
+        const Eigen::Index r = static_cast<Eigen::Index>(6 * b);
+        system_.block<6, 6>(r, r) += mass_[b] * inv_h2_;
+        rhs_.segment<6>(r) -= mass_[b] * displacement_.segment<6>(r) * inv_h2_;
+    }
+    for (std::size_t k = 0; k < island.members.size(); ++k) island.members[k]->condense(island.slots[k], fresh, system_, rhs_);
+    ldlt_.compute(system_);
+    du_ = ldlt_.solve(rhs_);
+    for (std::size_t k = 0; k < island.members.size(); ++k) island.members[k]->backSubstitute(island.slots[k], du_);
+}
+
+double IslandSolver::energy(const Island& island, double alpha) const {
+    double e = 0.0;
+    for (std::size_t b = 0; b < island.bodies.size(); ++b) {
+        const Eigen::Index r = static_cast<Eigen::Index>(6 * b);
+        const Vec6 u = displacement_.segment<6>(r) + alpha * du_.segment<6>(r);
+        e += 0.5 * inv_h2_ * u.dot(mass_[b] * u);
+    }
+    for (std::size_t k = 0; k < island.members.size(); ++k) e += island.members[k]->energy(alpha, island.slots[k], du_);
+    return e;
+}
+
+IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, const StepContext& ctx) {
+    IslandSummary report;
+    report.strings = island.members.size();
+    report.bodies = island.bodies.size();
+    mass_.resize(island.bodies.size());
+    for (std::size_t b = 0; b < island.bodies.size(); ++b) mass_[b] = bodyMass(rigids.bodies[island.bodies[b].index]);
+    displacement_.setZero(static_cast<Eigen::Index>(6 * island.bodies.size()));
+    bool frictional = false;
+    for (IslandMember* m : island.members) frictional = frictional || m->frictional();
+    const int iterations = ctx.settings->strain_iterations * kIterationFactor;
+    for (int pass = 0; pass < (frictional ? kFrictionPasses : 1); ++pass) {
+        for (IslandMember* m : island.members) m->beginPass();
+        pass_start_ = displacement_;
+        bool converged = false;
+        for (int iter = 0; iter < iterations; ++iter) {
+            solveSystem(island, true);
+            for (int round = 0; round < kPredictRounds; ++round) {
+                bool added = false;
+                for (IslandMember* m : island.members) added = m->addPredictedContacts() || added;
+                if (!added) break;
+                solveSystem(island, false);
+            }
+            // Backtrack until the (convex) energy decreases; where no fraction of the
+            // step lowers it, the state is the minimum to rounding.
+            const double e0 = energy(island, 0.0);
+            double alpha = 1.0;
+            int halving = 0;
+            for (; halving < kLineSearchHalvings && !(energy(island, alpha) <= e0); ++halving) alpha *= 0.5;
+            const bool stalled = halving == kLineSearchHalvings;
+            if (stalled) alpha = 0.0;
+            for (std::size_t b = 0; b < island.bodies.size(); ++b) {
+                const Eigen::Index r = static_cast<Eigen::Index>(6 * b);
+                const Vec6 before = displacement_.segment<6>(r);
+                const Vec6 step = alpha * du_.segment<6>(r);
+                if (!step.allFinite()) continue;
+                RigidState& body = rigids.bodies[island.bodies[b].index];
+                // Turned from where the pass linearised the contacts (rotations do not add).
+                const Vec6 from = before - pass_start_.segment<6>(r);
+                displaceBody(body, from, from + step);
+                displacement_.segment<6>(r) = before + step;
+                body.impulse += (mass_[b] * step).head<3>() * ctx.inv_h;
+            }
+            double worst = 0.0;
+            for (std::size_t k = 0; k < island.members.size(); ++k)
+                worst = std::max(worst, island.members[k]->apply(alpha, island.slots[k], displacement_));
+            ++report.iterations;
+            report.residual = worst;
+            if (stalled || worst < 1.0) {
+                converged = true;
+                break;
+            }
+        }
+        if (!frictional) break;
+        double change = 0.0;
+        for (IslandMember* m : island.members) change = std::max(change, m->reweigh());
+        if (converged && change < kFrictionSettled) break;
+    }
+    for (IslandMember* m : island.members) m->finish(report.iterations);
+    return report;
+}
+
+}  // namespace tearables::detail

@@ -1,0 +1,52 @@
+// The island solve: members (strings) coupled through movable bodies, grouped into
+// islands and each solved as one system with its bodies' six unknowns (sim/island.hpp).
+#pragma once
+
+#include "sim/body_motion.hpp"
+#include "sim/island.hpp"
+
+#include <Eigen/Cholesky>
+
+#include <cstddef>
+#include <vector>
+
+namespace tearables::detail {
+
+class IslandSolver final : public IslandSolve {
+public:
+    void solve(const std::vector<IslandMember*>& members, RigidTable& rigids, const StepContext& ctx) override;
+    /// Forgets the last step's islands (a step may have none to solve).
+    void clearReports() { reports_.clear(); }
+    /// The islands of the last solve, in the order of their first member.
+    const std::vector<IslandSummary>& reports() const { return reports_; }
+
+private:
+    struct Island {
+        std::vector<IslandMember*> members;
+        std::vector<std::vector<int>> slots;  ///< per member: its bodies' island slots (kept: reused)
+        std::size_t used_slots = 0;
+        std::vector<RigidId> bodies;
+    };
+    void group(const std::vector<IslandMember*>& members, const RigidTable& rigids);
+    IslandSummary solveIsland(Island& island, RigidTable& rigids, const StepContext& ctx);
+    /// Assembles the island's Newton system (fresh: a new iteration) and solves it into du_.
+    void solveSystem(Island& island, bool fresh);
+    double energy(const Island& island, double alpha) const;
+
+    std::vector<Island> islands_;  ///< kept from step to step: a step does not allocate
+    std::size_t used_ = 0;         ///< of which this step's
+    std::vector<IslandSummary> reports_;
+    std::vector<int> parent_;     ///< union-find over body slots of the table
+    std::vector<int> island_of_;  ///< per table body: island index, or -1
+    std::vector<int> slot_of_;    ///< per table body: its slot in its island, or -1
+    // One island's solve.
+    std::vector<Mat6> mass_;          ///< per body: generalised mass
+    Eigen::VectorXd displacement_;    ///< per body: (u, theta) from where the solve started
+    Eigen::VectorXd pass_start_;      ///< displacement_ where the pass started
+    Eigen::MatrixXd system_;
+    Eigen::VectorXd rhs_, du_;
+    Eigen::LDLT<Eigen::MatrixXd> ldlt_;
+    double inv_h2_ = 0.0;
+};
+
+}  // namespace tearables::detail

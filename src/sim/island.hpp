@@ -1,0 +1,62 @@
+// The contract between a material that moves rigid bodies and the island solve
+// (src/island/): everything coupled through a movable body is solved as one system.
+//
+// The island minimises one energy over its members' unknowns and its bodies' six each
+// (displacement u, rotation vector theta, from where the solve started):
+//     E = sum_bodies u^T M u / (2 h^2)  +  sum_members E_member(x_member, u)
+// by Newton with substructuring: each member eliminates its own unknowns onto the bodies
+// it touches (its Schur complement), the island solves the small dense body system, and
+// each member takes its own step back (back substitution); a line search on E.
+#pragma once
+
+#include "sim/rigid_table.hpp"
+#include "sim/step_context.hpp"
+
+#include <Eigen/Core>
+
+#include <vector>
+
+namespace tearables::detail {
+
+/// One member of an island (a string): its unknowns, eliminated onto its bodies. The
+/// body arguments are island vectors, six entries per body; `slot[k]` is the island's
+/// index of the member's k-th body (bodies()).
+class IslandMember {
+public:
+    virtual ~IslandMember() = default;
+    /// The movable bodies the member couples to.
+    virtual const std::vector<RigidId>& bodies() const = 0;
+    /// Start of a pass: contacts linearised where the bodies are now.
+    virtual void beginPass() = 0;
+    /// The Newton system at the current state: the member's Schur complement added to
+    /// `system` and its reduced right-hand side (minus the gradient) to `rhs`. `fresh`:
+    /// the first system of an iteration (contacts that touch now join it; later ones of
+    /// the same iteration keep those addPredictedContacts added).
+    virtual void condense(const std::vector<int>& slot, bool fresh, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) = 0;
+    /// The member's own step for the bodies' step `du`.
+    virtual void backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) = 0;
+    /// Marks the contacts the full step would run into; true where it added any (the
+    /// system is then condensed again).
+    virtual bool addPredictedContacts() = 0;
+    /// E_member at alpha times the step, the bodies moved by alpha du.
+    virtual double energy(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& du) const = 0;
+    /// Takes alpha times the step; the island has moved the bodies already, to
+    /// `displacement` from where the solve started. Returns the largest move over the
+    /// member's tolerance (below 1: converged).
+    virtual double apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) = 0;
+    /// Whether the member has friction whose lagged weights need passes.
+    virtual bool frictional() const = 0;
+    /// Friction's weights from this pass; returns their largest relative change.
+    virtual double reweigh() = 0;
+    /// End of the solve.
+    virtual void finish(int iterations) = 0;
+};
+
+/// Groups members into islands (members sharing a body) and solves each.
+class IslandSolve {
+public:
+    virtual ~IslandSolve() = default;
+    virtual void solve(const std::vector<IslandMember*>& members, RigidTable& rigids, const StepContext& ctx) = 0;
+};
+
+}  // namespace tearables::detail

@@ -1,0 +1,291 @@
+// A string in an island (sim/island.hpp). Its unknowns are its free particles; a particle
+// glued to a movable body is a row fixed in the chain that moves with the body's six
+// unknowns, x_p = c + R r, linearised dx_p = J du with J = [I, -[r]x]. Each spring of such
+// a particle couples its other end to the body (cross block -H J, body block J^T H J,
+// gradient J^T f), and the particle's own mass joins its body (m J^T J / h^2). With the
+// contacts' rows (contact_rows.cpp), the chain's block tridiagonal A is factorised and
+// the string condenses onto its bodies: D - C^T A^-1 C (strain_limit.cpp, condenseNodes).
+// The rotation's second-order term in x_p is left out of the Hessian; the island's line
+// search takes the exact energy, with glued particles at their bodies' rotated poses.
+#include "string/string_island.hpp"
+
+#include "string/strain_limit_internal.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+
+namespace tearables::detail {
+
+namespace {
+
+/// d x_p / d(u, theta) of a point at arm r from its body's centre.
+Mat36 pointJacobian(const Vec3& r) {
+    Mat36 j;
+    j.leftCols<3>() = Mat3::Identity();
+    j.rightCols<3>() = -cross(r);
+    return j;
+}
+
+}  // namespace
+
+void StringIslandMember::start(StringState& s, RigidTable& rigids, const StepContext& ctx) {
+    string_ = &s;
+    rigids_ = &rigids;
+    ctx_ = &ctx;
+    glued_.clear();
+    bodies_.clear();
+    const std::size_t n = s.particles();
+    s.island_glue = true;
+    contact_nodes_ = s.body_nodes.size();
+    glued_index_.assign(n, -1);
+    for (std::size_t p = 0; p < n; ++p) {
+        if (!s.glue_movable[p]) continue;
+        const RigidId body = s.hold[p].body;
+        std::size_t node = 0;
+        while (node < s.body_nodes.size() && !(s.body_nodes[node].body == body)) ++node;
+        if (node == s.body_nodes.size()) {
+            s.body_nodes.emplace_back(body);
+            s.body_nodes.back().mass = bodyMass(rigids.bodies[body.index]);
+        }
+        glued_index_[p] = static_cast<int>(glued_.size());
+        glued_.push_back({p, node, s.hold[p].point});
+    }
+    const std::size_t nodes = s.body_nodes.size();
+    for (const BodyNode& node : s.body_nodes) bodies_.push_back(node.body);
+    s.scratch.node_step.assign(nodes, Vec6::Zero());
+    StringScratch::NodeScratch& scratch = s.scratch.node_scratch;
+    if (scratch.diag.size() < nodes) {
+        scratch.diag.resize(nodes);
+        scratch.rhs.resize(nodes);
+        scratch.coupling.resize(nodes);
+    }
+    setContactStiffness(s, rigids, ctx.inv_h * ctx.inv_h);
+}
+
+void StringIslandMember::beginPass() { linearisePlanes(*string_, *rigids_); }
+
+void StringIslandMember::assembleGlue() {
+    StringScratch::NodeScratch& ns = string_->scratch.node_scratch;
+    const double inv_h2 = ctx_->inv_h * ctx_->inv_h;
+    cross_.clear();
+    auto jacobian = [&](const Glued& g) {
+        return pointJacobian(string_->x[g.particle] - rigids_->bodies[string_->body_nodes[g.node].body.index].position);
+    };
+    // The glued particle's own inertia about where it started on its body.
+    for (const Glued& g : glued_) {
+        const Mat36 j = jacobian(g);
+        const double w = string_->mass[g.particle] * inv_h2;
+        ns.diag[g.node] += w * j.transpose() * j;
+        ns.rhs[g.node] -= w * j.transpose() * (string_->x[g.particle] - string_->x_pred[g.particle]);
+    }
+    // The springs of glued particles: energy of x_{j+1} - x_j, force f on j toward j + 1.
+    pull_.assign(glued_.size(), Vec3::Zero());
+    const std::size_t m = string_->segments();
+    for (std::size_t seg = 0; seg < m; ++seg) {
+        const int ga = glued_index_[seg], gb = glued_index_[seg + 1];
+        if (ga < 0 && gb < 0) continue;
+        Mat3 hess;
+        Vec3 force;
+        if (!springRow(*string_, *ctx_, seg, hess, force)) continue;
+        Mat36 ja, jb;
+        if (ga >= 0) {
+            const Glued& g = glued_[static_cast<std::size_t>(ga)];
+            ja = jacobian(g);
+            ns.diag[g.node] += ja.transpose() * hess * ja;
+            ns.rhs[g.node] += ja.transpose() * force;
+            pull_[static_cast<std::size_t>(ga)] += force;
+            if (gb < 0 && !fixedRow(*string_, seg + 1)) ns.coupling[g.node].emplace_back(seg + 1, -hess * ja);
+        }
+        if (gb >= 0) {
+            const Glued& g = glued_[static_cast<std::size_t>(gb)];
+            jb = jacobian(g);
+            ns.diag[g.node] += jb.transpose() * hess * jb;
+            ns.rhs[g.node] -= jb.transpose() * force;
+            pull_[static_cast<std::size_t>(gb)] -= force;
+            if (ga < 0 && !fixedRow(*string_, seg)) ns.coupling[g.node].emplace_back(seg, -hess * jb);
+        }
+        if (ga >= 0 && gb >= 0) {
+            const std::size_t na = glued_[static_cast<std::size_t>(ga)].node, nb = glued_[static_cast<std::size_t>(gb)].node;
+            const Mat6 block = -ja.transpose() * hess * jb;
+            if (na == nb) {
+                ns.diag[na] += block + block.transpose();
+            } else {
+                cross_.push_back({na, nb, block});
+            }
+        }
+    }
+}
+
+/// The pull F at arm r turns with the body: x_p = c + r + theta x r + theta x (theta x r) / 2
+/// to second order, so the energy's Hessian in theta gains (F . r) I - (F r^T + r F^T) / 2,
+/// kept where positive (its negative part would make the system indefinite).
+void StringIslandMember::addTurningStiffness() {
+    StringScratch::NodeScratch& ns = string_->scratch.node_scratch;
+    for (std::size_t k = 0; k < glued_.size(); ++k) {
+        const Glued& g = glued_[k];
+        const Vec3& f = pull_[k];
+        const Vec3 r = string_->x[g.particle] - rigids_->bodies[string_->body_nodes[g.node].body.index].position;
+        const Mat3 geo = f.dot(r) * Mat3::Identity() - 0.5 * (f * r.transpose() + r * f.transpose());
+        const Eigen::SelfAdjointEigenSolver<Mat3> eig(geo);
+        const Vec3 kept = eig.eigenvalues().cwiseMax(0.0);
+        ns.diag[g.node].bottomRightCorner<3, 3>() += eig.eigenvectors() * kept.asDiagonal() * eig.eigenvectors().transpose();
+    }
+}
+
+void StringIslandMember::condense(const std::vector<int>& slot, bool fresh, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) {
+    StringState& s = *string_;
+    if (fresh)
+        for (RigidSegmentContact& c : s.contacts) {
+            const std::size_t j = c.segment;
+            c.active = !s.broken[j] && rigidGap(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]) < 0.0;
+        }
+    assembleChain(s, *rigids_, *ctx_, nullptr);
+    StringScratch::NodeScratch& ns = s.scratch.node_scratch;
+    const std::size_t nodes = s.body_nodes.size();
+    for (std::size_t b = 0; b < nodes; ++b) {
+        ns.diag[b].setZero();
+        ns.rhs[b].setZero();
+        ns.coupling[b].clear();
+    }
+    assembleContactCoupling(s, ns);
+    assembleGlue();
+    addTurningStiffness();
+    factorChain(s);
+    solveFactored(s.particles(), s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(),
+                  s.scratch.blk_coupled.data(), s.scratch.blk_rhs.data());  // y = A^-1 r
+    condenseNodes(s, ns);
+    for (std::size_t a = 0; a < nodes; ++a) {
+        const Eigen::Index ra = 6 * slot[a];
+        rhs.segment<6>(ra) += ns.rs.segment<6>(static_cast<Eigen::Index>(6 * a));
+        for (std::size_t b = 0; b < nodes; ++b)
+            system.block<6, 6>(ra, 6 * slot[b]) +=
+                ns.schur.block<6, 6>(static_cast<Eigen::Index>(6 * a), static_cast<Eigen::Index>(6 * b));
+    }
+    for (const Cross& c : cross_) {
+        system.block<6, 6>(6 * slot[c.a], 6 * slot[c.b]) += c.block;
+        system.block<6, 6>(6 * slot[c.b], 6 * slot[c.a]) += c.block.transpose();
+    }
+}
+
+void StringIslandMember::backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) {
+    const std::size_t nodes = string_->body_nodes.size();
+    Eigen::VectorXd& local = string_->scratch.node_scratch.du;
+    local.resize(static_cast<Eigen::Index>(6 * nodes));
+    for (std::size_t b = 0; b < nodes; ++b) local.segment<6>(static_cast<Eigen::Index>(6 * b)) = du.segment<6>(6 * slot[b]);
+    backSubstituteNodes(*string_, local);
+}
+
+bool StringIslandMember::addPredictedContacts() {
+    bool added = false;
+    for (RigidSegmentContact& c : string_->contacts) {
+        const std::size_t j = c.segment;
+        if (c.active || string_->broken[j]) continue;
+        auto moved = [&](std::size_t p) { return fixedRow(*string_, p) ? string_->x[p] : Vec3(string_->x[p] + string_->scratch.blk_rhs[p]); };
+        const Vec6 step = c.node >= 0 ? string_->scratch.node_step[static_cast<std::size_t>(c.node)] : Vec6::Zero();
+        if (rigidGap(*string_, c, (1.0 - c.s) * moved(j) + c.s * moved(j + 1), &step) < 0.0) c.active = added = true;
+    }
+    return added;
+}
+
+Vec3 StringIslandMember::trialGlue(const Glued& g, double alpha) const {
+    const BodyNode& node = string_->body_nodes[g.node];
+    const RigidState& body = rigids_->bodies[node.body.index];
+    const Vec6 step = alpha * string_->scratch.node_step[g.node];
+    const Vec3 turn = (node.displacement - node.linearised_at).tail<3>();
+    const Quat q = (rotationBy(turn + step.tail<3>()) * rotationBy(turn).conjugate() * body.orientation).normalized();
+    return body.position + step.head<3>() + q * g.local;
+}
+
+double StringIslandMember::energy(double alpha, const std::vector<int>&, const Eigen::VectorXd&) const {
+    const StringState& s = *string_;
+    const std::size_t n = s.particles();
+    const std::size_t m = s.segments();
+    const double inv_h2 = ctx_->inv_h * ctx_->inv_h;
+    // The trial positions: free particles along their step, glued ones on their bodies.
+    std::vector<Vec3>& trial = trial_;
+    trial.resize(n);
+    for (std::size_t p = 0; p < n; ++p) {
+        if (glued_index_[p] >= 0) {
+            trial[p] = trialGlue(glued_[static_cast<std::size_t>(glued_index_[p])], alpha);
+        } else {
+            trial[p] = fixedRow(s, p) ? s.x[p] : Vec3(s.x[p] + alpha * s.scratch.blk_rhs[p]);
+        }
+    }
+    double e = 0.0;
+    for (std::size_t p = 0; p < n; ++p)
+        if (s.hold[p].kind == ParticleHold::Kind::Free || glued_index_[p] >= 0)
+            e += 0.5 * s.mass[p] * inv_h2 * (trial[p] - s.x_pred[p]).squaredNorm();
+    const double rate_gain = s.desc.axial_damping * ctx_->inv_h;
+    for (std::size_t j = 0; j < m; ++j) {
+        if (s.broken[j]) continue;
+        const double stretch = (trial[j + 1] - trial[j]).norm() - s.rest_length[j];
+        const double effective = std::max(0.0, stretch + rate_gain * (stretch - s.prev_stretch[j]));
+        e += 0.5 / (s.compliance[j] * (1.0 + rate_gain)) * effective * effective;
+    }
+    for (const RigidSegmentContact& c : s.contacts) {
+        const std::size_t j = c.segment;
+        if (s.broken[j] || c.stiffness <= 0.0) continue;
+        const Vec3 xs = (1.0 - c.s) * trial[j] + c.s * trial[j + 1];
+        Vec6 extra = Vec6::Zero();
+        if (c.node >= 0) extra = alpha * s.scratch.node_step[static_cast<std::size_t>(c.node)];
+        const double g = std::min(0.0, rigidGap(s, c, xs, &extra));
+        e += 0.5 * c.stiffness * g * g;
+        if (c.friction_weight > 0.0) e += 0.5 * c.friction_weight * rigidSlip(s, c, xs, &extra).squaredNorm();
+    }
+    return e;
+}
+
+double StringIslandMember::apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) {
+    StringState& s = *string_;
+    for (std::size_t b = 0; b < s.body_nodes.size(); ++b) s.body_nodes[b].displacement = displacement.segment<6>(6 * slot[b]);
+    // The bodies' moves (their translation) count as the particles' do.
+    double worst_squared = 0.0;
+    for (const Vec6& step : s.scratch.node_step) worst_squared = std::max(worst_squared, (alpha * step.head<3>()).squaredNorm());
+    for (std::size_t p = 0; p < s.particles(); ++p) {
+        Vec3 move = Vec3::Zero();
+        if (glued_index_[p] >= 0) {
+            const Vec3 x = gluePoint(rigids_->bodies[s.hold[p].body.index], s.hold[p].point);
+            move = x - s.x[p];
+            s.x[p] = x;
+        } else if (!fixedRow(s, p)) {
+            move = alpha * s.scratch.blk_rhs[p];
+            if (!move.allFinite()) continue;
+            s.x[p] += move;
+        }
+        worst_squared = std::max(worst_squared, move.squaredNorm());
+    }
+    return std::sqrt(worst_squared) / (ctx_->settings->strain_tolerance * s.shortest_rest);
+}
+
+bool StringIslandMember::frictional() const {
+    return std::any_of(string_->contacts.begin(), string_->contacts.end(), [](const RigidSegmentContact& c) { return c.friction > 0.0; });
+}
+
+double StringIslandMember::reweigh() { return weighRigidFriction(*string_); }
+
+void StringIslandMember::finish(int iterations) {
+    StringState& s = *string_;
+    for (RigidSegmentContact& c : s.contacts) {
+        const std::size_t j = c.segment;
+        c.active = !s.broken[j] && rigidGap(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]) < 0.0;
+    }
+    finishChain(s, *rigids_, *ctx_);
+    // What the segments gave each glued particle (x h^2): their final pull, the impulse the
+    // tension solve reads for a glued row.
+    const double h2 = ctx_->h * ctx_->h;
+    for (const Glued& g : glued_) {
+        const std::size_t p = g.particle;
+        Vec3 pull = Vec3::Zero();
+        if (p > 0 && !s.broken[p - 1]) pull -= s.spring_force[p - 1] * (s.x[p] - s.x[p - 1]).normalized();
+        if (p + 1 < s.particles() && !s.broken[p]) pull += s.spring_force[p] * (s.x[p + 1] - s.x[p]).normalized();
+        s.glue_impulse[p] = pull * h2;
+    }
+    s.body_nodes.resize(contact_nodes_);
+    s.scratch.node_step.resize(contact_nodes_);
+    s.island_glue = false;
+    s.diagnostics.strain_newton_iterations += iterations;
+}
+
+}  // namespace tearables::detail

@@ -1,0 +1,63 @@
+// A string as a member of an island (sim/island.hpp): its chain eliminated onto the
+// movable bodies it is glued to and touches.
+#pragma once
+
+#include "sim/body_motion.hpp"
+#include "sim/island.hpp"
+#include "string/string_state.hpp"
+
+#include <cstddef>
+#include <vector>
+
+namespace tearables::detail {
+
+class StringIslandMember final : public IslandMember {
+public:
+    /// After prepareStrainLimit: the string's particles glued to movable bodies become rows
+    /// that follow their bodies, each such body a node of the string. A member is reused
+    /// step after step (its arrays keep their capacity).
+    void start(StringState& s, RigidTable& rigids, const StepContext& ctx);
+
+    const std::vector<RigidId>& bodies() const override { return bodies_; }
+    void beginPass() override;
+    void condense(const std::vector<int>& slot, bool fresh, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) override;
+    void backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) override;
+    bool addPredictedContacts() override;
+    double energy(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& du) const override;
+    double apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) override;
+    bool frictional() const override;
+    double reweigh() override;
+    void finish(int iterations) override;
+
+private:
+    /// A particle glued to a movable body: its node (body_nodes) and its point in the body.
+    struct Glued {
+        std::size_t particle;
+        std::size_t node;
+        Vec3 local;
+    };
+    /// Where the glued particle is with its body displaced by alpha times its node's step.
+    Vec3 trialGlue(const Glued& g, double alpha) const;
+    /// Adds the glued particles' rows (their springs and own inertia) to the nodes' blocks.
+    void assembleGlue();
+    void addTurningStiffness();
+
+    StringState* string_ = nullptr;
+    RigidTable* rigids_ = nullptr;
+    const StepContext* ctx_ = nullptr;
+    std::vector<RigidId> bodies_;
+    std::vector<Glued> glued_;
+    std::vector<std::uint8_t> is_glued_;        ///< per particle
+    std::vector<int> glued_index_;              ///< per particle: index into glued_, or -1
+    std::size_t contact_nodes_ = 0;             ///< body_nodes from contacts (the rest from glue)
+    /// Node-node blocks (both glued ends of one segment): (a, b, block of a's rows, b's columns).
+    struct Cross {
+        std::size_t a, b;
+        Mat6 block;
+    };
+    std::vector<Cross> cross_;
+    mutable std::vector<Vec3> trial_;  ///< energy's trial positions
+    std::vector<Vec3> pull_;           ///< per glued particle: its springs' pull on it
+};
+
+}  // namespace tearables::detail
