@@ -10,6 +10,8 @@
 // a string alone does.
 #include "island/island_solver.hpp"
 
+#include "base/thread_pool.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -44,6 +46,7 @@ void IslandSolver::solve(const std::vector<IslandMember*>& members, RigidTable& 
     reports_.clear();
     group(members, rigids);
     inv_h2_ = ctx.inv_h * ctx.inv_h;
+    pool_ = ctx.pool;
     for (std::size_t i = 0; i < used_; ++i) reports_.push_back(solveIsland(islands_[i], rigids, ctx));
 }
 
@@ -89,6 +92,16 @@ void IslandSolver::group(const std::vector<IslandMember*>& members, const RigidT
     }
 }
 
+template <class Fn>
+void IslandSolver::forMembers(const Island& island, Fn&& fn) {
+    if (member_value_.size() < island.members.size()) member_value_.resize(island.members.size());
+    if (pool_) {
+        pool_->forEach(island.members.size(), fn);
+    } else {
+        for (std::size_t k = 0; k < island.members.size(); ++k) fn(k);
+    }
+}
+
 void IslandSolver::solveSystem(Island& island, bool fresh) {
     const Eigen::Index dim = static_cast<Eigen::Index>(6 * island.bodies.size());
     system_.setZero(dim, dim);
@@ -98,21 +111,64 @@ void IslandSolver::solveSystem(Island& island, bool fresh) {
         system_.block<6, 6>(r, r) += mass_[b] * inv_h2_;
         rhs_.segment<6>(r) -= mass_[b] * displacement_.segment<6>(r) * inv_h2_;
     }
-    for (std::size_t k = 0; k < island.members.size(); ++k) island.members[k]->condense(island.slots[k], fresh, system_, rhs_);
+    forMembers(island, [&](std::size_t k) { island.members[k]->condense(fresh); });
+    for (std::size_t k = 0; k < island.members.size(); ++k) island.members[k]->addTo(island.slots[k], system_, rhs_);
     ldlt_.compute(system_);
     du_ = ldlt_.solve(rhs_);
-    for (std::size_t k = 0; k < island.members.size(); ++k) island.members[k]->backSubstitute(island.slots[k], du_);
+    forMembers(island, [&](std::size_t k) { island.members[k]->backSubstitute(island.slots[k], du_); });
 }
 
-double IslandSolver::energy(const Island& island, double alpha) const {
+double IslandSolver::energy(const Island& island, double alpha) {
     double e = 0.0;
     for (std::size_t b = 0; b < island.bodies.size(); ++b) {
         const Eigen::Index r = static_cast<Eigen::Index>(6 * b);
         const Vec6 u = displacement_.segment<6>(r) + alpha * du_.segment<6>(r);
         e += 0.5 * inv_h2_ * u.dot(mass_[b] * u);
     }
-    for (std::size_t k = 0; k < island.members.size(); ++k) e += island.members[k]->energy(alpha, island.slots[k], du_);
+    // Each member's energy on its own thread; summed in member order (the same bits on
+    // any number of threads).
+    forMembers(island, [&](std::size_t k) { member_value_[k] = island.members[k]->energy(alpha, island.slots[k], du_); });
+    for (std::size_t k = 0; k < island.members.size(); ++k) e += member_value_[k];
     return e;
+}
+
+void IslandSolver::moveBodies(Island& island, RigidTable& rigids, const StepContext& ctx, double alpha) {
+    for (std::size_t b = 0; b < island.bodies.size(); ++b) {
+        const Eigen::Index r = static_cast<Eigen::Index>(6 * b);
+        const Vec6 before = displacement_.segment<6>(r);
+        const Vec6 step = alpha * du_.segment<6>(r);
+        if (!step.allFinite()) continue;
+        RigidState& body = rigids.bodies[island.bodies[b].index];
+        // Turned from where the pass linearised the contacts (rotations do not add).
+        const Vec6 from = before - pass_start_.segment<6>(r);
+        displaceBody(body, from, from + step);
+        displacement_.segment<6>(r) = before + step;
+        body.impulse += (mass_[b] * step).head<3>() * ctx.inv_h;
+    }
+}
+
+/// A structure held the same way step after step (a board hanging on ropes) is corrected
+/// by about as much each step: the island starts from the last step's corrections, each
+/// body translated by the mean of its held points', where that lowers its energy (convex:
+/// the same minimum). Not where a string touches a body: a contact the start would jump.
+void IslandSolver::warmStart(Island& island, RigidTable& rigids, const StepContext& ctx) {
+    const std::size_t bodies = island.bodies.size();
+    du_.setZero(static_cast<Eigen::Index>(6 * bodies));
+    pass_start_ = displacement_;
+    if (ctx.cold_strain_starts) return;
+    for (const IslandMember* m : island.members)
+        if (m->touchesBodies()) return;
+    hint_count_.assign(bodies, 0);
+    for (std::size_t k = 0; k < island.members.size(); ++k) island.members[k]->addWarmHints(island.slots[k], du_, hint_count_);
+    for (std::size_t b = 0; b < bodies; ++b)
+        if (hint_count_[b] > 0) du_.segment<3>(static_cast<Eigen::Index>(6 * b)) /= static_cast<double>(hint_count_[b]);
+    for (std::size_t k = 0; k < island.members.size(); ++k) {
+        island.members[k]->beginPass();
+        island.members[k]->warmStep(island.slots[k], du_);
+    }
+    if (!(energy(island, 1.0) < energy(island, 0.0))) return;
+    moveBodies(island, rigids, ctx, 1.0);
+    forMembers(island, [&](std::size_t k) { island.members[k]->apply(1.0, island.slots[k], displacement_); });
 }
 
 IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, const StepContext& ctx) {
@@ -124,6 +180,7 @@ IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, cons
     displacement_.setZero(static_cast<Eigen::Index>(6 * island.bodies.size()));
     bool frictional = false;
     for (IslandMember* m : island.members) frictional = frictional || m->frictional();
+    warmStart(island, rigids, ctx);
     const int iterations = ctx.settings->strain_iterations * kIterationFactor;
     for (int pass = 0; pass < (frictional ? kFrictionPasses : 1); ++pass) {
         for (IslandMember* m : island.members) m->beginPass();
@@ -145,21 +202,10 @@ IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, cons
             for (; halving < kLineSearchHalvings && !(energy(island, alpha) <= e0); ++halving) alpha *= 0.5;
             const bool stalled = halving == kLineSearchHalvings;
             if (stalled) alpha = 0.0;
-            for (std::size_t b = 0; b < island.bodies.size(); ++b) {
-                const Eigen::Index r = static_cast<Eigen::Index>(6 * b);
-                const Vec6 before = displacement_.segment<6>(r);
-                const Vec6 step = alpha * du_.segment<6>(r);
-                if (!step.allFinite()) continue;
-                RigidState& body = rigids.bodies[island.bodies[b].index];
-                // Turned from where the pass linearised the contacts (rotations do not add).
-                const Vec6 from = before - pass_start_.segment<6>(r);
-                displaceBody(body, from, from + step);
-                displacement_.segment<6>(r) = before + step;
-                body.impulse += (mass_[b] * step).head<3>() * ctx.inv_h;
-            }
+            moveBodies(island, rigids, ctx, alpha);
+            forMembers(island, [&](std::size_t k) { member_value_[k] = island.members[k]->apply(alpha, island.slots[k], displacement_); });
             double worst = 0.0;
-            for (std::size_t k = 0; k < island.members.size(); ++k)
-                worst = std::max(worst, island.members[k]->apply(alpha, island.slots[k], displacement_));
+            for (std::size_t k = 0; k < island.members.size(); ++k) worst = std::max(worst, member_value_[k]);
             ++report.iterations;
             report.residual = worst;
             if (stalled || worst < 1.0) {

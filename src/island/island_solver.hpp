@@ -8,9 +8,12 @@
 #include <Eigen/Cholesky>
 
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 namespace tearables::detail {
+
+class ThreadPool;
 
 class IslandSolver final : public IslandSolve {
 public:
@@ -31,7 +34,13 @@ private:
     IslandSummary solveIsland(Island& island, RigidTable& rigids, const StepContext& ctx);
     /// Assembles the island's Newton system (fresh: a new iteration) and solves it into du_.
     void solveSystem(Island& island, bool fresh);
-    double energy(const Island& island, double alpha) const;
+    double energy(const Island& island, double alpha);
+    /// fn(k) for each member k of the island, on the pool where the world has one.
+    template <class Fn>
+    void forMembers(const Island& island, Fn&& fn);
+    /// Moves the island's bodies by alpha du_.
+    void moveBodies(Island& island, RigidTable& rigids, const StepContext& ctx, double alpha);
+    void warmStart(Island& island, RigidTable& rigids, const StepContext& ctx);
 
     std::vector<Island> islands_;  ///< kept from step to step: a step does not allocate
     std::size_t used_ = 0;         ///< of which this step's
@@ -39,6 +48,7 @@ private:
     std::vector<int> parent_;     ///< union-find over body slots of the table
     std::vector<int> island_of_;  ///< per table body: island index, or -1
     std::vector<int> slot_of_;    ///< per table body: its slot in its island, or -1
+    std::vector<int> hint_count_;  ///< per body: held points giving the warm start
     // One island's solve.
     std::vector<Mat6> mass_;          ///< per body: generalised mass
     Eigen::VectorXd displacement_;    ///< per body: (u, theta) from where the solve started
@@ -47,6 +57,8 @@ private:
     Eigen::VectorXd rhs_, du_;
     Eigen::LDLT<Eigen::MatrixXd> ldlt_;
     double inv_h2_ = 0.0;
+    ThreadPool* pool_ = nullptr;
+    std::vector<double> member_value_;  ///< per member: its energy or move, summed in order
 };
 
 }  // namespace tearables::detail

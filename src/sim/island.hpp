@@ -26,13 +26,23 @@ public:
     virtual ~IslandMember() = default;
     /// The movable bodies the member couples to.
     virtual const std::vector<RigidId>& bodies() const = 0;
+    /// Whether the member touches a body (contacts): the island then starts cold.
+    virtual bool touchesBodies() const = 0;
+    /// The warm start: adds to `sum` the last step's correction of each point the member
+    /// holds on a body (translation, 3 of each 6), and 1 to `count` per point.
+    virtual void addWarmHints(const std::vector<int>& slot, Eigen::VectorXd& sum, std::vector<int>& count) const = 0;
+    /// The warm start's step: the bodies' `du`, the member's own its last step's
+    /// correction. The island takes it where it lowers the energy.
+    virtual void warmStep(const std::vector<int>& slot, const Eigen::VectorXd& du) = 0;
     /// Start of a pass: contacts linearised where the bodies are now.
     virtual void beginPass() = 0;
-    /// The Newton system at the current state: the member's Schur complement added to
-    /// `system` and its reduced right-hand side (minus the gradient) to `rhs`. `fresh`:
-    /// the first system of an iteration (contacts that touch now join it; later ones of
-    /// the same iteration keep those addPredictedContacts added).
-    virtual void condense(const std::vector<int>& slot, bool fresh, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) = 0;
+    /// The Newton system at the current state, condensed onto the member's bodies (its
+    /// Schur complement and reduced right-hand side, minus the gradient). `fresh`: the
+    /// first system of an iteration (contacts that touch now join it; later ones of the
+    /// same iteration keep those addPredictedContacts added). Members condense in parallel.
+    virtual void condense(bool fresh) = 0;
+    /// Adds the condensed system to the island's `system` and `rhs`.
+    virtual void addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const = 0;
     /// The member's own step for the bodies' step `du`.
     virtual void backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) = 0;
     /// Marks the contacts the full step would run into; true where it added any (the

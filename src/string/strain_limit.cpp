@@ -712,7 +712,9 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
     forRanges(ctx.pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {
         for (std::size_t p = p0; p < p1; ++p) {
             const Vec3 correction = s.x_prev[p] - s.x_pred[p];
-            const bool free = s.hold[p].kind == ParticleHold::Kind::Free;
+            // A particle glued to a body of an island keeps its correction too: its body's
+            // (IslandSolver's warm start).
+            const bool free = s.hold[p].kind == ParticleHold::Kind::Free || (s.glue_movable[p] && ctx.islands);
             s.scratch.blk_rhs[p] = free && correction.allFinite() ? correction : Vec3::Zero();
             s.x_pred[p] = s.x[p];
         }
@@ -735,7 +737,10 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
     });
     s.diagnostics.strain_newton_iterations = 0;
     s.diagnostics.strain_chord_iterations = 0;
-    s.scratch.strain_warm_start = s.contacts.empty() && s.body_nodes.empty() && !ctx.cold_strain_starts && warmStart(s, ctx);
+    // A string of an island (glued to a movable body) is warm-started with its island, its
+    // bodies and the other strings at once (IslandSolver): its correction stays in blk_rhs.
+    s.scratch.strain_warm_start = s.contacts.empty() && s.body_nodes.empty() && !(glued && ctx.islands) &&
+                                  !ctx.cold_strain_starts && warmStart(s, ctx);
 }
 
 void setContactStiffness(StringState& s, const RigidTable& rigids, double inv_h2) {

@@ -64,6 +64,22 @@ void StringIslandMember::start(StringState& s, RigidTable& rigids, const StepCon
     setContactStiffness(s, rigids, ctx.inv_h * ctx.inv_h);
 }
 
+/// A glued particle's correction (prepareStrainLimit left it in blk_rhs) is its body's at
+/// that point.
+void StringIslandMember::addWarmHints(const std::vector<int>& slot, Eigen::VectorXd& sum, std::vector<int>& count) const {
+    for (const Glued& g : glued_) {
+        sum.segment<3>(6 * slot[g.node]) += string_->scratch.blk_rhs[g.particle];
+        ++count[static_cast<std::size_t>(slot[g.node])];
+    }
+}
+
+/// The particles' step is the last step's correction, which prepareStrainLimit left in
+/// blk_rhs for this (zero where it has none, and for pinned particles).
+void StringIslandMember::warmStep(const std::vector<int>& slot, const Eigen::VectorXd& du) {
+    StringState& s = *string_;
+    for (std::size_t b = 0; b < s.body_nodes.size(); ++b) s.scratch.node_step[b] = du.segment<6>(6 * slot[b]);
+}
+
 void StringIslandMember::beginPass() { linearisePlanes(*string_, *rigids_); }
 
 void StringIslandMember::assembleGlue() {
@@ -134,7 +150,7 @@ void StringIslandMember::addTurningStiffness() {
     }
 }
 
-void StringIslandMember::condense(const std::vector<int>& slot, bool fresh, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) {
+void StringIslandMember::condense(bool fresh) {
     StringState& s = *string_;
     if (fresh)
         for (RigidSegmentContact& c : s.contacts) {
@@ -155,7 +171,12 @@ void StringIslandMember::condense(const std::vector<int>& slot, bool fresh, Eige
     factorChain(s);
     solveFactored(s.particles(), s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(),
                   s.scratch.blk_coupled.data(), s.scratch.blk_rhs.data());  // y = A^-1 r
-    condenseNodes(s, ns);
+    if (!condenseRows()) condenseNodes(s, ns);
+}
+
+void StringIslandMember::addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const {
+    const StringScratch::NodeScratch& ns = string_->scratch.node_scratch;
+    const std::size_t nodes = string_->body_nodes.size();
     for (std::size_t a = 0; a < nodes; ++a) {
         const Eigen::Index ra = 6 * slot[a];
         rhs.segment<6>(ra) += ns.rs.segment<6>(static_cast<Eigen::Index>(6 * a));
@@ -174,7 +195,75 @@ void StringIslandMember::backSubstitute(const std::vector<int>& slot, const Eige
     Eigen::VectorXd& local = string_->scratch.node_scratch.du;
     local.resize(static_cast<Eigen::Index>(6 * nodes));
     for (std::size_t b = 0; b < nodes; ++b) local.segment<6>(static_cast<Eigen::Index>(6 * b)) = du.segment<6>(6 * slot[b]);
-    backSubstituteNodes(*string_, local);
+    if (!by_rows_) {
+        backSubstituteNodes(*string_, local);
+        return;
+    }
+    // dx = y - A^-1 C du, C du nonzero at the coupled rows only: their columns of A^-1.
+    StringState& s = *string_;
+    const Eigen::VectorXd z = rows_coupling_ * local;
+    for (std::size_t c = 0; c < 3 * rows_.size(); ++c) {
+        const double f = z[static_cast<Eigen::Index>(c)];
+        if (f == 0.0) continue;
+        const std::vector<Vec3>& column = s.scratch.node_columns[c];
+        for (std::size_t p = 0; p < s.particles(); ++p) s.scratch.blk_rhs[p] -= f * column[p];
+    }
+    for (std::size_t b = 0; b < nodes; ++b) s.scratch.node_step[b] = local.segment<6>(static_cast<Eigen::Index>(6 * b));
+}
+
+/// The Schur complement through the coupled rows R (the particles the bodies' rows touch)
+/// where they are fewer than half the body unknowns: D - B^T G B, r_b - B^T y_R, with G the
+/// 3|R| x 3|R| block of A^-1 at R (3 columns a row) and B the couplings stacked by row.
+/// A rope glued to two boards couples two rows: 6 solves instead of 12.
+bool StringIslandMember::condenseRows() {
+    StringState& s = *string_;
+    StringScratch::NodeScratch& ns = s.scratch.node_scratch;
+    const std::size_t n = s.particles();
+    const std::size_t nodes = s.body_nodes.size();
+    rows_.clear();
+    row_of_.resize(n, -1);
+    for (std::size_t b = 0; b < nodes; ++b)
+        for (const auto& entry : ns.coupling[b])
+            if (row_of_[entry.first] < 0) {
+                row_of_[entry.first] = static_cast<int>(rows_.size());
+                rows_.push_back(entry.first);
+            }
+    by_rows_ = 3 * rows_.size() < 6 * nodes;
+    if (!by_rows_) {
+        for (std::size_t q : rows_) row_of_[q] = -1;
+        return false;
+    }
+    const Eigen::Index dim = static_cast<Eigen::Index>(3 * rows_.size());
+    rows_coupling_.setZero(dim, static_cast<Eigen::Index>(6 * nodes));
+    for (std::size_t b = 0; b < nodes; ++b)
+        for (const auto& [p, blk] : ns.coupling[b])
+            rows_coupling_.block<3, 6>(3 * row_of_[p], static_cast<Eigen::Index>(6 * b)) += blk;
+    if (s.scratch.node_columns.size() < static_cast<std::size_t>(dim)) s.scratch.node_columns.resize(static_cast<std::size_t>(dim));
+    rows_inverse_.resize(dim, dim);
+    Eigen::VectorXd y_rows(dim);
+    for (std::size_t k = 0; k < rows_.size(); ++k) {
+        y_rows.segment<3>(static_cast<Eigen::Index>(3 * k)) = s.scratch.blk_rhs[rows_[k]];
+        for (int c = 0; c < 3; ++c) {
+            std::vector<Vec3>& column = s.scratch.node_columns[3 * k + static_cast<std::size_t>(c)];
+            column.assign(n, Vec3::Zero());
+            column[rows_[k]][c] = 1.0;
+            solveFactored(n, s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(),
+                          s.scratch.blk_coupled.data(), column.data());
+            for (std::size_t k2 = 0; k2 < rows_.size(); ++k2)
+                rows_inverse_.block<3, 1>(static_cast<Eigen::Index>(3 * k2), static_cast<Eigen::Index>(3 * k) + c) = column[rows_[k2]];
+        }
+    }
+    for (std::size_t q : rows_) row_of_[q] = -1;
+    const Eigen::Index nd = static_cast<Eigen::Index>(6 * nodes);
+    ns.schur.setZero(nd, nd);
+    ns.rs.resize(nd);
+    for (std::size_t b = 0; b < nodes; ++b) {
+        ns.schur.block<6, 6>(static_cast<Eigen::Index>(6 * b), static_cast<Eigen::Index>(6 * b)) = ns.diag[b];
+        ns.rs.segment<6>(static_cast<Eigen::Index>(6 * b)) = ns.rhs[b];
+    }
+    ns.schur.noalias() -= rows_coupling_.transpose() * rows_inverse_ * rows_coupling_;
+    ns.rs.noalias() -= rows_coupling_.transpose() * y_rows;
+    return true;
 }
 
 bool StringIslandMember::addPredictedContacts() {

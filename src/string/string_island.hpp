@@ -19,8 +19,12 @@ public:
     void start(StringState& s, RigidTable& rigids, const StepContext& ctx);
 
     const std::vector<RigidId>& bodies() const override { return bodies_; }
+    bool touchesBodies() const override { return !string_->contacts.empty(); }
+    void addWarmHints(const std::vector<int>& slot, Eigen::VectorXd& sum, std::vector<int>& count) const override;
+    void warmStep(const std::vector<int>& slot, const Eigen::VectorXd& du) override;
     void beginPass() override;
-    void condense(const std::vector<int>& slot, bool fresh, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) override;
+    void condense(bool fresh) override;
+    void addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const override;
     void backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) override;
     bool addPredictedContacts() override;
     double energy(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& du) const override;
@@ -41,6 +45,7 @@ private:
     /// Adds the glued particles' rows (their springs and own inertia) to the nodes' blocks.
     void assembleGlue();
     void addTurningStiffness();
+    bool condenseRows();
 
     StringState* string_ = nullptr;
     RigidTable* rigids_ = nullptr;
@@ -58,6 +63,12 @@ private:
     std::vector<Cross> cross_;
     mutable std::vector<Vec3> trial_;  ///< energy's trial positions
     std::vector<Vec3> pull_;           ///< per glued particle: its springs' pull on it
+    // condenseRows: the coupled rows, each particle's row (-1: none), the couplings
+    // stacked by row (3|R| x 6 nodes), A^-1 at the rows, and whether this system used them.
+    std::vector<std::size_t> rows_;
+    std::vector<int> row_of_;
+    Eigen::MatrixXd rows_coupling_, rows_inverse_;
+    bool by_rows_ = false;
 };
 
 }  // namespace tearables::detail
