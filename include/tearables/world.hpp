@@ -27,7 +27,9 @@ struct WorldSettings {
     /// budget: a cloth's solve this many, a string's 2x (a taut rope takes 3-4), a string
     /// touching bodies or strings 4x.
     int strain_iterations = 8;
-    int coupling_iterations = 8;     ///< Gauss-Seidel sweeps over strings sharing a dynamic body, 1..64
+    /// Unused: strings sharing a dynamic body are solved together as one island (kept so
+    /// that programs and snapshots setting it still work), 1..64.
+    int coupling_iterations = 8;
     double strain_tolerance = 1e-6;  ///< relative stretch past L_max accepted, (0, 0.01]
     double max_speed = 500.0;        ///< particle speed clamp, m/s, > 0 (guards against blow-ups)
     /// Strings collide with rigid bodies (through the host's ContactProvider, the Bullet
