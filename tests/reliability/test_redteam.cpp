@@ -5,8 +5,12 @@
 //                             and no faster than max_speed (500 m/s) at every frame, no
 //                             position or velocity in the trace is null, and a clamped
 //                             shot says so in its event
-// Plus the API probe of the same report: --steps out of range.
+// Plus the API probes of the same report: --steps out of range, lastError() after a
+// failed then a successful step.
+#include "tearables/bullet.hpp"
 #include "tearables/scene.hpp"
+
+#include "plugin/bullet_fixture.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -176,6 +180,19 @@ TEST(RedTeamProbes, StepsOutOfRangeIsRefused) {
     } catch (const InvalidInput& e) {
         EXPECT_EQ(e.field(), "--steps");
     }
+}
+
+// lastError() holds a failed step's message and is cleared by the next step that succeeds.
+TEST(RedTeamProbes, LastErrorClearsAfterASuccessfulStep) {
+    tearables::testing::Physics phys;
+    tearables::BulletWorld ropes(*phys.world);
+    ropes.addString(tearables::StringDesc::straight({0, 2, 0}, {0, 1, 0}, 5));
+    ropes.core().settings().max_speed = -1.0;  // refused by the step, which changes nothing
+    phys.step(1);
+    EXPECT_NE(ropes.lastError().find("max_speed"), std::string::npos) << ropes.lastError();
+    ropes.core().settings().max_speed = 500.0;
+    phys.step(1);
+    EXPECT_EQ(ropes.lastError(), "");
 }
 
 }  // namespace
