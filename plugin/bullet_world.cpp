@@ -776,7 +776,17 @@ void BulletWorld::substep(double h) {
                 body->activate();
                 continue;
             }
-            body->setLinearVelocity(tearables::toBullet(s.linear_velocity));
+            // A string that blew up this step is frozen (with its event) but may have moved
+            // the body first: Bullet keeps the body's own finite state then.
+            const bool finite_state = s.position.allFinite() && s.orientation.coeffs().allFinite() &&
+                                      s.linear_velocity.allFinite() && s.angular_velocity.allFinite() &&
+                                      std::fabs(s.orientation.norm() - 1.0) < 1e-3;
+            if (!finite_state) continue;
+            // No faster than the particles' clamp (WorldSettings::max_speed): a body a rope
+            // flings keeps its direction and leaves at that speed.
+            const double speed = s.linear_velocity.norm(), max_speed = core_->settings().max_speed;
+            const Vec3 v = speed > max_speed ? Vec3(s.linear_velocity * (max_speed / speed)) : s.linear_velocity;
+            body->setLinearVelocity(tearables::toBullet(v));
             body->setAngularVelocity(tearables::toBullet(s.angular_velocity));
             btTransform xf(toBullet(s.orientation), tearables::toBullet(s.position));
             body->setCenterOfMassTransform(xf);
