@@ -9,6 +9,7 @@
 // failed then a successful step.
 #include "tearables/bullet.hpp"
 #include "tearables/scene.hpp"
+#include "tearables/world.hpp"
 
 #include "plugin/bullet_fixture.hpp"
 
@@ -193,6 +194,64 @@ TEST(RedTeamProbes, LastErrorClearsAfterASuccessfulStep) {
     ropes.core().settings().max_speed = 500.0;
     phys.step(1);
     EXPECT_EQ(ropes.lastError(), "");
+}
+
+// A force of 1e200 N on one vertex of a sheet, every step (finite, so the API takes it):
+// the sheet never stops silently. Either it freezes, with exactly one Freeze event naming
+// it, or it goes on: the pushed vertex rises, no vertex faster than max_speed.
+TEST(RedTeamProbes, HugeForceOnOnePaperVertexNeverStopsTheSheetSilently) {
+    tearables::World world;
+    tearables::PaperDesc d;
+    d.name = "sheet";
+    d.origin = Vec3(0, 1, 0);
+    d.size[0] = d.size[1] = 0.2;
+    d.resolution[0] = d.resolution[1] = 5;
+    const tearables::PaperId id = world.addPaper(d);
+    int freezes = 0;
+    for (int k = 0; k < 10; ++k) {
+        world.applyPaperForce(id, 12, Vec3(0, 1e200, 0));
+        world.step(0.01);
+        for (const auto& e : world.events())
+            if (e.type == tearables::EventType::Freeze) {
+                ++freezes;
+                EXPECT_EQ(e.object, "sheet");
+            }
+    }
+    const tearables::PaperView v = world.viewPaper(id);
+    for (const Vec3& x : *v.positions) ASSERT_TRUE(x.allFinite());
+    if (v.frozen) {
+        EXPECT_EQ(freezes, 1);
+        return;
+    }
+    EXPECT_EQ(freezes, 0);
+    EXPECT_GT((*v.positions)[12].y(), 1.1);  // pushed up for 0.1 s
+    expectBounded(*v.velocities, kMaxSpeed, "sheet velocity");
+}
+
+// The same for a cloth: 1e200 N on its middle vertex every step.
+TEST(RedTeamProbes, HugeForceOnOneClothVertexNeverStopsTheClothSilently) {
+    tearables::World world;
+    tearables::ClothDesc d;
+    d.name = "cloth";
+    d.origin = Vec3(0, 1, 0);
+    d.size = {0.2, 0.2};
+    d.resolution = {5, 5};
+    const tearables::ClothId id = world.addCloth(d);
+    int freezes = 0;
+    for (int k = 0; k < 10; ++k) {
+        world.applyClothForce(id, 12, Vec3(0, 1e200, 0));
+        world.step(0.01);
+        for (const auto& e : world.events()) freezes += e.type == tearables::EventType::Freeze;
+    }
+    const tearables::ClothView v = world.viewCloth(id);
+    for (const Vec3& x : *v.positions) ASSERT_TRUE(x.allFinite());
+    if (v.frozen) {
+        EXPECT_EQ(freezes, 1);
+        return;
+    }
+    EXPECT_EQ(freezes, 0);
+    EXPECT_GT((*v.positions)[12].y(), 1.1);  // pushed up for 0.1 s
+    expectBounded(*v.velocities, kMaxSpeed, "cloth velocity");
 }
 
 }  // namespace
