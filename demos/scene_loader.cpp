@@ -465,15 +465,15 @@ private:
 // Shared field readers
 // =============================================================================================
 
-/// A sheet or cloth of `size_x` x `size_z` centred at `origin` reaches at most half its
-/// diagonal from it in any orientation: every vertex must stay within the position bound.
-void checkCorners(const Node& n, const Vec3& origin, double size_x, double size_z) {
-    const double reach = 0.5 * std::hypot(size_x, size_z);
+/// Every vertex of a sheet or cloth lies within `reach` of its origin in any orientation
+/// (half the diagonal of a sheet centred there, the whole diagonal of a cloth cornered
+/// there): all must stay within the position bound.
+void checkCorners(const Node& n, const Vec3& origin, double reach) {
     if (origin.cwiseAbs().maxCoeff() + reach <= kMaxPosition) return;
     const auto size = n.field("size");
     (size ? *size : n.required("origin"))
         .fail("its corners may reach " + formatNumber(origin.cwiseAbs().maxCoeff() + reach) +
-              " m from the world's origin along an axis (the origin's largest coordinate plus half the diagonal), past the position bound of " +
+              " m from the world's origin along an axis (the origin's largest coordinate plus the farthest a vertex lies from it), past the position bound of " +
               formatNumber(kMaxPosition) + " m");
 }
 
@@ -805,7 +805,7 @@ Cloth parseCloth(const Node& n, std::uint64_t seed, const NameMap& bodies) {
         d.resolution = {static_cast<int>(r[0].asInteger(1, 2000)), static_cast<int>(r[1].asInteger(1, 2000))};
     }
     if (const auto q = n.field("orientation")) d.orientation = q->asQuaternion();
-    checkCorners(n, d.origin, d.size[0], d.size[1]);
+    checkCorners(n, d.origin, std::hypot(d.size[0], d.size[1]));  // origin: vertex (0, 0)
     // One of the two densities: giving density alone switches areal_density off.
     const bool has_density = n.has("density");
     d.areal_density = n.number("areal_density", has_density ? 0.0 : d.areal_density, Range::atLeast(0.0));
@@ -938,7 +938,7 @@ Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
             d.resolution[1] = static_cast<int>(v[1].asInteger(2, 1024));
         }
         if (const auto q = n.field("orientation")) d.orientation = q->asQuaternion();
-        checkCorners(n, d.origin, d.size[0], d.size[1]);
+        checkCorners(n, d.origin, 0.5 * std::hypot(d.size[0], d.size[1]));  // origin: the centre
     }
     d.density = n.number("density", d.density, Range::positive());
     d.stiffness = n.number("stiffness", d.stiffness, Range::positive());

@@ -254,4 +254,44 @@ TEST(RedTeamProbes, HugeForceOnOneClothVertexNeverStopsTheClothSilently) {
     expectBounded(*v.velocities, kMaxSpeed, "cloth velocity");
 }
 
+/// The argument name an API call's refusal gives, or "" when it was accepted.
+template <class Call>
+std::string refusal(Call&& call) {
+    try {
+        call();
+    } catch (const InvalidInput& e) {
+        return e.field();
+    }
+    return "";
+}
+
+// The API holds positions to the scene format's bound (1e6 m along each axis) and names
+// the argument; what was refused leaves nothing behind.
+TEST(RedTeamProbes, ApiPositionsPastTheBoundAreRefusedByName) {
+    tearables::World world;
+    const tearables::StringId rope = world.addString(tearables::StringDesc::straight({0, 2, 0}, {0, 1, 0}, 5));
+    EXPECT_EQ(refusal([&] { world.attachToPoint(rope, 0, Vec3(0, 1e300, 0)); }), "point");
+    EXPECT_FALSE(world.isAttached(rope, 0));
+    tearables::StringDesc far = tearables::StringDesc::straight({0, 2, 0}, {0, 1, 0}, 5);
+    far.points[3].x() = 2e6;
+    EXPECT_EQ(refusal([&] { world.addString(far); }), "points[3]");
+    tearables::ClothDesc cloth;
+    cloth.name = "cloth";
+    cloth.origin = Vec3(1e300, 0, 0);
+    EXPECT_EQ(refusal([&] { world.addCloth(cloth); }), "origin");
+    cloth.origin = Vec3(0, 0, 0);
+    cloth.size = {1e300, 1.0};
+    EXPECT_EQ(refusal([&] { world.addCloth(cloth); }), "size");
+    tearables::PaperDesc paper;
+    paper.origin = Vec3(0, 0, -1e300);
+    EXPECT_EQ(refusal([&] { world.addPaper(paper); }), "origin");
+    paper.origin = Vec3(0, 0, 0);
+    const tearables::PaperId sheet = world.addPaper(paper);
+    EXPECT_EQ(refusal([&] { world.attachPaperToPoint(sheet, 0, Vec3(1e7, 0, 0)); }), "point");
+    EXPECT_EQ(world.strings().size(), 1u);
+    EXPECT_TRUE(world.cloths().empty());
+    world.step(0.01);
+    for (const Vec3& x : *world.view(rope).positions) EXPECT_TRUE(x.allFinite());
+}
+
 }  // namespace
