@@ -1,4 +1,4 @@
-// The `tearables` command line: runs headless scenes (../shared/SCENE_FORMAT.md).
+// The `tearables` command line: runs headless scenes (docs/SCENE_FORMAT.md).
 // Exit status: 0 simulated; 2 the scene or the arguments are invalid (nothing simulated);
 // 1 anything else went wrong.
 #include "render/plot.hpp"
@@ -86,7 +86,8 @@ int main(int argc, char** argv) {
     CLI::App* run = app.add_subcommand("run", "run a scene file or a built-in scene");
     run->add_option("SCENE", scene_arg, "a scene JSON file, or a built-in scene's name")->required();
     run->add_option("--out", out_dir, "output directory (default: tearables-out/<scene>)");
-    run->add_option("--steps", steps, "override the scene's step count")->check(CLI::NonNegativeNumber);
+    run->add_option("--steps", steps, "override the scene's step count, 0..1000000000 (as the scene's steps)")
+        ->check(CLI::Range(0LL, 1'000'000'000LL));
     run->add_option("--every", every, "write a trace frame every K steps")->check(CLI::PositiveNumber);
     run->add_flag("--png", png, "write frame_NNNNN.png images of every trace frame (offscreen OpenGL, OSMesa)");
     run->add_option("--size", size_text, "image size WIDTHxHEIGHT for --png and --mp4 (default 640x360)");

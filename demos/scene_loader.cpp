@@ -1,4 +1,4 @@
-// tearables: the headless scene loader (../shared/SCENE_FORMAT.md, "tearables-scene/1").
+// tearables: the headless scene loader (docs/SCENE_FORMAT.md, "tearables-scene/1").
 // Every field is checked where it is read; a bad one throws InvalidInput whose field() is the
 // field's JSON path ("strings[0].material.tensile.rupture") and whose problem() says what is
 // wrong and what was found.
@@ -28,10 +28,27 @@ namespace {
 using json = nlohmann::json;
 
 constexpr const char* kFormat = "tearables-scene/1";
-/// Bullet stores sizes and masses in single precision: shapes up to 1e6 m, bodies up to
-/// 1e9 kg keep their inertias finite floats.
+/// Bullet stores sizes, masses and inertias in single precision. A box's inertia is
+/// m (a^2 + b^2) / 3 for half extents a, b: sizes in [1e-4, 1e6] m and masses in
+/// [1e-6, 1e9] kg keep it in [3e-15, 7e20] kg m^2, and its inverse, finite normal floats
+/// (FLT_MIN 1.2e-38, FLT_MAX 3.4e38). The inverse mass 1/m stays below 1e6.
+constexpr double kMinSize = 1e-4;
 constexpr double kMaxSize = 1e6;
+constexpr double kMinBodyMass = 1e-6;
 constexpr double kMaxBodyMass = 1e9;
+/// Positions are bounded to +-1e6 m (Range::bullet); so are a plane's offset after
+/// normalisation and the corners of a sheet or cloth.
+constexpr double kMaxPosition = 1e6;
+/// Scripted speeds (kMaxDriverSpeed, the particle speed clamp) and forces: a steel cable of
+/// 5 cm radius tears near 8e6 N; 1e9 N leaves room and keeps the tensions far from overflow.
+constexpr double kMaxSpeed = kMaxDriverSpeed;
+constexpr double kMaxForce = kMaxDriverForce;
+constexpr double kMaxRampRate = 1e9;  // N/s
+/// A twist driver's rate, rad/s (a fast drill turns at 300 rad/s).
+constexpr double kMaxTwistRate = 1e3;
+/// A quaternion or a plane normal is normalised: its norm must be in this range.
+constexpr double kMinNorm = 1e-6;
+constexpr double kMaxNorm = 1e6;
 
 /// Name -> path of the object that defined it (for "duplicate name" messages).
 using NameMap = std::map<std::string, std::string>;
@@ -239,7 +256,7 @@ struct Range {
     static Range leftOpen(double lo, double hi) { return {lo, hi, true, false}; }
     /// Positions, offsets and velocities that Bullet stores in single precision: within
     /// +-1e6 (m, m/s, rad/s, m/s^2), where a float still resolves them.
-    static Range bullet() { return closed(-1e6, 1e6); }
+    static Range bullet() { return closed(-kMaxPosition, kMaxPosition); }
 
     bool contains(double v) const {
         return std::isfinite(v) && (lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi);
@@ -360,17 +377,31 @@ public:
         if (v > max) fail("must be " + Range::leftOpen(0.0, max).text() + " (got " + gotText() + ")");
         return v;
     }
-    /// `count` numbers, each asPositiveAtMost(max).
-    std::vector<double> asPositivesAtMost(std::size_t count, double max) const {
-        asNumbers(count, Range::positive());
-        std::vector<double> out;
-        for (const Node& e : asArray()) out.push_back(e.asPositiveAtMost(max));
-        return out;
-    }
-
+    /// A size of a body's shape: in [kMinSize, kMaxSize] m.
+    double asSize() const { return asNumber(Range::closed(kMinSize, kMaxSize)); }
     Vec3 asVec3(const Range& range = Range::any()) const {
         const std::vector<double> v = asNumbers(3, range);
         return {v[0], v[1], v[2]};
+    }
+
+    /// A vector of finite components whose length is at most `max` (a speed, a force).
+    Vec3 asVec3AtMost(double max, const char* unit) const {
+        const Vec3 v = asVec3();
+        const double length = v.stableNorm();  // no overflow for components up to DBL_MAX
+        if (!(length <= max)) fail("its length must be at most " + formatNumber(max) + " " + unit + " (got " + formatNumber(length) + ")");
+        return v;
+    }
+
+    /// A rotation written [x, y, z, w]; normalised. Its norm, taken without overflow or
+    /// underflow (scaled by the largest component), must be in [kMinNorm, kMaxNorm].
+    Quat asQuaternion() const {
+        const std::vector<double> v = asNumbers(4);
+        const double scale = std::max({std::fabs(v[0]), std::fabs(v[1]), std::fabs(v[2]), std::fabs(v[3])});
+        const double norm = scale > 0.0 ? scale * Eigen::Vector4d(v[0] / scale, v[1] / scale, v[2] / scale, v[3] / scale).norm() : 0.0;
+        if (!(norm >= kMinNorm && norm <= kMaxNorm))
+            fail("must be a quaternion [x, y, z, w] of norm in [" + formatNumber(kMinNorm) + ", " + formatNumber(kMaxNorm) +
+                 "] (got norm " + formatNumber(norm) + ")");
+        return Quat(v[3] / norm, v[0] / norm, v[1] / norm, v[2] / norm);
     }
 
     // --- fields of this object ----------------------------------------------------------------
@@ -434,6 +465,18 @@ private:
 // Shared field readers
 // =============================================================================================
 
+/// Every vertex of a sheet or cloth lies within `reach` of its origin in any orientation
+/// (half the diagonal of a sheet centred there, the whole diagonal of a cloth cornered
+/// there): all must stay within the position bound.
+void checkCorners(const Node& n, const Vec3& origin, double reach) {
+    if (origin.cwiseAbs().maxCoeff() + reach <= kMaxPosition) return;
+    const auto size = n.field("size");
+    (size ? *size : n.required("origin"))
+        .fail("its corners may reach " + formatNumber(origin.cwiseAbs().maxCoeff() + reach) +
+              " m from the world's origin along an axis (the origin's largest coordinate plus the farthest a vertex lies from it), past the position bound of " +
+              formatNumber(kMaxPosition) + " m");
+}
+
 /// The required, non-empty "name" field.
 std::string requiredName(const Node& n) {
     const Node field = n.required("name");
@@ -482,26 +525,32 @@ Shape parseShape(const Node& n) {
     Shape s;
     if (const auto box = n.field("box")) {
         s.kind = Shape::Kind::Box;
-        const std::vector<double> h = box->asPositivesAtMost(3, kMaxSize);
-        s.half_extents = {h[0], h[1], h[2]};
+        box->asNumbers(3);
+        const std::vector<Node> h = box->asArray();
+        s.half_extents = {h[0].asSize(), h[1].asSize(), h[2].asSize()};
     } else if (const auto sphere = n.field("sphere")) {
         s.kind = Shape::Kind::Sphere;
-        s.radius = sphere->asPositiveAtMost(kMaxSize);
+        s.radius = sphere->asSize();
     } else if (const auto capsule = n.field("capsule")) {
         s.kind = Shape::Kind::Capsule;
-        const std::vector<double> c = capsule->asPositivesAtMost(2, kMaxSize);
-        s.radius = c[0];
-        s.half_height = c[1];
+        capsule->asNumbers(2);
+        const std::vector<Node> c = capsule->asArray();
+        s.radius = c[0].asSize();
+        s.half_height = c[1].asSize();
     } else {
         const Node plane = n.required("plane");
         s.kind = Shape::Kind::Plane;
         const std::vector<double> p = plane.asNumbers(4, Range::bullet());
         const Vec3 normal(p[0], p[1], p[2]);
         const double length = normal.norm();
-        if (!(length > 1e-12)) plane.fail("the normal [nx, ny, nz] must not be zero");
+        if (!(length >= kMinNorm))
+            plane.fail("the normal [nx, ny, nz] must have a length of at least " + formatNumber(kMinNorm) + " (got " +
+                       formatNumber(length) + ")");
         // n . x = d with n as written: scale both so that the normal is a unit vector.
         s.plane_normal = normal / length;
         s.plane_offset = p[3] / length;
+        if (!(std::fabs(s.plane_offset) <= kMaxPosition))
+            plane.fail("the offset d / |n| must be in [-1e+06, 1e+06] m (got " + formatNumber(s.plane_offset) + ")");
     }
     return s;
 }
@@ -515,19 +564,16 @@ Body parseBody(const Node& n) {
     b.shape = parseShape(n.required("shape"));
     const bool plane = b.shape.kind == Shape::Kind::Plane;
     b.mass = n.number("mass", plane ? 0.0 : b.mass, Range::atLeast(0.0));
-    if (b.mass > kMaxBodyMass) n.required("mass").fail("must be in [0, 1e+09] (got " + formatNumber(b.mass) + ")");
+    if (b.mass != 0.0 && !(b.mass >= kMinBodyMass && b.mass <= kMaxBodyMass))
+        n.required("mass").fail("must be 0 (static) or in [" + formatNumber(kMinBodyMass) + ", " + formatNumber(kMaxBodyMass) +
+                                "] kg (got " + formatNumber(b.mass) + ")");
     if (plane && b.mass != 0.0)
         n.required("mass").fail("a plane must be static: mass 0 (got " + formatNumber(b.mass) + ")");
     b.kinematic = n.boolean("kinematic", b.kinematic);
     if (plane && b.kinematic) n.required("kinematic").fail("a plane cannot be kinematic (it is static)");
     b.position = n.vec3("position", b.position, Range::bullet());
-    if (const auto q = n.field("orientation")) {
-        const std::vector<double> v = q->asNumbers(4);
-        const Quat quat(v[3], v[0], v[1], v[2]);  // written [x, y, z, w]
-        if (!(quat.norm() > 1e-12)) q->fail("must be a non-zero quaternion [x, y, z, w]");
-        b.orientation = quat.normalized();
-    }
-    b.linear_velocity = n.vec3("linear_velocity", b.linear_velocity, Range::bullet());
+    if (const auto q = n.field("orientation")) b.orientation = q->asQuaternion();
+    if (const auto v = n.field("linear_velocity")) b.linear_velocity = v->asVec3AtMost(kMaxSpeed, "m/s");
     b.angular_velocity = n.vec3("angular_velocity", b.angular_velocity, Range::bullet());
     b.friction = n.number("friction", b.friction, Range::closed(0.0, 1e3));
     b.restitution = n.number("restitution", b.restitution, Range::closed(0.0, 1.0));
@@ -747,9 +793,9 @@ Cloth parseCloth(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     Cloth c;
     ClothDesc& d = c.desc;
     d.name = requiredName(n);
-    d.origin = n.vec3("origin", d.origin);
+    d.origin = n.vec3("origin", d.origin, Range::bullet());
     if (const auto size = n.field("size")) {
-        const std::vector<double> v = size->asNumbers(2, Range::atLeast(0.0));
+        const std::vector<double> v = size->asNumbers(2, Range::closed(0.0, 2.0 * kMaxPosition));
         d.size = {v[0], v[1]};
     }
     if (const auto res = n.field("resolution")) {
@@ -758,12 +804,8 @@ Cloth parseCloth(const Node& n, std::uint64_t seed, const NameMap& bodies) {
         const std::vector<Node> r = res->asArray();
         d.resolution = {static_cast<int>(r[0].asInteger(1, 2000)), static_cast<int>(r[1].asInteger(1, 2000))};
     }
-    if (const auto q = n.field("orientation")) {
-        const std::vector<double> v = q->asNumbers(4);
-        const Quat quat(v[3], v[0], v[1], v[2]);
-        if (!(quat.norm() > 1e-9)) q->fail("must be a non-zero quaternion [x, y, z, w]");
-        d.orientation = quat.normalized();
-    }
+    if (const auto q = n.field("orientation")) d.orientation = q->asQuaternion();
+    checkCorners(n, d.origin, std::hypot(d.size[0], d.size[1]));  // origin: vertex (0, 0)
     // One of the two densities: giving density alone switches areal_density off.
     const bool has_density = n.has("density");
     d.areal_density = n.number("areal_density", has_density ? 0.0 : d.areal_density, Range::atLeast(0.0));
@@ -801,7 +843,7 @@ Cloth parseCloth(const Node& n, std::uint64_t seed, const NameMap& bodies) {
             att.j = j;
             att.body = body->asString();
             if (bodies.count(att.body) == 0) body->fail("no body named " + jsonQuoted(att.body) + knownNames(namesOf(bodies), "bodies"));
-            if (local) att.local = local->asVec3();
+            if (local) att.local = local->asVec3(Range::bullet());
             c.attachments.push_back(att);
         } else {
             if (local) local->fail("only allowed with body");
@@ -812,7 +854,7 @@ Cloth parseCloth(const Node& n, std::uint64_t seed, const NameMap& bodies) {
                 if (!world->asBool()) world->fail("must be true (pinned where the vertex starts) or a point [x, y, z]");
             } else {
                 pin.at_rest = false;
-                pin.point = world->asVec3();
+                pin.point = world->asVec3(Range::bullet());
             }
             d.pins.push_back(pin);
         }
@@ -873,7 +915,7 @@ Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     if (mesh) {
         for (const char* rect : {"origin", "size", "resolution", "orientation"})
             if (const auto f = n.field(rect)) f->fail("belongs to a rectangle: this sheet gives vertices and triangles");
-        for (const Node& v : n.required("vertices").asArray()) d.vertices.push_back(v.asVec3());
+        for (const Node& v : n.required("vertices").asArray()) d.vertices.push_back(v.asVec3(Range::bullet()));
         for (const Node& t : n.required("triangles").asArray()) {
             const std::vector<Node> ijk = t.asArray();
             if (ijk.size() != 3) t.fail("expected [i, j, k] (3 vertex indices), got " + describe(t.value()));
@@ -883,9 +925,9 @@ Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
             d.triangles.push_back(tri);
         }
     } else {
-        d.origin = n.vec3("origin", d.origin);
+        d.origin = n.vec3("origin", d.origin, Range::bullet());
         if (const auto size = n.field("size")) {
-            const std::vector<double> v = size->asNumbers(2, Range::positive());
+            const std::vector<double> v = size->asNumbers(2, Range::leftOpen(0.0, 2.0 * kMaxPosition));
             d.size[0] = v[0];
             d.size[1] = v[1];
         }
@@ -895,12 +937,8 @@ Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
             d.resolution[0] = static_cast<int>(v[0].asInteger(2, 1024));
             d.resolution[1] = static_cast<int>(v[1].asInteger(2, 1024));
         }
-        if (const auto q = n.field("orientation")) {
-            const std::vector<double> v = q->asNumbers(4);
-            const Quat quat(v[3], v[0], v[1], v[2]);  // written [x, y, z, w]
-            if (!(quat.norm() > 1e-12)) q->fail("must be a non-zero quaternion [x, y, z, w]");
-            d.orientation = quat.normalized();
-        }
+        if (const auto q = n.field("orientation")) d.orientation = q->asQuaternion();
+        checkCorners(n, d.origin, 0.5 * std::hypot(d.size[0], d.size[1]));  // origin: the centre
     }
     d.density = n.number("density", d.density, Range::positive());
     d.stiffness = n.number("stiffness", d.stiffness, Range::positive());
@@ -958,7 +996,7 @@ Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
                     g.vertex = v;
                     g.body = body->asString();
                     if (bodies.count(g.body) == 0) body->fail("no body named " + jsonQuoted(g.body) + knownNames(namesOf(bodies), "bodies"));
-                    if (local) g.local = local->asVec3();
+                    if (local) g.local = local->asVec3(Range::bullet());
                     p.glue.push_back(g);
                 } else {
                     PaperAttachment pin;
@@ -966,7 +1004,7 @@ Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
                     if (world->value().is_boolean()) {
                         if (!world->asBool()) world->fail("false attaches nothing: give true (where the vertex is) or a point");
                     } else {
-                        pin.world = world->asVec3();
+                        pin.world = world->asVec3(Range::bullet());
                     }
                     d.attachments.push_back(pin);
                 }
@@ -1069,13 +1107,13 @@ Driver parseDriver(const Node& n, const std::vector<String>& strings, const std:
     }
 
     switch (d.type) {
-        case Driver::Type::Force: d.value = n.required("value").asVec3(); break;
+        case Driver::Type::Force: d.value = n.required("value").asVec3AtMost(kMaxForce, "N"); break;
         case Driver::Type::Ramp: {
             const Node value = n.required("value");
             d.value = value.asVec3();
             if (!(d.value.norm() > 1e-12)) value.fail("must be a non-zero direction");
             d.value.normalize();
-            d.rate = n.required("rate").asNumber(Range::positive());
+            d.rate = n.required("rate").asNumber(Range::leftOpen(0.0, kMaxRampRate));
             break;
         }
         case Driver::Type::Twist: {
@@ -1084,13 +1122,13 @@ Driver parseDriver(const Node& n, const std::vector<String>& strings, const std:
                 if (e != 0 && e != -1) end->fail("must be 0 (the first end) or -1 (the last end) (got " + std::to_string(e) + ")");
                 d.end = static_cast<int>(e);
             }
-            d.rate = n.required("rate").asNumber();
+            d.rate = n.required("rate").asNumber(Range::closed(-kMaxTwistRate, kMaxTwistRate));
             break;
         }
-        case Driver::Type::Move: d.velocity = n.required("velocity").asVec3(Range::bullet()); break;
+        case Driver::Type::Move: d.velocity = n.required("velocity").asVec3AtMost(kMaxSpeed, "m/s"); break;
         case Driver::Type::Release: break;
         case Driver::Type::Wind:
-            d.value = n.required("value").asVec3();
+            d.value = n.required("value").asVec3AtMost(kMaxSpeed, "m/s");
             d.gust = n.number("gust", d.gust, Range::closed(0.0, 10.0));
             break;
         case Driver::Type::Velocity: {
@@ -1098,7 +1136,7 @@ Driver parseDriver(const Node& n, const std::vector<String>& strings, const std:
             d.body_name = body.asString();
             if (body_names.count(d.body_name) == 0)
                 body.fail("no body named " + jsonQuoted(d.body_name) + knownNames(namesOf(body_names), "bodies"));
-            d.value = n.required("value").asVec3();
+            d.value = n.required("value").asVec3AtMost(kMaxSpeed, "m/s");
             break;
         }
         case Driver::Type::Spawn: {

@@ -237,6 +237,7 @@ struct Shot {
     bool hit = false;
     std::string object;        ///< the body or string hit
     Vec3 point = Vec3::Zero(); ///< where, m
+    double impulse = 0.0;      ///< the impulse given, N s: the driver's, or less where it was clamped
 };
 
 /// One shot: the driver's ray is cast at the rigid bodies (Bullet's ray test) and at the
@@ -252,11 +253,21 @@ Shot shoot(BulletScene& bs, World& core, const Scene& scene, const std::vector<S
     bs.world.rayTest(from, to, body_hit);
     const double body_fraction = body_hit.hasHit() ? static_cast<double>(body_hit.m_closestHitFraction) : 2.0;
     const std::optional<RayHit> string_hit = rayTest(core, d.ray_from, d.ray_to);
-    const Vec3 impulse = d.impulse * (d.ray_to - d.ray_from).normalized();
+    Vec3 impulse = d.impulse * (d.ray_to - d.ray_from).normalized();
     Shot shot;
+    shot.impulse = d.impulse;
     if (string_hit && string_hit->fraction <= body_fraction) {
         for (std::size_t i = 0; i < ids.size(); ++i)
             if (ids[i] == string_hit->string) shot.object = scene.strings[i].desc.name;
+        // Each particle's share of the impulse changes its velocity by share / mass: no more
+        // than kMaxDriverSpeed (the clamp the step would apply anyway, silently).
+        const std::vector<double>& masses = *core.view(string_hit->string).masses;
+        const double dv = std::max((1.0 - string_hit->along) * d.impulse / masses[string_hit->segment],
+                                   string_hit->along * d.impulse / masses[string_hit->segment + 1]);
+        if (dv > kMaxDriverSpeed) {
+            shot.impulse = d.impulse * kMaxDriverSpeed / dv;
+            impulse *= kMaxDriverSpeed / dv;
+        }
         core.applyForce(string_hit->string, string_hit->segment, (1.0 - string_hit->along) / dt * impulse);
         core.applyForce(string_hit->string, string_hit->segment + 1, string_hit->along / dt * impulse);
         shot.hit = true;
@@ -271,6 +282,11 @@ Shot shoot(BulletScene& bs, World& core, const Scene& scene, const std::vector<S
             shot.object = bs.specs[i].name;
             btRigidBody* b = bs.bodies[i].get();
             if (b->getInvMass() > 0.0f) {
+                const double dv = d.impulse * static_cast<double>(b->getInvMass());  // the body's change of speed
+                if (dv > kMaxDriverSpeed) {
+                    shot.impulse = d.impulse * kMaxDriverSpeed / dv;
+                    impulse *= kMaxDriverSpeed / dv;
+                }
                 b->activate(true);
                 b->applyImpulse(toBullet(impulse), body_hit.m_hitPointWorld - b->getCenterOfMassPosition());
             }
@@ -310,7 +326,7 @@ void drawProgress(long long done, long long total) {
 RunResult runScene(const Scene& scene, const RunOptions& options) {
     const long long steps = options.steps.value_or(scene.steps);
     const int every = options.every.value_or(scene.output_every);
-    if (steps < 0) throw InvalidInput("--steps", "must be >= 0");
+    if (steps < 0 || steps > 1'000'000'000) throw InvalidInput("--steps", "must be in [0, 1000000000] (got " + std::to_string(steps) + ")");
     if (every < 1) throw InvalidInput("--every", "must be >= 1");
     const double dt = scene.dt;
 
@@ -439,7 +455,7 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
                         if (active) core.applyClothForce(id, drv.particle, drv.value);
                         break;
                     case Driver::Type::Ramp:
-                        if (active) core.applyClothForce(id, drv.particle, drv.value * (drv.rate * (t0 - drv.from)));
+                        if (active) core.applyClothForce(id, drv.particle, drv.value * std::min(drv.rate * (t0 - drv.from), kMaxDriverForce));
                         break;
                     case Driver::Type::Move:
                         if (active) {
@@ -478,7 +494,7 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
                         core.applyForce(string_ids.at(drv.target), drv.particle, drv.value);
                     break;
                 case Driver::Type::Ramp:
-                    if (active) core.applyForce(string_ids.at(drv.target), drv.particle, drv.value * (drv.rate * (t0 - drv.from)));
+                    if (active) core.applyForce(string_ids.at(drv.target), drv.particle, drv.value * std::min(drv.rate * (t0 - drv.from), kMaxDriverForce));
                     break;
                 case Driver::Type::Move:
                     if (active && drv.paper_vertex >= 0) {
@@ -557,7 +573,8 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
                             e["object"] = shot.object;
                             e["point"] = vec(shot.point);
                         }
-                        e["impulse"] = drv.impulse;
+                        e["impulse"] = shot.impulse;
+                        if (shot.impulse < drv.impulse) e["clamped_from"] = drv.impulse;  // to kMaxDriverSpeed
                         events << e.dump() << '\n';
                     }
                     break;

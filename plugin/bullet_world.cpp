@@ -74,6 +74,7 @@ public:
     explicit Contacts(BulletWorld& owner) : owner_(owner) {}
 
     void findContacts(const CollisionQuery& query, std::vector<RigidContact>& out) override {
+        if (!owner_.attachedToBullet()) return;  // the Bullet world is gone: no bodies to touch
         const double h = owner_.step_;
         // Trees of strings that are gone (removed, frozen) are dropped.
         for (auto it = trees_.begin(); it != trees_.end();) {
@@ -113,6 +114,7 @@ public:
     }
 
     void findPointContacts(const PointQuery& query, std::vector<PointContact>& out) override {
+        if (!owner_.attachedToBullet()) return;
         const double h = owner_.step_;
         std::vector<RigidContact> found;
         std::vector<const std::vector<Vec3>*> seen_meshes;
@@ -588,7 +590,21 @@ BulletWorld::~BulletWorld() {
 }
 
 bool BulletWorld::attachedToBullet() const { return action_->inWorld(); }
-World& BulletWorld::core() { return *core_; }
+World& BulletWorld::core() {
+    dropBodiesIfDetached();
+    return *core_;
+}
+
+// Once the Bullet world is gone its bodies may be too: their proxies leave the core (the
+// strings holding them report Release events, cause body_removed, at their next step) and
+// no pointer to them is kept.
+void BulletWorld::dropBodiesIfDetached() {
+    if (attachedToBullet()) return;
+    for (const auto& [body, id] : proxies_) core_->removeRigid(id);
+    proxies_.clear();
+    candidates_.clear();
+    mesh_candidates_.clear();
+}
 const World& BulletWorld::core() const { return *core_; }
 StringId BulletWorld::addString(const StringDesc& desc) { return core_->addString(desc); }
 void BulletWorld::removeString(StringId id) { core_->removeString(id); }
@@ -718,10 +734,16 @@ void BulletWorld::substep(double h) {
         step_ = h;
         candidates_.clear();
         if (core_->settings().rigid_contacts) findCandidates(h);
-        // Bodies in: drop those that left the world, copy the others' state.
+        // Bodies in: drop those that left the world, copy the others' state. Whether a body
+        // is still in the world is read from the world's list, not from the body: a body
+        // removed and deleted since the last step must not be read.
+        in_world_.clear();
+        const btCollisionObjectArray& objects = world_->getCollisionObjectArray();
+        for (int i = 0; i < objects.size(); ++i) in_world_.push_back(objects[i]);
+        std::sort(in_world_.begin(), in_world_.end());
         for (auto it = proxies_.begin(); it != proxies_.end();) {
             btRigidBody* body = const_cast<btRigidBody*>(it->first);
-            if (!body->getBroadphaseHandle()) {
+            if (!std::binary_search(in_world_.begin(), in_world_.end(), static_cast<const btCollisionObject*>(body))) {
                 core_->removeRigid(it->second);
                 it = proxies_.erase(it);
                 continue;
@@ -754,7 +776,17 @@ void BulletWorld::substep(double h) {
                 body->activate();
                 continue;
             }
-            body->setLinearVelocity(tearables::toBullet(s.linear_velocity));
+            // A string that blew up this step is frozen (with its event) but may have moved
+            // the body first: Bullet keeps the body's own finite state then.
+            const bool finite_state = s.position.allFinite() && s.orientation.coeffs().allFinite() &&
+                                      s.linear_velocity.allFinite() && s.angular_velocity.allFinite() &&
+                                      std::fabs(s.orientation.norm() - 1.0) < 1e-3;
+            if (!finite_state) continue;
+            // No faster than the particles' clamp (WorldSettings::max_speed): a body a rope
+            // flings keeps its direction and leaves at that speed.
+            const double speed = s.linear_velocity.norm(), max_speed = core_->settings().max_speed;
+            const Vec3 v = speed > max_speed ? Vec3(s.linear_velocity * (max_speed / speed)) : s.linear_velocity;
+            body->setLinearVelocity(tearables::toBullet(v));
             body->setAngularVelocity(tearables::toBullet(s.angular_velocity));
             btTransform xf(toBullet(s.orientation), tearables::toBullet(s.position));
             body->setCenterOfMassTransform(xf);
@@ -763,6 +795,7 @@ void BulletWorld::substep(double h) {
         const std::vector<Event>& ev = core_->events();
         events_.insert(events_.end(), ev.begin(), ev.end());
         total_ += core_->lastStageTimes();
+        last_error_.clear();  // this step succeeded
     } catch (const std::exception& e) {
         last_error_ = e.what();  // never throw into Bullet's step
     } catch (...) {

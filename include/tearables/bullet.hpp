@@ -31,6 +31,7 @@
 #include <string>
 #include <vector>
 
+class btCollisionObject;
 class btDiscreteDynamicsWorld;
 class btIDebugDraw;
 class btRigidBody;
@@ -53,7 +54,9 @@ public:
     BulletWorld(const BulletWorld&) = delete;
     BulletWorld& operator=(const BulletWorld&) = delete;
 
-    /// The core world: views, events, settings, forces.
+    /// The core world: views, events, settings, forces. After the Bullet world was
+    /// destroyed, the first call drops every body the plugin knew (their attachments are
+    /// released at the core's next step); stepping the core then touches nothing of Bullet.
     World& core();
     const World& core() const;
 
@@ -112,7 +115,8 @@ public:
     static btVector3 paperColor() { return btVector3(0.85f, 0.83f, 0.76f); }
     static btVector3 creaseColor() { return btVector3(0.35f, 0.22f, 0.10f); }
 
-    /// The last error caught inside a step (the step never throws into Bullet), or "".
+    /// The error caught inside the last internal step (the step never throws into Bullet),
+    /// or "" once a later step succeeds. Read it after each stepSimulation.
     const std::string& lastError() const;
 
     /// Writes the whole tearables state (tearables/snapshot.hpp) and which Bullet body each
@@ -130,6 +134,7 @@ private:
     class Action;
     class Contacts;
     void substep(double h);
+    void dropBodiesIfDetached();
     RigidId proxyFor(btRigidBody& body);
     void findCandidates(double h);
     bool isCandidate(const btRigidBody* body) const;
@@ -145,6 +150,7 @@ private:
     std::map<std::uint32_t, std::vector<btRigidBody*>> candidates_;  // per string: bodies near it this step
     std::vector<btRigidBody*> mesh_candidates_;  // bodies near some mesh object this step (sorted)
     std::vector<std::pair<const btRigidBody*, RigidId>> proxy_order_;  // scratch
+    std::vector<const btCollisionObject*> in_world_;  // scratch: the Bullet world's objects, sorted
     std::vector<Event> events_;
     StageTimes total_;
     std::string last_error_;

@@ -33,7 +33,7 @@ struct ClothPin {
     int i = 0;                  ///< column (along local x), negative counts from the end (-1 = last)
     int j = 0;                  ///< row (along local z), negative counts from the end
     bool at_rest = true;        ///< true: pinned where the vertex starts; false: pinned at `point`
-    Vec3 point = Vec3::Zero();  ///< world point, m (used when at_rest is false), finite
+    Vec3 point = Vec3::Zero();  ///< world point, m (used when at_rest is false), each coordinate in [-1e6, 1e6]
 };
 
 /// Which yarn an edge belongs to.
@@ -59,8 +59,8 @@ struct ClothWeakYarn {
 /// j * resolution[0] + i. A resolution of 1 along one axis makes a single yarn (a chain).
 struct ClothDesc {
     std::string name;                     ///< for events and traces; may be empty
-    Vec3 origin{0.0, 1.0, 0.0};           ///< position of vertex (0, 0), m, finite
-    std::array<double, 2> size{1.0, 1.0}; ///< extent along local x and z, m, > 0 (ignored along an axis of resolution 1)
+    Vec3 origin{0.0, 1.0, 0.0};           ///< position of vertex (0, 0), m, each coordinate in [-1e6, 1e6]
+    std::array<double, 2> size{1.0, 1.0}; ///< extent along local x and z, m, > 0 (ignored along an axis of resolution 1); every vertex within 1e6 m per axis
     std::array<int, 2> resolution{21, 21};///< vertices along local x and z, each 1..2000, at least 2 vertices in all
     Quat orientation = Quat::Identity();  ///< local to world, non-zero (normalised on creation)
     /// Areal density of the cloth, kg/m^2, [0, 1e6]: each vertex weighs its share of the area

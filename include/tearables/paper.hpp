@@ -49,9 +49,9 @@ enum class PaperTension {
 struct PaperDesc {
     std::string name = "paper";          ///< for events and scenes
     // --- the rectangle (used when `vertices` is empty) ---
-    Vec3 origin{0.0, 1.0, 0.0};          ///< centre of the sheet, m, finite
+    Vec3 origin{0.0, 1.0, 0.0};          ///< centre of the sheet, m, each coordinate in [-1e6, 1e6]
     Quat orientation = Quat::Identity(); ///< the sheet lies in its local x-z plane; non-zero (normalised)
-    double size[2] = {0.21, 0.297};      ///< extent along local x and z, m, each > 0
+    double size[2] = {0.21, 0.297};      ///< extent along local x and z, m, each > 0; every vertex within 1e6 m per axis
     int resolution[2] = {22, 30};        ///< vertices along local x and z, each 2..1024; vertex (i, k) is k * resolution[0] + i
     // --- or any triangle mesh (used when non-empty) ---
     std::vector<Vec3> vertices;                          ///< rest positions, m, finite

@@ -1,4 +1,4 @@
-// tearables: headless scenes (the format is ../shared/SCENE_FORMAT.md, "tearables-scene/1").
+// tearables: headless scenes (the format is docs/SCENE_FORMAT.md, "tearables-scene/1").
 // Loading checks every field; a bad one throws InvalidInput whose field() is the JSON path
 // ("strings[0].material.tensile.rupture") and whose problem() says what is wrong.
 #pragma once
@@ -15,6 +15,13 @@
 #include <vector>
 
 namespace tearables::scene {
+
+/// Scripted forces (force drivers, and a ramp's force once it has grown), N: the loader
+/// refuses more, and a ramp stops growing there.
+inline constexpr double kMaxDriverForce = 1e9;
+/// The speed no scripted velocity, wind or shot may ask for, m/s (WorldSettings::max_speed):
+/// a shot's impulse is clamped to what brings the particle or body it hits to this speed.
+inline constexpr double kMaxDriverSpeed = 500.0;
 
 /// A collision shape of a rigid body.
 struct Shape {

@@ -24,7 +24,7 @@ enum class TensionEstimator {
 /// distances between consecutive points.
 struct StringDesc {
     std::string name;              ///< for events and traces; may be empty
-    std::vector<Vec3> points;      ///< particle rest positions, m; at least 2, finite, no zero-length segment
+    std::vector<Vec3> points;      ///< particle rest positions, m; at least 2, each coordinate in [-1e6, 1e6], no zero-length segment
     double radius = 0.002;         ///< cross-section radius, m, [1e-7, 10]
     double density = 1150.0;       ///< kg/m^3, [1e-3, 1e5]; segment mass = density * pi r^2 * length, split over its ends
     /// Replaced particle masses, kg, [1e-15, 1e12], at most one per particle: (particle index, mass); a negative index counts from the end (-1 = last).

@@ -45,4 +45,22 @@ inline void requirePhysical(std::string_view field, double v, double lo, double 
     requireRange(field, v, lo, hi);
 }
 
+/// Positions: within +-1e6 m along each axis, where Bullet's single precision still spaces
+/// floats 0.06 m apart (coarse, but finite); the scene format holds positions to the same.
+inline constexpr double kMaxCoordinate = 1e6;
+
+inline void requirePosition(std::string_view field, const Vec3& v) {
+    for (int k = 0; k < 3; ++k) requireRange(field, v[k], -kMaxCoordinate, kMaxCoordinate);
+}
+
+/// Every vertex of a sheet or cloth lies within `span` of its `origin` (half the diagonal
+/// of a sheet centred there, the whole diagonal of a cloth cornered there), in any
+/// orientation: they all stay within the position bound.
+inline void requireExtentWithinBound(std::string_view field, const Vec3& origin, double span) {
+    const double reach = origin.cwiseAbs().maxCoeff() + span;
+    if (!(reach <= kMaxCoordinate))
+        throw InvalidInput(std::string(field), "its vertices may reach " + num(reach) + " m along an axis, past the position bound of " +
+                                                   num(kMaxCoordinate) + " m");
+}
+
 }  // namespace tearables::detail

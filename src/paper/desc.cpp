@@ -2,6 +2,8 @@
 // structural and bending springs).
 #include "paper/sheet.hpp"
 
+#include "base/validate.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <tuple>
@@ -27,10 +29,12 @@ void validate(const PaperDesc& d) {
             if (!std::isfinite(d.size[a]) || !(d.size[a] > 0.0)) throw InvalidInput("size", "both extents must be finite and > 0 m");
             if (d.resolution[a] < 2 || d.resolution[a] > 1024) throw InvalidInput("resolution", "each must be 2..1024 vertices");
         }
+        detail::requirePosition("origin", d.origin);
+        detail::requireExtentWithinBound("size", d.origin, 0.5 * std::hypot(d.size[0], d.size[1]));  // origin: the centre
         if (!d.triangles.empty()) throw InvalidInput("triangles", "given without vertices");
     } else {
         for (std::size_t i = 0; i < d.vertices.size(); ++i)
-            if (!finiteVec(d.vertices[i])) throw InvalidInput("vertices[" + std::to_string(i) + "]", "must be finite");
+            detail::requirePosition("vertices[" + std::to_string(i) + "]", d.vertices[i]);
         if (d.triangles.empty()) throw InvalidInput("triangles", "a mesh needs at least one triangle");
         const auto n = static_cast<std::uint32_t>(d.vertices.size());
         std::vector<std::uint8_t> used(n, 0);
@@ -80,8 +84,8 @@ void validate(const PaperDesc& d) {
         if (held[a.vertex]) throw InvalidInput(field + ".vertex", "is attached twice");
         held[a.vertex] = 1;
         if (a.body.valid() && a.world) throw InvalidInput(field, "give a body or a world point, not both");
-        if (a.world && !finiteVec(*a.world)) throw InvalidInput(field + ".world", "must be finite");
-        if (!finiteVec(a.local)) throw InvalidInput(field + ".local", "must be finite");
+        if (a.world) detail::requirePosition(field + ".world", *a.world);
+        detail::requirePosition(field + ".local", a.local);
     }
 }
 

@@ -393,8 +393,9 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
         for (std::size_t i = 0; i < n; ++i) s.v[i] += s.dv[i].vec();
     }
     for (std::size_t i = 0; i < n; ++i) {
+        // A norm past 1e154 overflows: the scaled norm then, or the clamp would zero it.
         const double speed = s.v[i].norm();
-        if (speed > ctx.max_speed) s.v[i] *= ctx.max_speed / speed;
+        if (speed > ctx.max_speed) s.v[i] *= ctx.max_speed / (std::isfinite(speed) ? speed : s.v[i].stableNorm());
         s.x_pred[i] = s.x[i] + h * s.v[i];
     }
 }

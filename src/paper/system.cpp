@@ -7,6 +7,7 @@
 #include "paper/system.hpp"
 
 #include "base/stage_timer.hpp"
+#include "base/validate.hpp"
 #include "sim/freeze.hpp"
 #include "sim/rigid_table.hpp"
 
@@ -98,7 +99,7 @@ PaperView PaperSystem::view(PaperId id) const {
 void PaperSystem::attachToPoint(PaperId id, std::uint32_t vertex, const Vec3& point) {
     PaperSheet& s = get(id);
     checkVertex(s, vertex);
-    if (!point.allFinite()) throw InvalidInput("point", "must be finite");
+    requirePosition("point", point);
     s.hold[vertex] = ParticleHold{ParticleHold::Kind::Pin, point, RigidId{}};
     s.x[vertex] = point;
     s.v[vertex].setZero();
@@ -108,7 +109,7 @@ void PaperSystem::attachToRigid(PaperId id, std::uint32_t vertex, RigidId body, 
     PaperSheet& s = get(id);
     checkVertex(s, vertex);
     checkBody(rigids, body, "body");
-    if (!local.allFinite()) throw InvalidInput("local", "must be finite");
+    requirePosition("local", local);
     s.hold[vertex] = ParticleHold{ParticleHold::Kind::Glue, local, body};
     s.x[vertex] = gluePoint(rigids.bodies[body.index], local);
 }
@@ -117,7 +118,7 @@ void PaperSystem::movePin(PaperId id, std::uint32_t vertex, const Vec3& point) {
     PaperSheet& s = get(id);
     checkVertex(s, vertex);
     if (s.hold[vertex].kind != ParticleHold::Kind::Pin) throw InvalidInput("vertex", "is not pinned to a world point");
-    if (!point.allFinite()) throw InvalidInput("point", "must be finite");
+    requirePosition("point", point);
     s.hold[vertex].point = point;
 }
 

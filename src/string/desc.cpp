@@ -44,6 +44,7 @@ void validate(const StringDesc& d) {
         const std::string f = "points[" + std::to_string(i) + "]";
         for (int k = 0; k < 3; ++k)
             if (!std::isfinite(d.points[i][k])) throw InvalidInput(f, "must be finite (got a NaN or infinite coordinate)");
+        detail::requirePosition(f, d.points[i]);
         if (i > 0) {
             const double len = (d.points[i] - d.points[i - 1]).norm();
             if (!(len > 1e-9))

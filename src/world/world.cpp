@@ -193,7 +193,7 @@ int World::resolveParticle(StringId id, int particle) const {
 void World::attachToPoint(StringId id, int particle, const Vec3& point) {
     StringState& s = impl_->strings.get(id);
     const int p = resolveIndex(particle, s.particles(), "particle");
-    if (!finite(point)) throw InvalidInput("point", "must be finite");
+    detail::requirePosition("point", point);
     s.hold[p].kind = ParticleHold::Kind::Pin;
     s.hold[p].point = point;
     s.hold[p].body = RigidId{};
@@ -208,7 +208,7 @@ void World::attachToRigid(StringId id, int particle, RigidId body, const Vec3& l
     StringState& s = impl_->strings.get(id);
     const int p = resolveIndex(particle, s.particles(), "particle");
     const RigidState& b = impl_->body(body);
-    if (!finite(local_point)) throw InvalidInput("local", "must be finite");
+    detail::requirePosition("local", local_point);
     s.hold[p].kind = ParticleHold::Kind::Glue;
     s.hold[p].point = local_point;
     s.hold[p].body = body;
@@ -219,7 +219,7 @@ void World::movePin(StringId id, int particle, const Vec3& point) {
     StringState& s = impl_->strings.get(id);
     const int p = resolveIndex(particle, s.particles(), "particle");
     if (s.hold[p].kind != ParticleHold::Kind::Pin) throw InvalidInput("particle", "is not pinned to a world point");
-    if (!finite(point)) throw InvalidInput("point", "must be finite");
+    detail::requirePosition("point", point);
     s.hold[p].point = point;
 }
 

@@ -1,5 +1,6 @@
 // World's cloth API: validates the arguments and forwards to the world's ClothSystem
 // (src/cloth/system.cpp).
+#include "base/validate.hpp"
 #include "cloth/cloth_state.hpp"
 #include "tearables/world.hpp"
 
@@ -48,7 +49,7 @@ ClothView World::viewCloth(ClothId id) const {
 void World::attachClothToPoint(ClothId id, int vertex, const Vec3& point) {
     detail::ClothState& c = clothSystem().get(id);
     const std::size_t p = resolveVertex(c, vertex);
-    if (!point.allFinite()) throw InvalidInput("point", "must be finite");
+    detail::requirePosition("point", point);
     c.hold[p].kind = detail::ParticleHold::Kind::Pin;
     c.hold[p].point = point;
     c.hold[p].body = RigidId{};
@@ -60,7 +61,7 @@ void World::attachClothToRigid(ClothId id, int vertex, RigidId body, const Vec3&
     detail::ClothState& c = clothSystem().get(id);
     const std::size_t p = resolveVertex(c, vertex);
     const RigidState& b = rigid(body);  // throws for an unknown body
-    if (!local_point.allFinite()) throw InvalidInput("local", "must be finite");
+    detail::requirePosition("local", local_point);
     c.hold[p].kind = detail::ParticleHold::Kind::Glue;
     c.hold[p].point = local_point;
     c.hold[p].body = body;
@@ -71,7 +72,7 @@ void World::moveClothPin(ClothId id, int vertex, const Vec3& point) {
     detail::ClothState& c = clothSystem().get(id);
     const std::size_t p = resolveVertex(c, vertex);
     if (c.hold[p].kind != detail::ParticleHold::Kind::Pin) throw InvalidInput("vertex", "is not pinned to a world point");
-    if (!point.allFinite()) throw InvalidInput("point", "must be finite");
+    detail::requirePosition("point", point);
     c.hold[p].point = point;
 }
 
