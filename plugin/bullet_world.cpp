@@ -33,18 +33,53 @@ btQuaternion toBullet(const Quat& q) {
                         static_cast<btScalar>(q.w()));
 }
 
+constexpr double kPi = 3.14159265358979323846;
+
+// Where a body is at the end of internal step `tick` of `ticks`: Bullet moves a kinematic
+// body only once a frame, to its end pose, with the velocity that takes it there over the
+// frame (saveKinematicState); the steps between follow that velocity.
+btTransform tickPose(const btRigidBody& body, double h, int tick, int ticks) {
+    if (!body.isKinematicObject() || tick >= ticks) return body.getWorldTransform();
+    btTransform at;
+    btTransformUtil::integrateTransform(body.getWorldTransform(), -body.getLinearVelocity(), -body.getAngularVelocity(),
+                                        static_cast<btScalar>(h * (ticks - tick)), at);
+    return at;
+}
+
 }  // namespace
 
 // The per-substep callback, plus a sentinel collision object that tells us whether the
 // Bullet world still exists: ~btCollisionWorld clears the broadphase handle of every
 // object it still holds, and the sentinel's memory is ours, so reading it stays safe.
+//
+// The sentinel is also the frame clock. An action is told neither how many internal steps
+// the current stepSimulation takes nor which one it is; but a stepSimulation that steps
+// calls saveKinematicState(n h) on every kinematic body once, before its n steps
+// (btDiscreteDynamicsWorld::stepSimulation), which sets w = angle(R_interp -> R) / (n h) and
+// R_interp = R. The sentinel is a kinematic body turned by 1 rad at the first step of each
+// frame: at the next frame's first step R == R_interp again, and n = 1 rad / (|w| h). It
+// turns about its own origin, so its bounds (an empty shape's: the origin) never move.
 class BulletWorld::Action : public btActionInterface {
 public:
-    explicit Action(BulletWorld& owner) : owner_(owner), shape_() {
-        sentinel_.setCollisionShape(&shape_);
-        sentinel_.setCollisionFlags(btCollisionObject::CF_STATIC_OBJECT | btCollisionObject::CF_NO_CONTACT_RESPONSE);
+    explicit Action(BulletWorld& owner)
+        : owner_(owner), shape_(), sentinel_(btRigidBody::btRigidBodyConstructionInfo(0, nullptr, &shape_)) {
+        sentinel_.setCollisionFlags(btCollisionObject::CF_KINEMATIC_OBJECT | btCollisionObject::CF_NO_CONTACT_RESPONSE);
+        sentinel_.setActivationState(DISABLE_DEACTIVATION);
+        arm();
     }
-    void updateAction(btCollisionWorld*, btScalar time_step) override { owner_.substep(static_cast<double>(time_step)); }
+    void updateAction(btCollisionWorld*, btScalar time_step) override {
+        const double h = static_cast<double>(time_step);
+        if (sentinel_.getWorldTransform().getBasis() == sentinel_.getInterpolationWorldTransform().getBasis()) {
+            const double w = static_cast<double>(sentinel_.getAngularVelocity().length());
+            const double n = w > 0.0 && h > 0.0 ? std::round(1.0 / (w * h)) : 1.0;
+            ticks_ = n >= 1.0 && n < 1e6 ? static_cast<int>(n) : 1;
+            tick_ = 0;
+            arm();
+        }
+        ++tick_;
+        if (tick_ > ticks_) ticks_ = tick_;  // the clock was disturbed: never past the frame's end
+        owner_.substep(h, tick_, ticks_);
+    }
     void debugDraw(btIDebugDraw* drawer) override {
         if (drawer) owner_.debugDraw(*drawer);
     }
@@ -53,9 +88,15 @@ public:
     bool inWorld() const { return sentinel_.getBroadphaseHandle() != nullptr; }
 
 private:
+    void arm() {
+        sentinel_.setInterpolationWorldTransform(btTransform::getIdentity());
+        sentinel_.setWorldTransform(btTransform(btQuaternion(btVector3(1, 0, 0), 1), btVector3(0, 0, 0)));
+    }
+
     BulletWorld& owner_;
     btEmptyShape shape_;
-    btCollisionObject sentinel_;
+    btRigidBody sentinel_;
+    int tick_ = 0, ticks_ = 1;
 };
 
 /// The pattern search that sharpens a contact on a curved convex body (refineOnConvexBody):
@@ -89,7 +130,7 @@ public:
             const auto& broken = *query.broken[i];
             SegmentTree& tree = treeFor(query.strings[i].index, start, pred, radius, broken);
             for (btRigidBody* body : it->second) {
-                const SweptBody swept(*body, h);
+                const SweptBody swept(*body, h, now(*body));
                 const btTransform& before = swept.before;
                 const btVector3 &bmin = swept.lo, &bmax = swept.hi;
                 const double body_travel = swept.travel;
@@ -151,7 +192,7 @@ public:
             }
             std::uint32_t stamp = 0;
             for (btRigidBody* body : bodies) {
-                const SweptBody swept(*body, h);
+                const SweptBody swept(*body, h, now(*body));
                 const btVector3 &bmin = swept.lo, &bmax = swept.hi;
                 const RigidId proxy = owner_.proxies_.at(body);
                 // A vertex: a sphere at the start of the step, reaching as far as both can
@@ -219,22 +260,25 @@ public:
 private:
     static constexpr double kContactMargin = 0.005;
 
+    /// Where the body is at the end of this internal step (tickPose).
+    btTransform now(const btRigidBody& body) const { return tickPose(body, owner_.step_, owner_.tick_, owner_.ticks_); }
+
     /// A body over the step: where it was at the start (Bullet has already moved it by
     /// x += h v, so step back along its velocities), the bounds of both poses, and how far
     /// any of its points can have travelled.
     struct SweptBody {
-        btTransform before;
+        btTransform now, before;
         btVector3 lo, hi;
         double travel = 0.0;
-        SweptBody(const btRigidBody& body, double h) {
-            btTransformUtil::integrateTransform(body.getWorldTransform(), -body.getLinearVelocity(),
-                                                -body.getAngularVelocity(), static_cast<btScalar>(h), before);
+        SweptBody(const btRigidBody& body, double h, const btTransform& at) : now(at) {
+            btTransformUtil::integrateTransform(now, -body.getLinearVelocity(), -body.getAngularVelocity(),
+                                                static_cast<btScalar>(h), before);
             btVector3 plo, phi;
-            body.getCollisionShape()->getAabb(body.getWorldTransform(), lo, hi);
+            body.getCollisionShape()->getAabb(now, lo, hi);
             body.getCollisionShape()->getAabb(before, plo, phi);
             lo.setMin(plo);
             hi.setMax(phi);
-            travel = static_cast<double>((body.getWorldTransform().getOrigin() - before.getOrigin()).length() +
+            travel = static_cast<double>((now.getOrigin() - before.getOrigin()).length() +
                                          body.getAngularVelocity().length() * h * body.getCollisionShape()->getAngularMotionDisc());
         }
     };
@@ -365,7 +409,7 @@ private:
         c.face = tri;
         c.weights = w;
         // The contact point and normal move with the body: from the earlier pose to now.
-        const btTransform& now = body.getWorldTransform();
+        const btTransform& now = swept.now;
         c.point = toCore(now * (swept.before.inverse() * toBullet(on_body)));
         c.normal = toCore(now.getBasis() * (swept.before.getBasis().transpose() * toBullet(normal))).normalized();
         c.body = proxy;
@@ -504,8 +548,9 @@ private:
         c.s = length > 0.0 ? std::clamp((on_axis - a).dot(axis) / (length * length), 0.0, 1.0) : 0.0;
         refineOnConvexBody(*body.getCollisionShape(), before, a, axis, normal, on_body, c.s);
         // The contact point moves with the body: from the earlier pose to the current one.
-        c.point = toCore(body.getWorldTransform() * (before.inverse() * toBullet(on_body)));
-        c.normal = toCore(body.getWorldTransform().getBasis() * (before.getBasis().transpose() * toBullet(normal))).normalized();
+        const btTransform at = now(body);
+        c.point = toCore(at * (before.inverse() * toBullet(on_body)));
+        c.normal = toCore(at.getBasis() * (before.getBasis().transpose() * toBullet(normal))).normalized();
         c.body = proxy;
         c.friction = body.getFriction();
         out.push_back(c);
@@ -712,10 +757,88 @@ bool BulletWorld::isCandidate(const btRigidBody* body) const {
     return false;
 }
 
-void BulletWorld::substep(double h) {
+// What the user gave for the next stepSimulation, spread over its internal steps: forces
+// on every step, pins followed linearly to their target at the last one; both are done
+// with at the frame's last step.
+void BulletWorld::drive(int tick, int ticks) {
+    for (auto it = forces_.begin(); it != forces_.end(); ++it) {
+        const StringId id{it->first.first};
+        if (core_->contains(id)) core_->applyForce(id, it->first.second, it->second);
+    }
+    for (auto it = pins_.begin(); it != pins_.end(); ++it) {
+        const StringId id{it->first.first};
+        Vec3 now;
+        if (!core_->contains(id) || !core_->pinTarget(id, it->first.second, &now)) continue;  // detached since
+        const double f = static_cast<double>(tick) / static_cast<double>(ticks);
+        core_->movePin(id, it->first.second, tick == ticks ? it->second.to : it->second.from + f * (it->second.to - it->second.from));
+    }
+    if (tick == ticks) {
+        forces_.clear();
+        pins_.clear();
+    }
+}
+
+// Per segment, the largest tension of any step since the user cleared it: the solved
+// tension, and for a segment that tore by tension this step the one it tore at (the Tear
+// event's engineering stress on the original section, fracture.cpp, as the solved value is
+// zeroed when it breaks).
+void BulletWorld::recordPeaks() {
+    const std::vector<StringId> live = core_->strings();
+    for (auto it = peaks_.begin(); it != peaks_.end();)
+        it = core_->contains(StringId{it->first}) ? std::next(it) : peaks_.erase(it);
+    for (const StringId id : live) {
+        const std::vector<double>& t = *core_->view(id).tension;
+        std::vector<double>& peak = peaks_[id.index];
+        peak.resize(t.size(), 0.0);
+        for (std::size_t j = 0; j < t.size(); ++j) peak[j] = std::max(peak[j], t[j]);
+    }
+    for (const Event& e : core_->events()) {
+        if (e.type != EventType::Tear || e.cause != EventCause::Tension || !core_->contains(e.string)) continue;
+        std::vector<double>& peak = peaks_[e.string.index];
+        const double r0 = core_->desc(e.string).radius;
+        if (e.segment >= 0 && static_cast<std::size_t>(e.segment) < peak.size())
+            peak[e.segment] = std::max(peak[e.segment], e.stress * kPi * r0 * r0);
+    }
+}
+
+void BulletWorld::applyForce(StringId id, int particle, const btVector3& force) {
+    if (!core_->contains(id)) throw InvalidInput("string", "no such string");
+    const int p = core_->resolveParticle(id, particle);
+    const Vec3 f = tearables::toCore(force);
+    if (!f.allFinite()) throw InvalidInput("force", "must be finite");
+    auto [it, fresh] = forces_.try_emplace({id.index, p}, Vec3::Zero());
+    it->second += f;
+}
+
+void BulletWorld::movePin(StringId id, int particle, const btVector3& point) {
+    if (!core_->contains(id)) throw InvalidInput("string", "no such string");
+    const int p = core_->resolveParticle(id, particle);
+    Vec3 now;
+    if (!core_->pinTarget(id, p, &now)) throw InvalidInput("particle", "particle " + std::to_string(particle) + " is not pinned to a world point");
+    const Vec3 to = tearables::toCore(point);
+    if (!to.allFinite()) throw InvalidInput("point", "must be finite");
+    auto [it, fresh] = pins_.try_emplace({id.index, p}, PendingPin{now, to});
+    it->second.to = to;  // a second move before the step keeps the first start
+}
+
+std::vector<double> BulletWorld::peakTension(StringId id) const {
+    if (!core_->contains(id)) throw InvalidInput("string", "no such string");
+    const auto it = peaks_.find(id.index);
+    if (it != peaks_.end()) return it->second;
+    return std::vector<double>(core_->view(id).segmentCount(), 0.0);
+}
+
+void BulletWorld::clearPeakTension(StringId id) {
+    if (!core_->contains(id)) throw InvalidInput("string", "no such string");
+    peaks_.erase(id.index);
+}
+
+void BulletWorld::substep(double h, int tick, int ticks) {
     try {
         core_->settings().gravity = toCore(world_->getGravity());
         step_ = h;
+        tick_ = tick;
+        ticks_ = ticks;
         candidates_.clear();
         if (core_->settings().rigid_contacts) findCandidates(h);
         // Bodies in: drop those that left the world, copy the others' state.
@@ -732,8 +855,9 @@ void BulletWorld::substep(double h) {
                 continue;
             }
             RigidState& s = core_->rigid(it->second);
-            s.position = toCore(body->getCenterOfMassPosition());
-            s.orientation = toCore(body->getOrientation());
+            const btTransform pose = tickPose(*body, h, tick, ticks);
+            s.position = toCore(pose.getOrigin());
+            s.orientation = toCore(pose.getRotation());
             s.linear_velocity = toCore(body->getLinearVelocity());
             s.angular_velocity = toCore(body->getAngularVelocity());
             const bool dynamic = !body->isStaticOrKinematicObject() && body->getInvMass() > 0;
@@ -742,6 +866,7 @@ void BulletWorld::substep(double h) {
             s.awake = body->isActive();
             ++it;
         }
+        drive(tick, ticks);
 
         core_->step(h);
 
@@ -762,6 +887,7 @@ void BulletWorld::substep(double h) {
         }
         const std::vector<Event>& ev = core_->events();
         events_.insert(events_.end(), ev.begin(), ev.end());
+        recordPeaks();
         total_ += core_->lastStageTimes();
     } catch (const std::exception& e) {
         last_error_ = e.what();  // never throw into Bullet's step

@@ -10,6 +10,12 @@
 //   world.stepSimulation(1.0f / 60.0f);
 //   double t = ropes.core().view(rope).tension->front();   // newtons
 //
+// Sub-steps: stepSimulation(dt, maxSubSteps, fixedTimeStep) takes n internal steps. As with
+// Bullet's own bodies, applyForce() acts on every one of them (then is cleared), movePin()
+// is reached at the end of the last one (followed linearly), a kinematic body a string is
+// glued to moves by its velocity on each, and peakTension()/events() keep what every
+// internal step saw until the user clears them.
+//
 // Lifetime: destroying the BulletWorld detaches it from Bullet; destroying the Bullet
 // world first is safe too (the plugin notices and never touches it again). A body that
 // strings are glued to may be removed from the Bullet world at any time: at the next
@@ -90,6 +96,23 @@ public:
     /// to its centre of mass); the body must be in this Bullet world. Two-way.
     void attachPaper(PaperId id, std::uint32_t vertex, btRigidBody& body, const btVector3& local_point);
 
+    /// Adds a force (N) on a particle for every internal step of the next stepSimulation
+    /// that steps, then clears it, as btRigidBody::applyCentralForce and clearForces do: a
+    /// force given once a frame gives the impulse F dt_frame whatever the sub-step count.
+    /// (A stepSimulation that takes no internal step keeps it for the next.) Throws
+    /// InvalidInput ("string", "particle", "force") and changes nothing on bad input.
+    void applyForce(StringId id, int particle, const btVector3& force);
+    /// Moves a particle's world pin to `point`, reached at the end of the next stepSimulation
+    /// and followed linearly over its internal steps. Throws InvalidInput ("string",
+    /// "particle": not pinned to a world point, "point") and changes nothing on bad input.
+    void movePin(StringId id, int particle, const btVector3& point);
+    /// Per segment, the largest tension (N) any internal step reached since the string was
+    /// added or clearPeakTension() was called, including the tension a segment tore at.
+    /// Throws InvalidInput("string") for an unknown string.
+    std::vector<double> peakTension(StringId id) const;
+    /// Starts a new peak for every segment of `id` (throws InvalidInput("string")).
+    void clearPeakTension(StringId id);
+
     /// Events since the last clearEvents(), over every internal step Bullet took.
     const std::vector<Event>& events() const;
     void clearEvents();
@@ -129,7 +152,10 @@ public:
 private:
     class Action;
     class Contacts;
-    void substep(double h);
+    /// Internal step `tick` (1-based) of the `ticks` that the current stepSimulation takes.
+    void substep(double h, int tick, int ticks);
+    void drive(int tick, int ticks);
+    void recordPeaks();
     RigidId proxyFor(btRigidBody& body);
     void findCandidates(double h);
     bool isCandidate(const btRigidBody* body) const;
@@ -149,6 +175,14 @@ private:
     StageTimes total_;
     std::string last_error_;
     double step_ = 0.0;  // the internal step Bullet is taking
+    int tick_ = 1, ticks_ = 1;  // which of how many internal steps of the current stepSimulation
+    struct PendingPin {
+        Vec3 from, to;  // m
+    };
+    // Keyed by (string slot, particle): deterministic order.
+    std::map<std::pair<std::uint32_t, int>, Vec3> forces_;     // N, until the end of the next stepSimulation
+    std::map<std::pair<std::uint32_t, int>, PendingPin> pins_;
+    std::map<std::uint32_t, std::vector<double>> peaks_;       // per string slot, per segment, N
 
     friend class Action;
 };
