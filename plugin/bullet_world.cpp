@@ -114,7 +114,25 @@ class BulletWorld::Contacts : public ContactProvider {
 public:
     explicit Contacts(BulletWorld& owner) : owner_(owner) {}
 
+    /// Proxies of the bodies some contact named this step, sorted.
+    std::vector<std::uint32_t> touched;
+
     void findContacts(const CollisionQuery& query, std::vector<RigidContact>& out) override {
+        const std::size_t first = out.size();
+        findStringContacts(query, out);
+        for (std::size_t k = first; k < out.size(); ++k) touched.push_back(out[k].body.index);
+        std::sort(touched.begin(), touched.end());
+    }
+
+    void findPointContacts(const PointQuery& query, std::vector<PointContact>& out) override {
+        const std::size_t first = out.size();
+        findMeshContacts(query, out);
+        for (std::size_t k = first; k < out.size(); ++k) touched.push_back(out[k].body.index);
+        std::sort(touched.begin(), touched.end());
+    }
+
+private:
+    void findStringContacts(const CollisionQuery& query, std::vector<RigidContact>& out) {
         const double h = owner_.step_;
         // Trees of strings that are gone (removed, frozen) are dropped.
         for (auto it = trees_.begin(); it != trees_.end();) {
@@ -153,7 +171,7 @@ public:
         }
     }
 
-    void findPointContacts(const PointQuery& query, std::vector<PointContact>& out) override {
+    void findMeshContacts(const PointQuery& query, std::vector<PointContact>& out) {
         const double h = owner_.step_;
         std::vector<RigidContact> found;
         std::vector<const std::vector<Vec3>*> seen_meshes;
@@ -173,11 +191,14 @@ public:
             const double grow = radius + kContactMargin;
             const double margin = radius + kContactMargin;
             std::vector<btRigidBody*> bodies = owner_.bodiesIn(lo.array() - grow, hi.array() + grow);
-            // Only bodies that were given a proxy before the step (findCandidates).
+            // Only bodies that were given a proxy before the step (findCandidates), and that
+            // the object's collision filter lets through.
+            const Filter filter = owner_.meshFilter(query, i);
             bodies.erase(std::remove_if(bodies.begin(), bodies.end(),
                                         [&](btRigidBody* b) {
                                             return !std::binary_search(owner_.mesh_candidates_.begin(),
-                                                                       owner_.mesh_candidates_.end(), b);
+                                                                       owner_.mesh_candidates_.end(), b) ||
+                                                   !filter.passes(*b);
                                         }),
                          bodies.end());
             if (bodies.empty()) continue;
@@ -257,7 +278,6 @@ public:
             it = std::binary_search(seen_meshes.begin(), seen_meshes.end(), it->first) ? std::next(it) : triangle_trees_.erase(it);
     }
 
-private:
     static constexpr double kContactMargin = 0.005;
 
     /// Where the body is at the end of this internal step (tickPose).
@@ -587,6 +607,10 @@ void BulletWorld::findCandidates(double h) {
         const double reach = std::sqrt(reach2);
         const double grow = v.radius * 2.0 + reach * h + 0.5 * 9.81 * h * h + 0.01;
         std::vector<btRigidBody*> found = bodiesIn(lo.array() - grow, hi.array() + grow);
+        const auto filter = string_filters_.find(id.index);
+        if (filter != string_filters_.end())
+            found.erase(std::remove_if(found.begin(), found.end(), [&](const btRigidBody* b) { return !filter->second.passes(*b); }),
+                        found.end());
         if (found.empty()) continue;
         for (btRigidBody* body : found) proxyFor(*body);
         candidates_[id.index] = std::move(found);
@@ -635,8 +659,46 @@ BulletWorld::~BulletWorld() {
 bool BulletWorld::attachedToBullet() const { return action_->inWorld(); }
 World& BulletWorld::core() { return *core_; }
 const World& BulletWorld::core() const { return *core_; }
-StringId BulletWorld::addString(const StringDesc& desc) { return core_->addString(desc); }
-void BulletWorld::removeString(StringId id) { core_->removeString(id); }
+StringId BulletWorld::addString(const StringDesc& desc) {
+    const StringId id = core_->addString(desc);
+    string_filters_.erase(id.index);
+    return id;
+}
+StringId BulletWorld::addString(const StringDesc& desc, int group, int mask) {
+    const StringId id = core_->addString(desc);
+    string_filters_[id.index] = Filter{group, mask};
+    return id;
+}
+void BulletWorld::removeString(StringId id) {
+    core_->removeString(id);
+    string_filters_.erase(id.index);
+}
+
+// Bullet's rule (btOverlappingPairCache's needsBroadphaseCollision), both ways.
+bool BulletWorld::Filter::passes(const btRigidBody& body) const {
+    const btBroadphaseProxy* proxy = body.getBroadphaseHandle();
+    if (!proxy) return false;
+    return (group & proxy->m_collisionFilterMask) != 0 && (proxy->m_collisionFilterGroup & mask) != 0;
+}
+
+// A sheet's query object is its vertex array (PaperView::positions); a cloth's query lists
+// the live cloths in slot order (ClothSystem::collideBodies).
+BulletWorld::Filter BulletWorld::meshFilter(const PointQuery& query, std::size_t i) const {
+    if (cloth_filters_.empty() && paper_filters_.empty()) return Filter{};
+    for (const PaperId id : core_->papers()) {
+        if (core_->viewPaper(id).positions != query.start[i]) continue;
+        const auto it = paper_filters_.find(id.index);
+        return it == paper_filters_.end() ? Filter{} : it->second;
+    }
+    std::size_t k = 0;
+    for (const ClothId id : core_->cloths()) {
+        if (core_->viewCloth(id).frozen) continue;
+        if (k++ != i) continue;
+        const auto it = cloth_filters_.find(id.index);
+        return it == cloth_filters_.end() ? Filter{} : it->second;
+    }
+    return Filter{};
+}
 const std::vector<Event>& BulletWorld::events() const { return events_; }
 void BulletWorld::clearEvents() { events_.clear(); }
 const StageTimes& BulletWorld::totalStageTimes() const { return total_; }
@@ -715,8 +777,20 @@ void BulletWorld::attach(StringId id, int particle, btRigidBody& body, const btV
 
 void BulletWorld::detach(StringId id, int particle) { core_->detach(id, particle); }
 
-ClothId BulletWorld::addCloth(const ClothDesc& desc) { return core_->addCloth(desc); }
-void BulletWorld::removeCloth(ClothId id) { core_->removeCloth(id); }
+ClothId BulletWorld::addCloth(const ClothDesc& desc) {
+    const ClothId id = core_->addCloth(desc);
+    cloth_filters_.erase(id.index);
+    return id;
+}
+ClothId BulletWorld::addCloth(const ClothDesc& desc, int group, int mask) {
+    const ClothId id = core_->addCloth(desc);
+    cloth_filters_[id.index] = Filter{group, mask};
+    return id;
+}
+void BulletWorld::removeCloth(ClothId id) {
+    core_->removeCloth(id);
+    cloth_filters_.erase(id.index);
+}
 
 void BulletWorld::attachCloth(ClothId id, int vertex, const btVector3& world_point) {
     core_->attachClothToPoint(id, vertex, toCore(world_point));
@@ -730,7 +804,16 @@ void BulletWorld::attachCloth(ClothId id, int vertex, btRigidBody& body, const b
     core_->attachClothToRigid(id, vertex, proxyFor(body), toCore(local_point));
 }
 
-PaperId BulletWorld::addPaper(const PaperDesc& desc) { return core_->addPaper(desc); }
+PaperId BulletWorld::addPaper(const PaperDesc& desc) {
+    const PaperId id = core_->addPaper(desc);
+    paper_filters_.erase(id.index);
+    return id;
+}
+PaperId BulletWorld::addPaper(const PaperDesc& desc, int group, int mask) {
+    const PaperId id = core_->addPaper(desc);
+    paper_filters_[id.index] = Filter{group, mask};
+    return id;
+}
 
 void BulletWorld::attachPaper(PaperId id, std::uint32_t vertex, const btVector3& world_point) {
     core_->attachPaperToPoint(id, vertex, toCore(world_point));
@@ -755,6 +838,28 @@ bool BulletWorld::isCandidate(const btRigidBody* body) const {
     for (const auto& [string, bodies] : candidates_)
         if (std::find(bodies.begin(), bodies.end(), body) != bodies.end()) return true;
     return false;
+}
+
+// Bodies out: the corrections as new poses and velocities. A body is woken (kept awake)
+// only when a string, sheet or cloth holds it, pushed it (an impulse this step), or, asleep
+// and so immovable this step, touched it: one that is merely near is left to Bullet's
+// sleeping (btRigidBody::updateDeactivation), as Bullet's own contacts do.
+void BulletWorld::writeBodies() {
+    for (const auto& [key, id] : proxies_) {
+        btRigidBody* body = const_cast<btRigidBody*>(key);
+        const RigidState& s = core_->rigid(id);
+        if (s.inverse_mass <= 0.0) continue;
+        const bool holds = core_->rigidInUse(id);
+        if (!s.awake) {
+            if (holds || std::binary_search(contacts_->touched.begin(), contacts_->touched.end(), id.index)) body->activate();
+            continue;
+        }
+        body->setLinearVelocity(tearables::toBullet(s.linear_velocity));
+        body->setAngularVelocity(tearables::toBullet(s.angular_velocity));
+        btTransform xf(toBullet(s.orientation), tearables::toBullet(s.position));
+        body->setCenterOfMassTransform(xf);
+        if (holds || s.impulse.squaredNorm() > 0.0) body->activate();  // its strings' tension stays true
+    }
 }
 
 // What the user gave for the next stepSimulation, spread over its internal steps: forces
@@ -867,24 +972,11 @@ void BulletWorld::substep(double h, int tick, int ticks) {
             ++it;
         }
         drive(tick, ticks);
+        contacts_->touched.clear();
 
         core_->step(h);
 
-        // Bodies out: the strings' corrections as new poses and velocities.
-        for (const auto& [key, id] : proxies_) {
-            btRigidBody* body = const_cast<btRigidBody*>(key);
-            const RigidState& s = core_->rigid(id);
-            if (s.inverse_mass <= 0.0) continue;
-            if (!s.awake) {  // it was immovable this step; wake it so that it hangs on its strings
-                body->activate();
-                continue;
-            }
-            body->setLinearVelocity(tearables::toBullet(s.linear_velocity));
-            body->setAngularVelocity(tearables::toBullet(s.angular_velocity));
-            btTransform xf(toBullet(s.orientation), tearables::toBullet(s.position));
-            body->setCenterOfMassTransform(xf);
-            body->activate();  // a held body stays awake so that its strings' tension stays true
-        }
+        writeBodies();
         const std::vector<Event>& ev = core_->events();
         events_.insert(events_.end(), ev.begin(), ev.end());
         recordPeaks();

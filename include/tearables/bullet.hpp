@@ -63,8 +63,14 @@ public:
     World& core();
     const World& core() const;
 
-    /// Validates and creates a string (throws InvalidInput naming the field).
+    /// Validates and creates a string (throws InvalidInput naming the field), with Bullet's
+    /// default collision filter (group btBroadphaseProxy::DefaultFilter, mask AllFilter).
     StringId addString(const StringDesc& desc);
+    /// The same with a collision filter, as btDiscreteDynamicsWorld::addSoftBody(body, group,
+    /// mask): the string touches a body only when (group & the body's mask) and (the body's
+    /// group & mask) are both non-zero (Bullet's needsCollision rule, on the body's broadphase
+    /// proxy). Bodies it is glued to hold it whatever the filter.
+    StringId addString(const StringDesc& desc, int group, int mask);
     /// Removes a string.
     void removeString(StringId id);
     /// Pins a particle (negative index counts from the end) to a world point.
@@ -78,6 +84,8 @@ public:
     /// Validates and creates a cloth (throws InvalidInput naming the field). Cloths collide
     /// with the Bullet bodies near them (spheres of the yarn radius at the vertices).
     ClothId addCloth(const ClothDesc& desc);
+    /// The same with a collision filter (as addString(desc, group, mask)).
+    ClothId addCloth(const ClothDesc& desc, int group, int mask);
     /// Removes a cloth.
     void removeCloth(ClothId id);
     /// Pins a cloth vertex (flat index j * resolution[0] + i; negative counts from the end) to a world point.
@@ -90,6 +98,8 @@ public:
     /// Validates and creates a paper sheet (throws InvalidInput naming the field). Its
     /// vertices collide with the world's rigid bodies, two ways.
     PaperId addPaper(const PaperDesc& desc);
+    /// The same with a collision filter (as addString(desc, group, mask)).
+    PaperId addPaper(const PaperDesc& desc, int group, int mask);
     /// Pins a vertex of a sheet to a world point.
     void attachPaper(PaperId id, std::uint32_t vertex, const btVector3& world_point);
     /// Glues a vertex of a sheet to a rigid body at a point in the body's frame (relative
@@ -156,6 +166,15 @@ private:
     void substep(double h, int tick, int ticks);
     void drive(int tick, int ticks);
     void recordPeaks();
+    /// Bodies out: the core's corrections written back; only bodies that a string, sheet or
+    /// cloth holds or touched are woken.
+    void writeBodies();
+    struct Filter {
+        int group = 1, mask = -1;  // btBroadphaseProxy::DefaultFilter, AllFilter
+        bool passes(const btRigidBody& body) const;
+    };
+    /// The filter of the i-th object of a mesh PointQuery (a sheet's or a cloth's).
+    Filter meshFilter(const PointQuery& query, std::size_t i) const;
     RigidId proxyFor(btRigidBody& body);
     void findCandidates(double h);
     bool isCandidate(const btRigidBody* body) const;
@@ -183,6 +202,8 @@ private:
     std::map<std::pair<std::uint32_t, int>, Vec3> forces_;     // N, until the end of the next stepSimulation
     std::map<std::pair<std::uint32_t, int>, PendingPin> pins_;
     std::map<std::uint32_t, std::vector<double>> peaks_;       // per string slot, per segment, N
+    // Collision filters other than Bullet's default, per slot.
+    std::map<std::uint32_t, Filter> string_filters_, cloth_filters_, paper_filters_;
 
     friend class Action;
 };
