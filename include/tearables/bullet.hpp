@@ -28,6 +28,9 @@
 #include "tearables/string.hpp"
 #include "tearables/world.hpp"
 
+#include "tearables/bullet_precision.hpp"
+
+#include <LinearMath/btScalar.h>
 #include <LinearMath/btVector3.h>
 
 #include <cstdint>
@@ -40,6 +43,12 @@
 class btDiscreteDynamicsWorld;
 class btIDebugDraw;
 class btRigidBody;
+
+// Bullet's single and double builds have different symbols (btCapsuleShape(float, float) or
+// (double, double)): the application must use the precision the plugin was built with.
+static_assert(sizeof(btScalar) == (TEARABLES_BULLET_DOUBLE ? sizeof(double) : sizeof(float)),
+              "tearables' Bullet plugin was built against Bullet in the other precision: define (or not) "
+              "BT_USE_DOUBLE_PRECISION as it was, or rebuild tearables with -DTEARABLES_BULLET_DOUBLE=ON/OFF");
 
 namespace tearables {
 
