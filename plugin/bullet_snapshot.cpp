@@ -81,6 +81,9 @@ void BulletWorld::loadSnapshot(std::istream& in, const std::vector<btRigidBody*>
     candidates_.clear();
     mesh_candidates_.clear();
     events_.clear();
+    forces_.clear();  // what was given for the next stepSimulation belonged to the state replaced
+    pins_.clear();
+    peaks_.clear();
 }
 
 }  // namespace tearables

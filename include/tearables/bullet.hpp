@@ -164,8 +164,9 @@ public:
     void saveSnapshot(std::ostream& out, const std::vector<const btRigidBody*>& bodies) const;
     /// Restores a snapshot written by saveSnapshot into this plugin, mapping the proxies to
     /// `bodies` by the same order (the bodies must be in this Bullet world, in the state
-    /// they had when it was written: Bullet's own state is the user's to restore). Throws
-    /// SnapshotError or InvalidInput("bodies[i]"); nothing changes then.
+    /// they had when it was written: Bullet's own state is the user's to restore). Forces and
+    /// pin moves given for the next stepSimulation, events and peak tensions are dropped.
+    /// Throws SnapshotError or InvalidInput("bodies[i]"); nothing changes then.
     void loadSnapshot(std::istream& in, const std::vector<btRigidBody*>& bodies);
 
 private:

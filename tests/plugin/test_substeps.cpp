@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <sstream>
 
 namespace {
 
@@ -200,4 +201,27 @@ TEST(BulletSubsteps, BadDrivingIsRefused) {
     ASSERT_TRUE(ropes.core().pinTarget(id, 0, &pin));
     EXPECT_EQ(pin, Vec3(0, 1, 0));
     EXPECT_NEAR(momentum(ropes, id).x(), 0.0, 1e-12);
+}
+
+// Loading a snapshot drops what was given for the next stepSimulation (it belonged to the
+// state replaced) and starts new peaks: a force given before the load moves nothing.
+TEST(BulletSubsteps, LoadingASnapshotDropsPendingDrivingAndPeaks) {
+    Physics phys(0.0);
+    BulletWorld ropes(*phys.world);
+    const StringId id = ropes.addString(rope({0, 1, 0}, {1, 1, 0}, 10));
+    ropes.attach(id, 0, btVector3(0, 1, 0));
+    std::stringstream saved;
+    ropes.saveSnapshot(saved, {});
+    ropes.applyForce(id, -1, btVector3(0, 0, 5));
+    phys.world->stepSimulation(btScalar(1) / 60, 10, btScalar(1) / 240);
+    ASSERT_GT(ropes.peakTension(id).front(), 0.0);
+    ropes.applyForce(id, -1, btVector3(0, 0, 5));
+    ropes.movePin(id, 0, btVector3(0, 2, 0));
+    ropes.loadSnapshot(saved, {});
+    for (double t : ropes.peakTension(id)) EXPECT_EQ(t, 0.0);
+    phys.world->stepSimulation(btScalar(1) / 60, 10, btScalar(1) / 240);
+    EXPECT_EQ(momentum(ropes, id), Vec3::Zero());
+    Vec3 pin;
+    ASSERT_TRUE(ropes.core().pinTarget(id, 0, &pin));
+    EXPECT_EQ(pin, Vec3(0, 1, 0));
 }
