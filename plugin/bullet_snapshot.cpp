@@ -83,6 +83,8 @@ void BulletWorld::loadSnapshot(std::istream& in, const std::vector<btRigidBody*>
     events_.clear();
     forces_.clear();  // what was given for the next stepSimulation belonged to the state replaced
     pins_.clear();
+    cloth_forces_.clear();
+    paper_forces_.clear();
     peaks_.clear();
 }
 

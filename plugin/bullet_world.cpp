@@ -870,6 +870,10 @@ void BulletWorld::drive(int tick, int ticks) {
         const StringId id{it->first.first};
         if (core_->contains(id)) core_->applyForce(id, it->first.second, it->second);
     }
+    for (const auto& [key, force] : cloth_forces_)
+        if (core_->contains(ClothId{key.first})) core_->applyClothForce(ClothId{key.first}, key.second, force);
+    for (const auto& [key, force] : paper_forces_)
+        if (core_->contains(PaperId{key.first})) core_->applyPaperForce(PaperId{key.first}, key.second, force);
     for (auto it = pins_.begin(); it != pins_.end(); ++it) {
         const StringId id{it->first.first};
         Vec3 now;
@@ -879,6 +883,8 @@ void BulletWorld::drive(int tick, int ticks) {
     }
     if (tick == ticks) {
         forces_.clear();
+        cloth_forces_.clear();
+        paper_forces_.clear();
         pins_.clear();
     }
 }
@@ -912,6 +918,23 @@ void BulletWorld::applyForce(StringId id, int particle, const btVector3& force) 
     const Vec3 f = tearables::toCore(force);
     if (!f.allFinite()) throw InvalidInput("force", "must be finite");
     auto [it, fresh] = forces_.try_emplace({id.index, p}, Vec3::Zero());
+    it->second += f;
+}
+
+// The core checks the object and the vertex (a zero force changes nothing).
+void BulletWorld::applyClothForce(ClothId id, int vertex, const btVector3& force) {
+    const Vec3 f = tearables::toCore(force);
+    core_->applyClothForce(id, vertex, Vec3::Zero());
+    if (!f.allFinite()) throw InvalidInput("force", "must be finite");
+    auto [it, fresh] = cloth_forces_.try_emplace({id.index, vertex}, Vec3::Zero());
+    it->second += f;
+}
+
+void BulletWorld::applyPaperForce(PaperId id, std::uint32_t vertex, const btVector3& force) {
+    const Vec3 f = tearables::toCore(force);
+    core_->applyPaperForce(id, vertex, Vec3::Zero());
+    if (!f.allFinite()) throw InvalidInput("force", "must be finite");
+    auto [it, fresh] = paper_forces_.try_emplace({id.index, vertex}, Vec3::Zero());
     it->second += f;
 }
 

@@ -121,6 +121,10 @@ public:
     /// (A stepSimulation that takes no internal step keeps it for the next.) Throws
     /// InvalidInput ("string", "particle", "force") and changes nothing on bad input.
     void applyForce(StringId id, int particle, const btVector3& force);
+    /// As applyForce, on a cloth vertex (flat index, negative counts from the end) or on a
+    /// sheet's vertex. Throws InvalidInput ("cloth"/"paper", "vertex", "force").
+    void applyClothForce(ClothId id, int vertex, const btVector3& force);
+    void applyPaperForce(PaperId id, std::uint32_t vertex, const btVector3& force);
     /// Moves a particle's world pin to `point`, reached at the end of the next stepSimulation
     /// and followed linearly over its internal steps. Throws InvalidInput ("string",
     /// "particle": not pinned to a world point, "point") and changes nothing on bad input.
@@ -210,6 +214,8 @@ private:
     };
     // Keyed by (string slot, particle): deterministic order.
     std::map<std::pair<std::uint32_t, int>, Vec3> forces_;     // N, until the end of the next stepSimulation
+    std::map<std::pair<std::uint32_t, int>, Vec3> cloth_forces_;
+    std::map<std::pair<std::uint32_t, std::uint32_t>, Vec3> paper_forces_;
     std::map<std::pair<std::uint32_t, int>, PendingPin> pins_;
     std::map<std::uint32_t, std::vector<double>> peaks_;       // per string slot, per segment, N
     // Collision filters other than Bullet's default, per slot.
