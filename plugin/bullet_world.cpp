@@ -16,6 +16,7 @@
 #include <BulletCollision/NarrowPhaseCollision/btVoronoiSimplexSolver.h>
 
 #include <algorithm>
+#include <climits>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -669,9 +670,13 @@ StringId BulletWorld::addString(const StringDesc& desc, int group, int mask) {
     string_filters_[id.index] = Filter{group, mask};
     return id;
 }
+// A removed string's slot may name the next string added: nothing of it is kept.
 void BulletWorld::removeString(StringId id) {
     core_->removeString(id);
     string_filters_.erase(id.index);
+    peaks_.erase(id.index);
+    forces_.erase(forces_.lower_bound({id.index, INT_MIN}), forces_.lower_bound({id.index + 1, INT_MIN}));
+    pins_.erase(pins_.lower_bound({id.index, INT_MIN}), pins_.lower_bound({id.index + 1, INT_MIN}));
 }
 
 // Bullet's rule (btOverlappingPairCache's needsBroadphaseCollision), both ways.
@@ -790,6 +795,7 @@ ClothId BulletWorld::addCloth(const ClothDesc& desc, int group, int mask) {
 void BulletWorld::removeCloth(ClothId id) {
     core_->removeCloth(id);
     cloth_filters_.erase(id.index);
+    cloth_forces_.erase(cloth_forces_.lower_bound({id.index, INT_MIN}), cloth_forces_.lower_bound({id.index + 1, INT_MIN}));
 }
 
 void BulletWorld::attachCloth(ClothId id, int vertex, const btVector3& world_point) {

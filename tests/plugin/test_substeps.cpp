@@ -274,3 +274,24 @@ TEST(BulletSubsteps, LoadingASnapshotDropsPendingDrivingAndPeaks) {
     ASSERT_TRUE(ropes.core().pinTarget(id, 0, &pin));
     EXPECT_EQ(pin, Vec3(0, 1, 0));
 }
+
+// A string removed before the step takes its pending force, pin move and peaks with it: the
+// next string added (in the same slot) starts clean.
+TEST(BulletSubsteps, RemovingAStringDropsWhatWasGivenForIt) {
+    Physics phys(0.0);
+    BulletWorld ropes(*phys.world);
+    const StringId first = ropes.addString(rope({0, 1, 0}, {1, 1, 0}, 10));
+    ropes.attach(first, 0, btVector3(0, 1, 0));
+    ropes.applyForce(first, -1, btVector3(0, 0, 5));
+    ropes.movePin(first, 0, btVector3(0, 2, 0));
+    ropes.removeString(first);
+    const StringId next = ropes.addString(rope({0, 1, 0}, {1, 1, 0}, 10));
+    ASSERT_EQ(next.index, first.index);  // the slot is reused
+    ropes.attach(next, 0, btVector3(0, 1, 0));
+    phys.world->stepSimulation(btScalar(1) / 60, 10, btScalar(1) / 240);
+    EXPECT_EQ(momentum(ropes, next), Vec3::Zero());
+    Vec3 pin;
+    ASSERT_TRUE(ropes.core().pinTarget(next, 0, &pin));
+    EXPECT_EQ(pin, Vec3(0, 1, 0));
+    for (double t : ropes.peakTension(next)) EXPECT_EQ(t, 0.0);
+}
