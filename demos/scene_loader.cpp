@@ -11,6 +11,7 @@
 #include <cctype>
 #include <cerrno>
 #include <climits>
+#include <cstdint>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -709,11 +710,22 @@ std::vector<Attachment> parseAttachments(const Node& list, long long particles, 
     return out;
 }
 
+/// Bullet's collision filter of a string, sheet or cloth: 32-bit group and mask, each as a
+/// signed or an unsigned number (-1 and 4294967295 are the same mask).
+template <class Object>
+void parseFilter(const Node& n, Object& object) {
+    const auto bits = [&](const char* key, int fallback) {
+        return static_cast<int>(static_cast<std::uint32_t>(n.integer(key, fallback, INT32_MIN, UINT32_MAX)));
+    };
+    object.collision_group = bits("collision_group", object.collision_group);
+    object.collision_mask = bits("collision_mask", object.collision_mask);
+}
+
 /// A string; `seed` is its material variation seed, `bodies` the bodies it may attach to.
 String parseString(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     n.checkNoUnknownFields({"name", "points", "from", "to", "segments", "radius", "density", "particle_masses",
                             "material", "csm_half_width", "twist_half_width", "tension", "tearable", "damping",
-                            "axial_damping", "bending", "attachments"});
+                            "axial_damping", "bending", "attachments", "collision_group", "collision_mask"});
     String s;
     StringDesc& d = s.desc;
     d.name = requiredName(n);
@@ -737,6 +749,7 @@ String parseString(const Node& n, std::uint64_t seed, const NameMap& bodies) {
         throw InvalidInput(e.field().empty() ? n.path() : n.path() + "." + e.field(), e.problem());
     }
     if (const auto a = n.field("attachments")) s.attachments = parseAttachments(*a, particles, bodies);
+    parseFilter(n, s);
     return s;
 }
 
@@ -789,7 +802,7 @@ ClothWeakYarn parseWeakYarn(const Node& n, const ClothDesc& d) {
 Cloth parseCloth(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     n.checkNoUnknownFields({"name", "origin", "size", "resolution", "orientation", "areal_density", "density",
                             "yarn_radius", "material", "lambda", "shear_stiffness", "bending_stiffness", "damping",
-                            "plastic_time", "tearable", "weak_yarns", "attachments"});
+                            "plastic_time", "tearable", "weak_yarns", "attachments", "collision_group", "collision_mask"});
     Cloth c;
     ClothDesc& d = c.desc;
     d.name = requiredName(n);
@@ -859,6 +872,7 @@ Cloth parseCloth(const Node& n, std::uint64_t seed, const NameMap& bodies) {
             d.pins.push_back(pin);
         }
     }
+    parseFilter(n, c);
     return c;
 }
 
@@ -907,7 +921,7 @@ Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     n.checkNoUnknownFields({"name", "origin", "size", "resolution", "orientation", "vertices", "triangles", "density",
                             "stiffness", "bending", "damping", "jacobi_iterations", "integrator", "phi", "psi",
                             "hinge_threshold", "breakable", "tearable", "rupture_stretch", "tension", "thickness", "friction",
-                            "seed", "attachments"});
+                            "seed", "attachments", "collision_group", "collision_mask"});
     Paper p;
     PaperDesc& d = p.desc;
     d.name = requiredName(n);
@@ -1011,6 +1025,7 @@ Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
             }
         }
     }
+    parseFilter(n, p);
     return p;
 }
 

@@ -372,7 +372,7 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         const String& s = scene.strings[i];
         const std::string path = "strings[" + std::to_string(i) + "]";
         try {
-            ids.push_back(ropes.addString(s.desc));
+            ids.push_back(ropes.addString(s.desc, s.collision_group, s.collision_mask));
             for (std::size_t k = 0; k < s.attachments.size(); ++k) {
                 const Attachment& a = s.attachments[k];
                 if (a.world) {
@@ -390,7 +390,7 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         const Cloth& c = scene.cloths[i];
         const std::string path = "cloths[" + std::to_string(i) + "]";
         try {
-            cloth_ids.push_back(ropes.addCloth(c.desc));
+            cloth_ids.push_back(ropes.addCloth(c.desc, c.collision_group, c.collision_mask));
             for (const ClothAttachment& a : c.attachments)
                 ropes.attachCloth(cloth_ids.back(), c.desc.vertex(a.i, a.j), *bs.by_name.at(a.body), toBullet(a.local));
         } catch (const InvalidInput& e) {
@@ -402,7 +402,7 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         const Paper& p = scene.papers[i];
         const std::string path = "papers[" + std::to_string(i) + "]";
         try {
-            paper_ids.push_back(ropes.addPaper(p.desc));
+            paper_ids.push_back(ropes.addPaper(p.desc, p.collision_group, p.collision_mask));
             for (const PaperGlue& g : p.glue) {
                 btRigidBody* body = bs.by_name.at(g.body);
                 // Default: glued where the vertex is, in the body's frame.

@@ -81,6 +81,11 @@ void BulletWorld::loadSnapshot(std::istream& in, const std::vector<btRigidBody*>
     candidates_.clear();
     mesh_candidates_.clear();
     events_.clear();
+    forces_.clear();  // what was given for the next stepSimulation belonged to the state replaced
+    pins_.clear();
+    cloth_forces_.clear();
+    paper_forces_.clear();
+    peaks_.clear();
 }
 
 }  // namespace tearables

@@ -16,6 +16,7 @@
 #include <BulletCollision/NarrowPhaseCollision/btVoronoiSimplexSolver.h>
 
 #include <algorithm>
+#include <climits>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -33,18 +34,53 @@ btQuaternion toBullet(const Quat& q) {
                         static_cast<btScalar>(q.w()));
 }
 
+constexpr double kPi = 3.14159265358979323846;
+
+// Where a body is at the end of internal step `tick` of `ticks`: Bullet moves a kinematic
+// body only once a frame, to its end pose, with the velocity that takes it there over the
+// frame (saveKinematicState); the steps between follow that velocity.
+btTransform tickPose(const btRigidBody& body, double h, int tick, int ticks) {
+    if (!body.isKinematicObject() || tick >= ticks) return body.getWorldTransform();
+    btTransform at;
+    btTransformUtil::integrateTransform(body.getWorldTransform(), -body.getLinearVelocity(), -body.getAngularVelocity(),
+                                        static_cast<btScalar>(h * (ticks - tick)), at);
+    return at;
+}
+
 }  // namespace
 
 // The per-substep callback, plus a sentinel collision object that tells us whether the
 // Bullet world still exists: ~btCollisionWorld clears the broadphase handle of every
 // object it still holds, and the sentinel's memory is ours, so reading it stays safe.
+//
+// The sentinel is also the frame clock. An action is told neither how many internal steps
+// the current stepSimulation takes nor which one it is; but a stepSimulation that steps
+// calls saveKinematicState(n h) on every kinematic body once, before its n steps
+// (btDiscreteDynamicsWorld::stepSimulation), which sets w = angle(R_interp -> R) / (n h) and
+// R_interp = R. The sentinel is a kinematic body turned by 1 rad at the first step of each
+// frame: at the next frame's first step R == R_interp again, and n = 1 rad / (|w| h). It
+// turns about its own origin, so its bounds (an empty shape's: the origin) never move.
 class BulletWorld::Action : public btActionInterface {
 public:
-    explicit Action(BulletWorld& owner) : owner_(owner), shape_() {
-        sentinel_.setCollisionShape(&shape_);
-        sentinel_.setCollisionFlags(btCollisionObject::CF_STATIC_OBJECT | btCollisionObject::CF_NO_CONTACT_RESPONSE);
+    explicit Action(BulletWorld& owner)
+        : owner_(owner), shape_(), sentinel_(btRigidBody::btRigidBodyConstructionInfo(0, nullptr, &shape_)) {
+        sentinel_.setCollisionFlags(btCollisionObject::CF_KINEMATIC_OBJECT | btCollisionObject::CF_NO_CONTACT_RESPONSE);
+        sentinel_.setActivationState(DISABLE_DEACTIVATION);
+        arm();
     }
-    void updateAction(btCollisionWorld*, btScalar time_step) override { owner_.substep(static_cast<double>(time_step)); }
+    void updateAction(btCollisionWorld*, btScalar time_step) override {
+        const double h = static_cast<double>(time_step);
+        if (sentinel_.getWorldTransform().getBasis() == sentinel_.getInterpolationWorldTransform().getBasis()) {
+            const double w = static_cast<double>(sentinel_.getAngularVelocity().length());
+            const double n = w > 0.0 && h > 0.0 ? std::round(1.0 / (w * h)) : 1.0;
+            ticks_ = n >= 1.0 && n < 1e6 ? static_cast<int>(n) : 1;
+            tick_ = 0;
+            arm();
+        }
+        ++tick_;
+        if (tick_ > ticks_) ticks_ = tick_;  // the clock was disturbed: never past the frame's end
+        owner_.substep(h, tick_, ticks_);
+    }
     void debugDraw(btIDebugDraw* drawer) override {
         if (drawer) owner_.debugDraw(*drawer);
     }
@@ -53,9 +89,15 @@ public:
     bool inWorld() const { return sentinel_.getBroadphaseHandle() != nullptr; }
 
 private:
+    void arm() {
+        sentinel_.setInterpolationWorldTransform(btTransform::getIdentity());
+        sentinel_.setWorldTransform(btTransform(btQuaternion(btVector3(1, 0, 0), 1), btVector3(0, 0, 0)));
+    }
+
     BulletWorld& owner_;
     btEmptyShape shape_;
-    btCollisionObject sentinel_;
+    btRigidBody sentinel_;
+    int tick_ = 0, ticks_ = 1;
 };
 
 /// The pattern search that sharpens a contact on a curved convex body (refineOnConvexBody):
@@ -73,8 +115,27 @@ class BulletWorld::Contacts : public ContactProvider {
 public:
     explicit Contacts(BulletWorld& owner) : owner_(owner) {}
 
+    /// Proxies of the bodies some contact named this step, sorted.
+    std::vector<std::uint32_t> touched;
+
     void findContacts(const CollisionQuery& query, std::vector<RigidContact>& out) override {
         if (!owner_.attachedToBullet()) return;  // the Bullet world is gone: no bodies to touch
+        const std::size_t first = out.size();
+        findStringContacts(query, out);
+        for (std::size_t k = first; k < out.size(); ++k) touched.push_back(out[k].body.index);
+        std::sort(touched.begin(), touched.end());
+    }
+
+    void findPointContacts(const PointQuery& query, std::vector<PointContact>& out) override {
+        if (!owner_.attachedToBullet()) return;
+        const std::size_t first = out.size();
+        findMeshContacts(query, out);
+        for (std::size_t k = first; k < out.size(); ++k) touched.push_back(out[k].body.index);
+        std::sort(touched.begin(), touched.end());
+    }
+
+private:
+    void findStringContacts(const CollisionQuery& query, std::vector<RigidContact>& out) {
         const double h = owner_.step_;
         // Trees of strings that are gone (removed, frozen) are dropped.
         for (auto it = trees_.begin(); it != trees_.end();) {
@@ -90,7 +151,7 @@ public:
             const auto& broken = *query.broken[i];
             SegmentTree& tree = treeFor(query.strings[i].index, start, pred, radius, broken);
             for (btRigidBody* body : it->second) {
-                const SweptBody swept(*body, h);
+                const SweptBody swept(*body, h, now(*body));
                 const btTransform& before = swept.before;
                 const btVector3 &bmin = swept.lo, &bmax = swept.hi;
                 const double body_travel = swept.travel;
@@ -113,8 +174,7 @@ public:
         }
     }
 
-    void findPointContacts(const PointQuery& query, std::vector<PointContact>& out) override {
-        if (!owner_.attachedToBullet()) return;
+    void findMeshContacts(const PointQuery& query, std::vector<PointContact>& out) {
         const double h = owner_.step_;
         std::vector<RigidContact> found;
         std::vector<const std::vector<Vec3>*> seen_meshes;
@@ -134,11 +194,14 @@ public:
             const double grow = radius + kContactMargin;
             const double margin = radius + kContactMargin;
             std::vector<btRigidBody*> bodies = owner_.bodiesIn(lo.array() - grow, hi.array() + grow);
-            // Only bodies that were given a proxy before the step (findCandidates).
+            // Only bodies that were given a proxy before the step (findCandidates), and that
+            // the object's collision filter lets through.
+            const Filter filter = owner_.meshFilter(query, i);
             bodies.erase(std::remove_if(bodies.begin(), bodies.end(),
                                         [&](btRigidBody* b) {
                                             return !std::binary_search(owner_.mesh_candidates_.begin(),
-                                                                       owner_.mesh_candidates_.end(), b);
+                                                                       owner_.mesh_candidates_.end(), b) ||
+                                                   !filter.passes(*b);
                                         }),
                          bodies.end());
             if (bodies.empty()) continue;
@@ -153,7 +216,7 @@ public:
             }
             std::uint32_t stamp = 0;
             for (btRigidBody* body : bodies) {
-                const SweptBody swept(*body, h);
+                const SweptBody swept(*body, h, now(*body));
                 const btVector3 &bmin = swept.lo, &bmax = swept.hi;
                 const RigidId proxy = owner_.proxies_.at(body);
                 // A vertex: a sphere at the start of the step, reaching as far as both can
@@ -218,25 +281,27 @@ public:
             it = std::binary_search(seen_meshes.begin(), seen_meshes.end(), it->first) ? std::next(it) : triangle_trees_.erase(it);
     }
 
-private:
     static constexpr double kContactMargin = 0.005;
+
+    /// Where the body is at the end of this internal step (tickPose).
+    btTransform now(const btRigidBody& body) const { return tickPose(body, owner_.step_, owner_.tick_, owner_.ticks_); }
 
     /// A body over the step: where it was at the start (Bullet has already moved it by
     /// x += h v, so step back along its velocities), the bounds of both poses, and how far
     /// any of its points can have travelled.
     struct SweptBody {
-        btTransform before;
+        btTransform now, before;
         btVector3 lo, hi;
         double travel = 0.0;
-        SweptBody(const btRigidBody& body, double h) {
-            btTransformUtil::integrateTransform(body.getWorldTransform(), -body.getLinearVelocity(),
-                                                -body.getAngularVelocity(), static_cast<btScalar>(h), before);
+        SweptBody(const btRigidBody& body, double h, const btTransform& at) : now(at) {
+            btTransformUtil::integrateTransform(now, -body.getLinearVelocity(), -body.getAngularVelocity(),
+                                                static_cast<btScalar>(h), before);
             btVector3 plo, phi;
-            body.getCollisionShape()->getAabb(body.getWorldTransform(), lo, hi);
+            body.getCollisionShape()->getAabb(now, lo, hi);
             body.getCollisionShape()->getAabb(before, plo, phi);
             lo.setMin(plo);
             hi.setMax(phi);
-            travel = static_cast<double>((body.getWorldTransform().getOrigin() - before.getOrigin()).length() +
+            travel = static_cast<double>((now.getOrigin() - before.getOrigin()).length() +
                                          body.getAngularVelocity().length() * h * body.getCollisionShape()->getAngularMotionDisc());
         }
     };
@@ -367,7 +432,7 @@ private:
         c.face = tri;
         c.weights = w;
         // The contact point and normal move with the body: from the earlier pose to now.
-        const btTransform& now = body.getWorldTransform();
+        const btTransform& now = swept.now;
         c.point = toCore(now * (swept.before.inverse() * toBullet(on_body)));
         c.normal = toCore(now.getBasis() * (swept.before.getBasis().transpose() * toBullet(normal))).normalized();
         c.body = proxy;
@@ -506,8 +571,9 @@ private:
         c.s = length > 0.0 ? std::clamp((on_axis - a).dot(axis) / (length * length), 0.0, 1.0) : 0.0;
         refineOnConvexBody(*body.getCollisionShape(), before, a, axis, normal, on_body, c.s);
         // The contact point moves with the body: from the earlier pose to the current one.
-        c.point = toCore(body.getWorldTransform() * (before.inverse() * toBullet(on_body)));
-        c.normal = toCore(body.getWorldTransform().getBasis() * (before.getBasis().transpose() * toBullet(normal))).normalized();
+        const btTransform at = now(body);
+        c.point = toCore(at * (before.inverse() * toBullet(on_body)));
+        c.normal = toCore(at.getBasis() * (before.getBasis().transpose() * toBullet(normal))).normalized();
         c.body = proxy;
         c.friction = body.getFriction();
         out.push_back(c);
@@ -544,6 +610,10 @@ void BulletWorld::findCandidates(double h) {
         const double reach = std::sqrt(reach2);
         const double grow = v.radius * 2.0 + reach * h + 0.5 * 9.81 * h * h + 0.01;
         std::vector<btRigidBody*> found = bodiesIn(lo.array() - grow, hi.array() + grow);
+        const auto filter = string_filters_.find(id.index);
+        if (filter != string_filters_.end())
+            found.erase(std::remove_if(found.begin(), found.end(), [&](const btRigidBody* b) { return !filter->second.passes(*b); }),
+                        found.end());
         if (found.empty()) continue;
         for (btRigidBody* body : found) proxyFor(*body);
         candidates_[id.index] = std::move(found);
@@ -606,8 +676,50 @@ void BulletWorld::dropBodiesIfDetached() {
     mesh_candidates_.clear();
 }
 const World& BulletWorld::core() const { return *core_; }
-StringId BulletWorld::addString(const StringDesc& desc) { return core_->addString(desc); }
-void BulletWorld::removeString(StringId id) { core_->removeString(id); }
+StringId BulletWorld::addString(const StringDesc& desc) {
+    const StringId id = core_->addString(desc);
+    string_filters_.erase(id.index);
+    return id;
+}
+StringId BulletWorld::addString(const StringDesc& desc, int group, int mask) {
+    const StringId id = core_->addString(desc);
+    string_filters_[id.index] = Filter{group, mask};
+    return id;
+}
+// A removed string's slot may name the next string added: nothing of it is kept.
+void BulletWorld::removeString(StringId id) {
+    core_->removeString(id);
+    string_filters_.erase(id.index);
+    peaks_.erase(id.index);
+    forces_.erase(forces_.lower_bound({id.index, INT_MIN}), forces_.lower_bound({id.index + 1, INT_MIN}));
+    pins_.erase(pins_.lower_bound({id.index, INT_MIN}), pins_.lower_bound({id.index + 1, INT_MIN}));
+}
+
+// Bullet's rule (btOverlappingPairCache's needsBroadphaseCollision), both ways.
+bool BulletWorld::Filter::passes(const btRigidBody& body) const {
+    const btBroadphaseProxy* proxy = body.getBroadphaseHandle();
+    if (!proxy) return false;
+    return (group & proxy->m_collisionFilterMask) != 0 && (proxy->m_collisionFilterGroup & mask) != 0;
+}
+
+// A sheet's query object is its vertex array (PaperView::positions); a cloth's query lists
+// the live cloths in slot order (ClothSystem::collideBodies).
+BulletWorld::Filter BulletWorld::meshFilter(const PointQuery& query, std::size_t i) const {
+    if (cloth_filters_.empty() && paper_filters_.empty()) return Filter{};
+    for (const PaperId id : core_->papers()) {
+        if (core_->viewPaper(id).positions != query.start[i]) continue;
+        const auto it = paper_filters_.find(id.index);
+        return it == paper_filters_.end() ? Filter{} : it->second;
+    }
+    std::size_t k = 0;
+    for (const ClothId id : core_->cloths()) {
+        if (core_->viewCloth(id).frozen) continue;
+        if (k++ != i) continue;
+        const auto it = cloth_filters_.find(id.index);
+        return it == cloth_filters_.end() ? Filter{} : it->second;
+    }
+    return Filter{};
+}
 const std::vector<Event>& BulletWorld::events() const { return events_; }
 void BulletWorld::clearEvents() { events_.clear(); }
 const StageTimes& BulletWorld::totalStageTimes() const { return total_; }
@@ -686,8 +798,21 @@ void BulletWorld::attach(StringId id, int particle, btRigidBody& body, const btV
 
 void BulletWorld::detach(StringId id, int particle) { core_->detach(id, particle); }
 
-ClothId BulletWorld::addCloth(const ClothDesc& desc) { return core_->addCloth(desc); }
-void BulletWorld::removeCloth(ClothId id) { core_->removeCloth(id); }
+ClothId BulletWorld::addCloth(const ClothDesc& desc) {
+    const ClothId id = core_->addCloth(desc);
+    cloth_filters_.erase(id.index);
+    return id;
+}
+ClothId BulletWorld::addCloth(const ClothDesc& desc, int group, int mask) {
+    const ClothId id = core_->addCloth(desc);
+    cloth_filters_[id.index] = Filter{group, mask};
+    return id;
+}
+void BulletWorld::removeCloth(ClothId id) {
+    core_->removeCloth(id);
+    cloth_filters_.erase(id.index);
+    cloth_forces_.erase(cloth_forces_.lower_bound({id.index, INT_MIN}), cloth_forces_.lower_bound({id.index + 1, INT_MIN}));
+}
 
 void BulletWorld::attachCloth(ClothId id, int vertex, const btVector3& world_point) {
     core_->attachClothToPoint(id, vertex, toCore(world_point));
@@ -701,7 +826,16 @@ void BulletWorld::attachCloth(ClothId id, int vertex, btRigidBody& body, const b
     core_->attachClothToRigid(id, vertex, proxyFor(body), toCore(local_point));
 }
 
-PaperId BulletWorld::addPaper(const PaperDesc& desc) { return core_->addPaper(desc); }
+PaperId BulletWorld::addPaper(const PaperDesc& desc) {
+    const PaperId id = core_->addPaper(desc);
+    paper_filters_.erase(id.index);
+    return id;
+}
+PaperId BulletWorld::addPaper(const PaperDesc& desc, int group, int mask) {
+    const PaperId id = core_->addPaper(desc);
+    paper_filters_[id.index] = Filter{group, mask};
+    return id;
+}
 
 void BulletWorld::attachPaper(PaperId id, std::uint32_t vertex, const btVector3& world_point) {
     core_->attachPaperToPoint(id, vertex, toCore(world_point));
@@ -728,10 +862,143 @@ bool BulletWorld::isCandidate(const btRigidBody* body) const {
     return false;
 }
 
-void BulletWorld::substep(double h) {
+// Bodies out: the corrections as new poses and velocities. A body is woken (kept awake)
+// only when a string, sheet or cloth holds it, pushed it (an impulse this step), or, asleep
+// and so immovable this step, touched it: one that is merely near is left to Bullet's
+// sleeping (btRigidBody::updateDeactivation), as Bullet's own contacts do.
+void BulletWorld::writeBodies() {
+    for (const auto& [key, id] : proxies_) {
+        btRigidBody* body = const_cast<btRigidBody*>(key);
+        const RigidState& s = core_->rigid(id);
+        if (s.inverse_mass <= 0.0) continue;
+        const bool holds = core_->rigidInUse(id);
+        if (!s.awake) {
+            if (holds || std::binary_search(contacts_->touched.begin(), contacts_->touched.end(), id.index)) body->activate();
+            continue;
+        }
+        // A string that blew up this step is frozen (with its event) but may have moved
+        // the body first: Bullet keeps the body's own finite state then.
+        const bool finite_state = s.position.allFinite() && s.orientation.coeffs().allFinite() &&
+                                  s.linear_velocity.allFinite() && s.angular_velocity.allFinite() &&
+                                  std::fabs(s.orientation.norm() - 1.0) < 1e-3;
+        if (!finite_state) continue;
+        // No faster than the particles' clamp (WorldSettings::max_speed): a body a rope
+        // flings keeps its direction and leaves at that speed.
+        const double speed = s.linear_velocity.norm(), max_speed = core_->settings().max_speed;
+        const Vec3 v = speed > max_speed ? Vec3(s.linear_velocity * (max_speed / speed)) : s.linear_velocity;
+        body->setLinearVelocity(tearables::toBullet(v));
+        body->setAngularVelocity(tearables::toBullet(s.angular_velocity));
+        btTransform xf(toBullet(s.orientation), tearables::toBullet(s.position));
+        body->setCenterOfMassTransform(xf);
+        if (holds || s.impulse.squaredNorm() > 0.0) body->activate();  // its strings' tension stays true
+    }
+}
+
+// What the user gave for the next stepSimulation, spread over its internal steps: forces
+// on every step, pins followed linearly to their target at the last one; both are done
+// with at the frame's last step.
+void BulletWorld::drive(int tick, int ticks) {
+    for (auto it = forces_.begin(); it != forces_.end(); ++it) {
+        const StringId id{it->first.first};
+        if (core_->contains(id)) core_->applyForce(id, it->first.second, it->second);
+    }
+    for (const auto& [key, force] : cloth_forces_)
+        if (core_->contains(ClothId{key.first})) core_->applyClothForce(ClothId{key.first}, key.second, force);
+    for (const auto& [key, force] : paper_forces_)
+        if (core_->contains(PaperId{key.first})) core_->applyPaperForce(PaperId{key.first}, key.second, force);
+    for (auto it = pins_.begin(); it != pins_.end(); ++it) {
+        const StringId id{it->first.first};
+        Vec3 now;
+        if (!core_->contains(id) || !core_->pinTarget(id, it->first.second, &now)) continue;  // detached since
+        const double f = static_cast<double>(tick) / static_cast<double>(ticks);
+        core_->movePin(id, it->first.second, tick == ticks ? it->second.to : it->second.from + f * (it->second.to - it->second.from));
+    }
+    if (tick == ticks) {
+        forces_.clear();
+        cloth_forces_.clear();
+        paper_forces_.clear();
+        pins_.clear();
+    }
+}
+
+// Per segment, the largest tension of any step since the user cleared it: the solved
+// tension, and for a segment that tore by tension this step the one it tore at (the Tear
+// event's engineering stress on the original section, fracture.cpp, as the solved value is
+// zeroed when it breaks).
+void BulletWorld::recordPeaks() {
+    const std::vector<StringId> live = core_->strings();
+    for (auto it = peaks_.begin(); it != peaks_.end();)
+        it = core_->contains(StringId{it->first}) ? std::next(it) : peaks_.erase(it);
+    for (const StringId id : live) {
+        const std::vector<double>& t = *core_->view(id).tension;
+        std::vector<double>& peak = peaks_[id.index];
+        peak.resize(t.size(), 0.0);
+        for (std::size_t j = 0; j < t.size(); ++j) peak[j] = std::max(peak[j], t[j]);
+    }
+    for (const Event& e : core_->events()) {
+        if (e.type != EventType::Tear || e.cause != EventCause::Tension || !core_->contains(e.string)) continue;
+        std::vector<double>& peak = peaks_[e.string.index];
+        const double r0 = core_->desc(e.string).radius;
+        if (e.segment >= 0 && static_cast<std::size_t>(e.segment) < peak.size())
+            peak[e.segment] = std::max(peak[e.segment], e.stress * kPi * r0 * r0);
+    }
+}
+
+void BulletWorld::applyForce(StringId id, int particle, const btVector3& force) {
+    if (!core_->contains(id)) throw InvalidInput("string", "no such string");
+    const int p = core_->resolveParticle(id, particle);
+    const Vec3 f = tearables::toCore(force);
+    if (!f.allFinite()) throw InvalidInput("force", "must be finite");
+    auto [it, fresh] = forces_.try_emplace({id.index, p}, Vec3::Zero());
+    it->second += f;
+}
+
+// The core checks the object and the vertex (a zero force changes nothing).
+void BulletWorld::applyClothForce(ClothId id, int vertex, const btVector3& force) {
+    const Vec3 f = tearables::toCore(force);
+    core_->applyClothForce(id, vertex, Vec3::Zero());
+    if (!f.allFinite()) throw InvalidInput("force", "must be finite");
+    auto [it, fresh] = cloth_forces_.try_emplace({id.index, vertex}, Vec3::Zero());
+    it->second += f;
+}
+
+void BulletWorld::applyPaperForce(PaperId id, std::uint32_t vertex, const btVector3& force) {
+    const Vec3 f = tearables::toCore(force);
+    core_->applyPaperForce(id, vertex, Vec3::Zero());
+    if (!f.allFinite()) throw InvalidInput("force", "must be finite");
+    auto [it, fresh] = paper_forces_.try_emplace({id.index, vertex}, Vec3::Zero());
+    it->second += f;
+}
+
+void BulletWorld::movePin(StringId id, int particle, const btVector3& point) {
+    if (!core_->contains(id)) throw InvalidInput("string", "no such string");
+    const int p = core_->resolveParticle(id, particle);
+    Vec3 now;
+    if (!core_->pinTarget(id, p, &now)) throw InvalidInput("particle", "particle " + std::to_string(particle) + " is not pinned to a world point");
+    const Vec3 to = tearables::toCore(point);
+    if (!to.allFinite()) throw InvalidInput("point", "must be finite");
+    auto [it, fresh] = pins_.try_emplace({id.index, p}, PendingPin{now, to});
+    it->second.to = to;  // a second move before the step keeps the first start
+}
+
+std::vector<double> BulletWorld::peakTension(StringId id) const {
+    if (!core_->contains(id)) throw InvalidInput("string", "no such string");
+    const auto it = peaks_.find(id.index);
+    if (it != peaks_.end()) return it->second;
+    return std::vector<double>(core_->view(id).segmentCount(), 0.0);
+}
+
+void BulletWorld::clearPeakTension(StringId id) {
+    if (!core_->contains(id)) throw InvalidInput("string", "no such string");
+    peaks_.erase(id.index);
+}
+
+void BulletWorld::substep(double h, int tick, int ticks) {
     try {
         core_->settings().gravity = toCore(world_->getGravity());
         step_ = h;
+        tick_ = tick;
+        ticks_ = ticks;
         candidates_.clear();
         if (core_->settings().rigid_contacts) findCandidates(h);
         // Bodies in: drop those that left the world, copy the others' state. Whether a body
@@ -754,8 +1021,9 @@ void BulletWorld::substep(double h) {
                 continue;
             }
             RigidState& s = core_->rigid(it->second);
-            s.position = toCore(body->getCenterOfMassPosition());
-            s.orientation = toCore(body->getOrientation());
+            const btTransform pose = tickPose(*body, h, tick, ticks);
+            s.position = toCore(pose.getOrigin());
+            s.orientation = toCore(pose.getRotation());
             s.linear_velocity = toCore(body->getLinearVelocity());
             s.angular_velocity = toCore(body->getAngularVelocity());
             const bool dynamic = !body->isStaticOrKinematicObject() && body->getInvMass() > 0;
@@ -764,36 +1032,15 @@ void BulletWorld::substep(double h) {
             s.awake = body->isActive();
             ++it;
         }
+        drive(tick, ticks);
+        contacts_->touched.clear();
 
         core_->step(h);
 
-        // Bodies out: the strings' corrections as new poses and velocities.
-        for (const auto& [key, id] : proxies_) {
-            btRigidBody* body = const_cast<btRigidBody*>(key);
-            const RigidState& s = core_->rigid(id);
-            if (s.inverse_mass <= 0.0) continue;
-            if (!s.awake) {  // it was immovable this step; wake it so that it hangs on its strings
-                body->activate();
-                continue;
-            }
-            // A string that blew up this step is frozen (with its event) but may have moved
-            // the body first: Bullet keeps the body's own finite state then.
-            const bool finite_state = s.position.allFinite() && s.orientation.coeffs().allFinite() &&
-                                      s.linear_velocity.allFinite() && s.angular_velocity.allFinite() &&
-                                      std::fabs(s.orientation.norm() - 1.0) < 1e-3;
-            if (!finite_state) continue;
-            // No faster than the particles' clamp (WorldSettings::max_speed): a body a rope
-            // flings keeps its direction and leaves at that speed.
-            const double speed = s.linear_velocity.norm(), max_speed = core_->settings().max_speed;
-            const Vec3 v = speed > max_speed ? Vec3(s.linear_velocity * (max_speed / speed)) : s.linear_velocity;
-            body->setLinearVelocity(tearables::toBullet(v));
-            body->setAngularVelocity(tearables::toBullet(s.angular_velocity));
-            btTransform xf(toBullet(s.orientation), tearables::toBullet(s.position));
-            body->setCenterOfMassTransform(xf);
-            body->activate();  // a held body stays awake so that its strings' tension stays true
-        }
+        writeBodies();
         const std::vector<Event>& ev = core_->events();
         events_.insert(events_.end(), ev.begin(), ev.end());
+        recordPeaks();
         total_ += core_->lastStageTimes();
         last_error_.clear();  // this step succeeded
     } catch (const std::exception& e) {

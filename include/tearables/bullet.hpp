@@ -10,6 +10,12 @@
 //   world.stepSimulation(1.0f / 60.0f);
 //   double t = ropes.core().view(rope).tension->front();   // newtons
 //
+// Sub-steps: stepSimulation(dt, maxSubSteps, fixedTimeStep) takes n internal steps. As with
+// Bullet's own bodies, applyForce() acts on every one of them (then is cleared), movePin()
+// is reached at the end of the last one (followed linearly), a kinematic body a string is
+// glued to moves by its velocity on each, and peakTension()/events() keep what every
+// internal step saw until the user clears them.
+//
 // Lifetime: destroying the BulletWorld detaches it from Bullet; destroying the Bullet
 // world first is safe too (the plugin notices and never touches it again). A body that
 // strings are glued to may be removed from the Bullet world at any time: at the next
@@ -22,6 +28,9 @@
 #include "tearables/string.hpp"
 #include "tearables/world.hpp"
 
+#include "tearables/bullet_precision.hpp"
+
+#include <LinearMath/btScalar.h>
 #include <LinearMath/btVector3.h>
 
 #include <cstdint>
@@ -35,6 +44,12 @@ class btCollisionObject;
 class btDiscreteDynamicsWorld;
 class btIDebugDraw;
 class btRigidBody;
+
+// Bullet's single and double builds have different symbols (btCapsuleShape(float, float) or
+// (double, double)): the application must use the precision the plugin was built with.
+static_assert(sizeof(btScalar) == (TEARABLES_BULLET_DOUBLE ? sizeof(double) : sizeof(float)),
+              "tearables' Bullet plugin was built against Bullet in the other precision: define (or not) "
+              "BT_USE_DOUBLE_PRECISION as it was, or rebuild tearables with -DTEARABLES_BULLET_DOUBLE=ON/OFF");
 
 namespace tearables {
 
@@ -60,8 +75,14 @@ public:
     World& core();
     const World& core() const;
 
-    /// Validates and creates a string (throws InvalidInput naming the field).
+    /// Validates and creates a string (throws InvalidInput naming the field), with Bullet's
+    /// default collision filter (group btBroadphaseProxy::DefaultFilter, mask AllFilter).
     StringId addString(const StringDesc& desc);
+    /// The same with a collision filter, as btDiscreteDynamicsWorld::addSoftBody(body, group,
+    /// mask): the string touches a body only when (group & the body's mask) and (the body's
+    /// group & mask) are both non-zero (Bullet's needsCollision rule, on the body's broadphase
+    /// proxy). Bodies it is glued to hold it whatever the filter.
+    StringId addString(const StringDesc& desc, int group, int mask);
     /// Removes a string.
     void removeString(StringId id);
     /// Pins a particle (negative index counts from the end) to a world point.
@@ -75,6 +96,8 @@ public:
     /// Validates and creates a cloth (throws InvalidInput naming the field). Cloths collide
     /// with the Bullet bodies near them (spheres of the yarn radius at the vertices).
     ClothId addCloth(const ClothDesc& desc);
+    /// The same with a collision filter (as addString(desc, group, mask)).
+    ClothId addCloth(const ClothDesc& desc, int group, int mask);
     /// Removes a cloth.
     void removeCloth(ClothId id);
     /// Pins a cloth vertex (flat index j * resolution[0] + i; negative counts from the end) to a world point.
@@ -87,11 +110,34 @@ public:
     /// Validates and creates a paper sheet (throws InvalidInput naming the field). Its
     /// vertices collide with the world's rigid bodies, two ways.
     PaperId addPaper(const PaperDesc& desc);
+    /// The same with a collision filter (as addString(desc, group, mask)).
+    PaperId addPaper(const PaperDesc& desc, int group, int mask);
     /// Pins a vertex of a sheet to a world point.
     void attachPaper(PaperId id, std::uint32_t vertex, const btVector3& world_point);
     /// Glues a vertex of a sheet to a rigid body at a point in the body's frame (relative
     /// to its centre of mass); the body must be in this Bullet world. Two-way.
     void attachPaper(PaperId id, std::uint32_t vertex, btRigidBody& body, const btVector3& local_point);
+
+    /// Adds a force (N) on a particle for every internal step of the next stepSimulation
+    /// that steps, then clears it, as btRigidBody::applyCentralForce and clearForces do: a
+    /// force given once a frame gives the impulse F dt_frame whatever the sub-step count.
+    /// (A stepSimulation that takes no internal step keeps it for the next.) Throws
+    /// InvalidInput ("string", "particle", "force") and changes nothing on bad input.
+    void applyForce(StringId id, int particle, const btVector3& force);
+    /// As applyForce, on a cloth vertex (flat index, negative counts from the end) or on a
+    /// sheet's vertex. Throws InvalidInput ("cloth"/"paper", "vertex", "force").
+    void applyClothForce(ClothId id, int vertex, const btVector3& force);
+    void applyPaperForce(PaperId id, std::uint32_t vertex, const btVector3& force);
+    /// Moves a particle's world pin to `point`, reached at the end of the next stepSimulation
+    /// and followed linearly over its internal steps. Throws InvalidInput ("string",
+    /// "particle": not pinned to a world point, "point") and changes nothing on bad input.
+    void movePin(StringId id, int particle, const btVector3& point);
+    /// Per segment, the largest tension (N) any internal step reached since the string was
+    /// added or clearPeakTension() was called, including the tension a segment tore at.
+    /// Throws InvalidInput("string") for an unknown string.
+    std::vector<double> peakTension(StringId id) const;
+    /// Starts a new peak for every segment of `id` (throws InvalidInput("string")).
+    void clearPeakTension(StringId id);
 
     /// Events since the last clearEvents(), over every internal step Bullet took.
     const std::vector<Event>& events() const;
@@ -126,15 +172,28 @@ public:
     void saveSnapshot(std::ostream& out, const std::vector<const btRigidBody*>& bodies) const;
     /// Restores a snapshot written by saveSnapshot into this plugin, mapping the proxies to
     /// `bodies` by the same order (the bodies must be in this Bullet world, in the state
-    /// they had when it was written: Bullet's own state is the user's to restore). Throws
-    /// SnapshotError or InvalidInput("bodies[i]"); nothing changes then.
+    /// they had when it was written: Bullet's own state is the user's to restore). Forces and
+    /// pin moves given for the next stepSimulation, events and peak tensions are dropped.
+    /// Throws SnapshotError or InvalidInput("bodies[i]"); nothing changes then.
     void loadSnapshot(std::istream& in, const std::vector<btRigidBody*>& bodies);
 
 private:
     class Action;
     class Contacts;
-    void substep(double h);
     void dropBodiesIfDetached();
+    /// Internal step `tick` (1-based) of the `ticks` that the current stepSimulation takes.
+    void substep(double h, int tick, int ticks);
+    void drive(int tick, int ticks);
+    void recordPeaks();
+    /// Bodies out: the core's corrections written back; only bodies that a string, sheet or
+    /// cloth holds or touched are woken.
+    void writeBodies();
+    struct Filter {
+        int group = 1, mask = -1;  // btBroadphaseProxy::DefaultFilter, AllFilter
+        bool passes(const btRigidBody& body) const;
+    };
+    /// The filter of the i-th object of a mesh PointQuery (a sheet's or a cloth's).
+    Filter meshFilter(const PointQuery& query, std::size_t i) const;
     RigidId proxyFor(btRigidBody& body);
     void findCandidates(double h);
     bool isCandidate(const btRigidBody* body) const;
@@ -155,6 +214,18 @@ private:
     StageTimes total_;
     std::string last_error_;
     double step_ = 0.0;  // the internal step Bullet is taking
+    int tick_ = 1, ticks_ = 1;  // which of how many internal steps of the current stepSimulation
+    struct PendingPin {
+        Vec3 from, to;  // m
+    };
+    // Keyed by (string slot, particle): deterministic order.
+    std::map<std::pair<std::uint32_t, int>, Vec3> forces_;     // N, until the end of the next stepSimulation
+    std::map<std::pair<std::uint32_t, int>, Vec3> cloth_forces_;
+    std::map<std::pair<std::uint32_t, std::uint32_t>, Vec3> paper_forces_;
+    std::map<std::pair<std::uint32_t, int>, PendingPin> pins_;
+    std::map<std::uint32_t, std::vector<double>> peaks_;       // per string slot, per segment, N
+    // Collision filters other than Bullet's default, per slot.
+    std::map<std::uint32_t, Filter> string_filters_, cloth_filters_, paper_filters_;
 
     friend class Action;
 };

@@ -60,6 +60,8 @@ struct Attachment {
 struct String {
     StringDesc desc;                      ///< name, points, material, ... (name unique, non-empty)
     std::vector<Attachment> attachments;  ///< at most one per particle
+    int collision_group = 1;              ///< Bullet's collision filter (as addSoftBody): btBroadphaseProxy::DefaultFilter
+    int collision_mask = -1;              ///< AllFilter: touches every body whose mask has its group
 };
 
 /// What holds a cloth's vertex (pins to world points are in ClothDesc::pins).
@@ -73,6 +75,8 @@ struct ClothAttachment {
 struct Cloth {
     ClothDesc desc;                          ///< name, weave, material, pins, ... (name unique among strings and cloths)
     std::vector<ClothAttachment> attachments;///< vertices glued to bodies
+    int collision_group = 1;              ///< Bullet's collision filter (as addSoftBody): btBroadphaseProxy::DefaultFilter
+    int collision_mask = -1;              ///< AllFilter: touches every body whose mask has its group
 };
 
 /// A vertex of a paper sheet glued to a body (world pins are in PaperDesc::attachments).
@@ -86,6 +90,8 @@ struct PaperGlue {
 struct Paper {
     PaperDesc desc;                    ///< name (unique among papers, non-empty), mesh, material, world pins
     std::vector<PaperGlue> glue;       ///< vertices glued to bodies
+    int collision_group = 1;              ///< Bullet's collision filter (as addSoftBody): btBroadphaseProxy::DefaultFilter
+    int collision_mask = -1;              ///< AllFilter: touches every body whose mask has its group
 };
 
 /// A scripted action.
