@@ -757,12 +757,19 @@ void shapeMatch(StringState& s, ThreadPool* pool) {
                 chainShapeMatchingGoals(s.x.data(), s.rest_shape.data(), s.csm_mass.data(), first, p, s.desc.csm_half_width,
                                         s.scratch.csm_goal.data(), s.scratch.csm_scratch, pool);
             // Particles move all the way to their goals (the paper's full step); held
-            // particles stay at their hold and only anchor their regions.
+            // particles stay at their hold and only anchor their regions. The goals keep
+            // the piece's momentum (sum m~ g = sum m~ x), so what the free particles gain
+            // a held one gives: a glued particle's share, m~ alpha (g - x) (kg m), is its
+            // body's to take (prepareStrainLimit), not lost to the clamp.
             forRanges(pool, p - first + 1, kParallelItems, [&](std::size_t k0, std::size_t k1, std::size_t) {
-                for (std::size_t q = first + k0; q < first + k1; ++q)
-                    s.scratch.csm_goal[q] = s.hold[q].kind == ParticleHold::Kind::Free
-                                                ? Vec3(alpha * (s.scratch.csm_goal[q] - s.x[q]))
-                                                : Vec3::Zero();
+                for (std::size_t q = first + k0; q < first + k1; ++q) {
+                    const Vec3 toward = alpha * (s.scratch.csm_goal[q] - s.x[q]);
+                    switch (s.hold[q].kind) {
+                        case ParticleHold::Kind::Free: s.scratch.csm_goal[q] = toward; break;
+                        case ParticleHold::Kind::Glue: s.scratch.csm_goal[q] = s.csm_mass[q] * toward; break;
+                        case ParticleHold::Kind::Pin: s.scratch.csm_goal[q] = Vec3::Zero(); break;
+                    }
+                }
             });
         }
         first = p + 1;

@@ -699,10 +699,11 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
     if (glued)
         for (std::size_t p = 0; p < n; ++p) {
             if (!s.glue_movable[p]) continue;
-            // The glued particle is part of the body now: its weight and force act on it.
+            // The glued particle is part of the body now: its weight and force act on it,
+            // and the reaction of shape matching's goals (shape_matching.cpp).
             const ParticleHold& hold = s.hold[p];
             RigidState& b = rigids.bodies[hold.body.index];
-            const Vec3 load = (s.mass[p] * ctx.gravity + s.force[p]) * (ctx.h * ctx.h);
+            const Vec3 load = (s.mass[p] * ctx.gravity + s.force[p]) * (ctx.h * ctx.h) + s.scratch.csm_goal[p];
             applyBodyImpulse(b, s.x[p] - b.position, load);
             s.x[p] = gluePoint(b, hold.point);
         }

@@ -50,7 +50,7 @@ void StringIslandMember::start(StringState& s, RigidTable& rigids, const StepCon
             s.body_nodes.back().mass = bodyMass(rigids.bodies[body.index]);
         }
         glued_index_[p] = static_cast<int>(glued_.size());
-        glued_.push_back({p, node, s.hold[p].point});
+        glued_.push_back({p, node, s.hold[p].point, s.x_prev[p] + ctx.h * s.v[p]});
     }
     const std::size_t nodes = s.body_nodes.size();
     for (const BodyNode& node : s.body_nodes) bodies_.push_back(node.body);
@@ -89,12 +89,12 @@ void StringIslandMember::assembleGlue() {
     auto jacobian = [&](const Glued& g) {
         return pointJacobian(string_->x[g.particle] - rigids_->bodies[string_->body_nodes[g.node].body.index].position);
     };
-    // The glued particle's own inertia about where it started on its body.
+    // The glued particle's own inertia, about where its own velocity takes it.
     for (const Glued& g : glued_) {
         const Mat36 j = jacobian(g);
         const double w = string_->mass[g.particle] * inv_h2;
         ns.diag[g.node] += w * j.transpose() * j;
-        ns.rhs[g.node] -= w * j.transpose() * (string_->x[g.particle] - string_->x_pred[g.particle]);
+        ns.rhs[g.node] -= w * j.transpose() * (string_->x[g.particle] - g.inertial);
     }
     // The springs of glued particles: energy of x_{j+1} - x_j, force f on j toward j + 1.
     pull_.assign(glued_.size(), Vec3::Zero());
@@ -304,8 +304,9 @@ double StringIslandMember::energy(double alpha, const std::vector<int>&, const E
     }
     double e = 0.0;
     for (std::size_t p = 0; p < n; ++p)
-        if (s.hold[p].kind == ParticleHold::Kind::Free || glued_index_[p] >= 0)
-            e += 0.5 * s.mass[p] * inv_h2 * (trial[p] - s.x_pred[p]).squaredNorm();
+        if (s.hold[p].kind == ParticleHold::Kind::Free) e += 0.5 * s.mass[p] * inv_h2 * (trial[p] - s.x_pred[p]).squaredNorm();
+    for (const Glued& g : glued_)
+        e += 0.5 * s.mass[g.particle] * inv_h2 * (trial[g.particle] - g.inertial).squaredNorm();
     const double rate_gain = s.desc.axial_damping * ctx_->inv_h;
     for (std::size_t j = 0; j < m; ++j) {
         if (s.broken[j]) continue;

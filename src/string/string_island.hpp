@@ -34,11 +34,15 @@ public:
     void finish(int iterations) override;
 
 private:
-    /// A particle glued to a movable body: its node (body_nodes) and its point in the body.
+    /// A particle glued to a movable body: its node (body_nodes), its point in the body,
+    /// and where its own velocity takes it (x_prev + h v): its inertia pulls its body there.
+    /// (The host moved the body without the particle's mass: a point it turns carries its
+    /// momentum along, and the island gives it back.)
     struct Glued {
         std::size_t particle;
         std::size_t node;
         Vec3 local;
+        Vec3 inertial;
     };
     /// Where the glued particle is with its body displaced by alpha times its node's step.
     Vec3 trialGlue(const Glued& g, double alpha) const;

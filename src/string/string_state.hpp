@@ -107,7 +107,9 @@ struct StringScratch {
     } node_scratch;
 
     // --- chain shape matching (Strings Sec. 3) ----------------------------------------------
-    std::vector<Vec3> csm_goal;           ///< per particle: goal displacement for this step's prediction
+    /// Per particle: its goal displacement for this step's prediction (free), or the
+    /// reaction its body takes, kg m (glued); zero where pinned.
+    std::vector<Vec3> csm_goal;
     CsmScratch csm_scratch;
 
     // --- twist (Strings Sec. 4) -------------------------------------------------------------
