@@ -135,7 +135,6 @@ struct SpringTerm {
 /// glued bodies and touched bodies, the material's springs and the contact penalties.
 double stepEnergy(const StringState& s, const RigidTable& rigids, const StepContext& ctx, double alpha) {
     const std::size_t n = s.particles();
-    const std::size_t m = s.segments();
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
     double e = 0.0;
     auto trial = [&](std::size_t p) -> Vec3 { return fixedRow(s, p) ? s.x[p] : Vec3(s.x[p] + alpha * s.scratch.blk_rhs[p]); };
@@ -154,24 +153,7 @@ double stepEnergy(const StringState& s, const RigidTable& rigids, const StepCont
         const Vec6 u = node.displacement + alpha * s.scratch.node_step[b];
         e += 0.5 * inv_h2 * u.dot(node.mass * u);
     }
-    const double rate_gain = s.desc.axial_damping * ctx.inv_h;
-    for (std::size_t j = 0; j < m; ++j) {
-        if (s.broken[j]) continue;
-        const double stretch = (trial(j + 1) - trial(j)).norm() - s.rest_length[j];
-        const double effective = std::max(0.0, effectiveStretch(s, j, stretch, rate_gain));
-        e += 0.5 / (s.compliance[j] * (1.0 + rate_gain)) * effective * effective;
-    }
-    for (const RigidSegmentContact& c : s.contacts) {
-        const std::size_t j = c.segment;
-        if (s.broken[j] || c.stiffness <= 0.0) continue;
-        const Vec3 xs = (1.0 - c.s) * trial(j) + c.s * trial(j + 1);
-        Vec6 extra = Vec6::Zero();
-        if (c.node >= 0) extra = alpha * s.scratch.node_step[static_cast<std::size_t>(c.node)];
-        const double g = std::min(0.0, rigidGap(s, c, xs, &extra));
-        e += 0.5 * c.stiffness * g * g;
-        if (c.friction_weight > 0.0) e += 0.5 * c.friction_weight * rigidSlip(s, c, xs, &extra).squaredNorm();
-    }
-    return e;
+    return addMaterialEnergy(s, ctx, alpha, trial, e);
 }
 
 namespace {

@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <cstddef>
 
 namespace tearables::detail {
@@ -68,6 +69,30 @@ void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx, d
 /// The energy the Newton iteration minimises at the current state moved by alpha times the
 /// step held in blk_rhs (particles) and node_step (bodies).
 double stepEnergy(const StringState& s, const RigidTable& rigids, const StepContext& ctx, double alpha);
+/// Adds to `e` the springs' energy and the rigid contacts' (penalty and friction) at trial
+/// positions trial(p), the touched bodies moved by alpha times their node_step: the part
+/// of the step's energy that stepEnergy and an island member (string_island.cpp) share.
+template <class Trial>
+double addMaterialEnergy(const StringState& s, const StepContext& ctx, double alpha, const Trial& trial, double e) {
+    const double rate_gain = s.desc.axial_damping * ctx.inv_h;
+    for (std::size_t j = 0; j < s.segments(); ++j) {
+        if (s.broken[j]) continue;
+        const double stretch = (trial(j + 1) - trial(j)).norm() - s.rest_length[j];
+        const double effective = std::max(0.0, stretch + rate_gain * (stretch - s.prev_stretch[j]));
+        e += 0.5 / (s.compliance[j] * (1.0 + rate_gain)) * effective * effective;
+    }
+    for (const RigidSegmentContact& c : s.contacts) {
+        const std::size_t j = c.segment;
+        if (s.broken[j] || c.stiffness <= 0.0) continue;
+        const Vec3 xs = (1.0 - c.s) * trial(j) + c.s * trial(j + 1);
+        Vec6 extra = Vec6::Zero();
+        if (c.node >= 0) extra = alpha * s.scratch.node_step[static_cast<std::size_t>(c.node)];
+        const double g = std::min(0.0, rigidGap(s, c, xs, &extra));
+        e += 0.5 * c.stiffness * g * g;
+        if (c.friction_weight > 0.0) e += 0.5 * c.friction_weight * rigidSlip(s, c, xs, &extra).squaredNorm();
+    }
+    return e;
+}
 /// After a solve: glued particles back on their bodies, the springs' forces in the final
 /// state and the row projectors of the particles that rigid bodies press.
 void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ctx);

@@ -290,7 +290,6 @@ Vec3 StringIslandMember::trialGlue(const Glued& g, double alpha) const {
 double StringIslandMember::energy(double alpha, const std::vector<int>&, const Eigen::VectorXd&) const {
     const StringState& s = *string_;
     const std::size_t n = s.particles();
-    const std::size_t m = s.segments();
     const double inv_h2 = ctx_->inv_h * ctx_->inv_h;
     // The trial positions: free particles along their step, glued ones on their bodies.
     std::vector<Vec3>& trial = trial_;
@@ -307,24 +306,7 @@ double StringIslandMember::energy(double alpha, const std::vector<int>&, const E
         if (s.hold[p].kind == ParticleHold::Kind::Free) e += 0.5 * s.mass[p] * inv_h2 * (trial[p] - s.x_pred[p]).squaredNorm();
     for (const Glued& g : glued_)
         e += 0.5 * s.mass[g.particle] * inv_h2 * (trial[g.particle] - g.inertial).squaredNorm();
-    const double rate_gain = s.desc.axial_damping * ctx_->inv_h;
-    for (std::size_t j = 0; j < m; ++j) {
-        if (s.broken[j]) continue;
-        const double stretch = (trial[j + 1] - trial[j]).norm() - s.rest_length[j];
-        const double effective = std::max(0.0, stretch + rate_gain * (stretch - s.prev_stretch[j]));
-        e += 0.5 / (s.compliance[j] * (1.0 + rate_gain)) * effective * effective;
-    }
-    for (const RigidSegmentContact& c : s.contacts) {
-        const std::size_t j = c.segment;
-        if (s.broken[j] || c.stiffness <= 0.0) continue;
-        const Vec3 xs = (1.0 - c.s) * trial[j] + c.s * trial[j + 1];
-        Vec6 extra = Vec6::Zero();
-        if (c.node >= 0) extra = alpha * s.scratch.node_step[static_cast<std::size_t>(c.node)];
-        const double g = std::min(0.0, rigidGap(s, c, xs, &extra));
-        e += 0.5 * c.stiffness * g * g;
-        if (c.friction_weight > 0.0) e += 0.5 * c.friction_weight * rigidSlip(s, c, xs, &extra).squaredNorm();
-    }
-    return e;
+    return addMaterialEnergy(s, *ctx_, alpha, [&trial](std::size_t p) -> const Vec3& { return trial[p]; }, e);
 }
 
 double StringIslandMember::apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) {

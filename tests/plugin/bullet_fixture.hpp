@@ -1,6 +1,8 @@
 // A Bullet world as a user would make it, for the plugin tests.
 #pragma once
 
+#include "tearables/string.hpp"
+
 #include <btBulletDynamicsCommon.h>
 
 #include <memory>
@@ -50,6 +52,16 @@ struct Physics {
 };
 
 /// Kinetic energy of a body (translation and rotation), J.
+/// A straight rope for tests about holding and coupling: no material scatter, untearable,
+/// no bending.
+inline StringDesc plainRope(const Vec3& from, const Vec3& to, int segments) {
+    StringDesc d = StringDesc::straight(from, to, segments);
+    d.material.variation = 0.0;
+    d.tearable = false;
+    d.bending = 0.0;
+    return d;
+}
+
 inline double kineticEnergy(const btRigidBody& body) {
     const double mass = body.getInvMass() > 0 ? 1.0 / static_cast<double>(body.getInvMass()) : 0.0;
     double e = 0.5 * mass * static_cast<double>(body.getLinearVelocity().length2());

@@ -22,13 +22,7 @@ using tearables::testing::Physics;
 constexpr double kG = 9.81;
 constexpr double kPi = 3.14159265358979323846;
 
-StringDesc rope(const Vec3& from, const Vec3& to, int segments) {
-    StringDesc d = StringDesc::straight(from, to, segments);
-    d.material.variation = 0.0;
-    d.tearable = false;
-    d.bending = 0.0;
-    return d;
-}
+StringDesc rope(const Vec3& from, const Vec3& to, int segments) { return tearables::testing::plainRope(from, to, segments); }
 
 double ropeMass(const StringDesc& d, double length) { return d.density * kPi * d.radius * d.radius * length; }
 

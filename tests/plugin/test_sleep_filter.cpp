@@ -21,13 +21,7 @@ using tearables::testing::Physics;
 
 constexpr double kG = 9.81;
 
-StringDesc rope(const Vec3& from, const Vec3& to, int segments) {
-    StringDesc d = StringDesc::straight(from, to, segments);
-    d.material.variation = 0.0;
-    d.tearable = false;
-    d.bending = 0.0;
-    return d;
-}
+StringDesc rope(const Vec3& from, const Vec3& to, int segments) { return tearables::testing::plainRope(from, to, segments); }
 
 void frames(Physics& phys, int n) {
     for (int i = 0; i < n; ++i) phys.world->stepSimulation(btScalar(1) / 60, 10, btScalar(1) / 240);
