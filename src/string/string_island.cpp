@@ -4,9 +4,10 @@
 // a particle couples its other end to the body (cross block -H J, body block J^T H J,
 // gradient J^T f), and the particle's own mass joins its body (m J^T J / h^2). With the
 // contacts' rows (contact_rows.cpp), the chain's block tridiagonal A is factorised and
-// the string condenses onto its bodies: D - C^T A^-1 C (strain_limit.cpp, condenseNodes).
-// The rotation's second-order term in x_p is left out of the Hessian; the island's line
-// search takes the exact energy, with glued particles at their bodies' rotated poses.
+// the string condenses onto its bodies: D - C^T A^-1 C (condenseRows, or condenseNodes in
+// strain_limit.cpp). The rotation's second-order term in x_p enters the Hessian by its
+// positive part (addTurningStiffness); the island's line search takes the exact energy,
+// with glued particles at their bodies' rotated poses.
 #include "string/string_island.hpp"
 
 #include "string/strain_limit_internal.hpp"
