@@ -127,7 +127,7 @@ double IslandSolver::energy(const Island& island, double alpha) {
     }
     // Each member's energy on its own thread; summed in member order (the same bits on
     // any number of threads).
-    forMembers(island, [&](std::size_t k) { member_value_[k] = island.members[k]->energy(alpha, island.slots[k], du_); });
+    forMembers(island, [&](std::size_t k) { member_value_[k] = island.members[k]->energy(alpha); });
     for (std::size_t k = 0; k < island.members.size(); ++k) e += member_value_[k];
     return e;
 }

@@ -48,8 +48,8 @@ public:
     /// Marks the contacts the full step would run into; true where it added any (the
     /// system is then condensed again).
     virtual bool addPredictedContacts() = 0;
-    /// E_member at alpha times the step, the bodies moved by alpha du.
-    virtual double energy(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& du) const = 0;
+    /// E_member at alpha times the step (its own, and its bodies' from backSubstitute).
+    virtual double energy(double alpha) const = 0;
     /// Takes alpha times the step; the island has moved the bodies already, to
     /// `displacement` from where the solve started. Returns the largest move over the
     /// member's tolerance (below 1: converged).

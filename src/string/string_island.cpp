@@ -53,6 +53,11 @@ void StringIslandMember::start(StringState& s, RigidTable& rigids, const StepCon
         glued_index_[p] = static_cast<int>(glued_.size());
         glued_.push_back({p, node, s.hold[p].point, s.x_prev[p] + ctx.h * s.v[p]});
     }
+    // The segments of glued particles, in order, each once.
+    glue_segments_.clear();
+    for (const Glued& g : glued_)
+        for (std::size_t seg : {g.particle - 1, g.particle})
+            if (seg < s.segments() && (glue_segments_.empty() || glue_segments_.back() < seg)) glue_segments_.push_back(seg);
     const std::size_t nodes = s.body_nodes.size();
     for (const BodyNode& node : s.body_nodes) bodies_.push_back(node.body);
     s.scratch.node_step.assign(nodes, Vec6::Zero());
@@ -99,10 +104,8 @@ void StringIslandMember::assembleGlue() {
     }
     // The springs of glued particles: energy of x_{j+1} - x_j, force f on j toward j + 1.
     pull_.assign(glued_.size(), Vec3::Zero());
-    const std::size_t m = string_->segments();
-    for (std::size_t seg = 0; seg < m; ++seg) {
+    for (std::size_t seg : glue_segments_) {
         const int ga = glued_index_[seg], gb = glued_index_[seg + 1];
-        if (ga < 0 && gb < 0) continue;
         Mat3 hess;
         Vec3 force;
         if (!springRow(*string_, *ctx_, seg, hess, force)) continue;
@@ -288,7 +291,7 @@ Vec3 StringIslandMember::trialGlue(const Glued& g, double alpha) const {
     return body.position + step.head<3>() + q * g.local;
 }
 
-double StringIslandMember::energy(double alpha, const std::vector<int>&, const Eigen::VectorXd&) const {
+double StringIslandMember::energy(double alpha) const {
     const StringState& s = *string_;
     const std::size_t n = s.particles();
     const double inv_h2 = ctx_->inv_h * ctx_->inv_h;

@@ -27,7 +27,7 @@ public:
     void addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const override;
     void backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) override;
     bool addPredictedContacts() override;
-    double energy(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& du) const override;
+    double energy(double alpha) const override;
     double apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) override;
     bool frictional() const override;
     double reweigh() override;
@@ -58,6 +58,7 @@ private:
     std::vector<Glued> glued_;
     std::vector<std::uint8_t> is_glued_;        ///< per particle
     std::vector<int> glued_index_;              ///< per particle: index into glued_, or -1
+    std::vector<std::size_t> glue_segments_;    ///< the segments of glued particles, ascending
     std::size_t contact_nodes_ = 0;             ///< body_nodes from contacts (the rest from glue)
     /// Node-node blocks (both glued ends of one segment): (a, b, block of a's rows, b's columns).
     struct Cross {
