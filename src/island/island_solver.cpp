@@ -11,6 +11,7 @@
 #include "island/island_solver.hpp"
 
 #include "base/thread_pool.hpp"
+#include "base/union_find.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -32,14 +33,6 @@ constexpr int kLineSearchHalvings = 30;
 /// solved again.
 constexpr int kPredictRounds = 3;
 
-int find(std::vector<int>& parent, int i) {
-    while (parent[static_cast<std::size_t>(i)] != i) {
-        parent[static_cast<std::size_t>(i)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(i)])];
-        i = parent[static_cast<std::size_t>(i)];
-    }
-    return i;
-}
-
 }  // namespace
 
 void IslandSolver::solve(const std::vector<IslandMember*>& members, RigidTable& rigids, const StepContext& ctx) {
@@ -53,13 +46,13 @@ void IslandSolver::solve(const std::vector<IslandMember*>& members, RigidTable& 
 void IslandSolver::group(const std::vector<IslandMember*>& members, const RigidTable& rigids) {
     const std::size_t table = rigids.bodies.size();
     parent_.resize(table);
-    std::iota(parent_.begin(), parent_.end(), 0);
+    std::iota(parent_.begin(), parent_.end(), 0u);
     for (const IslandMember* m : members) {
         const std::vector<RigidId>& bodies = m->bodies();
         for (std::size_t k = 1; k < bodies.size(); ++k) {
-            const int a = find(parent_, static_cast<int>(bodies[0].index));
-            const int b = find(parent_, static_cast<int>(bodies[k].index));
-            if (a != b) parent_[static_cast<std::size_t>(std::max(a, b))] = std::min(a, b);
+            const std::uint32_t a = unionRoot(parent_, bodies[0].index);
+            const std::uint32_t b = unionRoot(parent_, bodies[k].index);
+            if (a != b) parent_[std::max(a, b)] = std::min(a, b);
         }
     }
     used_ = 0;
@@ -68,7 +61,7 @@ void IslandSolver::group(const std::vector<IslandMember*>& members, const RigidT
     for (IslandMember* m : members) {
         const std::vector<RigidId>& bodies = m->bodies();
         if (bodies.empty()) continue;
-        const std::size_t root = static_cast<std::size_t>(find(parent_, static_cast<int>(bodies[0].index)));
+        const std::uint32_t root = unionRoot(parent_, bodies[0].index);
         if (island_of_[root] < 0) {
             island_of_[root] = static_cast<int>(used_);
             if (islands_.size() == used_) islands_.emplace_back();

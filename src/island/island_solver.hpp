@@ -45,7 +45,7 @@ private:
     std::vector<Island> islands_;  ///< kept from step to step: a step does not allocate
     std::size_t used_ = 0;         ///< of which this step's
     std::vector<IslandSummary> reports_;
-    std::vector<int> parent_;     ///< union-find over body slots of the table
+    std::vector<std::uint32_t> parent_;  ///< union-find over body slots of the table
     std::vector<int> island_of_;  ///< per table body: island index, or -1
     std::vector<int> slot_of_;    ///< per table body: its slot in its island, or -1
     std::vector<int> hint_count_;  ///< per body: held points giving the warm start

@@ -12,6 +12,7 @@
 // runs after the tension stage.
 #include "string/string_pairs.hpp"
 
+#include "base/union_find.hpp"
 #include "collision/capsule.hpp"
 
 #include <algorithm>
@@ -422,10 +423,7 @@ std::size_t StringPairs::groupClusters() {
     std::vector<StringState>& strings = *strings_;
     cluster_root_.resize(strings.size());
     for (std::size_t i = 0; i < strings.size(); ++i) cluster_root_[i] = static_cast<std::uint32_t>(i);
-    auto root = [&](std::uint32_t i) {
-        while (cluster_root_[i] != i) i = cluster_root_[i] = cluster_root_[cluster_root_[i]];
-        return i;
-    };
+    auto root = [&](std::uint32_t i) { return unionRoot(cluster_root_, i); };
     for (const StringPairContact& c : string_pairs_) cluster_root_[root(c.string)] = root(c.partner);
     // The pairs grouped by cluster (clusters in the order of their root slot, pairs in
     // their order within each: a counting sort by root), each cluster's strings in the
