@@ -1047,7 +1047,7 @@ struct DriverKind {
 const std::vector<DriverKind>& driverKinds() {
     static const std::vector<DriverKind> kinds = {
         {"force", Driver::Type::Force, {"type", "target", "particle", "vertex", "value", "from", "until"}},
-        {"ramp", Driver::Type::Ramp, {"type", "target", "particle", "vertex", "value", "rate", "from"}},
+        {"ramp", Driver::Type::Ramp, {"type", "target", "particle", "vertex", "value", "rate", "from", "until"}},
         {"twist", Driver::Type::Twist, {"type", "target", "end", "rate", "from", "until"}},
         {"move", Driver::Type::Move, {"type", "target", "particle", "vertex", "velocity", "from", "until"}},
         {"release", Driver::Type::Release, {"type", "target", "particle", "vertex", "at"}},

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -66,7 +67,7 @@ TEST(SceneLoader, FullSceneParsesEveryField) {
       "papers": [], "cloths": [],
       "drivers": [
         {"type": "force", "target": "rope", "particle": -1, "value": [0, -20, 0], "from": 0, "until": 2},
-        {"type": "ramp", "target": "rope", "particle": 2, "value": [0, -3, 4], "rate": 5, "from": 1},
+        {"type": "ramp", "target": "rope", "particle": 2, "value": [0, -3, 4], "rate": 5, "from": 1, "until": 3.5},
         {"type": "twist", "target": "thread", "end": 0, "rate": 6.28, "from": 0.5, "until": 3},
         {"type": "move", "target": "rope", "velocity": [0.1, 0, 0], "from": 0, "until": 1},
         {"type": "release", "target": "rope", "particle": 0, "at": 2.5},
@@ -171,6 +172,7 @@ TEST(SceneLoader, FullSceneParsesEveryField) {
     EXPECT_TRUE(ramp.value.isApprox(Vec3(0, -0.6, 0.8)));  // normalised
     EXPECT_DOUBLE_EQ(ramp.rate, 5.0);
     EXPECT_DOUBLE_EQ(ramp.from, 1.0);
+    EXPECT_DOUBLE_EQ(ramp.until, 3.5);
     const Driver& twist = s.drivers[2];
     EXPECT_EQ(twist.type, Driver::Type::Twist);
     EXPECT_EQ(twist.target, "thread");
@@ -635,8 +637,10 @@ const ErrorCase kErrorCases[] = {
      "drivers[0].particle", "particle index out of range"},
     {"DriverParticleFraction", driverScene(R"({"type": "release", "target": "rope", "particle": 1.5})"),
      "drivers[0].particle", "whole number"},
-    {"DriverFieldOfAnotherType", driverScene(R"({"type": "ramp", "target": "rope", "value": [0, 1, 0], "rate": 1, "until": 2})"),
-     "drivers[0].until", "unknown field (allowed: type, target, particle, vertex, value, rate, from)"},
+    {"DriverFieldOfAnotherType", driverScene(R"({"type": "force", "target": "rope", "value": [0, 1, 0], "rate": 1, "until": 2})"),
+     "drivers[0].rate", "unknown field (allowed: type, target, particle, vertex, value, from, until)"},
+    {"RampUntilBeforeFrom", driverScene(R"({"type": "ramp", "target": "rope", "value": [0, 1, 0], "rate": 1, "from": 2, "until": 2})"),
+     "drivers[0].until", "must be greater than from (got 2 <= 2)"},
     {"DriverUntilBeforeFrom", driverScene(R"({"type": "force", "target": "rope", "value": [0, 1, 0], "from": 2, "until": 1})"),
      "drivers[0].until", "must be greater than from"},
     {"DriverFromNegative", driverScene(R"({"type": "wind", "value": [1, 0, 0], "from": -1})"), "drivers[0].from",
@@ -778,6 +782,48 @@ TEST(SceneLoader, ShootDriverTimes) {
     const Scene periodic = parseScene(driverScene(
         R"({"type": "shoot", "ray": {"from": [0, 1, 2], "to": [0, 1, -2]}, "impulse": 0.5, "every": 0.5, "from": 1, "until": 3})"));
     EXPECT_EQ(periodic.drivers[0].times, (std::vector<double>{1.0, 1.5, 2.0, 2.5}));
+}
+
+// Force and ramp drivers act only between from and until (SCENE_FORMAT.md). Two free
+// strings without gravity: internal forces cancel in pairs, so a string's momentum is the
+// driver's impulse. A step starting at t0 = (s - 1) dt is driven when from <= t0 < until,
+// so a force F gives F dt per driven step, and a ramp rate (t0 - from) dt: with from = 0.1,
+// until = 0.3, dt = 0.01 the driven steps have t0 - from = k dt, k = 0..19, and the impulse
+// is rate dt^2 (0 + ... + 19) = 190 rate dt^2. Before from and after until it is constant.
+// The force reaches the string through Bullet's single-precision btVector3 (0.02 is stored
+// as 0.0199999996), so the impulses hold to float precision, a relative 1e-7, not 1e-16.
+TEST(SceneRun, ForceAndRampActOnlyBetweenFromAndUntil) {
+    const Scene scene = parseScene(R"({"dt": 0.01, "steps": 50, "gravity": [0, 0, 0],
+      "strings": [{"name": "pushed", "from": [0, 0, 0], "to": [0, 1, 0], "segments": 4, "radius": 0.005, "density": 1000},
+                  {"name": "ramped", "from": [1, 0, 0], "to": [1, 1, 0], "segments": 4, "radius": 0.005, "density": 1000}],
+      "drivers": [{"type": "force", "target": "pushed", "particle": -1, "value": [0, 0, 0.02], "from": 0.1, "until": 0.3},
+                  {"type": "ramp", "target": "ramped", "particle": -1, "value": [0, 0, 1], "rate": 0.4, "from": 0.1, "until": 0.3}]})");
+    const double dt = 0.01;
+    const double force_impulse = 0.02 * 20 * dt, ramp_impulse = 0.4 * 190 * dt * dt;  // N s
+    std::vector<double> times, pushed, ramped;
+    RunOptions options;
+    options.every = 1;
+    options.on_frame = [&](const FrameState& f) {
+        times.push_back(f.time);
+        for (const FrameString& s : f.strings) {
+            Vec3 p = Vec3::Zero();
+            for (std::size_t i = 0; i < s.view.particleCount(); ++i) p += (*s.view.masses)[i] * (*s.view.velocities)[i];
+            EXPECT_NEAR(p.x(), 0.0, 1e-9);
+            EXPECT_NEAR(p.y(), 0.0, 1e-9);
+            (s.name == "pushed" ? pushed : ramped).push_back(p.z());
+        }
+    };
+    runScene(scene, options);
+    ASSERT_EQ(times.size(), 51u);
+    for (std::size_t k = 0; k < times.size(); ++k) {
+        const double t = times[k];  // the end of step k: steps 1..k have t0 < t
+        const double driven = std::clamp(std::round((t - 0.1) / dt), 0.0, 20.0);  // driven steps so far
+        const double ramp_expected = 0.4 * dt * dt * driven * (driven - 1) / 2;
+        EXPECT_NEAR(pushed[k], 0.02 * dt * driven, 1e-6 * force_impulse) << "t = " << t;
+        EXPECT_NEAR(ramped[k], ramp_expected, 1e-6 * ramp_impulse) << "t = " << t;
+    }
+    EXPECT_NEAR(pushed.back(), force_impulse, 1e-6 * force_impulse);
+    EXPECT_NEAR(ramped.back(), ramp_impulse, 1e-6 * ramp_impulse);
 }
 
 TEST(BuiltinScenes, UnknownNameHasNoText) {
