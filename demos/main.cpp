@@ -168,6 +168,10 @@ int main(int argc, char** argv) {
         std::printf("simulated %lld steps (%.3g s) in %.3g s of stepping; digest %s\n", r.steps, r.simulated_seconds,
                     r.wall_seconds, r.digest.c_str());
         for (const auto& [type, n] : r.event_counts) std::printf("  %s: %lld\n", type.c_str(), n);
+        if (r.islands.solves > 0)
+            std::printf("islands: %lld solves, %.1f Newton iterations each (at most %d), %lld not converged\n",
+                        r.islands.solves, static_cast<double>(r.islands.iterations) / static_cast<double>(r.islands.solves),
+                        r.islands.most_iterations, r.islands.unconverged);
         std::printf("output: %s/{trace.jsonl,events.jsonl,summary.json}\n", out_dir.c_str());
         if (png) std::printf("pictures: %lld x %s/frame_NNNNN.png (%dx%d)\n", frames, out_dir.c_str(), size.first, size.second);
         if (mp4) std::printf("video: %s\n", video.c_str());

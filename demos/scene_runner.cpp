@@ -440,6 +440,7 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
     std::vector<std::size_t> shots_fired(scene.drivers.size(), 0);  // shoot drivers: shots taken so far
     std::map<std::string, long long> counts;
     double wall = 0.0, paper_seconds = 0.0;
+    RunResult result;
     const long long progress_every = std::max<long long>(1, steps / 100);
     std::uint64_t wind_state = scene.seed * 0x9E3779B97F4A7C15ull + 1;
     for (long long step = 1; step <= steps; ++step) {
@@ -596,6 +597,12 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         bs.world.stepSimulation(static_cast<btScalar>(dt), 1, static_cast<btScalar>(dt));
         wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count();
         paper_seconds += ropes.core().lastPaperTimes().total();
+        for (const tearables::IslandSummary& island : ropes.core().lastIslands()) {
+            ++result.islands.solves;
+            result.islands.iterations += island.iterations;
+            result.islands.most_iterations = std::max(result.islands.most_iterations, island.iterations);
+            if (!(island.residual < 1.0)) ++result.islands.unconverged;
+        }
         if (!ropes.lastError().empty()) throw std::runtime_error("step " + std::to_string(step) + ": " + ropes.lastError());
 
         for (const Event& e : ropes.events()) {
@@ -611,7 +618,6 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
     }
 
     // --- summary ----------------------------------------------------------------------
-    RunResult result;
     result.steps = steps;
     result.simulated_seconds = static_cast<double>(steps) * dt;
     result.wall_seconds = wall;
@@ -683,7 +689,11 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         for (const auto& [type, n] : counts) ev[type] = n;
         json summary = {{"steps", steps},          {"simulated_seconds", result.simulated_seconds},
                         {"wall_seconds", wall},    {"stage_seconds", stages},
-                        {"events", ev},            {"digest", result.digest}};
+                        {"events", ev},            {"digest", result.digest},
+                        {"islands", {{"solves", result.islands.solves},
+                                     {"iterations", result.islands.iterations},
+                                     {"most_iterations", result.islands.most_iterations},
+                                     {"unconverged", result.islands.unconverged}}}};
         std::ofstream out = openOut(dir / "summary.json");
         out << summary.dump(2) << '\n';
         if (!trace || !events || !out) throw std::runtime_error("writing the outputs in " + dir.string() + " failed");

@@ -206,6 +206,15 @@ struct RunOptions {
     std::function<void(const FrameState&)> on_frame;
 };
 
+/// How the islands' solves went over a run (see IslandSummary): one solve per island per
+/// step; unconverged ones ended at their iteration cap with a move above tolerance.
+struct IslandTotals {
+    long long solves = 0;
+    long long iterations = 0;   ///< Newton iterations, all solves
+    int most_iterations = 0;    ///< of one solve
+    long long unconverged = 0;  ///< solves whose residual stayed >= 1
+};
+
 /// What a run did.
 struct RunResult {
     long long steps = 0;
@@ -213,6 +222,7 @@ struct RunResult {
     double wall_seconds = 0.0;                      ///< time spent stepping (not loading or writing)
     std::vector<std::pair<std::string, long long>> event_counts;  ///< by type, sorted by name
     std::string digest;                             ///< of the final state: equal for equal runs
+    IslandTotals islands;
 };
 
 /// Builds the Bullet world and the strings of `scene`, runs it and writes the outputs.

@@ -89,6 +89,9 @@ void BM_BridgeCoupled(benchmark::State& state) {
         const auto result = scene::runScene(scene, options);
         state.SetIterationTime(result.wall_seconds);
         state.counters["ms_per_step"] = 1e3 * result.wall_seconds / static_cast<double>(result.steps);
+        const double solves = static_cast<double>(std::max(1LL, result.islands.solves));
+        state.counters["iterations_per_solve"] = static_cast<double>(result.islands.iterations) / solves;
+        state.counters["unconverged"] = static_cast<double>(result.islands.unconverged) / solves;
     }
 }
 BENCHMARK(BM_BridgeCoupled)->Arg(100)->Arg(600)->UseManualTime()->Unit(benchmark::kMillisecond)->Iterations(1);

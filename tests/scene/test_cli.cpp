@@ -88,6 +88,13 @@ TEST(Cli, RunsASceneAndWritesItsOutputs) {
     EXPECT_NEAR(summary["simulated_seconds"].get<double>(), 0.5, 1e-12);
     EXPECT_TRUE(summary["stage_seconds"].contains("strain_limit"));
     EXPECT_EQ(summary["digest"].get<std::string>().size(), 16u);
+    // The crate hangs on the rope: one island a step, each solved to tolerance (one
+    // rope and one body, no contact: nothing for the Newton solve to struggle with).
+    const auto& islands = summary["islands"];
+    EXPECT_EQ(islands["solves"].get<int>(), 50);
+    EXPECT_GE(islands["iterations"].get<int>(), 50);
+    EXPECT_GE(islands["most_iterations"].get<int>(), 1);
+    EXPECT_EQ(islands["unconverged"].get<int>(), 0);
     EXPECT_TRUE(fs::exists(out / "events.jsonl"));
 }
 
