@@ -29,6 +29,18 @@ constexpr int kIterationFactor = 4;
 constexpr int kFrictionPasses = 4;
 constexpr double kFrictionSettled = 1e-2;
 constexpr int kLineSearchHalvings = 30;
+/// Non-monotone line search (Grippo, Lampariello & Lucidi, "A nonmonotone line search
+/// technique for Newton's method", SIAM J. Numer. Anal. 23 (1986) 707-716): a step is
+/// accepted when the energy is no higher than the highest of the last kEnergyMemory
+/// accepted energies of the pass, not only the last. Taut segments are stiff
+/// (k = E A / L, ~1e7 N/m for a 4 mm segment of rope) and curved: a Newton step that
+/// moves a taut segment sideways by d stretches it by d^2 / (2 L), a term the quadratic
+/// model lacks, so the energy along the full step can rise where the step is right (the
+/// Maratos effect) and a monotone search halves it again and again, stalling a rope that
+/// lies on the ground or slides on a body. The reference values never increase (each is
+/// the maximum of a window whose newest entry is below the previous maximum), so the pass
+/// still ends no higher than it began and the iteration still converges (ibid., Thm 1).
+constexpr std::size_t kEnergyMemory = 10;
 /// Times per iteration that contacts the step would run into are added and the system
 /// solved again.
 constexpr int kPredictRounds = 3;
@@ -178,6 +190,7 @@ IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, cons
     for (int pass = 0; pass < (frictional ? kFrictionPasses : 1); ++pass) {
         for (IslandMember* m : island.members) m->beginPass();
         pass_start_ = displacement_;
+        accepted_energy_.clear();
         bool converged = false;
         for (int iter = 0; iter < iterations; ++iter) {
             solveSystem(island, true);
@@ -187,12 +200,16 @@ IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, cons
                 if (!added) break;
                 solveSystem(island, false);
             }
-            // Backtrack until the (convex) energy decreases; where no fraction of the
-            // step lowers it, the state is the minimum to rounding.
+            // Backtrack until the (convex) energy is below the reference of the
+            // non-monotone search; where no fraction of the step gets there, the state is
+            // the minimum to rounding.
             const double e0 = energy(island, 0.0);
+            if (accepted_energy_.size() == kEnergyMemory) accepted_energy_.erase(accepted_energy_.begin());
+            accepted_energy_.push_back(e0);
+            const double reference = *std::max_element(accepted_energy_.begin(), accepted_energy_.end());
             double alpha = 1.0;
             int halving = 0;
-            for (; halving < kLineSearchHalvings && !(energy(island, alpha) <= e0); ++halving) alpha *= 0.5;
+            for (; halving < kLineSearchHalvings && !(energy(island, alpha) <= reference); ++halving) alpha *= 0.5;
             const bool stalled = halving == kLineSearchHalvings;
             if (stalled) alpha = 0.0;
             moveBodies(island, rigids, ctx, alpha);

@@ -58,6 +58,7 @@ private:
     Eigen::LDLT<Eigen::MatrixXd> ldlt_;
     double inv_h2_ = 0.0;
     ThreadPool* pool_ = nullptr;
+    std::vector<double> accepted_energy_;  ///< the pass's last energies, for the line search
     std::vector<double> member_value_;  ///< per member: its energy or move, summed in order
 };
 
