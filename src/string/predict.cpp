@@ -3,9 +3,31 @@
 #include "base/thread_pool.hpp"
 #include "string/string_state.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace tearables::detail {
+
+namespace {
+
+// The previous step's twist force (Eq. 6) is explicit: the displacement it causes is
+// capped at a tenth of a segment, a safety limit for a string twisted far past its
+// strength or spun hard (a light rope rolled under a sliding box). The cap scales the
+// whole string's twist forces by one factor: each joint's forces on its three particles
+// sum to zero, and so do the scaled ones, where capping each particle's force alone would
+// push the string (and the bodies it holds) with the difference.
+double twistScale(const StringState& s, const StepContext& ctx) {
+    if (s.scratch.twist_force_zero) return 1.0;
+    const double reach = 0.1 * s.shortest_rest * ctx.inv_h * ctx.inv_h;
+    double scale = 1.0;
+    for (std::size_t p = 0; p < s.particles(); ++p) {
+        const double f = s.twist_force[p].norm(), cap = reach * s.mass[p];
+        if (f > cap) scale = std::min(scale, cap / f);
+    }
+    return scale;
+}
+
+}  // namespace
 
 // Symplectic Euler prediction (Strings, Sec. 3: particles move independently under
 // external forces before shape matching and strain limiting). Held particles follow
@@ -13,6 +35,7 @@ namespace tearables::detail {
 // integrated this step (Bullet integrates rigid bodies before actions run).
 void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
     const double h = ctx.h;
+    s.scratch.twist_scale = twistScale(s, ctx);
     const double damp = 1.0 / (1.0 + s.desc.damping * h);
     forRanges(ctx.pool, s.particles(), kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {
         for (std::size_t p = p0; p < p1; ++p) {
@@ -28,16 +51,7 @@ void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
                 case ParticleHold::Kind::Free: {
                     // Drag damps the motion, not the load: a rope at rest still feels all of
                     // gravity (else the momentum-balance tension would miss part of the weight).
-                    // The previous step's twist force (Eq. 6) is explicit: the displacement
-                    // it causes is capped at a tenth of a segment, a safety limit that only
-                    // acts on a string twisted far past its strength.
-                    Vec3 twist = s.twist_force[p];
-                    if (twist != Vec3::Zero()) {
-                        const double cap = 0.1 * s.shortest_rest * s.mass[p] * ctx.inv_h * ctx.inv_h;
-                        const double f = twist.norm();
-                        if (f > cap) twist *= cap / f;
-                    }
-                    const Vec3 v = damp * s.v[p] + h * (ctx.gravity + s.inv_mass[p] * (s.force[p] + twist));
+                    const Vec3 v = damp * s.v[p] + h * (ctx.gravity + s.inv_mass[p] * (s.force[p] + cappedTwistForce(s, p)));
                     s.v[p] = v;
                     s.x[p] += h * v + s.scratch.csm_goal[p];  // plus the bending correction (shape_matching.cpp)
                     break;

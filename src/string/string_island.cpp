@@ -51,7 +51,12 @@ void StringIslandMember::start(StringState& s, RigidTable& rigids, const StepCon
             s.body_nodes.back().mass = bodyMass(rigids.bodies[body.index]);
         }
         glued_index_[p] = static_cast<int>(glued_.size());
-        glued_.push_back({p, node, s.hold[p].point, s.x_prev[p] + ctx.h * s.v[p]});
+        // Its inertia pulls toward where its own motion and the twist force take it, as a
+        // free particle's prediction does: the joints' twist forces sum to zero over each
+        // joint's three particles, so the glued end's share moves its body (else the body
+        // never feels it and the string's momentum leaks through its ends).
+        const Vec3 target = s.x_prev[p] + ctx.h * s.v[p] + ctx.h * ctx.h * cappedTwistForce(s, p) / s.mass[p];
+        glued_.push_back({p, node, s.hold[p].point, target});
     }
     // The segments of glued particles, in order, each once.
     glue_segments_.clear();

@@ -117,6 +117,9 @@ struct StringScratch {
     /// twist moment is zero; and twist_force is all zero (computeTwistForces).
     bool twist_skipped = false;
     bool twist_force_zero = false;
+    /// This step's factor on every twist force (predict.cpp, twistScale): 1 unless the cap
+    /// acts.
+    double twist_scale = 1.0;
 };
 
 /// Counters of the last step, for tests and benchmarks; nothing reads them in the step.
@@ -206,6 +209,9 @@ void estimateTension(StringState& s, const StepContext& ctx);
 void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::vector<Event>& events);
 void updateVelocities(StringState& s, const StepContext& ctx);
 void clampTravel(StringState& s, const StepContext& ctx);
+/// The previous step's twist force on particle p as the prediction applies it (scaled by
+/// the cap, scratch.twist_scale).
+inline Vec3 cappedTwistForce(const StringState& s, std::size_t p) { return s.scratch.twist_scale * s.twist_force[p]; }
 void updateTwistStiffness(StringState& s);
 void updateRestShape(StringState& s);
 void shapeMatch(StringState& s, ThreadPool* pool = nullptr);
