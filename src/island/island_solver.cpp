@@ -41,8 +41,8 @@ constexpr int kLineSearchHalvings = 30;
 /// the maximum of a window whose newest entry is below the previous maximum), so the pass
 /// still ends no higher than it began and the iteration still converges (ibid., Thm 1).
 constexpr std::size_t kEnergyMemory = 10;
-/// Times per iteration that contacts the step would run into are added and the system
-/// solved again.
+/// Times per iteration that the contacts the step runs into are revised (addPredictedContacts)
+/// and the system solved again.
 constexpr int kPredictRounds = 3;
 
 }  // namespace
@@ -195,9 +195,9 @@ IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, cons
         for (int iter = 0; iter < iterations; ++iter) {
             solveSystem(island, true);
             for (int round = 0; round < kPredictRounds; ++round) {
-                bool added = false;
-                for (IslandMember* m : island.members) added = m->addPredictedContacts() || added;
-                if (!added) break;
+                bool changed = false;
+                for (IslandMember* m : island.members) changed = m->addPredictedContacts() || changed;
+                if (!changed) break;
                 solveSystem(island, false);
             }
             // Backtrack until the (convex) energy is below the reference of the

@@ -39,14 +39,15 @@ public:
     /// The Newton system at the current state, condensed onto the member's bodies (its
     /// Schur complement and reduced right-hand side, minus the gradient). `fresh`: the
     /// first system of an iteration (contacts that touch now join it; later ones of the
-    /// same iteration keep those addPredictedContacts added). Members condense in parallel.
+    /// same iteration keep the set addPredictedContacts chose). Members condense in parallel.
     virtual void condense(bool fresh) = 0;
     /// Adds the condensed system to the island's `system` and `rhs`.
     virtual void addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const = 0;
     /// The member's own step for the bodies' step `du`.
     virtual void backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) = 0;
-    /// Marks the contacts the full step would run into; true where it added any (the
-    /// system is then condensed again).
+    /// Holds the clear contacts the full step would run into and lets go of those held so
+    /// that it no longer does; true where the set changed (the system is then condensed
+    /// again).
     virtual bool addPredictedContacts() = 0;
     /// E_member at alpha times the step (its own, and its bodies' from backSubstitute).
     virtual double energy(double alpha) const = 0;

@@ -26,6 +26,9 @@ struct RigidSegmentContact {
     double depth = 0.0;          ///< penetration of the predicted position, m (>= 0)
     double stiffness = 0.0;      ///< penalty k_c used by the last solve, N/m
     bool active = false;         ///< held as an equality in the current pass
+    /// Active only because the Newton step would run into it (an island's solve): its
+    /// penalty's model carries its gap, positive now (assembleContactCoupling).
+    bool predicted = false;
     double force = 0.0;          ///< normal force of the last solve, N (friction bound)
     // The plane, linearised where the solve starts (contact_rows.cpp, rigidGap): its point
     // and normal in the world, and d(gap)/d(rotation) of the body.

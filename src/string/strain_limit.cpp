@@ -745,8 +745,14 @@ void assembleContactCoupling(StringState& s, StringScratch::NodeScratch& nodes) 
         if (!c.active) continue;
         const std::size_t j = c.segment;
         const Vec3& nrm = c.plane_normal;
-        // The gradient only where it penetrates.
-        const double g = std::min(0.0, rigidGap(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]));
+        // The gradient only where it penetrates, or where the contact is held because the
+        // step runs into it: there the model is k_c (g + a . dx)^2 / 2 with g > 0 now, whose
+        // minimum is the penetration the load needs. Held with g taken as 0 (a stiff spring
+        // where the string is now, no pull toward the plane), the step toward the contact
+        // shrinks by k_c over the other stiffnesses (kContactStiffnessFactor, 100) and the
+        // solve creeps onto the contact at ~1% an iteration.
+        const double gap = rigidGap(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]);
+        const double g = c.predicted ? gap : std::min(0.0, gap);
         const double kc = c.stiffness;
         const double wa = 1.0 - c.s, wb = c.s;
         const bool fa = !fixedRow(s, j), fb = !fixedRow(s, j + 1);

@@ -165,6 +165,7 @@ void StringIslandMember::condense(bool fresh) {
         for (RigidSegmentContact& c : s.contacts) {
             const std::size_t j = c.segment;
             c.active = !s.broken[j] && rigidGap(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]) < 0.0;
+            c.predicted = false;
         }
     assembleChain(s, *rigids_, *ctx_, nullptr);
     StringScratch::NodeScratch& ns = s.scratch.node_scratch;
@@ -275,16 +276,25 @@ bool StringIslandMember::condenseRows() {
     return true;
 }
 
+/// The contacts that are clear now are held where the step runs into them and let go
+/// where, held, it no longer does (their model, carrying the gap, would pull the string
+/// onto the plane): the active set of a semismooth Newton step on the penalties. Those
+/// that penetrate now stay: their model is the energy's own.
 bool StringIslandMember::addPredictedContacts() {
-    bool added = false;
-    for (RigidSegmentContact& c : string_->contacts) {
+    StringState& s = *string_;
+    bool changed = false;
+    auto moved = [&](std::size_t p) { return fixedRow(s, p) ? s.x[p] : Vec3(s.x[p] + s.scratch.blk_rhs[p]); };
+    for (RigidSegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
-        if (c.active || string_->broken[j]) continue;
-        auto moved = [&](std::size_t p) { return fixedRow(*string_, p) ? string_->x[p] : Vec3(string_->x[p] + string_->scratch.blk_rhs[p]); };
-        const Vec6 step = c.node >= 0 ? string_->scratch.node_step[static_cast<std::size_t>(c.node)] : Vec6::Zero();
-        if (rigidGap(*string_, c, (1.0 - c.s) * moved(j) + c.s * moved(j + 1), &step) < 0.0) c.active = added = true;
+        if ((c.active && !c.predicted) || s.broken[j]) continue;
+        const Vec6 step = c.node >= 0 ? s.scratch.node_step[static_cast<std::size_t>(c.node)] : Vec6::Zero();
+        const bool runs_into = rigidGap(s, c, (1.0 - c.s) * moved(j) + c.s * moved(j + 1), &step) < 0.0;
+        if (runs_into != c.active) {
+            c.active = c.predicted = runs_into;
+            changed = true;
+        }
     }
-    return added;
+    return changed;
 }
 
 Vec3 StringIslandMember::trialGlue(const Glued& g, double alpha) const {
@@ -351,6 +361,7 @@ void StringIslandMember::finish(int iterations) {
     for (RigidSegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         c.active = !s.broken[j] && rigidGap(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]) < 0.0;
+        c.predicted = false;
     }
     finishChain(s, *rigids_, *ctx_);
     // What the segments gave each glued particle (x h^2): their final pull, the impulse the
