@@ -67,7 +67,8 @@ void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
     // in it is a catch, whose impulse BDF2's history would carry into the next steps. After
     // a step that was not BDF2, the history restarts at constant velocity:
     // x_{n-1} = x_n - h v_n, v_{n-1} = v_n.
-    const bool bdf2 = s.desc.integrator == StringIntegrator::BDF2 && everySegmentTaut(s);
+    const bool second_order = s.desc.integrator == StringIntegrator::BDF2;
+    const bool bdf2 = second_order && everySegmentTaut(s);
     const bool history = s.inertia_gain != 1.0;
     s.inertia_gain = bdf2 ? 9.0 / 4.0 : 1.0;
     const double step = (2.0 / 3.0) * h;
@@ -75,8 +76,10 @@ void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx) {
     forRanges(ctx.pool, s.particles(), kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {
         for (std::size_t p = p0; p < p1; ++p) {
             const Vec3& v_start = s.v[p];
-            s.x_older[p] = history ? s.x_prev[p] : Vec3(s.x[p] - h * v_start);
-            if (!history) s.v_prev[p] = v_start;
+            if (second_order) {  // BDF2's history (backward Euler's strings keep none)
+                s.x_older[p] = history ? s.x_prev[p] : Vec3(s.x[p] - h * v_start);
+                if (!history) s.v_prev[p] = v_start;
+            }
             s.x_prev[p] = s.x[p];
             const ParticleHold& hold = s.hold[p];
             switch (hold.kind) {
@@ -139,6 +142,7 @@ void clampTravel(StringState& s, const StepContext& ctx) {
 // the constrained result, as a prediction's huge speed may be removed by the limiter.
 void updateVelocities(StringState& s, const StepContext& ctx) {
     const double max_speed = ctx.settings->max_speed;
+    const bool second_order = s.desc.integrator == StringIntegrator::BDF2;
     forRanges(ctx.pool, s.particles(), kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {
         for (std::size_t p = p0; p < p1; ++p) {
             // BDF2's velocity (3 x_{n+1} - 4 x_n + x_{n-1}) / (2h) for a free particle of a
@@ -148,7 +152,7 @@ void updateVelocities(StringState& s, const StepContext& ctx) {
                          : Vec3((s.x[p] - s.x_prev[p]) * ctx.inv_h);
             const double speed2 = v.squaredNorm();
             if (speed2 > max_speed * max_speed) v *= max_speed / std::sqrt(speed2);
-            s.v_prev[p] = s.v[p];
+            if (second_order) s.v_prev[p] = s.v[p];
             s.v[p] = v;
         }
     });

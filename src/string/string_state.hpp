@@ -135,8 +135,8 @@ struct StringState {
     std::vector<Vec3> v;          ///< velocity, m/s
     std::vector<Vec3> x_prev;     ///< position at the start of the step
     std::vector<Vec3> x_pred;     ///< position before strain limiting (for the tension solve)
-    std::vector<Vec3> v_prev;     ///< velocity at the start of the previous step (BDF2's history)
-    std::vector<Vec3> x_older;    ///< position at the start of the previous step (BDF2's history; set by predict)
+    std::vector<Vec3> v_prev;     ///< BDF2 strings: velocity at the start of the previous step (v_{n-1})
+    std::vector<Vec3> x_older;    ///< BDF2 strings: position at the start of the previous step (x_{n-1}; set by predict)
     /// This step's weight of a free particle's inertia over m / h^2: 9/4 for a BDF2 step,
     /// 1 for backward Euler (predict sets it; the solves and the tension read it, and the
     /// next step's predict, whose BDF2 history is valid only after a BDF2 step).
