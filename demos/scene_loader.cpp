@@ -682,6 +682,13 @@ TensionEstimator parseTension(const Node& n) {
     n.fail("must be \"momentum\" or \"local\" (got " + jsonQuoted(v) + ")");
 }
 
+StringIntegrator parseIntegrator(const Node& n) {
+    const std::string v = n.asString();
+    if (v == "backward_euler") return StringIntegrator::BackwardEuler;
+    if (v == "bdf2") return StringIntegrator::BDF2;
+    n.fail("must be \"backward_euler\" or \"bdf2\" (got " + jsonQuoted(v) + ")");
+}
+
 std::vector<Attachment> parseAttachments(const Node& list, long long particles, const NameMap& bodies) {
     std::vector<Attachment> out;
     std::map<int, std::string> taken;  // resolved particle -> attachment path
@@ -724,8 +731,8 @@ void parseFilter(const Node& n, Object& object) {
 /// A string; `seed` is its material variation seed, `bodies` the bodies it may attach to.
 String parseString(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     n.checkNoUnknownFields({"name", "points", "from", "to", "segments", "radius", "density", "particle_masses",
-                            "material", "csm_half_width", "twist_half_width", "tension", "tearable", "damping",
-                            "axial_damping", "bending", "attachments", "collision_group", "collision_mask"});
+                            "material", "csm_half_width", "twist_half_width", "tension", "integrator", "tearable",
+                            "damping", "axial_damping", "bending", "attachments", "collision_group", "collision_mask"});
     String s;
     StringDesc& d = s.desc;
     d.name = requiredName(n);
@@ -738,6 +745,7 @@ String parseString(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     d.csm_half_width = static_cast<int>(n.integer("csm_half_width", d.csm_half_width, 1, 8));
     if (const auto t = n.field("twist_half_width")) d.twist_half_width = parseTwistHalfWidth(*t, d.points.size() - 1);
     if (const auto t = n.field("tension")) d.tension = parseTension(*t);
+    if (const auto t = n.field("integrator")) d.integrator = parseIntegrator(*t);
     d.tearable = n.boolean("tearable", d.tearable);
     d.damping = n.number("damping", d.damping, Range::atLeast(0.0));
     d.axial_damping = n.number("axial_damping", d.axial_damping, Range::closed(0.0, 1.0));

@@ -19,6 +19,18 @@ enum class TensionEstimator {
     Local,
 };
 
+/// How a string's free particles are stepped in time (the strain-limit solve's inertia).
+enum class StringIntegrator {
+    /// Backward Euler: first order; every swing loses energy, about exp(-(g/L) h t) for a
+    /// pendulum of length L at step h. Default.
+    BackwardEuler,
+    /// BDF2: second order, so an undamped swing keeps its energy (a 1.2 m pendulum at
+    /// h = 0.01 s keeps over 98% over 10 s), still damping the stiff axial modes. A step in
+    /// which the string touches a rigid body or holds a movable one is backward Euler
+    /// (bodies are stepped that way, and an impact must not bounce).
+    BDF2,
+};
+
 /// Everything needed to create a string. A string is a chain of `points.size()`
 /// particles joined by `points.size() - 1` segments whose rest lengths are the
 /// distances between consecutive points.
@@ -38,6 +50,7 @@ struct StringDesc {
     /// Twist region half-width, 1..8: one value for all segments, or one per segment.
     std::vector<int> twist_half_width = {2};
     TensionEstimator tension = TensionEstimator::Momentum;  ///< tension estimator (one of the enum's values)
+    StringIntegrator integrator = StringIntegrator::BackwardEuler;  ///< time integrator (one of the enum's values)
     bool tearable = true;          ///< segments break where their stress passes rupture
     double damping = 0.0;          ///< linear velocity damping, 1/s, [0, 1000] (air drag stand-in)
     /// Retardation time of the material's stretch (Kelvin-Voigt), s, [0, 1]: damps the

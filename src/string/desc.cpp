@@ -89,6 +89,9 @@ void validate(const StringDesc& d) {
     if (d.tension != TensionEstimator::Momentum && d.tension != TensionEstimator::Local)
         throw InvalidInput("tension", "must be TensionEstimator::Momentum or TensionEstimator::Local (got " +
                                           std::to_string(static_cast<int>(d.tension)) + ")");
+    if (d.integrator != StringIntegrator::BackwardEuler && d.integrator != StringIntegrator::BDF2)
+        throw InvalidInput("integrator", "must be StringIntegrator::BackwardEuler or StringIntegrator::BDF2 (got " +
+                                             std::to_string(static_cast<int>(d.integrator)) + ")");
     requireRange("damping", d.damping, 0.0, 1e3);
     requireRange("axial_damping", d.axial_damping, 0.0, 1.0);
 }

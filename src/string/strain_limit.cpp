@@ -141,7 +141,7 @@ double stepEnergy(const StringState& s, const RigidTable& rigids, const StepCont
     for (std::size_t p = 0; p < n; ++p) {
         if (fixedRow(s, p)) continue;
         if (s.hold[p].kind == ParticleHold::Kind::Free) {
-            e += 0.5 * s.mass[p] * inv_h2 * (trial(p) - s.x_pred[p]).squaredNorm();
+            e += 0.5 * s.inertia_gain * s.mass[p] * inv_h2 * (trial(p) - s.x_pred[p]).squaredNorm();
         } else {  // glued to a movable body: its displacement this step is K P
             const Mat3 k = mobility(s, rigids, p).K;
             const Vec3 u = k * s.glue_impulse[p] + alpha * s.scratch.blk_rhs[p];
@@ -159,13 +159,15 @@ double stepEnergy(const StringState& s, const RigidTable& rigids, const StepCont
 namespace {
 
 /// A free particle's inertia row's right-hand side: toward its prediction x'.
-inline Vec3 inertiaRhs(const StringState& s, std::size_t p, double inv_h2) { return -(s.mass[p] * inv_h2) * (s.x[p] - s.x_pred[p]); }
+inline Vec3 inertiaRhs(const StringState& s, std::size_t p, double inv_h2) {
+    return -(s.inertia_gain * s.mass[p] * inv_h2) * (s.x[p] - s.x_pred[p]);
+}
 
 /// The inertia row of a free or pinned particle p, as assembleInertia writes it, into d
 /// and rhs (a sweep's registers: parallelChainStep's halves assemble it as they go).
 inline void inertiaRow(const StringState& s, std::size_t p, double inv_h2, Mat3& d, Vec3& rhs) {
     if (s.hold[p].kind == ParticleHold::Kind::Free) {
-        d = (s.mass[p] * inv_h2) * Mat3::Identity();
+        d = (s.inertia_gain * s.mass[p] * inv_h2) * Mat3::Identity();
         rhs = inertiaRhs(s, p, inv_h2);
     } else {
         d = Mat3::Identity();
@@ -653,7 +655,7 @@ bool warmStart(StringState& s, const StepContext& ctx) {
         total.warm += sums[b].warm;
     }
     const double cold = total.cold * (0.5 / (1.0 + rate_gain));
-    const double warm = total.warm * (0.5 / (1.0 + rate_gain)) + 0.5 * inv_h2 * total.inertia;
+    const double warm = total.warm * (0.5 / (1.0 + rate_gain)) + 0.5 * s.inertia_gain * inv_h2 * total.inertia;
     if (!(warm < cold)) return false;
     forRanges(ctx.pool, n, kParallelItems, [&](std::size_t p0, std::size_t p1, std::size_t) {
         for (std::size_t p = p0; p < p1; ++p) s.x[p] += s.scratch.blk_rhs[p];
@@ -678,6 +680,7 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
         }
         return any;
     });
+    if (glued || !s.contacts.empty() || !s.body_nodes.empty()) predictBackwardEuler(s, ctx);
     if (glued)
         for (std::size_t p = 0; p < n; ++p) {
             if (!s.glue_movable[p]) continue;

@@ -138,6 +138,12 @@ struct StringState {
     std::vector<Vec3> v;          ///< velocity, m/s
     std::vector<Vec3> x_prev;     ///< position at the start of the step
     std::vector<Vec3> x_pred;     ///< position before strain limiting (for the tension solve)
+    std::vector<Vec3> v_prev;     ///< BDF2 strings: velocity at the start of the previous step (v_{n-1})
+    std::vector<Vec3> x_older;    ///< BDF2 strings: position at the start of the previous step (x_{n-1}; set by predict)
+    /// This step's weight of a free particle's inertia over m / h^2: 9/4 for a BDF2 step,
+    /// 1 for backward Euler (predict sets it; the solves and the tension read it, and the
+    /// next step's predict, whose BDF2 history is valid only after a BDF2 step).
+    double inertia_gain = 1.0;
     std::vector<Vec3> force;      ///< user force for this step, N
     std::vector<double> mass;     ///< kg
     std::vector<double> inv_mass; ///< 1/kg of the free particle (holds are separate)
@@ -200,6 +206,7 @@ struct StringState {
 
 // Stage kernels, one file each.
 void predict(StringState& s, const RigidTable& rigids, const StepContext& ctx);
+void predictBackwardEuler(StringState& s, const StepContext& ctx);
 void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& ctx);
 /// Returns the largest move (m) of its first Newton iteration: how far the string was
 /// from its solution when called (StringSystem::limitStrain stops the sweeps over strings

@@ -50,7 +50,9 @@ StringId StringSystem::add(const StringDesc& desc) {
     const std::size_t m = n - 1;
     s.x = desc.points;
     s.v.assign(n, Vec3::Zero());
+    s.v_prev = s.v;
     s.x_prev = s.x;
+    s.x_older = s.x;
     s.x_pred = s.x;
     s.force.assign(n, Vec3::Zero());
     s.mass.assign(n, 0.0);

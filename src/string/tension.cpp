@@ -59,7 +59,7 @@ constexpr std::size_t kParallelSegments = kParallelItems;
 /// normal (row_projector), where the unknown contact force does not act.
 [[gnu::always_inline]] inline Vec3 rowImpulse(const StringState& s, std::size_t p) {
     if (s.hold[p].kind == ParticleHold::Kind::Glue) return s.glue_impulse[p];
-    return s.mass[p] * (s.x[p] - s.x_pred[p]);
+    return s.inertia_gain * s.mass[p] * (s.x[p] - s.x_pred[p]);
 }
 
 void momentumTension(StringState& s, const StepContext& ctx) {
@@ -149,7 +149,7 @@ void localTension(StringState& s, const StepContext& ctx) {
         const double wa = s.hold[j].kind == ParticleHold::Kind::Free ? s.inv_mass[j] : 0.0;
         const double wb = s.hold[j + 1].kind == ParticleHold::Kind::Free ? s.inv_mass[j + 1] : 0.0;
         const double w = wa + wb;
-        const double k = w > 0.0 ? inv_h2 / w : 0.0;
+        const double k = w > 0.0 ? s.inertia_gain * inv_h2 / w : 0.0;
         const double stretch = (s.x_pred[j + 1] - s.x_pred[j]).norm() - (s.x[j + 1] - s.x[j]).norm();
         s.tension[j] = k * stretch;
     }

@@ -250,6 +250,7 @@ void io(A& a, StringDesc& d) {
     io(a, d.bending);
     io(a, d.twist_half_width);
     ioEnum(a, d.tension, 1, "tension estimator");
+    ioEnum(a, d.integrator, 1, "string integrator");
     io(a, d.tearable);
     io(a, d.damping);
     io(a, d.axial_damping);
@@ -395,6 +396,9 @@ void io(A& a, detail::StringState& s) {
     io(a, s.v);
     io(a, s.x_prev);
     io(a, s.x_pred);
+    io(a, s.v_prev);
+    io(a, s.x_older);
+    io(a, s.inertia_gain);
     io(a, s.force);
     io(a, s.mass);
     io(a, s.inv_mass);
@@ -592,6 +596,8 @@ void checkString(const detail::StringState& s, const detail::RigidTable& rigids,
     size(s.v.size(), n, "v");
     size(s.x_prev.size(), n, "x_prev");
     size(s.x_pred.size(), n, "x_pred");
+    size(s.v_prev.size(), n, "v_prev");
+    size(s.x_older.size(), n, "x_older");
     size(s.force.size(), n, "force");
     size(s.mass.size(), n, "mass");
     size(s.inv_mass.size(), n, "inv_mass");

@@ -11,6 +11,7 @@
 // (100 segments each, side by side, not touching), on 1 and 2 threads
 // (WorldSettings::threads). And the shape matching kernel alone (BM_CsmKernel).
 // And the step in which a long rope tears (BM_LongRopeTear).
+// And Table 1's 746-segment rope stepped by BDF2 (BM_Table1RopeBdf2).
 // Run: build/tests/benchmarks/tearables_bench --benchmark_filter='Table1|Segments|CsmKernel|LongRopeTear'
 #include "world/world_access.hpp"
 #include "long_rope.hpp"
@@ -74,6 +75,31 @@ void BM_Table1Rope(benchmark::State& state) {
     state.SetItemsProcessed(state.iterations() * segments);
 }
 BENCHMARK(BM_Table1Rope)->Arg(100)->Arg(150)->Arg(200)->Arg(746)->Iterations(300)->Unit(benchmark::kMicrosecond);
+
+/// BM_Table1Rope's rope stepped by BDF2 (StringDesc::integrator): the cost of the
+/// second-order step against backward Euler's on the same swing (steps that start with a
+/// slack segment, where the tip folds, are backward Euler's).
+void BM_Table1RopeBdf2(benchmark::State& state) {
+    const int segments = static_cast<int>(state.range(0));
+    tearables::World world;
+    tearables::StringDesc desc = rope({0, 0, 0}, segments, 10.0);
+    desc.integrator = tearables::StringIntegrator::BDF2;
+    const auto id = world.addString(desc);
+    world.attachToPoint(id, 0, {0, 0, 0});
+    for (int i = 0; i < 200; ++i) world.step(0.01);
+    StageCounters stages;
+    int bdf2_steps = 0;
+    for (auto _ : state) {
+        world.step(0.01);
+        stages.add(world);
+        bdf2_steps += (*tearables::detail::WorldAccess::parts(world).strings)[0].inertia_gain != 1.0;
+        benchmark::DoNotOptimize(world.view(id).tension->data());
+    }
+    stages.report(state);
+    state.counters["bdf2_steps"] = benchmark::Counter(static_cast<double>(bdf2_steps) / static_cast<double>(state.iterations()));
+    state.SetItemsProcessed(state.iterations() * segments);
+}
+BENCHMARK(BM_Table1RopeBdf2)->Arg(746)->Iterations(300)->Unit(benchmark::kMicrosecond);
 
 /// The chain shape matching kernel alone on one piece of 747 particles (BM_Table1Rope/746's
 /// rope, w = 2) bent into a swinging curve: range(0) = 0, a straight rest shape (every region

@@ -58,7 +58,7 @@ TEST(SceneLoader, FullSceneParsesEveryField) {
          "material": {"tensile": {"young": 1e9, "yield": 2e7, "plastic_modulus": 1e8, "rupture": 5e7},
                       "torsion": {"modulus": 2e9, "yield": 0.02, "plastic_modulus": 2e8, "rupture": 0.2},
                       "variation": 0.01},
-         "csm_half_width": 3, "twist_half_width": [1, 2, 3, 4], "tension": "local",
+         "csm_half_width": 3, "twist_half_width": [1, 2, 3, 4], "tension": "local", "integrator": "bdf2",
          "tearable": false, "damping": 0.5,
          "attachments": [{"particle": 0, "body": "beam", "local": [0, -0.1, 0]},
                          {"particle": -1, "world": [0, 1, 0]}]},
@@ -138,6 +138,7 @@ TEST(SceneLoader, FullSceneParsesEveryField) {
     EXPECT_EQ(rope.csm_half_width, 3);
     EXPECT_EQ(rope.twist_half_width, (std::vector<int>{1, 2, 3, 4}));
     EXPECT_EQ(rope.tension, TensionEstimator::Local);
+    EXPECT_EQ(rope.integrator, tearables::StringIntegrator::BDF2);
     EXPECT_FALSE(rope.tearable);
     EXPECT_DOUBLE_EQ(rope.damping, 0.5);
     EXPECT_EQ(rope.seed, 42u);  // scene seed + string index
@@ -157,6 +158,7 @@ TEST(SceneLoader, FullSceneParsesEveryField) {
     ASSERT_EQ(thread.points.size(), 3u);
     EXPECT_EQ(thread.points[2], Vec3(1, 1, 0));
     EXPECT_EQ(thread.twist_half_width, std::vector<int>{5});
+    EXPECT_EQ(thread.integrator, tearables::StringIntegrator::BackwardEuler);
 
     ASSERT_EQ(s.drivers.size(), 7u);
     const Driver& force = s.drivers[0];
@@ -594,6 +596,8 @@ const ErrorCase kErrorCases[] = {
      "expected an integer or an array of integers"},
     {"TensionUnknown", ropeScene(R"(, "tension": "global")"), "strings[0].tension",
      "must be \"momentum\" or \"local\" (got \"global\")"},
+    {"IntegratorUnknown", ropeScene(R"(, "integrator": "rk4")"), "strings[0].integrator",
+     "must be \"backward_euler\" or \"bdf2\" (got \"rk4\")"},
     {"TearableNotBool", ropeScene(R"(, "tearable": 1)"), "strings[0].tearable", "expected a boolean"},
     {"DampingNegative", ropeScene(R"(, "damping": -0.1)"), "strings[0].damping", "must be at least 0"},
     {"DampingTooLargeForValidate", ropeScene(R"(, "damping": 1e4)"), "strings[0].damping", "must be in [0, 1000]"},

@@ -43,6 +43,7 @@ TEST(StringDesc, EveryBadFieldIsRefusedByName) {
         {"twist_half_width", [](StringDesc& d) { d.twist_half_width = {1, 2}; }},
         {"twist_half_width", [](StringDesc& d) { d.twist_half_width = {9}; }},
         {"damping", [](StringDesc& d) { d.damping = -1.0; }},
+        {"integrator", [](StringDesc& d) { d.integrator = static_cast<tearables::StringIntegrator>(7); }},
     };
     for (const BadField& c : cases) {
         tearables::World world;
