@@ -117,13 +117,20 @@ struct Grab {
 /// The name of the viewer's hand body (not drawn, not listed).
 const char* const kHandName = "viewer-hand";
 
-/// The scene's largest rupture tension of a string (N), for scales.
-double largestRuptureTension(const scene::Scene& s) {
-    double f = 0.0;
-    for (const scene::String& str : s.strings)
-        f = std::max(f, str.desc.material.tensile.rupture * M_PI * str.desc.radius * str.desc.radius);
-    return f;
+/// The rupture tensions (N) of the scene's strings and cloth yarns, smallest and largest
+/// (0, 0 when it has none): the colours are each object's load / its own rupture tension.
+std::pair<double, double> ruptureTensions(const scene::Scene& s) {
+    double lo = 1e300, hi = 0.0;
+    const auto offer = [&](double stress, double radius) {
+        const double f = stress * M_PI * radius * radius;
+        lo = std::min(lo, f);
+        hi = std::max(hi, f);
+    };
+    for (const scene::String& str : s.strings) offer(str.desc.material.tensile.rupture, str.desc.radius);
+    for (const scene::Cloth& c : s.cloths) offer(c.desc.material.tensile.rupture, c.desc.yarn_radius);
+    return hi > 0.0 ? std::make_pair(lo, hi) : std::make_pair(0.0, 0.0);
 }
+double largestRuptureTension(const scene::Scene& s) { return ruptureTensions(s).second; }
 
 class Viewer {
 public:
@@ -664,17 +671,24 @@ void Viewer::drawColorBar() {
         dl->AddRectFilled(ImVec2(r.x0, y0), ImVec2(r.x1, y1), ImGui::ColorConvertFloat4ToU32(ImVec4(c.r, c.g, c.b, 1.0f)));
     }
     dl->AddRect(ImVec2(r.x0 - 1, r.y0 - 1), ImVec2(r.x1 + 1, r.y1 + 1), IM_COL32(60, 60, 60, 255));
-    const double rupture = largestRuptureTension(scene_);
-    char text[64];
+    // In newtons when every rope and yarn tears at the same tension; otherwise as a share
+    // of each one's own rupture tension, with their range under the bar.
+    const auto [lo, hi] = ruptureTensions(scene_);
+    const bool newtons = hi > 0.0 && hi - lo <= 1e-9 * hi;
+    char text[96];
     for (int k = 0; k <= 4; ++k) {
         const float y = r.y1 - (r.y1 - r.y0) * k / 4.0f;
-        if (rupture > 0.0) std::snprintf(text, sizeof text, "%.4g N", rupture * k / 4.0);
+        if (newtons) std::snprintf(text, sizeof text, "%.4g N", hi * k / 4.0);
         else std::snprintf(text, sizeof text, "%.2f", k / 4.0);
         const ImVec2 size = ImGui::CalcTextSize(text);
         dl->AddText(ImVec2(r.x0 - 6 - size.x, y - 0.5f * size.y), IM_COL32(30, 30, 30, 255), text);
     }
-    const char* title = "tension";
+    const char* title = newtons || hi == 0.0 ? "tension" : "tension / rupture";
     dl->AddText(ImVec2(r.x1 - ImGui::CalcTextSize(title).x, r.y0 - 22), IM_COL32(30, 30, 30, 255), title);
+    if (!newtons && hi > 0.0) {
+        std::snprintf(text, sizeof text, "rupture %.4g-%.4g N", lo, hi);
+        dl->AddText(ImVec2(r.x1 - ImGui::CalcTextSize(text).x, r.y1 + 8), IM_COL32(30, 30, 30, 255), text);
+    }
 }
 
 void Viewer::drawPanels() {
