@@ -25,6 +25,7 @@
 #include <backends/imgui_impl_opengl2.h>
 
 #include <algorithm>
+#include <cfloat>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -214,6 +215,7 @@ private:
     long long script_wait_ = 0;
     std::string pending_screenshot_;
 
+    static constexpr float kLeftWidth = 320.0f, kRightWidth = 300.0f;  // the panels' columns, pixels
     static constexpr std::size_t kMaxEvents = 200;
     static constexpr std::size_t kHistory = 600;
 };
@@ -694,8 +696,10 @@ void Viewer::drawColorBar() {
 void Viewer::drawPanels() {
     drawColorBar();
     if (!show_panels_) return;
+    // The layout leaves the middle to the scene: the controls and the help on the left,
+    // the events and the plot on the right, left of the colour bar's labels.
     ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_Once);
-    ImGui::SetNextWindowSize(ImVec2(300, 0), ImGuiCond_Once);
+    ImGui::SetNextWindowSize(ImVec2(kLeftWidth, 0), ImGuiCond_Once);
     ImGui::Begin("tearables", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
     ImGui::Text("%s", opt_.scene_arg.c_str());
     if (rec_) drawPlaybackPanel();
@@ -769,8 +773,9 @@ void Viewer::drawLivePanel() {
 
 void Viewer::drawCommonPanels() {
     const float w = static_cast<float>(win_w_), h = static_cast<float>(win_h_);
-    ImGui::SetNextWindowPos(ImVec2(10, h - 180), ImGuiCond_Once);
-    ImGui::SetNextWindowSize(ImVec2(std::min(420.0f, 0.45f * w), 170), ImGuiCond_Once);
+    const float right_x = w - 110.0f - kRightWidth;
+    ImGui::SetNextWindowPos(ImVec2(right_x, 10), ImGuiCond_Once);
+    ImGui::SetNextWindowSize(ImVec2(kRightWidth, 0.5f * h - 15.0f), ImGuiCond_Once);
     ImGui::Begin("events");
     if (rec_)
         for (auto it = rec_->events().rbegin(); it != rec_->events().rend(); ++it)
@@ -778,15 +783,14 @@ void Viewer::drawCommonPanels() {
     for (auto it = events_.rbegin(); it != events_.rend(); ++it) {
         const Event& e = *it;
         if (e.segment >= 0)
-            ImGui::Text("%8.3f s  %-7s %s [%d] (%s)", e.time, toString(e.type), e.object.c_str(), e.segment, toString(e.cause));
+            ImGui::Text("%7.3f s %s %s [%d] (%s)", e.time, toString(e.type), e.object.c_str(), e.segment, toString(e.cause));
         else
-            ImGui::Text("%8.3f s  %-7s %s particle %d (%s)", e.time, toString(e.type), e.object.c_str(), e.particle, toString(e.cause));
+            ImGui::Text("%7.3f s %s %s particle %d (%s)", e.time, toString(e.type), e.object.c_str(), e.particle, toString(e.cause));
     }
     ImGui::End();
 
-    const float plot_x = std::min(440.0f, 0.45f * w + 20);
-    ImGui::SetNextWindowPos(ImVec2(plot_x, h - 180), ImGuiCond_Once);
-    ImGui::SetNextWindowSize(ImVec2(std::max(w - plot_x - 80, 200.0f), 170), ImGuiCond_Once);
+    ImGui::SetNextWindowPos(ImVec2(right_x, 0.5f * h + 5.0f), ImGuiCond_Once);
+    ImGui::SetNextWindowSize(ImVec2(kRightWidth, std::min(200.0f, 0.5f * h - 15.0f)), ImGuiCond_Once);
     ImGui::Begin("most loaded segment");
     std::vector<float> values(tension_history_.begin(), tension_history_.end());
     if (rec_) values = rec_tension_;  // the whole recording
@@ -802,9 +806,9 @@ void Viewer::drawCommonPanels() {
     ImGui::End();
 
     if (show_help_) {
-        // Between the controls and the colour bar's labels.
-        ImGui::SetNextWindowPos(ImVec2(320, 10), ImGuiCond_Once);
-        ImGui::SetNextWindowSize(ImVec2(std::clamp(w - 320 - 150, 200.0f, 480.0f), 0), ImGuiCond_Once);
+        // Under the controls.
+        ImGui::SetNextWindowPos(ImVec2(10, std::min(330.0f, 0.5f * h)), ImGuiCond_Once);
+        ImGui::SetNextWindowSize(ImVec2(kLeftWidth, 0), ImGuiCond_Once);
         ImGui::Begin("help", &show_help_);
         if (!opt_.description.empty()) ImGui::TextWrapped("%s", opt_.description.c_str());
         if (rec_) ImGui::TextWrapped("playing back %s: Space play/pause, Left/Right one frame, Backspace reverse, R the start", opt_.trace_dir.c_str());
@@ -981,6 +985,11 @@ int Viewer::run() {
 
         ImGui_ImplOpenGL2_NewFrame();
         ImGui_ImplGlfw_NewFrame();
+        if (scripted) {  // the real pointer (wherever Xvfb put it) takes no part: no hover, no tooltips
+            ImGuiIO& io = ImGui::GetIO();
+            io.MousePos = ImVec2(-FLT_MAX, -FLT_MAX);
+            for (bool& down : io.MouseDown) down = false;
+        }
         ImGui::NewFrame();
         drawScene();
         tension_history_.push_back(static_cast<float>(max_tension_));

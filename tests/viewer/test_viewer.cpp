@@ -121,7 +121,7 @@ TEST(Viewer, DragTearsARopeAndAClickCutsAnother) {
     const fs::path dir = fs::path(TEARABLES_TEST_OUT) / "viewer" / "drag_and_cut";
     fs::remove_all(dir);
     const Outcome r = runIn(dir, "xvfb-run -a -s '-screen 0 1024x768x24' " + kViewer + " " + kScenes +
-                                 "two_ropes.json --size 1000x900 --script " + kScenes + "drag_and_cut.txt --print-state");
+                                 "two_ropes.json --size 1280x900 --script " + kScenes + "drag_and_cut.txt --print-state");
     ASSERT_EQ(r.status, 0) << r.err;
 
     // The state at exit: the pulled rope tore under tension, the other was cut (a tear by
@@ -149,7 +149,7 @@ TEST(Viewer, DragTearsARopeAndAClickCutsAnother) {
 
     const Image before = tearables::render::readPng((dir / "before.png").string());
     const Image after = tearables::render::readPng((dir / "after.png").string());
-    ASSERT_EQ(before.width, 1000);
+    ASSERT_EQ(before.width, 1280);
     ASSERT_EQ(before.height, 900);
     // Before: both ropes hang whole, tension coloured, along their length (the ends left out).
     EXPECT_GT(ropeCoverage(before, -0.3, 0.65, 1.35), 0.9);
@@ -168,10 +168,10 @@ TEST(Viewer, ScreenshotAfterStepsWritesTheWindow) {
     const fs::path dir = fs::path(TEARABLES_TEST_OUT) / "viewer" / "screenshot";
     fs::remove_all(dir);
     const Outcome r = runIn(dir, "xvfb-run -a -s '-screen 0 1024x768x24' " + kViewer + " " + kScenes +
-                                 "two_ropes.json --size 1000x900 --screenshot shot.png --steps 10");
+                                 "two_ropes.json --size 1280x900 --screenshot shot.png --steps 10");
     ASSERT_EQ(r.status, 0) << r.err;
     const Image im = tearables::render::readPng((dir / "shot.png").string());
-    EXPECT_EQ(im.width, 1000);
+    EXPECT_EQ(im.width, 1280);
     EXPECT_EQ(im.height, 900);
     EXPECT_GT(ropeCoverage(im, -0.3, 0.65, 1.35), 0.9);
     expectColourBar(im);
