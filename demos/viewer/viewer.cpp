@@ -3,10 +3,12 @@
 // (Debian's libimgui-dev, GLFW and OpenGL 2 backends), and the mouse and keyboard.
 //
 // Dragging follows Bullet's example browser: a rigid body is held at the picked point by a
-// btPoint2PointConstraint whose pivot follows the cursor, with a clamped impulse (so a
-// heavy body lags and a held body can still be pulled free); a rope particle, cloth vertex
-// or sheet vertex is held by a world pin that moves toward the cursor at a bounded speed,
-// so the rope's tension rises as it is pulled taut and it tears past its rupture load.
+// btPoint2PointConstraint whose pivot follows the cursor, with a clamped impulse. A rope
+// particle, cloth vertex or sheet vertex is glued to the "hand", a body without contacts
+// or gravity, held the same way: the glue is the plugin's two-way coupling, so the rope's
+// tension is what the constraint pulls with (up to the clamp) and it tears past its
+// rupture load. (A world pin moved toward the cursor would not do: pins win over the
+// strain limit, and a rope between two pins pulled apart stretches without tension.)
 // The cursor moves on the plane through the picked point facing the camera.
 #include "viewer/viewer.hpp"
 
@@ -102,12 +104,14 @@ std::optional<std::array<double, 2>> projectPoint(const View& v, const Vec3& p, 
 /// What the mouse holds.
 struct Grab {
     enum class Kind { None, String, Cloth, Paper, Body };
-    /// How: a particle already pinned to a world point has its pin moved; a free particle
-    /// is glued to the hand (a small body without contacts) that a point constraint pulls;
-    /// a body is pulled by a point constraint at the picked point.
-    enum class Mode { Pin, Hand, Constraint };
+    /// How: a particle or vertex is glued to the hand (a small body without contacts) that
+    /// a point constraint pulls (one pinned to a world point is unpinned while held and
+    /// pinned again where it is let go); a body is pulled by a point constraint at the
+    /// picked point.
+    enum class Mode { Hand, Constraint };
     Kind kind = Kind::None;
     Mode mode = Mode::Constraint;
+    bool repin = false;        ///< it was pinned to a world point: pin it again on release
     std::size_t index = 0;     ///< the scene's string / cloth / paper index, or the body index
     int particle = -1;         ///< the particle or vertex held
     Vec3 plane_point = Vec3::Zero();  ///< the drag plane's point (faces the camera)
@@ -254,50 +258,7 @@ void Viewer::stepOnce() {
 
 void Viewer::applyGrab() {
     if (grab_.kind == Grab::Kind::None || !run_) return;
-    if (grab_.mode != Grab::Mode::Pin) {
-        grab_.p2p->setPivotB(toBullet(grab_.target));
-        return;
-    }
-    // A pinned particle: its pin moves toward the cursor at no more than this speed, fast
-    // enough to follow a hand.
-    World& core = run_->ropes().core();
-    const double dt = scene_.dt;
-    const render::Bounds bounds = render::sceneBounds(scene_);
-    const double max_step = 2.0 * std::max((bounds.hi - bounds.lo).norm(), 0.5) * dt;
-    const auto toward = [&](const Vec3& from) {
-        const Vec3 d = grab_.target - from;
-        const double n = d.norm();
-        return n > max_step ? Vec3(from + d * (max_step / n)) : grab_.target;
-    };
-    try {
-        switch (grab_.kind) {
-            case Grab::Kind::String: {
-                const StringId id = run_->stringId(grab_.index);
-                Vec3 pin;
-                if (!core.pinTarget(id, grab_.particle, &pin)) {  // released meanwhile: let go
-                    grab_ = Grab{};
-                    return;
-                }
-                core.movePin(id, grab_.particle, toward(pin));
-                break;
-            }
-            case Grab::Kind::Cloth: {
-                const ClothId id = run_->clothId(grab_.index);
-                core.moveClothPin(id, grab_.particle, toward((*core.viewCloth(id).positions)[static_cast<std::size_t>(grab_.particle)]));
-                break;
-            }
-            case Grab::Kind::Paper: {
-                const PaperId id = run_->paperId(grab_.index);
-                const auto v = static_cast<std::uint32_t>(grab_.particle);
-                core.movePaperPin(id, v, toward((*core.viewPaper(id).positions)[v]));
-                break;
-            }
-            default: break;
-        }
-    } catch (const InvalidInput& e) {
-        status_ = std::string("let go: ") + e.what();
-        grab_ = Grab{};
-    }
+    grab_.p2p->setPivotB(toBullet(grab_.target));
 }
 
 btRigidBody& Viewer::hand() {
@@ -323,9 +284,22 @@ void Viewer::releaseGrab() {
     World& core = run_->ropes().core();
     if (grab_.mode == Grab::Mode::Hand) {
         try {
-            if (grab_.kind == Grab::Kind::String) core.detach(run_->stringId(grab_.index), grab_.particle);
-            if (grab_.kind == Grab::Kind::Cloth) core.detachCloth(run_->clothId(grab_.index), grab_.particle);
-            if (grab_.kind == Grab::Kind::Paper) core.detachPaper(run_->paperId(grab_.index), static_cast<std::uint32_t>(grab_.particle));
+            if (grab_.kind == Grab::Kind::String) {
+                const StringId id = run_->stringId(grab_.index);
+                core.detach(id, grab_.particle);
+                if (grab_.repin) core.attachToPoint(id, grab_.particle, (*core.view(id).positions)[static_cast<std::size_t>(grab_.particle)]);
+            }
+            if (grab_.kind == Grab::Kind::Cloth) {
+                const ClothId id = run_->clothId(grab_.index);
+                core.detachCloth(id, grab_.particle);
+                if (grab_.repin) core.attachClothToPoint(id, grab_.particle, (*core.viewCloth(id).positions)[static_cast<std::size_t>(grab_.particle)]);
+            }
+            if (grab_.kind == Grab::Kind::Paper) {
+                const PaperId id = run_->paperId(grab_.index);
+                const auto v = static_cast<std::uint32_t>(grab_.particle);
+                core.detachPaper(id, v);
+                if (grab_.repin) core.attachPaperToPoint(id, v, (*core.viewPaper(id).positions)[v]);
+            }
         } catch (const InvalidInput&) {
         }
     }
@@ -442,9 +416,13 @@ bool Viewer::startGrab(double x, double y) {
             pick.mode = Grab::Mode::Constraint;
             pulled = &run_->body(pick.index);
             local = pulled->getCenterOfMassTransform().inverse() * toBullet(pick.plane_point);
-        } else if (pinned) {
-            pick.mode = Grab::Mode::Pin;
         } else {
+            if (pinned) {  // held by the hand instead of the pin until let go
+                pick.repin = true;
+                if (pick.kind == Grab::Kind::String) core.detach(run_->stringId(pick.index), pick.particle);
+                if (pick.kind == Grab::Kind::Cloth) core.detachCloth(run_->clothId(pick.index), pick.particle);
+                if (pick.kind == Grab::Kind::Paper) core.detachPaper(run_->paperId(pick.index), static_cast<std::uint32_t>(pick.particle));
+            }
             // The hand: moved to the particle, at rest, then the particle is glued to it.
             pick.mode = Grab::Mode::Hand;
             pulled = &hand();
@@ -814,8 +792,9 @@ void Viewer::drawCommonPanels() {
         if (rec_) ImGui::TextWrapped("playing back %s: Space play/pause, Left/Right one frame, Backspace reverse, R the start", opt_.trace_dir.c_str());
         ImGui::Separator();
         ImGui::TextWrapped(
-            "mouse: left-drag on a rope, cloth, sheet or body holds it (a pin or a point constraint "
-            "follows the cursor: pull a rope hard and it tears); left-drag elsewhere orbits; right-drag pans; "
+            "mouse: left-drag on a rope, cloth, sheet or body holds it (a point constraint pulls it toward "
+            "the cursor: pull a rope hard and it tears; a pinned point is pinned again where you let go); "
+            "left-drag elsewhere orbits; right-drag pans; "
             "wheel zooms; shift-click (or the cut tool) cuts a rope.\n"
             "keys: Space play/pause, N one step, S slow motion, +/- speed, R restart, C cut tool, G drag tool, "
             "B drop a crate, W wind, F fit the camera, H this help, P all panels, Q or Esc quit.\n"
@@ -847,7 +826,11 @@ std::string Viewer::stateJson() const {
         nlohmann::json broken = nlohmann::json::array();
         for (std::size_t s = 0; s < v.segmentCount(); ++s)
             if ((*v.broken)[s]) broken.push_back(s);
-        strings[scene_.strings[i].desc.name] = {{"broken", broken}, {"segments", v.segmentCount()}};
+        const Vec3& first = v.positions->front();
+        const Vec3& last = v.positions->back();
+        strings[scene_.strings[i].desc.name] = {{"broken", broken},
+                                                {"segments", v.segmentCount()},
+                                                {"ends", {{first.x(), first.y(), first.z()}, {last.x(), last.y(), last.z()}}}};
     }
     j["strings"] = strings;
     nlohmann::json events = nlohmann::json::array();
