@@ -72,9 +72,33 @@ int guarded(const std::string& what, Body&& body) {
     }
 }
 
+/// `tearables view ...` runs the viewer's program, tearables-view, with the same arguments:
+/// it links libGL for its window where this program links libOSMesa, and both export the gl*
+/// entry points. Looked for beside this program, then on PATH; returns only when it cannot
+/// be run.
+int execViewer(int argc, char** argv) {
+    std::error_code ec;
+    std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+    std::string program = ec ? std::string() : (self.parent_path() / "tearables-view").string();
+    if (program.empty() || access(program.c_str(), X_OK) != 0) program = tearables::render::findOnPath("tearables-view");
+    if (program.empty()) {
+        std::fprintf(stderr,
+                     "tearables: view: the viewer (tearables-view) was not built: it needs libglfw3-dev, libimgui-dev and "
+                     "libgl-dev (bash .ci/install-deps), then configure again with cmake\n");
+        return kFailed;
+    }
+    std::vector<char*> args{program.data()};
+    for (int i = 2; i < argc; ++i) args.push_back(argv[i]);
+    args.push_back(nullptr);
+    execv(program.c_str(), args.data());
+    std::fprintf(stderr, "tearables: view: cannot run %s\n", program.c_str());
+    return kFailed;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+    if (argc >= 2 && std::string(argv[1]) == "view") return execViewer(argc, argv);
     CLI::App app{"tearables: ropes, strings, paper and cloth that twist and tear, for Bullet"};
     app.require_subcommand(1);
 
@@ -96,6 +120,8 @@ int main(int argc, char** argv) {
     run->add_option("--plot-size", plot_size_text, "plot.png's size WIDTHxHEIGHT (default 1200x900)");
     run->add_flag("--quiet", quiet, "no progress bar, no report");
     CLI::App* list = app.add_subcommand("list", "list the built-in scenes");
+    // Listed for --help; `tearables view ...` is handed to tearables-view before parsing.
+    app.add_subcommand("view", "open a scene in the interactive viewer (`tearables view --help`)");
 
     try {
         app.parse(argc, argv);

@@ -52,7 +52,7 @@ std::unique_ptr<btCollisionShape> makeShape(const Shape& s) {
     throw std::runtime_error("unknown shape");
 }
 
-btRigidBody* addBody(BulletScene& bs, const Body& spec) {
+btRigidBody* addBulletBody(BulletScene& bs, const Body& spec) {
     auto shape = makeShape(spec.shape);
     const bool dynamic = spec.mass > 0.0 && !spec.kinematic && spec.shape.kind != Shape::Kind::Plane;
     btVector3 inertia(0, 0, 0);
@@ -126,7 +126,7 @@ private:
 json vec(const Vec3& v) { return json::array({v.x(), v.y(), v.z()}); }
 json vec(const btVector3& v) { return json::array({v.x(), v.y(), v.z()}); }
 
-json frame(long long step, double t, const Scene& scene, const std::vector<StringId>& ids,
+json traceFrame(long long step, double t, const Scene& scene, const std::vector<StringId>& ids,
            const std::vector<ClothId>& cloth_ids, const std::vector<PaperId>& paper_ids, const World& core,
            const BulletScene& bs) {
     json f;
@@ -312,6 +312,26 @@ std::ofstream openOut(const std::filesystem::path& path) {
     return out;
 }
 
+/// Quadratic drag of air (1.2 kg/m^3, C_d 1.2) on each intact segment's projected area,
+/// from `wind` (m/s) relative to the segment, shared by its two particles.
+void blowOnStrings(World& core, const std::vector<StringId>& ids, const Vec3& wind) {
+    for (StringId id : ids) {
+        const StringView v = core.view(id);
+        for (std::size_t j = 0; j < v.segmentCount(); ++j) {
+            if ((*v.broken)[j]) continue;
+            const Vec3 seg = (*v.positions)[j + 1] - (*v.positions)[j];
+            const double len = seg.norm();
+            if (len <= 0.0) continue;
+            const Vec3 axis = seg / len;
+            Vec3 rel = wind - 0.5 * ((*v.velocities)[j] + (*v.velocities)[j + 1]);
+            rel -= axis * axis.dot(rel);
+            const Vec3 f = 0.5 * 1.2 * 1.2 * (2.0 * v.radius * len) * rel.norm() * rel;
+            core.applyForce(id, static_cast<int>(j), 0.5 * f);
+            core.applyForce(id, static_cast<int>(j + 1), 0.5 * f);
+        }
+    }
+}
+
 void drawProgress(long long done, long long total) {
     const int width = 40;
     const int filled = total > 0 ? static_cast<int>(width * done / total) : width;
@@ -323,12 +343,44 @@ void drawProgress(long long done, long long total) {
 
 }  // namespace
 
-RunResult runScene(const Scene& scene, const RunOptions& options) {
-    const long long steps = options.steps.value_or(scene.steps);
-    const int every = options.every.value_or(scene.output_every);
+struct SceneRun::Impl {
+    Scene scene;
+    RunOptions options;
+    long long steps = 0;
+    int every = 1;
+    double dt = 0.01;
+    BulletScene bs;
+    std::unique_ptr<BulletWorld> ropes;  // after bs: destroyed before it
+    std::vector<StringId> ids;
+    std::vector<ClothId> cloth_ids;
+    std::vector<PaperId> paper_ids;
+    std::map<std::string, ClothId> cloth_by_name;
+    std::map<std::string, PaperId> paper_by_name;
+    std::map<std::string, StringId> string_ids;
+    std::ofstream trace, events;
+    bool write = false;
+    std::filesystem::path dir;
+    std::vector<std::uint8_t> done;
+    std::vector<std::size_t> shots_fired;  // shoot drivers: shots taken so far
+    std::map<std::string, long long> counts;
+    double wall = 0.0, paper_seconds = 0.0;
+    IslandTotals islands;
+    std::uint64_t wind_state = 0;
+    long long steps_taken = 0;
+    std::vector<Event> last_events;
+    bool scene_wind = true;
+    Vec3 extra_wind = Vec3::Zero();
+
+    Impl(const Scene& scene_in, const RunOptions& options_in);
+    void advance();
+    RunResult finish();
+};
+
+SceneRun::Impl::Impl(const Scene& scene_in, const RunOptions& options_in)
+    : scene(scene_in), options(options_in), steps(options_in.steps.value_or(scene_in.steps)),
+      every(options_in.every.value_or(scene_in.output_every)), dt(scene_in.dt) {
     if (steps < 0 || steps > 1'000'000'000) throw InvalidInput("--steps", "must be in [0, 1000000000] (got " + std::to_string(steps) + ")");
     if (every < 1) throw InvalidInput("--every", "must be >= 1");
-    const double dt = scene.dt;
 
     for (std::size_t d = 0; d < scene.drivers.size(); ++d) {
         const Driver& drv = scene.drivers[d];
@@ -363,271 +415,252 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
     }
 
     // --- build ------------------------------------------------------------------------
-    BulletScene bs;
     bs.world.setGravity(toBullet(scene.gravity));
-    for (const Body& b : scene.bodies) addBody(bs, b);
-    BulletWorld ropes(bs.world);
-    std::vector<StringId> ids;
+    for (const Body& b : scene.bodies) addBulletBody(bs, b);
+    ropes = std::make_unique<BulletWorld>(bs.world);
     for (std::size_t i = 0; i < scene.strings.size(); ++i) {
         const String& s = scene.strings[i];
         const std::string path = "strings[" + std::to_string(i) + "]";
         try {
-            ids.push_back(ropes.addString(s.desc, s.collision_group, s.collision_mask));
+            ids.push_back(ropes->addString(s.desc, s.collision_group, s.collision_mask));
             for (std::size_t k = 0; k < s.attachments.size(); ++k) {
                 const Attachment& a = s.attachments[k];
                 if (a.world) {
-                    ropes.attach(ids.back(), a.particle, toBullet(*a.world));
+                    ropes->attach(ids.back(), a.particle, toBullet(*a.world));
                 } else {
-                    ropes.attach(ids.back(), a.particle, *bs.by_name.at(*a.body), toBullet(a.local));
+                    ropes->attach(ids.back(), a.particle, *bs.by_name.at(*a.body), toBullet(a.local));
                 }
             }
         } catch (const InvalidInput& e) {
             throw InvalidInput(path + "." + e.field(), e.problem());
         }
     }
-    std::vector<ClothId> cloth_ids;
     for (std::size_t i = 0; i < scene.cloths.size(); ++i) {
         const Cloth& c = scene.cloths[i];
         const std::string path = "cloths[" + std::to_string(i) + "]";
         try {
-            cloth_ids.push_back(ropes.addCloth(c.desc, c.collision_group, c.collision_mask));
+            cloth_ids.push_back(ropes->addCloth(c.desc, c.collision_group, c.collision_mask));
             for (const ClothAttachment& a : c.attachments)
-                ropes.attachCloth(cloth_ids.back(), c.desc.vertex(a.i, a.j), *bs.by_name.at(a.body), toBullet(a.local));
+                ropes->attachCloth(cloth_ids.back(), c.desc.vertex(a.i, a.j), *bs.by_name.at(a.body), toBullet(a.local));
         } catch (const InvalidInput& e) {
             throw InvalidInput(path + "." + e.field(), e.problem());
         }
     }
-    std::vector<PaperId> paper_ids;
     for (std::size_t i = 0; i < scene.papers.size(); ++i) {
         const Paper& p = scene.papers[i];
         const std::string path = "papers[" + std::to_string(i) + "]";
         try {
-            paper_ids.push_back(ropes.addPaper(p.desc, p.collision_group, p.collision_mask));
+            paper_ids.push_back(ropes->addPaper(p.desc, p.collision_group, p.collision_mask));
             for (const PaperGlue& g : p.glue) {
                 btRigidBody* body = bs.by_name.at(g.body);
                 // Default: glued where the vertex is, in the body's frame.
-                const btVector3 at = tearables::toBullet((*ropes.core().viewPaper(paper_ids.back()).positions)[g.vertex]);
+                const btVector3 at = tearables::toBullet((*ropes->core().viewPaper(paper_ids.back()).positions)[g.vertex]);
                 const btVector3 local = g.local ? tearables::toBullet(*g.local) : body->getCenterOfMassTransform().inverse() * at;
-                ropes.attachPaper(paper_ids.back(), g.vertex, *body, local);
+                ropes->attachPaper(paper_ids.back(), g.vertex, *body, local);
             }
         } catch (const InvalidInput& e) {
             throw InvalidInput(path + "." + e.field(), e.problem());
         }
     }
-    std::map<std::string, ClothId> cloth_by_name;
     for (std::size_t i = 0; i < cloth_ids.size(); ++i) cloth_by_name[scene.cloths[i].desc.name] = cloth_ids[i];
-    std::map<std::string, PaperId> paper_by_name;
     for (std::size_t i = 0; i < paper_ids.size(); ++i) paper_by_name[scene.papers[i].desc.name] = paper_ids[i];
-    std::map<std::string, StringId> string_ids;
     for (std::size_t i = 0; i < ids.size(); ++i) string_ids[scene.strings[i].desc.name] = ids[i];
 
     // --- outputs ----------------------------------------------------------------------
-    std::ofstream trace, events;
-    const bool write = !options.out_dir.empty();
-    std::filesystem::path dir(options.out_dir);
+    write = !options.out_dir.empty();
+    dir = options.out_dir;
     if (write) {
         std::error_code ec;
         std::filesystem::create_directories(dir, ec);
         if (ec) throw std::runtime_error("cannot create " + dir.string() + ": " + ec.message());
         trace = openOut(dir / "trace.jsonl");
         events = openOut(dir / "events.jsonl");
-        trace << frame(0, 0.0, scene, ids, cloth_ids, paper_ids, ropes.core(), bs).dump() << '\n';
+        trace << traceFrame(0, 0.0, scene, ids, cloth_ids, paper_ids, ropes->core(), bs).dump() << '\n';
     }
-    if (options.on_frame) options.on_frame(frameState(0, 0.0, scene, ids, cloth_ids, paper_ids, ropes.core(), bs));
+    if (options.on_frame) options.on_frame(frameState(0, 0.0, scene, ids, cloth_ids, paper_ids, ropes->core(), bs));
 
-    // --- run --------------------------------------------------------------------------
-    std::vector<std::uint8_t> done(scene.drivers.size(), 0);
-    std::vector<std::size_t> shots_fired(scene.drivers.size(), 0);  // shoot drivers: shots taken so far
-    std::map<std::string, long long> counts;
-    double wall = 0.0, paper_seconds = 0.0;
-    RunResult result;
-    const long long progress_every = std::max<long long>(1, steps / 100);
-    std::uint64_t wind_state = scene.seed * 0x9E3779B97F4A7C15ull + 1;
-    for (long long step = 1; step <= steps; ++step) {
-        const double t0 = static_cast<double>(step - 1) * dt;
-        World& core = ropes.core();
-        for (std::size_t d = 0; d < scene.drivers.size(); ++d) {
-            const Driver& drv = scene.drivers[d];
-            const bool active = t0 >= drv.from && t0 < drv.until;
-            if (drv.cloth) {
-                const ClothId id = cloth_by_name.at(drv.target);
-                switch (drv.type) {
-                    case Driver::Type::Force:
-                        if (active) core.applyClothForce(id, drv.particle, drv.value);
-                        break;
-                    case Driver::Type::Ramp:
-                        if (active) core.applyClothForce(id, drv.particle, drv.value * std::min(drv.rate * (t0 - drv.from), kMaxDriverForce));
-                        break;
-                    case Driver::Type::Move:
-                        if (active) {
-                            const Vec3 at = (*core.viewCloth(id).positions)[static_cast<std::size_t>(drv.particle)];
-                            try {
-                                core.moveClothPin(id, drv.particle, at + dt * drv.velocity);
-                            } catch (const InvalidInput&) {  // not pinned yet: pinned where it is, then moved
-                                const bool glued = std::any_of(scene.cloths.begin(), scene.cloths.end(), [&](const Cloth& c) {
-                                    return c.desc.name == drv.target &&
-                                           std::any_of(c.attachments.begin(), c.attachments.end(), [&](const ClothAttachment& a) {
-                                               return c.desc.vertex(a.i, a.j) == drv.particle;
-                                           });
-                                });
-                                if (glued)
-                                    throw InvalidInput("drivers[" + std::to_string(d) + "].vertex", "is glued to a body and cannot be moved");
-                                core.attachClothToPoint(id, drv.particle, at);
-                                core.moveClothPin(id, drv.particle, at + dt * drv.velocity);
-                            }
-                        }
-                        break;
-                    case Driver::Type::Release:
-                        if (!done[d] && t0 >= drv.at) {
-                            core.detachCloth(id, drv.particle);
-                            done[d] = 1;
-                        }
-                        break;
-                    default: break;
-                }
-                continue;
-            }
+    done.assign(scene.drivers.size(), 0);
+    shots_fired.assign(scene.drivers.size(), 0);
+    wind_state = scene.seed * 0x9E3779B97F4A7C15ull + 1;
+}
+
+void SceneRun::Impl::advance() {
+    const long long step = ++steps_taken;
+
+    const double t0 = static_cast<double>(step - 1) * dt;
+    World& core = ropes->core();
+    for (std::size_t d = 0; d < scene.drivers.size(); ++d) {
+        const Driver& drv = scene.drivers[d];
+        const bool active = t0 >= drv.from && t0 < drv.until;
+        if (drv.cloth) {
+            const ClothId id = cloth_by_name.at(drv.target);
             switch (drv.type) {
                 case Driver::Type::Force:
-                    if (active && drv.paper_vertex >= 0)
-                        core.applyPaperForce(paper_by_name.at(drv.target), static_cast<std::uint32_t>(drv.paper_vertex), drv.value);
-                    else if (active)
-                        core.applyForce(string_ids.at(drv.target), drv.particle, drv.value);
+                    if (active) core.applyClothForce(id, drv.particle, drv.value);
                     break;
                 case Driver::Type::Ramp:
-                    if (active) core.applyForce(string_ids.at(drv.target), drv.particle, drv.value * std::min(drv.rate * (t0 - drv.from), kMaxDriverForce));
+                    if (active) core.applyClothForce(id, drv.particle, drv.value * std::min(drv.rate * (t0 - drv.from), kMaxDriverForce));
                     break;
                 case Driver::Type::Move:
-                    if (active && drv.paper_vertex >= 0) {
-                        // A paper vertex: pinned where it is at first, then moved.
-                        const PaperId id = paper_by_name.at(drv.target);
-                        const auto v = static_cast<std::uint32_t>(drv.paper_vertex);
-                        const Vec3 at = (*core.viewPaper(id).positions)[v];
+                    if (active) {
+                        const Vec3 at = (*core.viewCloth(id).positions)[static_cast<std::size_t>(drv.particle)];
                         try {
-                            core.movePaperPin(id, v, at + dt * drv.velocity);
-                        } catch (const InvalidInput&) {  // not pinned yet (a glued vertex cannot be moved)
-                            core.attachPaperToPoint(id, v, at);
-                            core.movePaperPin(id, v, at + dt * drv.velocity);
+                            core.moveClothPin(id, drv.particle, at + dt * drv.velocity);
+                        } catch (const InvalidInput&) {  // not pinned yet: pinned where it is, then moved
+                            const bool glued = std::any_of(scene.cloths.begin(), scene.cloths.end(), [&](const Cloth& c) {
+                                return c.desc.name == drv.target &&
+                                       std::any_of(c.attachments.begin(), c.attachments.end(), [&](const ClothAttachment& a) {
+                                           return c.desc.vertex(a.i, a.j) == drv.particle;
+                                       });
+                            });
+                            if (glued)
+                                throw InvalidInput("drivers[" + std::to_string(d) + "].vertex", "is glued to a body and cannot be moved");
+                            core.attachClothToPoint(id, drv.particle, at);
+                            core.moveClothPin(id, drv.particle, at + dt * drv.velocity);
                         }
-                    } else if (active) {
-                        const StringId id = string_ids.at(drv.target);
-                        Vec3 target;
-                        if (!core.pinTarget(id, drv.particle, &target)) {
-                            if (core.isAttached(id, drv.particle))
-                                throw InvalidInput("drivers[" + std::to_string(d) + "].particle", "is glued to a body and cannot be moved");
-                            target = (*core.view(id).positions)[core.resolveParticle(id, drv.particle)];
-                            core.attachToPoint(id, drv.particle, target);
-                        }
-                        core.movePin(id, drv.particle, target + dt * drv.velocity);
                     }
                     break;
                 case Driver::Type::Release:
                     if (!done[d] && t0 >= drv.at) {
-                        core.detach(string_ids.at(drv.target), drv.particle);
+                        core.detachCloth(id, drv.particle);
                         done[d] = 1;
                     }
                     break;
-                case Driver::Type::Spawn:
-                    if (!done[d] && t0 >= drv.at) {
-                        addBody(bs, *drv.body);
-                        done[d] = 1;
-                    }
-                    break;
-                case Driver::Type::Wind:
-                    if (active) {
-                        // Quadratic drag of air (1.2 kg/m^3, C_d 1.2) on each segment's
-                        // projected area, from the wind relative to the segment, with a
-                        // seeded random gust factor that changes every 0.1 s.
-                        if ((step - 1) % std::max<long long>(1, static_cast<long long>(0.1 / dt)) == 0)
-                            wind_state = wind_state * 6364136223846793005ull + 1442695040888963407ull;
-                        const double u = static_cast<double>(wind_state >> 11) * (1.0 / 9007199254740992.0);
-                        const Vec3 wind = drv.value * (1.0 + drv.gust * (2.0 * u - 1.0));
-                        for (StringId id : ids) {
-                            const StringView v = core.view(id);
-                            for (std::size_t j = 0; j < v.segmentCount(); ++j) {
-                                if ((*v.broken)[j]) continue;
-                                const Vec3 seg = (*v.positions)[j + 1] - (*v.positions)[j];
-                                const double len = seg.norm();
-                                if (len <= 0.0) continue;
-                                const Vec3 axis = seg / len;
-                                Vec3 rel = wind - 0.5 * ((*v.velocities)[j] + (*v.velocities)[j + 1]);
-                                rel -= axis * axis.dot(rel);
-                                const Vec3 f = 0.5 * 1.2 * 1.2 * (2.0 * v.radius * len) * rel.norm() * rel;
-                                core.applyForce(id, static_cast<int>(j), 0.5 * f);
-                                core.applyForce(id, static_cast<int>(j + 1), 0.5 * f);
-                            }
-                        }
-                    }
-                    break;
-                case Driver::Type::Twist:
-                    if (active) core.turnEnd(string_ids.at(drv.target), drv.end, drv.rate * dt);
-                    break;
-                case Driver::Type::Shoot:
-                    // Every shot whose time has come (a step may hold several).
-                    while (shots_fired[d] < drv.times.size() && t0 >= drv.times[shots_fired[d]] - 1e-9 * dt) {
-                        ++shots_fired[d];
-                        const Shot shot = shoot(bs, core, scene, ids, drv, dt);
-                        ++counts["shot"];
-                        if (!write) continue;
-                        json e = {{"step", step}, {"t", t0}, {"type", "shot"}, {"hit", shot.hit}};
-                        if (shot.hit) {
-                            e["object"] = shot.object;
-                            e["point"] = vec(shot.point);
-                        }
-                        e["impulse"] = shot.impulse;
-                        if (shot.impulse < drv.impulse) e["clamped_from"] = drv.impulse;  // to kMaxDriverSpeed
-                        events << e.dump() << '\n';
-                    }
-                    break;
-                case Driver::Type::Velocity:
-                    if (active)
-                        for (std::size_t b = 0; b < bs.bodies.size(); ++b)
-                            if (bs.specs[b].name == drv.body_name) {
-                                // A kinematic body keeps moving at it; a dynamic one is set to it.
-                                bs.specs[b].linear_velocity = drv.value;
-                                bs.bodies[b]->setLinearVelocity(toBullet(drv.value));
-                                bs.bodies[b]->activate();
-                            }
-                    break;
+                default: break;
             }
+            continue;
         }
-        moveKinematic(bs, dt);
-
-        const auto a = std::chrono::steady_clock::now();
-        bs.world.stepSimulation(static_cast<btScalar>(dt), 1, static_cast<btScalar>(dt));
-        wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count();
-        paper_seconds += ropes.core().lastPaperTimes().total();
-        for (const tearables::IslandSummary& island : ropes.core().lastIslands()) {
-            ++result.islands.solves;
-            result.islands.iterations += island.iterations;
-            result.islands.most_iterations = std::max(result.islands.most_iterations, island.iterations);
-            if (!(island.residual < 1.0)) ++result.islands.unconverged;
+        switch (drv.type) {
+            case Driver::Type::Force:
+                if (active && drv.paper_vertex >= 0)
+                    core.applyPaperForce(paper_by_name.at(drv.target), static_cast<std::uint32_t>(drv.paper_vertex), drv.value);
+                else if (active)
+                    core.applyForce(string_ids.at(drv.target), drv.particle, drv.value);
+                break;
+            case Driver::Type::Ramp:
+                if (active) core.applyForce(string_ids.at(drv.target), drv.particle, drv.value * std::min(drv.rate * (t0 - drv.from), kMaxDriverForce));
+                break;
+            case Driver::Type::Move:
+                if (active && drv.paper_vertex >= 0) {
+                    // A paper vertex: pinned where it is at first, then moved.
+                    const PaperId id = paper_by_name.at(drv.target);
+                    const auto v = static_cast<std::uint32_t>(drv.paper_vertex);
+                    const Vec3 at = (*core.viewPaper(id).positions)[v];
+                    try {
+                        core.movePaperPin(id, v, at + dt * drv.velocity);
+                    } catch (const InvalidInput&) {  // not pinned yet (a glued vertex cannot be moved)
+                        core.attachPaperToPoint(id, v, at);
+                        core.movePaperPin(id, v, at + dt * drv.velocity);
+                    }
+                } else if (active) {
+                    const StringId id = string_ids.at(drv.target);
+                    Vec3 target;
+                    if (!core.pinTarget(id, drv.particle, &target)) {
+                        if (core.isAttached(id, drv.particle))
+                            throw InvalidInput("drivers[" + std::to_string(d) + "].particle", "is glued to a body and cannot be moved");
+                        target = (*core.view(id).positions)[core.resolveParticle(id, drv.particle)];
+                        core.attachToPoint(id, drv.particle, target);
+                    }
+                    core.movePin(id, drv.particle, target + dt * drv.velocity);
+                }
+                break;
+            case Driver::Type::Release:
+                if (!done[d] && t0 >= drv.at) {
+                    core.detach(string_ids.at(drv.target), drv.particle);
+                    done[d] = 1;
+                }
+                break;
+            case Driver::Type::Spawn:
+                if (!done[d] && t0 >= drv.at) {
+                    addBulletBody(bs, *drv.body);
+                    done[d] = 1;
+                }
+                break;
+            case Driver::Type::Wind:
+                if (active && scene_wind) {
+                    // Quadratic drag of air (1.2 kg/m^3, C_d 1.2) on each segment's
+                    // projected area, from the wind relative to the segment, with a
+                    // seeded random gust factor that changes every 0.1 s.
+                    if ((step - 1) % std::max<long long>(1, static_cast<long long>(0.1 / dt)) == 0)
+                        wind_state = wind_state * 6364136223846793005ull + 1442695040888963407ull;
+                    const double u = static_cast<double>(wind_state >> 11) * (1.0 / 9007199254740992.0);
+                    const Vec3 wind = drv.value * (1.0 + drv.gust * (2.0 * u - 1.0));
+                    blowOnStrings(core, ids, wind);
+                }
+                break;
+            case Driver::Type::Twist:
+                if (active) core.turnEnd(string_ids.at(drv.target), drv.end, drv.rate * dt);
+                break;
+            case Driver::Type::Shoot:
+                // Every shot whose time has come (a step may hold several).
+                while (shots_fired[d] < drv.times.size() && t0 >= drv.times[shots_fired[d]] - 1e-9 * dt) {
+                    ++shots_fired[d];
+                    const Shot shot = shoot(bs, core, scene, ids, drv, dt);
+                    ++counts["shot"];
+                    if (!write) continue;
+                    json e = {{"step", step}, {"t", t0}, {"type", "shot"}, {"hit", shot.hit}};
+                    if (shot.hit) {
+                        e["object"] = shot.object;
+                        e["point"] = vec(shot.point);
+                    }
+                    e["impulse"] = shot.impulse;
+                    if (shot.impulse < drv.impulse) e["clamped_from"] = drv.impulse;  // to kMaxDriverSpeed
+                    events << e.dump() << '\n';
+                }
+                break;
+            case Driver::Type::Velocity:
+                if (active)
+                    for (std::size_t b = 0; b < bs.bodies.size(); ++b)
+                        if (bs.specs[b].name == drv.body_name) {
+                            // A kinematic body keeps moving at it; a dynamic one is set to it.
+                            bs.specs[b].linear_velocity = drv.value;
+                            bs.bodies[b]->setLinearVelocity(toBullet(drv.value));
+                            bs.bodies[b]->activate();
+                        }
+                break;
         }
-        if (!ropes.lastError().empty()) throw std::runtime_error("step " + std::to_string(step) + ": " + ropes.lastError());
-
-        for (const Event& e : ropes.events()) {
-            ++counts[toString(e.type)];
-            if (write) events << eventJson(e).dump() << '\n';
-        }
-        ropes.clearEvents();
-        const bool frame_step = step % every == 0 || step == steps;
-        if (write && frame_step)
-            trace << frame(step, static_cast<double>(step) * dt, scene, ids, cloth_ids, paper_ids, ropes.core(), bs).dump() << '\n';
-        if (options.on_frame && frame_step) options.on_frame(frameState(step, static_cast<double>(step) * dt, scene, ids, cloth_ids, paper_ids, ropes.core(), bs));
-        if (options.progress && (step % progress_every == 0 || step == steps)) drawProgress(step, steps);
     }
+    if (extra_wind.squaredNorm() > 0.0) blowOnStrings(ropes->core(), ids, extra_wind);
+    moveKinematic(bs, dt);
 
+    const auto a = std::chrono::steady_clock::now();
+    bs.world.stepSimulation(static_cast<btScalar>(dt), 1, static_cast<btScalar>(dt));
+    wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count();
+    paper_seconds += ropes->core().lastPaperTimes().total();
+    for (const tearables::IslandSummary& island : ropes->core().lastIslands()) {
+        ++islands.solves;
+        islands.iterations += island.iterations;
+        islands.most_iterations = std::max(islands.most_iterations, island.iterations);
+        if (!(island.residual < 1.0)) ++islands.unconverged;
+    }
+    if (!ropes->lastError().empty()) throw std::runtime_error("step " + std::to_string(step) + ": " + ropes->lastError());
+
+    last_events = ropes->events();
+    for (const Event& e : last_events) {
+        ++counts[toString(e.type)];
+        if (write) events << eventJson(e).dump() << '\n';
+    }
+    ropes->clearEvents();
+    const bool frame_step = step % every == 0 || step == steps;
+    if (write && frame_step)
+        trace << traceFrame(step, static_cast<double>(step) * dt, scene, ids, cloth_ids, paper_ids, ropes->core(), bs).dump() << '\n';
+    if (options.on_frame && frame_step) options.on_frame(frameState(step, static_cast<double>(step) * dt, scene, ids, cloth_ids, paper_ids, ropes->core(), bs));
+}
+
+RunResult SceneRun::Impl::finish() {
     // --- summary ----------------------------------------------------------------------
-    result.steps = steps;
-    result.simulated_seconds = static_cast<double>(steps) * dt;
+    RunResult result;
+    result.steps = steps_taken;
+    result.simulated_seconds = static_cast<double>(steps_taken) * dt;
     result.wall_seconds = wall;
     for (const auto& [type, n] : counts) result.event_counts.emplace_back(type, n);
+    result.islands = islands;
     // Everything the views show (tensions, twist, plastic lengths; the sheet's springs
     // with their kinds, hinges and broken flags, its masses and counters), so that a run
     // that differs only in damage, twist or tension has another digest.
     Digest digest;
     for (StringId id : ids) {
-        const StringView v = ropes.core().view(id);
+        const StringView v = ropes->core().view(id);
         for (const Vec3& p : *v.positions) digest.add(p);
         for (const Vec3& p : *v.velocities) digest.add(p);
         for (double l : *v.rest_length) digest.add(l);
@@ -638,7 +671,7 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         digest.add(static_cast<double>(v.frozen));
     }
     for (ClothId id : cloth_ids) {
-        const ClothView v = ropes.core().viewCloth(id);
+        const ClothView v = ropes->core().viewCloth(id);
         for (const Vec3& p : *v.positions) digest.add(p);
         for (const Vec3& p : *v.velocities) digest.add(p);
         for (double l : *v.rest_length) digest.add(l);
@@ -648,7 +681,7 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         digest.add(static_cast<double>(v.frozen));
     }
     for (PaperId id : paper_ids) {
-        const PaperView v = ropes.core().viewPaper(id);
+        const PaperView v = ropes->core().viewPaper(id);
         for (const Vec3& p : *v.positions) digest.add(p);
         for (const Vec3& p : *v.velocities) digest.add(p);
         for (double m : *v.masses) digest.add(m);
@@ -678,7 +711,7 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
     result.digest = digest.hex();
 
     if (write) {
-        const StageTimes& st = ropes.totalStageTimes();
+        const StageTimes& st = ropes->totalStageTimes();
         json stages = {{"predict", st.predict},           {"shape_matching", st.shape_matching},
                        {"twist", st.twist},               {"collision", st.collision},
                        {"strain_limit", st.strain_limit}, {"tension", st.tension},
@@ -687,7 +720,7 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
                        {"rigid_bodies", std::max(0.0, wall - st.total() - paper_seconds)}};
         json ev = json::object();
         for (const auto& [type, n] : counts) ev[type] = n;
-        json summary = {{"steps", steps},          {"simulated_seconds", result.simulated_seconds},
+        json summary = {{"steps", steps_taken},          {"simulated_seconds", result.simulated_seconds},
                         {"wall_seconds", wall},    {"stage_seconds", stages},
                         {"events", ev},            {"digest", result.digest},
                         {"islands", {{"solves", result.islands.solves},
@@ -699,6 +732,51 @@ RunResult runScene(const Scene& scene, const RunOptions& options) {
         if (!trace || !events || !out) throw std::runtime_error("writing the outputs in " + dir.string() + " failed");
     }
     return result;
+
+}
+
+SceneRun::SceneRun(const Scene& scene, const RunOptions& options) : impl_(std::make_unique<Impl>(scene, options)) {}
+SceneRun::~SceneRun() = default;
+long long SceneRun::step() const { return impl_->steps_taken; }
+long long SceneRun::steps() const { return impl_->steps; }
+double SceneRun::time() const { return static_cast<double>(impl_->steps_taken) * impl_->dt; }
+void SceneRun::advance() { impl_->advance(); }
+RunResult SceneRun::finish() { return impl_->finish(); }
+FrameState SceneRun::frame() const {
+    const Impl& r = *impl_;
+    return frameState(r.steps_taken, time(), r.scene, r.ids, r.cloth_ids, r.paper_ids, r.ropes->core(), r.bs);
+}
+const std::vector<Event>& SceneRun::lastEvents() const { return impl_->last_events; }
+const Scene& SceneRun::scene() const { return impl_->scene; }
+BulletWorld& SceneRun::ropes() { return *impl_->ropes; }
+btDiscreteDynamicsWorld& SceneRun::dynamicsWorld() { return impl_->bs.world; }
+StringId SceneRun::stringId(std::size_t i) const { return impl_->ids.at(i); }
+ClothId SceneRun::clothId(std::size_t i) const { return impl_->cloth_ids.at(i); }
+PaperId SceneRun::paperId(std::size_t i) const { return impl_->paper_ids.at(i); }
+std::size_t SceneRun::bodyCount() const { return impl_->bs.bodies.size(); }
+btRigidBody& SceneRun::body(std::size_t i) { return *impl_->bs.bodies.at(i); }
+const Body& SceneRun::bodySpec(std::size_t i) const { return impl_->bs.specs.at(i); }
+btRigidBody& SceneRun::addBody(const Body& body) {
+    if (impl_->bs.by_name.count(body.name)) throw InvalidInput("body.name", "\"" + body.name + "\" is taken by another body");
+    return *addBulletBody(impl_->bs, body);
+}
+void SceneRun::setSceneWind(bool on) { impl_->scene_wind = on; }
+bool SceneRun::sceneWind() const { return impl_->scene_wind; }
+void SceneRun::setExtraWind(const Vec3& velocity) {
+    if (!velocity.allFinite() || velocity.norm() > kMaxDriverSpeed)
+        throw InvalidInput("wind", "must be finite and at most " + std::to_string(kMaxDriverSpeed) + " m/s");
+    impl_->extra_wind = velocity;
+}
+
+RunResult runScene(const Scene& scene, const RunOptions& options) {
+    SceneRun run(scene, options);
+    const long long steps = run.steps();
+    const long long progress_every = std::max<long long>(1, steps / 100);
+    for (long long step = 1; step <= steps; ++step) {
+        run.advance();
+        if (options.progress && (step % progress_every == 0 || step == steps)) drawProgress(step, steps);
+    }
+    return run.finish();
 }
 
 }  // namespace tearables::scene

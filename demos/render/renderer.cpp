@@ -1,10 +1,17 @@
-// The offscreen renderer: Mesa's OSMesa gives a software OpenGL context that draws into our
-// own memory (no display, no GPU), and we draw with legacy fixed-function GL 1.x: two
-// directional lights, smooth shading, colour material. Images are rendered at `supersample`
-// times their size and box-filtered down, since OSMesa has no multisampling.
+// The renderer: legacy fixed-function GL 1.x (two directional lights, smooth shading, colour
+// material). Built twice from this file:
+// - offscreen (tearables_render): Mesa's OSMesa gives a software OpenGL context that draws
+//   into our own memory (no display, no GPU); images are rendered at `supersample` times
+//   their size and box-filtered down, since OSMesa has no multisampling;
+// - in a window (TEARABLES_RENDER_WINDOW, the viewer's tearables_render_window): the same
+//   drawing into the default framebuffer of the OpenGL context the caller made current
+//   (a GLFW window), linked against libGL instead of libOSMesa. Both libraries export the
+//   gl* entry points, so no program links both.
 #include "render/renderer.hpp"
 
+#if !TEARABLES_RENDER_WINDOW
 #include <GL/osmesa.h>
+#endif
 #include <GL/gl.h>
 
 #include <algorithm>
@@ -85,24 +92,39 @@ void sphereBand(double radius, double lat0, double lat1, double y_offset, int sl
 }  // namespace
 
 struct Renderer::Impl {
+#if !TEARABLES_RENDER_WINDOW
     OSMesaContext context = nullptr;
+#endif
     int supersample = 2;
     int w = 0, h = 0;  // the buffer's size (supersampled)
-    std::vector<std::uint8_t> buffer;  // RGBA, rows from the bottom
+    std::vector<std::uint8_t> buffer;  // RGBA, rows from the bottom (offscreen only)
     View view;
     Mat4 view_matrix = Mat4::Identity();
     Mat4 projection = Mat4::Identity();
 
     void makeCurrent() {
+#if !TEARABLES_RENDER_WINDOW
         if (!OSMesaMakeCurrent(context, buffer.data(), GL_UNSIGNED_BYTE, w, h))
             throw std::runtime_error("OSMesa: cannot make the offscreen context current");
+#endif
     }
 };
 
-Renderer::Renderer(int width, int height, int supersample) : impl_(std::make_unique<Impl>()), width_(width), height_(height) {
+namespace {
+void checkSize(int width, int height) {
     if (width < 16 || height < 16 || width > 8192 || height > 8192)
         throw InvalidInput("size", "must be between 16x16 and 8192x8192 pixels (got " + std::to_string(width) + "x" +
                                        std::to_string(height) + ")");
+}
+}  // namespace
+
+Renderer::Renderer(int width, int height, int supersample) : impl_(std::make_unique<Impl>()), width_(width), height_(height) {
+    checkSize(width, height);
+#if TEARABLES_RENDER_WINDOW
+    impl_->supersample = 1;  // the window's own framebuffer
+    impl_->w = width;
+    impl_->h = height;
+#else
     impl_->supersample = std::clamp(supersample, 1, 4);
     impl_->w = width * impl_->supersample;
     impl_->h = height * impl_->supersample;
@@ -110,10 +132,26 @@ Renderer::Renderer(int width, int height, int supersample) : impl_(std::make_uni
     impl_->context = OSMesaCreateContextExt(OSMESA_RGBA, 24, 0, 0, nullptr);
     if (!impl_->context) throw std::runtime_error("OSMesa: cannot create an offscreen OpenGL context");
     impl_->makeCurrent();
+#endif
 }
 
 Renderer::~Renderer() {
+#if !TEARABLES_RENDER_WINDOW
     if (impl_ && impl_->context) OSMesaDestroyContext(impl_->context);
+#endif
+}
+
+void Renderer::resize(int width, int height) {
+    checkSize(width, height);
+    if (width == width_ && height == height_) return;
+    width_ = width;
+    height_ = height;
+    impl_->w = width * impl_->supersample;
+    impl_->h = height * impl_->supersample;
+#if !TEARABLES_RENDER_WINDOW
+    impl_->buffer.assign(static_cast<std::size_t>(impl_->w) * static_cast<std::size_t>(impl_->h) * 4, 0);
+    impl_->makeCurrent();
+#endif
 }
 
 void Renderer::begin(const View& view, double near_clip, double far_clip) {
@@ -247,7 +285,7 @@ void Renderer::drawTube(const std::vector<Vec3>& points, const std::vector<doubl
         const Vec3 d = p1 - p0;
         const double length = d.norm();
         if (!(length > 0.0) || !p0.allFinite() || !p1.allFinite()) continue;
-        const double r = std::max(j < radius.size() ? radius[j] : 0.0, 0.75 * pixelSizeAt(0.5 * (p0 + p1)));
+        const double r = std::max(j < radius.size() ? radius[j] : 0.0, 1.5 * pixelSizeAt(0.5 * (p0 + p1)));
         const Vec3 axis = d / length;
         Vec3 a, b;
         basis(axis, a, b);
@@ -388,6 +426,13 @@ void Renderer::drawLines(const std::vector<std::pair<Vec3, Vec3>>& lines, const 
 
 Image Renderer::finish() {
     glFinish();
+#if TEARABLES_RENDER_WINDOW
+    // The frame is in the back buffer until the caller swaps: read it from there.
+    impl_->buffer.assign(static_cast<std::size_t>(impl_->w) * static_cast<std::size_t>(impl_->h) * 4, 0);
+    glPixelStorei(GL_PACK_ALIGNMENT, 1);
+    glReadBuffer(GL_BACK);
+    glReadPixels(0, 0, impl_->w, impl_->h, GL_RGBA, GL_UNSIGNED_BYTE, impl_->buffer.data());
+#endif
     const int s = impl_->supersample;
     Image image;
     image.width = width_;

@@ -58,8 +58,11 @@ struct TriangleMesh {
     Rgb line_color{0.25f, 0.22f, 0.20f};              ///< colour of `lines`
 };
 
-/// Draws into an offscreen OSMesa buffer. Not thread-safe; one at a time per thread (OSMesa
-/// makes its context current on the calling thread).
+/// Draws into an offscreen OSMesa buffer (tearables_render). Not thread-safe; one at a time
+/// per thread (OSMesa makes its context current on the calling thread). The viewer's build
+/// of the same class (tearables_render_window) draws into the default framebuffer of the
+/// OpenGL context the caller made current instead, with no supersampling; finish() then
+/// reads the back buffer.
 class Renderer {
 public:
     /// An offscreen target of width x height pixels (each in [16, 8192]), rendered at
@@ -69,6 +72,9 @@ public:
     ~Renderer();
     Renderer(const Renderer&) = delete;
     Renderer& operator=(const Renderer&) = delete;
+
+    /// A new picture size (each side in [16, 8192] pixels; a window's framebuffer size).
+    void resize(int width, int height);
 
     int width() const { return width_; }
     int height() const { return height_; }
@@ -85,7 +91,7 @@ public:
 
     /// A string as a shaded tube: segment j joins points[j] and points[j+1] with
     /// radius[j] m and colour colors[j]; segments with skip[j] != 0 (broken) are not drawn.
-    /// A tube thinner than about a pixel and a half on screen is drawn that wide.
+    /// A tube thinner than 3 pixels on screen is drawn that wide (a rope stays visible).
     void drawTube(const std::vector<Vec3>& points, const std::vector<double>& radius, const std::vector<Rgb>& colors,
                   const std::vector<std::uint8_t>& skip);
 

@@ -121,6 +121,11 @@ View fitCamera(const scene::Scene& scene, double aspect) {
 }
 
 Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view) {
+    drawFrame(renderer, scene, frame, view);
+    return renderer.finish();
+}
+
+void drawFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view) {
     const Bounds b = sceneBounds(scene);
     const Vec3 centre = 0.5 * (b.lo + b.hi);
     const double size = std::max((b.hi - b.lo).norm(), 0.1);
@@ -131,7 +136,9 @@ Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::Fra
     for (std::size_t i = 0; i < frame.bodies.size(); ++i) {
         const scene::FrameBody& body = frame.bodies[i];
         const scene::Shape& s = body.shape;
-        bool is_static = true;
+        // A body neither in the scene nor spawned by it was added while running (the
+        // viewer's crates): dynamic.
+        bool is_static = false;
         for (const scene::Body& spec : scene.bodies)
             if (spec.name == body.name) is_static = spec.mass <= 0.0 || spec.kinematic;
         for (const scene::Driver& d : scene.drivers)
@@ -220,7 +227,6 @@ Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::Fra
         mesh.line_color = {0.42f, 0.38f, 0.34f};
         renderer.drawTriangleMesh(mesh);
     }
-    return renderer.finish();
 }
 
 }  // namespace tearables::render

@@ -28,5 +28,7 @@ View fitCamera(const scene::Scene& scene, double aspect);
 /// segments left out, cloths as surfaces coloured by load and paper sheets as white
 /// surfaces with their creases and folds in dark lines. Returns the picture.
 Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view);
+/// As paintFrame without finishing the frame (the viewer draws more on top, then finishes).
+void drawFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view);
 
 }  // namespace tearables::render

@@ -10,9 +10,16 @@
 #include "tearables/world.hpp"
 
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
+
+class btDiscreteDynamicsWorld;
+class btRigidBody;
+namespace tearables {
+class BulletWorld;
+}
 
 namespace tearables::scene {
 
@@ -223,6 +230,58 @@ struct RunResult {
     std::vector<std::pair<std::string, long long>> event_counts;  ///< by type, sorted by name
     std::string digest;                             ///< of the final state: equal for equal runs
     IslandTotals islands;
+};
+
+/// A scene run one step at a time: runScene drives one to the end; the viewer steps one as
+/// it likes and reaches into its worlds to drag, cut and drop bodies.
+class SceneRun {
+public:
+    /// Builds the Bullet world and the objects of `scene` (checks as runScene), opens the
+    /// outputs in options.out_dir (none when "") and writes frame 0 (and calls on_frame).
+    SceneRun(const Scene& scene, const RunOptions& options = {});
+    ~SceneRun();
+    SceneRun(const SceneRun&) = delete;
+    SceneRun& operator=(const SceneRun&) = delete;
+
+    /// One step: the drivers, Bullet's step (and the strings'), the events; a trace frame
+    /// (and on_frame) every `every` steps and at steps(). Steps past steps() are allowed
+    /// (the viewer plays on); they write no trace frame unless on the `every` grid.
+    void advance();
+    /// Steps taken; the run's planned length (RunOptions::steps, else Scene::steps); time, s.
+    long long step() const;
+    long long steps() const;
+    double time() const;
+    /// The state now (views valid until the next advance()).
+    FrameState frame() const;
+    /// The events of the last advance().
+    const std::vector<Event>& lastEvents() const;
+    /// Writes summary.json (with out_dir) and returns what the run did so far.
+    RunResult finish();
+
+    const Scene& scene() const;
+    BulletWorld& ropes();
+    btDiscreteDynamicsWorld& dynamicsWorld();
+    /// The ids of the scene's strings, cloths and papers, by their index in the scene.
+    StringId stringId(std::size_t index) const;
+    ClothId clothId(std::size_t index) const;
+    PaperId paperId(std::size_t index) const;
+    /// The rigid bodies in creation order (the scene's, then spawned and added ones).
+    std::size_t bodyCount() const;
+    btRigidBody& body(std::size_t index);
+    const Body& bodySpec(std::size_t index) const;
+    /// Adds a rigid body now, as a spawn driver does. Throws InvalidInput("body.name") when
+    /// the name is taken.
+    btRigidBody& addBody(const Body& body);
+    /// The scene's wind drivers act (true, the default) or not.
+    void setSceneWind(bool on);
+    bool sceneWind() const;
+    /// A steady wind (m/s) on every string besides the scene's, as a wind driver without
+    /// gusts; zero = none. Throws InvalidInput("wind") when not finite or over kMaxDriverSpeed.
+    void setExtraWind(const Vec3& velocity);
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
 };
 
 /// Builds the Bullet world and the strings of `scene`, runs it and writes the outputs.

@@ -216,6 +216,11 @@ public:
     void movePin(StringId id, int particle, const Vec3& point);
     /// Removes whatever holds the particle (a Release event is emitted); no-op when free.
     void detach(StringId id, int particle);
+    /// Cuts a segment (negative counts from the end) as a tear would: it is broken from now
+    /// on, its tension 0, and a Tear event (cause Request) is reported with the next step.
+    /// Returns false and changes nothing when it is already broken. Throws InvalidInput
+    /// ("string", "segment") for an unknown string or a segment out of range.
+    bool cutSegment(StringId id, int segment);
     /// True when the particle is pinned or glued.
     bool isAttached(StringId id, int particle) const;
     /// The world pin of a particle, if it has one.

@@ -228,6 +228,28 @@ void World::detach(StringId id, int particle) {
     impl_->strings.release(id, static_cast<std::size_t>(p), EventCause::Request, impl_->time, impl_->steps, impl_->pending);
 }
 
+bool World::cutSegment(StringId id, int segment) {
+    StringState& s = impl_->strings.get(id);
+    const int n = static_cast<int>(s.segments());
+    if (segment < -n || segment >= n)
+        throw InvalidInput("segment", "segment index " + std::to_string(segment) + " out of range (the string has " +
+                                          std::to_string(n) + " segments)");
+    const std::size_t j = static_cast<std::size_t>(segment < 0 ? segment + n : segment);
+    if (s.broken[j]) return false;
+    s.broken[j] = 1;
+    s.tension[j] = 0.0;
+    Event e;
+    e.type = EventType::Tear;
+    e.cause = EventCause::Request;
+    e.string = id;
+    e.object = s.desc.name;
+    e.segment = static_cast<int>(j);
+    e.time = impl_->time;
+    e.step = impl_->steps;
+    impl_->pending.push_back(e);
+    return true;
+}
+
 bool World::isAttached(StringId id, int particle) const {
     const StringState& s = impl_->strings.get(id);
     return s.hold[resolveIndex(particle, s.particles(), "particle")].kind != ParticleHold::Kind::Free;
