@@ -4,11 +4,13 @@
 // whose constrained motion is x''_i, x'_i its position before strain limiting, satisfies
 //     m_i (x''_i - x'_i) / h^2 = sum_j T_j a_ij,     a_ij = +e_j if i starts segment j, -e_j if it ends it.
 // The free particles' equations A T = b (3 per particle, one unknown per segment) are solved
-// in least squares, (A^T A + lambda) T = A^T b, in newtons as Yarn writes them: tridiagonal
-// on a chain, O(n). Clamped particles carry an unknown support force and give no equation;
-// a particle glued to a body gives "the segments pull the body with the impulse the limiter
-// gave it" (glue_impulse). Tikhonov lambda = 1e-6 of the largest diagonal (Yarn's value),
-// divided by the segment count: a uniform tension t is biased by t n lambda.
+// in least squares, (A^T A + lambda) T = A^T b + lambda T_s, in newtons as Yarn writes them:
+// tridiagonal on a chain, O(n). Clamped particles carry an unknown support force and give
+// no equation; a particle glued to a body gives "the segments pull the body with the
+// impulse the limiter gave it" (glue_impulse). Tikhonov lambda = 1e-6 of the largest
+// diagonal (Yarn's value), divided by the segment count, toward T_s, the strain solve's
+// spring forces (Yarn's is toward 0): a uniform tension t is biased by (t - T_s) n lambda,
+// and one the balance cannot see (a chain between pins) is T_s's mean.
 //
 // Local (Strings Eq. 12): T_j = k (|x'_{j+1} - x'_j| - |x_{j+1} - x_j|), k the reduced mass
 // of the segment's ends over h^2 (a single free segment then agrees with the momentum
@@ -117,10 +119,19 @@ void momentumTension(StringState& s, const StepContext& ctx) {
         }
         return most;
     });
+    // The regularisation pulls toward the converged solve's spring forces (x h^2, the
+    // system's units), not toward zero: where the momentum balance leaves a tension
+    // undetermined (a chain between two pins, or glued to bodies that do not move, carries
+    // any uniform tension with the same motion), the stretch decides it, so a rope pulled
+    // apart between its pins loads up and tears.
     const double reg = kRegularisation * (max_diag > 0.0 ? max_diag : 1.0) / static_cast<double>(m);
+    const double h2 = ctx.h * ctx.h;
     forRanges(ctx.pool, m, kParallelSegments, [&](std::size_t j0, std::size_t j1, std::size_t) {
         for (std::size_t j = j0; j < j1; ++j)
-            if (!s.broken[j]) s.scratch.diag[j] += reg;
+            if (!s.broken[j]) {
+                s.scratch.diag[j] += reg;
+                s.scratch.rhs[j] += reg * s.spring_force[j] * h2;
+            }
     });
     solveSymmetricTridiagonal(s.scratch.diag, s.scratch.off, s.scratch.rhs, s.scratch.segment_work);
     const double inv_h2 = ctx.inv_h * ctx.inv_h;

@@ -152,3 +152,38 @@ TEST(Material, TorsionalRuptureOrder) {
     }
     EXPECT_EQ(order, (std::vector<int>{0, 1, 2, 3}));
 }
+
+// A rope between two pins, no gravity, one pin moved away at 0.1 m/s (1 mm a step, 0.2% of
+// its 0.5 m): its particles are in equilibrium, so the momentum balance alone cannot tell
+// its tension (any uniform tension fits); the stretch tells it. It yields when the stretch
+// reaches yield / E (1.33%) and tears when the curve reaches rupture: yield / E + (rupture
+// - yield) / H = 14.67% of its rest length, each to within a step's move (plus one for the
+// step that reads it). Before, it read ~0 N, stretched without end and never tore.
+TEST(Material, RopePulledApartBetweenPinsYieldsAndTearsOnItsCurve) {
+    tearables::WorldSettings settings;
+    settings.gravity = Vec3::Zero();
+    World world(settings);
+    StringDesc d = StringDesc::straight({0, 0, 0}, {0.5, 0, 0}, 20);
+    d.radius = 0.001;
+    d.material.variation = 0.0;
+    const auto& c = d.material.tensile;
+    const StringId id = world.addString(d);
+    world.attachToPoint(id, 0, {0, 0, 0});
+    world.attachToPoint(id, -1, {0.5, 0, 0});
+    const double speed = 0.1, dt = 0.01, rest = 0.5, move = speed * dt;
+    double yielded_at = -1.0, torn_at = -1.0;  // the pin's travel when each first happened
+    for (int step = 1; step <= 400 && torn_at < 0.0; ++step) {
+        world.movePin(id, -1, {rest + speed * dt * step, 0, 0});
+        world.step(dt);
+        for (const auto& e : world.events()) {
+            if (e.type == EventType::Yield && yielded_at < 0.0) yielded_at = speed * dt * step;
+            if (e.type == EventType::Tear && torn_at < 0.0) torn_at = speed * dt * step;
+        }
+    }
+    const double yield_stretch = rest * c.yield / c.young;
+    const double rupture_stretch = rest * (c.yield / c.young + (c.rupture - c.yield) / c.plastic_modulus);
+    ASSERT_GT(yielded_at, 0.0) << "never yielded";
+    EXPECT_NEAR(yielded_at, yield_stretch, 2 * move);
+    ASSERT_GT(torn_at, 0.0) << "never tore";
+    EXPECT_NEAR(torn_at, rupture_stretch, 2 * move);
+}
