@@ -86,6 +86,13 @@ struct PaperSheet {
     std::vector<Mat3> diag_inv;   ///< per vertex, inverse of W_ii
     std::vector<Vec3> rhs;        ///< per vertex, h f + h^2 J v
     std::vector<JacobiEntry> dv, dv_next;  ///< per vertex, the Jacobi iterate (velocity change, m/s) and the next one
+    /// Conjugate gradients (implicit.cpp, conjugateGradient): per vertex W_ii, the residual,
+    /// the preconditioned residual, the search direction and W times it; and the last
+    /// step's dv (the warm start, kept across steps).
+    std::vector<Mat3> diag;
+    std::vector<Vec3> cg_r, cg_z, cg_p, cg_q, cg_warm;
+    int cg_iterations = 0;        ///< iterations of the last solve
+    double cg_residual = 0.0;     ///< its relative residual |b - W dv| / |b|
     // rows of the Jacobi gather (implicit.cpp, buildRows), rebuilt when the live springs change
     std::vector<std::array<std::uint32_t, 2>> link_ends;  ///< per live spring, in order: its vertices
     std::vector<std::array<std::uint32_t, 2>> link_slot;  ///< per live spring: its entries in the rows of a and b

@@ -219,7 +219,7 @@ TEST(SceneLoader, PapersParseEveryField) {
           "attachments": [ {"vertex": [0, 0], "world": true} ] },
         { "name": "card", "origin": [1, 2, 3], "size": [0.1, 0.2], "resolution": [3, 4],
           "orientation": [0, 0.7071068, 0, 0.7071068], "density": 0.3, "stiffness": 2e4, "bending": 0.2, "damping": 0.05,
-          "jacobi_iterations": 12, "integrator": "explicit", "phi": 3, "psi": 1.5, "hinge_threshold": 0.25,
+          "solver": "conjugate_gradient", "tolerance": 1e-4, "jacobi_iterations": 12, "integrator": "explicit", "phi": 3, "psi": 1.5, "hinge_threshold": 0.25,
           "breakable": false, "tearable": true, "rupture_stretch": 0.05, "tension": "momentum", "thickness": 0.002, "friction": 0.8, "seed": 42,
           "attachments": [ {"vertex": [-1, -1], "world": [5, 6, 7]}, {"vertex": 1, "body": "clip", "local": [0.1, 0, 0]},
                            {"edge": "x-", "body": "clip"} ] },
@@ -241,6 +241,10 @@ TEST(SceneLoader, PapersParseEveryField) {
     EXPECT_DOUBLE_EQ(a.stiffness, 5e3);
     EXPECT_DOUBLE_EQ(a.damping, 0.01);
     EXPECT_EQ(a.jacobi_iterations, 8);
+    EXPECT_EQ(a.solver, PaperSolver::Paper);
+    EXPECT_DOUBLE_EQ(a.tolerance, 1e-6);
+    EXPECT_EQ(scene.papers[1].desc.solver, PaperSolver::ConjugateGradient);
+    EXPECT_DOUBLE_EQ(scene.papers[1].desc.tolerance, 1e-4);
     EXPECT_DOUBLE_EQ(a.phi, 1.0);
     EXPECT_DOUBLE_EQ(a.psi, 0.5);
     EXPECT_DOUBLE_EQ(a.hinge_threshold, 0.5);
@@ -475,6 +479,8 @@ const ErrorCase kErrorCases[] = {
     {"PaperDensity", R"({"papers": [{"name": "s", "density": -1}]})", "papers[0].density", "greater than 0"},
     {"PaperStiffness", R"({"papers": [{"name": "s", "stiffness": 0}]})", "papers[0].stiffness", "greater than 0"},
     {"PaperDamping", R"({"papers": [{"name": "s", "damping": 2}]})", "papers[0].damping", "in [0, 1]"},
+    {"PaperSolver", R"({"papers": [{"name": "s", "solver": "multigrid"}]})", "papers[0].solver", "\"conjugate_gradient\" or \"paper\""},
+    {"PaperTolerance", R"({"papers": [{"name": "s", "tolerance": 0}]})", "papers[0].tolerance", "in [1e-12, 0.1]"},
     {"PaperJacobi", R"({"papers": [{"name": "s", "jacobi_iterations": 0}]})", "papers[0].jacobi_iterations", "in [1, 256]"},
     {"PaperPhi", R"({"papers": [{"name": "s", "phi": 0}]})", "papers[0].phi", "in (0, 1000]"},
     {"PaperPsi", R"({"papers": [{"name": "s", "psi": -1}]})", "papers[0].psi", "in [0, 4]"},
