@@ -40,7 +40,9 @@ enum class PaperIntegrator {
 /// How the implicit step's linear system (M - h C_v - h^2 J) dv = h (f + h J v) is solved.
 enum class PaperSolver {
     Paper,              ///< Paper Eq. 6: `jacobi_iterations` weighted Jacobi sweeps, whatever the residual (the
-                        ///< default): cheap, and soft where a sheet is loaded (the sweeps reach a few vertices)
+                        ///< default): cheap, and soft where a sheet is loaded (the sweeps reach a few vertices).
+                        ///< A sheet with no held vertex then gets the uniform velocity that leaves its momentum
+                        ///< exact (the sweeps' residual summed; a translation stretches no spring)
     ConjugateGradient,  ///< block-Jacobi preconditioned conjugate gradients to `tolerance` (relative residual),
                         ///< warm-started from the last step's dv: the answer does not depend on an iteration
                         ///< count, but a stiff sheet's system is ill-conditioned and takes hundreds of

@@ -281,6 +281,33 @@ void applySystem(const PaperSheet& s, const std::vector<Vec3>& x, std::vector<Ve
     }
 }
 
+/// A sheet none of whose vertices is held: a spring adds B at (a, a) and (b, b) and -B at
+/// (a, b) and (b, a), so its blocks cancel column by column and the rows of W dv sum to
+/// sum_i (m_i I + A_i) dv_i (A_i the bodies' lent mass). The residual's sum,
+/// sum_i (rhs_i - (W dv)_i) = h F_external - sum_i (m_i I + A_i) dv_i, is the momentum the
+/// sweeps left out (they stop where they stop, and a force on one vertex reaches only the
+/// vertices the sweeps reach). The uniform c = (sum_i m_i I + A_i)^-1 (that sum), added to
+/// every dv, removes it: springs do not resist a translation, W (dv + c) = W dv + (M + A) c.
+/// It is the Galerkin correction on the three translations (the coarsest level of a
+/// multigrid), so it also lowers the error's W-norm. A held vertex takes an impulse from
+/// its holder that the sheet does not see: then there is no momentum to keep, and no
+/// correction.
+void keepMomentum(PaperSheet& s) {
+    const std::size_t n = s.vertices();
+    for (std::size_t i = 0; i < n; ++i)
+        if (s.fixed[i]) return;
+    Mat3 mass = Mat3::Zero();
+    Vec3 left = Vec3::Zero();
+    for (std::size_t i = 0; i < n; ++i) {
+        const Mat3 m = s.mass[i] * Mat3::Identity() + s.added_mass[i];
+        mass += m;
+        left += s.rhs[i] - m * s.dv[i].vec();
+    }
+    const Vec3 c = mass.inverse() * left;
+    if (!c.allFinite()) return;  // a non-finite solve: the finite check after the step freezes the sheet
+    for (std::size_t i = 0; i < n; ++i) s.dv[i] = JacobiEntry(Vec3(s.dv[i].vec() + c));
+}
+
 /// A solve that met a non-finite number: the free rows' dv are NaN (the caller's finite
 /// check freezes the sheet), the warm start is dropped.
 void poisonSolve(PaperSheet& s) {
@@ -513,8 +540,10 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
         }
         if (cg)
             conjugateGradient(s);
-        else
+        else {
             jacobiSweeps(s);  // Eq. 6, weighted, jacobi_iterations times
+            keepMomentum(s);
+        }
         for (std::size_t i = 0; i < n; ++i) s.v[i] += s.dv[i].vec();
     }
     for (std::size_t i = 0; i < n; ++i) {

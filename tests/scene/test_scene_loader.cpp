@@ -836,6 +836,60 @@ TEST(SceneRun, ForceAndRampActOnlyBetweenFromAndUntil) {
     EXPECT_NEAR(ramped.back(), ramp_impulse, 1e-6 * ramp_impulse);
 }
 
+// The same on sheets (SCENE_FORMAT.md, drivers: "force" on a cloth or paper vertex):
+// free, without gravity, a sheet's springs and yarns act in pairs, so its momentum is the
+// force's impulse, F dt per driven step, along F (a corner pushed: the sheet also turns
+// and bends, which moves no momentum). The paper's Jacobi sweeps stop at a residual whose
+// sum is a momentum error, which a uniform velocity removes (implicit.cpp, keepMomentum);
+// the conjugate gradient stops within its tolerance (1e-12 here). A
+// "move" driver takes its vertex along velocity dt per driven step, exactly (a pin).
+// The force reaches the sheet as Bullet's single-precision btVector3, each component
+// rounded by at most 2^-24 of itself: the impulse holds to that, relative.
+TEST(SceneRun, ForceAndMoveDriversOnSheetVertices) {
+    const double kFloat = std::ldexp(1.0, -24);
+    for (const char* solver : {"paper", "conjugate_gradient"}) {
+        SCOPED_TRACE(solver);
+        const Scene scene = parseScene(std::string(R"({"dt": 0.01, "steps": 40, "gravity": [0, 0, 0],
+          "papers": [{"name": "sheet", "origin": [0, 1, 0], "size": [0.2, 0.3], "resolution": [7, 9], "breakable": false,
+                      "solver": ")") + solver + R"(", "tolerance": 1e-12},
+                     {"name": "led", "origin": [1, 1, 0], "size": [0.2, 0.2], "resolution": [5, 5], "breakable": false}],
+          "cloths": [{"name": "cloth", "origin": [0, 1, 1], "size": [0.2, 0.2], "resolution": [6, 6]}],
+          "drivers": [{"type": "force", "target": "sheet", "vertex": [0, 0], "value": [0.02, 0.01, -0.015], "from": 0.1, "until": 0.3},
+                      {"type": "force", "target": "cloth", "vertex": [5, 0], "value": [0.002, 0.003, 0.001], "from": 0.1, "until": 0.3},
+                      {"type": "move", "target": "led", "vertex": [4, 4], "velocity": [0.1, 0.2, -0.05], "from": 0.1, "until": 0.3}]})");
+        const double dt = 0.01;
+        const Vec3 paper_force(0.02, 0.01, -0.015), cloth_force(0.002, 0.003, 0.001), velocity(0.1, 0.2, -0.05);
+        Vec3 led_start = Vec3::Constant(NAN);
+        int frames = 0;
+        RunOptions options;
+        options.every = 1;
+        options.on_frame = [&](const FrameState& f) {
+            const double driven = std::clamp(std::round((f.time - 0.1) / dt), 0.0, 20.0);  // driven steps so far
+            for (const FramePaper& p : f.papers) {
+                if (p.name == "led") {
+                    const Vec3 x = (*p.view.positions)[24];
+                    if (f.step == 0) led_start = x;
+                    if (driven > 0.0) EXPECT_LT((x - (led_start + velocity * dt * driven)).norm(), 1e-12) << "t = " << f.time;
+                    continue;
+                }
+                Vec3 momentum = Vec3::Zero();
+                for (std::size_t i = 0; i < p.view.vertexCount(); ++i) momentum += (*p.view.masses)[i] * (*p.view.velocities)[i];
+                const Vec3 impulse = paper_force * dt * driven;
+                EXPECT_LE((momentum - impulse).norm(), kFloat * impulse.norm() + 1e-15) << "t = " << f.time;
+            }
+            for (const FrameCloth& c : f.cloths) {
+                Vec3 momentum = Vec3::Zero();
+                for (std::size_t i = 0; i < c.view.vertexCount(); ++i) momentum += (*c.view.masses)[i] * (*c.view.velocities)[i];
+                const Vec3 impulse = cloth_force * dt * driven;
+                EXPECT_LE((momentum - impulse).norm(), kFloat * impulse.norm() + 1e-15) << "t = " << f.time;
+            }
+            ++frames;
+        };
+        runScene(scene, options);
+        EXPECT_EQ(frames, 41);
+    }
+}
+
 TEST(BuiltinScenes, UnknownNameHasNoText) {
     EXPECT_FALSE(builtinSceneText("no such scene").has_value());
 }
