@@ -7,6 +7,8 @@
 // step's cost depends on when it is taken, and the library's own choice of count ran it
 // several times, whose first runs left the heap grown for the measured one (which then
 // never met a growing allocation, as an application's one sheet does).
+// BM_PaperStepSolver/n/d: the hanging sheet's solve by the sweeps (d = 0) or by
+// conjugate gradients to a relative residual of 10^-d, with its iterations a step.
 // Run: build/tests/benchmarks/tearables_bench --benchmark_filter=Paper
 #include "world/world_access.hpp"
 #include "tearables/world.hpp"
