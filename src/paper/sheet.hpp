@@ -217,10 +217,12 @@ void estimateTension(PaperSheet& s, const std::vector<PointContact>& contacts, c
 /// Separates the mesh where a structural edge is stretched past rupture_stretch
 /// (vertices duplicated along the cut). Appends Tear events.
 void tear(PaperSheet& s, PaperId id, const PaperStep& ctx, std::vector<Event>& events);
-/// Splits vertex `vertex` of the sheet along the fan edge (vertex, across): the
-/// triangles on one side get a new vertex. Returns the new vertex or UINT32_MAX when the
-/// split is not possible (not a boundary vertex, or `across` is not an inner fan edge).
-std::uint32_t splitVertex(PaperSheet& s, std::uint32_t vertex, std::uint32_t across);
+/// Splits vertex `vertex` of the sheet along the fan edge (vertex, across), and along
+/// (vertex, across2) too when that is given (an inner vertex: a slit through it needs two
+/// cuts): the triangles on one side get a new vertex. Returns the new vertex or
+/// UINT32_MAX when the split is not possible (the cuts separate nothing, or a cut is not
+/// an inner fan edge).
+std::uint32_t splitVertex(PaperSheet& s, std::uint32_t vertex, std::uint32_t across, std::uint32_t across2 = UINT32_MAX);
 
 // --- mesh.cpp ---
 /// Appends a vertex (all per-vertex arrays grow); returns its index.
