@@ -927,7 +927,7 @@ std::vector<std::uint32_t> paperEdge(const Node& n, const PaperDesc& d) {
 /// A paper sheet (SCENE_FORMAT.md, "papers"); `seed` unless it gives "seed".
 Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     n.checkNoUnknownFields({"name", "origin", "size", "resolution", "orientation", "vertices", "triangles", "density",
-                            "stiffness", "bending", "damping", "jacobi_iterations", "integrator", "phi", "psi",
+                            "stiffness", "bending", "damping", "solver", "tolerance", "jacobi_iterations", "integrator", "phi", "psi",
                             "hinge_threshold", "breakable", "tearable", "rupture_stretch", "tension", "thickness", "friction",
                             "seed", "attachments", "collision_group", "collision_mask"});
     Paper p;
@@ -966,6 +966,13 @@ Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     d.stiffness = n.number("stiffness", d.stiffness, Range::positive());
     d.bending = n.number("bending", d.bending, Range::closed(0.0, 1.0));
     d.damping = n.number("damping", d.damping, Range::closed(0.0, 1.0));
+    if (const auto solver = n.field("solver")) {
+        const std::string v = solver->asString();
+        if (v == "conjugate_gradient") d.solver = PaperSolver::ConjugateGradient;
+        else if (v == "paper") d.solver = PaperSolver::Paper;
+        else solver->fail("must be \"conjugate_gradient\" or \"paper\" (got " + jsonQuoted(v) + ")");
+    }
+    d.tolerance = n.number("tolerance", d.tolerance, Range::closed(1e-12, 1e-1));
     d.jacobi_iterations = static_cast<int>(n.integer("jacobi_iterations", d.jacobi_iterations, 1, 256));
     if (const auto integ = n.field("integrator")) {
         const std::string v = integ->asString();

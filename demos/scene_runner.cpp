@@ -332,6 +332,28 @@ void blowOnStrings(World& core, const std::vector<StringId>& ids, const Vec3& wi
     }
 }
 
+/// The same air on sheets, face by face by its normal (addFaceDrag, tearables/paper.hpp):
+/// every live paper's triangles and every cloth's intact cells.
+void blowOnSheets(World& core, const std::vector<PaperId>& papers, const std::vector<ClothId>& cloths, const Vec3& wind,
+                  std::vector<Vec3>& drag) {
+    for (PaperId id : papers) {
+        const PaperView v = core.viewPaper(id);
+        if (v.frozen) continue;
+        drag.assign(v.vertexCount(), Vec3::Zero());
+        addFaceDrag(*v.positions, *v.velocities, *v.triangles, wind, 1.2, 1.2, drag);
+        for (std::size_t i = 0; i < drag.size(); ++i)
+            if (drag[i] != Vec3::Zero()) core.applyPaperForce(id, static_cast<std::uint32_t>(i), drag[i]);
+    }
+    for (ClothId id : cloths) {
+        const ClothView v = core.viewCloth(id);
+        if (v.frozen) continue;
+        drag.assign(v.vertexCount(), Vec3::Zero());
+        addFaceDrag(*v.positions, *v.velocities, clothFaces(v), wind, 1.2, 1.2, drag);
+        for (std::size_t i = 0; i < drag.size(); ++i)
+            if (drag[i] != Vec3::Zero()) core.applyClothForce(id, static_cast<int>(i), drag[i]);
+    }
+}
+
 void drawProgress(long long done, long long total) {
     const int width = 40;
     const int filled = total > 0 ? static_cast<int>(width * done / total) : width;
@@ -370,6 +392,7 @@ struct SceneRun::Impl {
     std::vector<Event> last_events;
     bool scene_wind = true;
     Vec3 extra_wind = Vec3::Zero();
+    std::vector<Vec3> sheet_drag;  // wind: per vertex of one sheet, N
 
     Impl(const Scene& scene_in, const RunOptions& options_in);
     void advance();
@@ -586,6 +609,7 @@ void SceneRun::Impl::advance() {
                     const double u = static_cast<double>(wind_state >> 11) * (1.0 / 9007199254740992.0);
                     const Vec3 wind = drv.value * (1.0 + drv.gust * (2.0 * u - 1.0));
                     blowOnStrings(core, ids, wind);
+                    blowOnSheets(core, paper_ids, cloth_ids, wind, sheet_drag);
                 }
                 break;
             case Driver::Type::Twist:
@@ -620,7 +644,10 @@ void SceneRun::Impl::advance() {
                 break;
         }
     }
-    if (extra_wind.squaredNorm() > 0.0) blowOnStrings(ropes->core(), ids, extra_wind);
+    if (extra_wind.squaredNorm() > 0.0) {
+        blowOnStrings(ropes->core(), ids, extra_wind);
+        blowOnSheets(ropes->core(), paper_ids, cloth_ids, extra_wind, sheet_drag);
+    }
     moveKinematic(bs, dt);
 
     const auto a = std::chrono::steady_clock::now();

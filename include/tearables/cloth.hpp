@@ -118,4 +118,9 @@ struct ClothView {
     std::size_t edgeCount() const { return edges->size(); }
 };
 
+/// The faces a cloth shows the air (for addFaceDrag, tearables/paper.hpp): each cell of
+/// the weave whose four yarns are intact, as two triangles, counter-clockwise seen from the
+/// cloth's local +y; a cell with a torn yarn lets the air through.
+std::vector<std::array<std::uint32_t, 3>> clothFaces(const ClothView& view);
+
 }  // namespace tearables

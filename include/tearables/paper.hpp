@@ -33,8 +33,20 @@ struct PaperAttachment {
 
 /// How the sheet's stiff springs are integrated.
 enum class PaperIntegrator {
-    Implicit,  ///< Paper Sec. III.A: (M - h^2 J) dv = h f by Jacobi iterations (the default)
+    Implicit,  ///< Paper Sec. III.A: (M - h^2 J) dv = h f, solved as `solver` says (the default)
     Explicit,  ///< semi-implicit (symplectic) Euler: only to show that it diverges on stiff paper
+};
+
+/// How the implicit step's linear system (M - h C_v - h^2 J) dv = h (f + h J v) is solved.
+enum class PaperSolver {
+    Paper,              ///< Paper Eq. 6: `jacobi_iterations` weighted Jacobi sweeps, whatever the residual (the
+                        ///< default): cheap, and soft where a sheet is loaded (the sweeps reach a few vertices).
+                        ///< A sheet with no held vertex then gets the uniform velocity that leaves its momentum
+                        ///< exact (the sweeps' residual summed; a translation stretches no spring)
+    ConjugateGradient,  ///< block-Jacobi preconditioned conjugate gradients to `tolerance` (relative residual),
+                        ///< warm-started from the last step's dv: the answer does not depend on an iteration
+                        ///< count, but a stiff sheet's system is ill-conditioned and takes hundreds of
+                        ///< iterations a step (BENCHMARKS.md, BM_PaperStepSolver)
 };
 
 /// How a sheet's edge tensions (the stress that tears it) are estimated.
@@ -62,7 +74,9 @@ struct PaperDesc {
                                          ///< sheet's membrane stiffness, so it does not change with the resolution
     double bending = 0.05;               ///< bending springs' stiffness as a fraction of `stiffness`, [0, 1]
     double damping = 0.01;               ///< s, stiffness-proportional (Rayleigh) damping: c = damping * k per spring, [0, 1]
-    int jacobi_iterations = 8;           ///< Jacobi iterations of the implicit solve (Paper Eq. 6), 1..256
+    PaperSolver solver = PaperSolver::Paper;  ///< how the implicit step's system is solved
+    double tolerance = 1e-6;             ///< ConjugateGradient: stop when |b - W dv| <= tolerance |b|, [1e-12, 1e-1]
+    int jacobi_iterations = 8;           ///< Paper: Jacobi iterations of the implicit solve (Paper Eq. 6), 1..256
     PaperIntegrator integrator = PaperIntegrator::Implicit;
     // --- breakable hinge springs (Paper Sec. III.B-C) ---
     double phi = 1.0;                    ///< fragility exponent of P = (1 - l/l0)^phi, (0, 1000] (large = rubbery, small = fragile)
@@ -145,5 +159,17 @@ struct PaperView {
 /// under compression) as the new vertex's mesh edges across the broken spring, and each
 /// hinge's folded edge.
 std::vector<std::array<std::uint32_t, 2>> paperCreaseLines(const PaperView& view);
+
+/// Air drag on a sheet, face by face (a flat plate's pressure drag): each triangle feels
+/// F = 1/2 air_density drag_coefficient A (w . n) |w . n| n, with A its area, n its unit
+/// normal and w = wind minus the mean velocity of its corners, a third on each corner;
+/// a face edge-on to the wind feels nothing. Adds into `force` (resized to the vertex
+/// count; per vertex, N). The scene format's wind uses air_density 1.2 kg/m^3 and
+/// drag_coefficient 1.2, as for strings. Throws InvalidInput naming the argument when
+/// wind is not finite, a coefficient is negative or not finite, the velocities are not
+/// one per position, or a triangle names a missing vertex.
+void addFaceDrag(const std::vector<Vec3>& positions, const std::vector<Vec3>& velocities,
+                 const std::vector<std::array<std::uint32_t, 3>>& triangles, const Vec3& wind, double air_density,
+                 double drag_coefficient, std::vector<Vec3>& force);
 
 }  // namespace tearables

@@ -23,6 +23,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 namespace tearables::detail {
 
@@ -257,6 +258,152 @@ void jacobiSweeps(PaperSheet& s) {
     if (s.desc.jacobi_iterations & 1) s.dv.swap(s.dv_next);  // the last iterate into s.dv
 }
 
+/// y = W x on the free rows (y_i = 0 on a held row), with W_ij = -(iso I + along d d^T)
+/// from the row entries (a pad couples with zero) and W_ii from s.diag.
+void applySystem(const PaperSheet& s, const std::vector<Vec3>& x, std::vector<Vec3>& y) {
+    const std::size_t n = s.vertices();
+    const std::uint32_t* const start = s.vertex_link_start.data();
+    const JacobiQuad* const quads = s.row_quads.data();
+    for (std::size_t i = 0; i < n; ++i) {
+        if (s.fixed[i]) {
+            y[i].setZero();
+            continue;
+        }
+        Vec3 sum = s.diag[i] * x[i];
+        for (std::uint32_t j = start[i]; j < start[i + 1]; ++j) {
+            const JacobiQuad& c = quads[j >> 2];
+            const unsigned lane = j & 3u;
+            const Vec3 d(c.dir_x[lane], c.dir_y[lane], c.dir_z[lane]);
+            const Vec3& o = x[c.other[lane]];
+            sum -= c.iso[lane] * o + (c.along[lane] * d.dot(o)) * d;
+        }
+        y[i] = sum;
+    }
+}
+
+/// A sheet none of whose vertices is held: a spring adds B at (a, a) and (b, b) and -B at
+/// (a, b) and (b, a), so its blocks cancel column by column and the rows of W dv sum to
+/// sum_i (m_i I + A_i) dv_i (A_i the bodies' lent mass). The residual's sum,
+/// sum_i (rhs_i - (W dv)_i) = h F_external - sum_i (m_i I + A_i) dv_i, is the momentum the
+/// sweeps left out (they stop where they stop, and a force on one vertex reaches only the
+/// vertices the sweeps reach). The uniform c = (sum_i m_i I + A_i)^-1 (that sum), added to
+/// every dv, removes it: springs do not resist a translation, W (dv + c) = W dv + (M + A) c.
+/// It is the Galerkin correction on the three translations (the coarsest level of a
+/// multigrid), so it also lowers the error's W-norm. A held vertex takes an impulse from
+/// its holder that the sheet does not see: then there is no momentum to keep, and no
+/// correction.
+void keepMomentum(PaperSheet& s) {
+    const std::size_t n = s.vertices();
+    for (std::size_t i = 0; i < n; ++i)
+        if (s.fixed[i]) return;
+    Mat3 mass = Mat3::Zero();
+    Vec3 left = Vec3::Zero();
+    for (std::size_t i = 0; i < n; ++i) {
+        const Mat3 m = s.mass[i] * Mat3::Identity() + s.added_mass[i];
+        mass += m;
+        left += s.rhs[i] - m * s.dv[i].vec();
+    }
+    const Vec3 c = mass.inverse() * left;
+    if (!c.allFinite()) return;  // a non-finite solve: the finite check after the step freezes the sheet
+    for (std::size_t i = 0; i < n; ++i) s.dv[i] = JacobiEntry(Vec3(s.dv[i].vec() + c));
+}
+
+/// A solve that met a non-finite number: the free rows' dv are NaN (the caller's finite
+/// check freezes the sheet), the warm start is dropped.
+void poisonSolve(PaperSheet& s) {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    for (std::size_t i = 0; i < s.vertices(); ++i) {
+        if (!s.fixed[i]) s.dv[i] = JacobiEntry(Vec3(nan, nan, nan));
+        s.cg_warm[i].setZero();
+    }
+    s.cg_iterations = 0;
+    s.cg_residual = nan;
+}
+
+/// W dv = rhs by conjugate gradients with the block-Jacobi preconditioner W_ii^-1
+/// (s.diag_inv), the held rows' dv prescribed (already in s.dv).
+///
+/// W is symmetric positive definite as built: every live spring adds
+/// [B -B; -B B] (x) with B = h c d d^T + h^2 k (t (I - d d^T) + (1 - t) d d^T) = iso I + along d d^T,
+/// t = max(0, 1 - l0/l) in [0, 1), so iso >= 0 and along >= 0: B is symmetric positive
+/// semi-definite and so is the spring's 6x6 block (B (x) [1 -1; -1 1], a Kronecker product
+/// of two PSD matrices). The mass M (and the movable bodies' lent mass, a symmetric PSD
+/// n n^T m or glue mass) makes the sum positive definite. The geometric term dropped for
+/// compressed springs (the comment at the top) is what keeps B from going indefinite.
+///
+/// Held rows are Dirichlet conditions: with the free unknowns u and the held values g, the
+/// free rows read W_uu u = rhs_u - W_ug g, and W_uu is a principal submatrix of an SPD
+/// matrix, SPD too. The iteration keeps the held entries of its search directions zero, so
+/// W p on the free rows is W_uu p_u (applySystem), and starts from the last step's dv (a
+/// sheet in steady motion changes its velocity by about the same each step).
+/// Stops when |r| <= tolerance |rhs_u - W_ug g| (Euclidean norms of momenta, kg m/s),
+/// or after 3 n iterations (exact arithmetic ends within the 3 n unknowns).
+void conjugateGradient(PaperSheet& s) {
+    const std::size_t n = s.vertices();
+    s.cg_r.resize(n);
+    s.cg_z.resize(n);
+    s.cg_p.resize(n);
+    s.cg_q.resize(n);
+    s.cg_warm.resize(n, Vec3::Zero());
+    // |b|: the free rows' right-hand side with the held values moved over (x = held, 0).
+    for (std::size_t i = 0; i < n; ++i) s.cg_p[i] = s.fixed[i] ? s.dv[i].vec() : Vec3::Zero();
+    applySystem(s, s.cg_p, s.cg_q);
+    double b_norm2 = 0.0;
+    for (std::size_t i = 0; i < n; ++i)
+        if (!s.fixed[i]) b_norm2 += (s.rhs[i] - s.cg_q[i]).squaredNorm();
+    // x0: the held values and the warm start.
+    for (std::size_t i = 0; i < n; ++i) s.cg_p[i] = s.fixed[i] ? s.dv[i].vec() : s.cg_warm[i];
+    applySystem(s, s.cg_p, s.cg_q);
+    for (std::size_t i = 0; i < n; ++i) {
+        s.dv[i] = JacobiEntry(s.cg_p[i]);
+        s.cg_r[i] = s.fixed[i] ? Vec3::Zero() : Vec3(s.rhs[i] - s.cg_q[i]);
+    }
+    const double stop2 = s.desc.tolerance * s.desc.tolerance * b_norm2;
+    double r2 = 0.0;
+    for (std::size_t i = 0; i < n; ++i) r2 += s.cg_r[i].squaredNorm();
+    // A right-hand side or residual that is not finite (a force past 1e154 squares to inf)
+    // has no answer to a tolerance, and the stop test would be false on it and keep the
+    // start: the free rows' dv go non-finite instead, so that the sheet is frozen by the
+    // finite check after the step, as the Jacobi sweeps' overflow freezes it.
+    if (!std::isfinite(b_norm2) || !std::isfinite(r2)) return poisonSolve(s);
+    double rz = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+        s.cg_z[i] = s.fixed[i] ? Vec3::Zero() : Vec3(s.diag_inv[i] * s.cg_r[i]);
+        s.cg_p[i] = s.cg_z[i];
+        rz += s.cg_r[i].dot(s.cg_z[i]);
+    }
+    int it = 0;
+    const int cap = static_cast<int>(std::min<std::size_t>(3 * n, 1u << 30));
+    while (r2 > stop2 && it < cap) {
+        applySystem(s, s.cg_p, s.cg_q);
+        double pq = 0.0;
+        for (std::size_t i = 0; i < n; ++i) pq += s.cg_p[i].dot(s.cg_q[i]);
+        if (!std::isfinite(pq)) return poisonSolve(s);
+        if (!(pq > 0.0)) break;  // p = 0 (converged to rounding) or lost positivity to rounding
+        const double alpha = rz / pq;
+        r2 = 0.0;
+        for (std::size_t i = 0; i < n; ++i) {
+            s.dv[i] = JacobiEntry(Vec3(s.dv[i].vec() + alpha * s.cg_p[i]));
+            s.cg_r[i] -= alpha * s.cg_q[i];
+            r2 += s.cg_r[i].squaredNorm();
+        }
+        ++it;
+        if (!std::isfinite(r2)) return poisonSolve(s);
+        if (r2 <= stop2) break;
+        double rz_next = 0.0;
+        for (std::size_t i = 0; i < n; ++i) {
+            s.cg_z[i] = s.fixed[i] ? Vec3::Zero() : Vec3(s.diag_inv[i] * s.cg_r[i]);
+            rz_next += s.cg_r[i].dot(s.cg_z[i]);
+        }
+        const double beta = rz_next / rz;
+        rz = rz_next;
+        for (std::size_t i = 0; i < n; ++i) s.cg_p[i] = s.cg_z[i] + beta * s.cg_p[i];
+    }
+    s.cg_iterations = it;
+    s.cg_residual = b_norm2 > 0.0 ? std::sqrt(r2 / b_norm2) : 0.0;
+    for (std::size_t i = 0; i < n; ++i) s.cg_warm[i] = s.fixed[i] ? Vec3::Zero() : s.dv[i].vec();
+}
+
 }  // namespace
 
 void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& ctx) {
@@ -264,6 +411,8 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
     const double h = ctx.h, h2 = h * h;
     const double damping = s.desc.damping;
     const bool implicit = s.desc.integrator == PaperIntegrator::Implicit;
+    const bool cg = implicit && s.desc.solver == PaperSolver::ConjugateGradient;
+    if (cg) s.diag.resize(n);
     s.rhs.resize(n);
     s.dv.resize(n);
     s.dv_next.resize(n);
@@ -374,6 +523,7 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
         diag << xx + iso, xy, xz, xy, yy + iso, yz, xz, yz, zz + iso;
         if (!implicit) diag.setZero();
         s.diag_inv[i] = diag + s.mass[i] * Mat3::Identity() + s.added_mass[i];
+        if (cg) s.diag[i] = s.diag_inv[i];
     }
     if (!implicit) {
         // Semi-implicit (symplectic) Euler: v += h f / m. Stable only for h < 2 / omega.
@@ -388,8 +538,12 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
             s.diag_inv[i] = s.diag_inv[i].inverse().eval();
             s.dv[i] = JacobiEntry(s.diag_inv[i] * s.rhs[i]);  // Eq. 6, k = 0
         }
-        // Eq. 6, weighted, jacobi_iterations times (jacobiSweeps).
-        jacobiSweeps(s);
+        if (cg)
+            conjugateGradient(s);
+        else {
+            jacobiSweeps(s);  // Eq. 6, weighted, jacobi_iterations times
+            keepMomentum(s);
+        }
         for (std::size_t i = 0; i < n; ++i) s.v[i] += s.dv[i].vec();
     }
     for (std::size_t i = 0; i < n; ++i) {

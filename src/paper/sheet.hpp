@@ -86,6 +86,13 @@ struct PaperSheet {
     std::vector<Mat3> diag_inv;   ///< per vertex, inverse of W_ii
     std::vector<Vec3> rhs;        ///< per vertex, h f + h^2 J v
     std::vector<JacobiEntry> dv, dv_next;  ///< per vertex, the Jacobi iterate (velocity change, m/s) and the next one
+    /// Conjugate gradients (implicit.cpp, conjugateGradient): per vertex W_ii, the residual,
+    /// the preconditioned residual, the search direction and W times it; and the last
+    /// step's dv (the warm start, kept across steps).
+    std::vector<Mat3> diag;
+    std::vector<Vec3> cg_r, cg_z, cg_p, cg_q, cg_warm;
+    int cg_iterations = 0;        ///< iterations of the last solve
+    double cg_residual = 0.0;     ///< its relative residual |b - W dv| / |b|
     // rows of the Jacobi gather (implicit.cpp, buildRows), rebuilt when the live springs change
     std::vector<std::array<std::uint32_t, 2>> link_ends;  ///< per live spring, in order: its vertices
     std::vector<std::array<std::uint32_t, 2>> link_slot;  ///< per live spring: its entries in the rows of a and b
@@ -210,10 +217,12 @@ void estimateTension(PaperSheet& s, const std::vector<PointContact>& contacts, c
 /// Separates the mesh where a structural edge is stretched past rupture_stretch
 /// (vertices duplicated along the cut). Appends Tear events.
 void tear(PaperSheet& s, PaperId id, const PaperStep& ctx, std::vector<Event>& events);
-/// Splits vertex `vertex` of the sheet along the fan edge (vertex, across): the
-/// triangles on one side get a new vertex. Returns the new vertex or UINT32_MAX when the
-/// split is not possible (not a boundary vertex, or `across` is not an inner fan edge).
-std::uint32_t splitVertex(PaperSheet& s, std::uint32_t vertex, std::uint32_t across);
+/// Splits vertex `vertex` of the sheet along the fan edge (vertex, across), and along
+/// (vertex, across2) too when that is given (an inner vertex: a slit through it needs two
+/// cuts): the triangles on one side get a new vertex. Returns the new vertex or
+/// UINT32_MAX when the split is not possible (the cuts separate nothing, or a cut is not
+/// an inner fan edge).
+std::uint32_t splitVertex(PaperSheet& s, std::uint32_t vertex, std::uint32_t across, std::uint32_t across2 = UINT32_MAX);
 
 // --- mesh.cpp ---
 /// Appends a vertex (all per-vertex arrays grow); returns its index.

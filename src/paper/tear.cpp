@@ -15,9 +15,11 @@
 // The cut edge's spring is duplicated; springs spanning the cut are renamed to the side
 // where they still span an edge, or retired. A crack runs inward one vertex per step while
 // the stress stays above rupture; each cut's far end is a crack tip, torn first, and at
-// most one new crack starts per step. Held vertices are never split; an edge with both
-// ends inside waits for a crack (an inner vertex's fan is closed). One split per vertex
-// and step.
+// most one new crack starts per step. Held vertices are never split. An edge with both
+// ends inside starts a slit there: its first free end is split along two of its fan
+// edges, the ones pointing furthest either way across the stretched edge (an inner
+// vertex's fan is closed, so one cut separates nothing), and the slit's two far ends are
+// crack tips. One split per vertex and step.
 #include "paper/sheet.hpp"
 
 #include <algorithm>
@@ -28,9 +30,9 @@ namespace tearables::detail {
 namespace {
 
 /// The triangles of `fan` (all around `vertex`) connected to triangle `start` through
-/// edges (vertex, x) with x != `cut`.
+/// edges (vertex, x) with x != `cut` and x != `cut2`.
 void fanComponent(const PaperSheet& s, const std::vector<std::uint32_t>& fan, std::uint32_t vertex, std::uint32_t cut,
-                  std::uint32_t start, std::vector<std::uint8_t>& in) {
+                  std::uint32_t cut2, std::uint32_t start, std::vector<std::uint8_t>& in) {
     in.assign(fan.size(), 0);
     std::vector<std::size_t> stack;
     for (std::size_t i = 0; i < fan.size(); ++i)
@@ -48,7 +50,7 @@ void fanComponent(const PaperSheet& s, const std::vector<std::uint32_t>& fan, st
             // Shared vertex other than `vertex` and `cut`.
             bool shared = false;
             for (std::uint32_t x : a)
-                if (x != vertex && x != cut && (b[0] == x || b[1] == x || b[2] == x)) shared = true;
+                if (x != vertex && x != cut && x != cut2 && (b[0] == x || b[1] == x || b[2] == x)) shared = true;
             if (shared) {
                 in[o] = 1;
                 stack.push_back(o);
@@ -75,7 +77,8 @@ bool onBoundary(const PaperSheet& s, std::uint32_t v, std::vector<std::uint32_t>
 
 }  // namespace
 
-std::uint32_t splitVertex(PaperSheet& s, std::uint32_t vertex, std::uint32_t across) {
+std::uint32_t splitVertex(PaperSheet& s, std::uint32_t vertex, std::uint32_t across, std::uint32_t across2) {
+    if (across2 == across) return UINT32_MAX;
     std::vector<std::uint32_t> fan;
     trianglesOf(s, vertex, fan);
     // The two triangles of the cut edge; side B is the one that has vertex -> across
@@ -89,9 +92,18 @@ std::uint32_t splitVertex(PaperSheet& s, std::uint32_t vertex, std::uint32_t acr
         }
     }
     if (side_a == UINT32_MAX || side_b == UINT32_MAX) return UINT32_MAX;
+    if (across2 != UINT32_MAX) {  // the second cut must be an inner fan edge too
+        int sides = 0;
+        for (std::uint32_t t : fan) {
+            const auto& tri = s.triangles[t];
+            for (int c = 0; c < 3; ++c)
+                sides += (tri[c] == vertex && tri[(c + 1) % 3] == across2) || (tri[c] == across2 && tri[(c + 1) % 3] == vertex);
+        }
+        if (sides != 2) return UINT32_MAX;
+    }
     std::vector<std::uint8_t> in_b, in_a;
-    fanComponent(s, fan, vertex, across, side_b, in_b);
-    fanComponent(s, fan, vertex, across, side_a, in_a);
+    fanComponent(s, fan, vertex, across, across2, side_b, in_b);
+    fanComponent(s, fan, vertex, across, across2, side_a, in_a);
     for (std::size_t i = 0; i < fan.size(); ++i)
         if (in_a[i] && in_b[i]) return UINT32_MAX;  // a closed fan: the cut separates nothing
     double area_a = 0.0, area_b = 0.0;
@@ -110,16 +122,16 @@ std::uint32_t splitVertex(PaperSheet& s, std::uint32_t vertex, std::uint32_t acr
         if (in_b[i])
             for (int c = 0; c < 3; ++c)
                 if (s.triangles[fan[i]][c] == vertex) setCorner(s, fan[i], c, twin);
-    // Structural springs at the vertex follow their edge; the cut edge's is duplicated.
+    // Structural springs at the vertex follow their edge; a cut edge's is duplicated.
     const std::vector<std::uint32_t> at_vertex = s.vertex_springs[vertex];  // a copy: renames change the list
     for (const std::uint32_t k : at_vertex) {
         PaperSpring& sp = s.springs[k];
         if (sp.broken || sp.kind != PaperSpringKind::Structural) continue;
         if (sp.a != vertex && sp.b != vertex) continue;
         const std::uint32_t other = sp.a == vertex ? sp.b : sp.a;
-        if (other == across) {
+        if (other == across || (across2 != UINT32_MAX && other == across2)) {
             const PaperSpring copy = sp;
-            const std::uint32_t dup = addSpring(s, twin, across, copy.rest, copy.stiffness, PaperSpringKind::Structural);
+            const std::uint32_t dup = addSpring(s, twin, other, copy.rest, copy.stiffness, PaperSpringKind::Structural);
             s.survived[dup] = s.survived[k];
             continue;
         }
@@ -132,6 +144,7 @@ std::uint32_t splitVertex(PaperSheet& s, std::uint32_t vertex, std::uint32_t acr
     }
     revalidateSprings(s, vertex, twin);
     revalidateSprings(s, across, UINT32_MAX);
+    if (across2 != UINT32_MAX) revalidateSprings(s, across2, UINT32_MAX);
     return twin;
 }
 
@@ -173,9 +186,58 @@ void tear(PaperSheet& s, PaperId id, const PaperStep& ctx, std::vector<Event>& e
             // A held vertex is not split: both halves would stay at the pin (or glue), and
             // the crack would open nothing. The crack starts next to it instead.
             if (s.hold[v].kind != ParticleHold::Kind::Free) continue;
-            if (!onBoundary(s, v, scratch)) continue;
-            // The inner fan edge most perpendicular to the stretched edge.
+            const bool inside = !onBoundary(s, v, scratch);
             trianglesOf(s, v, fan);
+            if (inside) {
+                // A slit through an inner vertex, across the stretched edge: cut the fan
+                // edge that points furthest along t = n x dir and the one furthest along -t
+                // (n the fan's normal), one each side of the edge; both far ends are tips.
+                Vec3 normal = Vec3::Zero();
+                for (std::uint32_t t : fan) {
+                    const auto& tri = s.triangles[t];
+                    normal += (s.x[tri[1]] - s.x[tri[0]]).cross(s.x[tri[2]] - s.x[tri[0]]);
+                }
+                const Vec3 across = normal.cross(dir);
+                if (!(across.norm() > 0.0)) continue;
+                std::uint32_t plus = UINT32_MAX, minus = UINT32_MAX;
+                double most = -2.0, least = 2.0;
+                for (std::uint32_t t : fan)
+                    for (std::uint32_t w : s.triangles[t]) {
+                        if (w == v) continue;
+                        const Vec3 e = s.x[w] - s.x[v];
+                        if (!(e.norm() > 0.0)) continue;
+                        const double c = e.normalized().dot(across.normalized());
+                        if (c > most + 1e-12 || (std::abs(c - most) <= 1e-12 && w < plus)) {
+                            most = c;
+                            plus = w;
+                        }
+                        if (c < least - 1e-12 || (std::abs(c - least) <= 1e-12 && w < minus)) {
+                            least = c;
+                            minus = w;
+                        }
+                    }
+                if (plus == UINT32_MAX || minus == UINT32_MAX || plus == minus) continue;
+                const std::uint32_t twin = splitVertex(s, v, plus, minus);
+                if (twin == UINT32_MAX) continue;
+                touched.resize(s.vertices(), 0);
+                touched[v] = touched[twin] = touched[plus] = touched[minus] = 1;
+                ++started;
+                s.crack_tip[v] = s.crack_tip[twin] = 0;
+                s.crack_tip[plus] = s.crack_tip[minus] = 1;
+                ++s.counters.tears;
+                Event e;
+                e.type = EventType::Tear;
+                e.cause = EventCause::Tension;
+                e.object = s.desc.name;
+                e.segment = static_cast<int>(k);
+                e.particle = static_cast<int>(v);
+                e.stress = stretch;
+                e.time = ctx.time;
+                e.step = ctx.step;
+                events.push_back(e);
+                break;
+            }
+            // The inner fan edge most perpendicular to the stretched edge.
             std::uint32_t best = UINT32_MAX;
             double best_sine = -1.0;
             for (std::uint32_t t : fan)

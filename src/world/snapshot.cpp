@@ -529,6 +529,8 @@ void io(A& a, PaperDesc& d) {
     io(a, d.stiffness);
     io(a, d.bending);
     io(a, d.damping);
+    ioEnum(a, d.solver, static_cast<int>(PaperSolver::ConjugateGradient), "solver");
+    io(a, d.tolerance);
     io(a, d.jacobi_iterations);
     ioEnum(a, d.integrator, static_cast<int>(PaperIntegrator::Explicit), "integrator");
     io(a, d.phi);
@@ -548,7 +550,7 @@ void io(A& a, PaperDesc& d) {
 /// (vertices inserted by creases and tears, triangles, springs with their kinds, hinges
 /// and broken flags), the adjacency lists in their order (topology changes search them in
 /// that order), the compression each spring survived, the crack tips, the counters and the
-/// random generator. Not kept, rebuilt by every step before it is read: the implicit
+/// random generator, and the conjugate gradient's warm start (the last step's dv). Not kept, rebuilt by every step before it is read: the implicit
 /// solve's blocks and right-hand sides, the bodies' lent masses, the start velocities.
 template <class A>
 void io(A& a, detail::PaperSheet& s) {
@@ -573,6 +575,7 @@ void io(A& a, detail::PaperSheet& s) {
     io(a, s.rng);
     io(a, s.total_mass);
     io(a, s.tension);
+    io(a, s.cg_warm);
 }
 
 // --- consistency of what was read ----------------------------------------------------------
@@ -756,6 +759,8 @@ void checkPaper(const detail::PaperSheet& s, const detail::RigidTable& rigids, c
     size(s.survived.size(), k, "survived");
     // Tensions are of the springs the last tension stage saw: creases add springs after it.
     if (s.tension.size() > k) fail("tension has " + std::to_string(s.tension.size()) + " entries for " + std::to_string(k) + " springs");
+    // The warm start is of the vertices the last solve saw: creases and tears add vertices after it.
+    if (s.cg_warm.size() > n) fail("cg_warm has " + std::to_string(s.cg_warm.size()) + " entries for " + std::to_string(n) + " vertices");
     for (std::size_t i = 0; i < t; ++i)
         for (std::uint32_t v : s.triangles[i])
             if (v >= n) fail("triangle " + std::to_string(i) + " names vertex " + std::to_string(v) + ", which the sheet does not have");

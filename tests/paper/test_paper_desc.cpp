@@ -41,6 +41,10 @@ TEST(PaperDesc, BadInputRefusedWithTheFieldNamed) {
         {"stiffness", [&](PaperDesc& d) { d.stiffness = inf; }},
         {"bending", [&](PaperDesc& d) { d.bending = 2.0; }},
         {"damping", [&](PaperDesc& d) { d.damping = -0.1; }},
+        {"solver", [&](PaperDesc& d) { d.solver = static_cast<PaperSolver>(7); }},
+        {"tolerance", [&](PaperDesc& d) { d.tolerance = 0.0; }},
+        {"tolerance", [&](PaperDesc& d) { d.tolerance = nan; }},
+        {"tolerance", [&](PaperDesc& d) { d.tolerance = 0.5; }},
         {"jacobi_iterations", [&](PaperDesc& d) { d.jacobi_iterations = 0; }},
         {"jacobi_iterations", [&](PaperDesc& d) { d.jacobi_iterations = 1000; }},
         {"phi", [&](PaperDesc& d) { d.phi = 0.0; }},
@@ -165,9 +169,14 @@ namespace {
 
 /// Non-finite input is refused at every entry point; a sheet driven non-finite anyway (a
 /// finite but absurd force) is frozen with a Freeze event and its neighbour goes on.
-TEST(PaperDesc, NonFiniteRefusedAndABlownUpSheetIsFrozen) {
+/// Either solver: the conjugate gradient's stop test is false on a non-finite residual,
+/// and it must not hand back its finite start as if it had converged.
+class PaperDescSolver : public ::testing::TestWithParam<PaperSolver> {};
+
+TEST_P(PaperDescSolver, NonFiniteRefusedAndABlownUpSheetIsFrozen) {
     World world;
     PaperDesc d = PaperDesc{};
+    d.solver = GetParam();
     d.resolution[0] = 4;
     d.resolution[1] = 4;
     const PaperId bad = world.addPaper(d);
@@ -188,6 +197,7 @@ TEST(PaperDesc, NonFiniteRefusedAndABlownUpSheetIsFrozen) {
     EXPECT_FALSE(world.viewPaper(good).frozen);
     EXPECT_LT((*world.viewPaper(good).positions)[0].y(), 1.0);  // it falls on
 }
+INSTANTIATE_TEST_SUITE_P(BothSolvers, PaperDescSolver, ::testing::Values(PaperSolver::Paper, PaperSolver::ConjugateGradient));
 
 }  // namespace
 }  // namespace tearables

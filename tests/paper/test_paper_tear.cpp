@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <map>
 #include <numeric>
 
 namespace tearables {
@@ -142,6 +143,60 @@ TEST(PaperTear, NoTearBelowRupture) {
     EXPECT_EQ(world.viewPaper(id).counters.tears, 0u);
     EXPECT_LT(peak, d.rupture_stretch);
     std::printf("hanging from two corners: peak strain %.3g\n", peak);
+}
+
+/// Edges used by one triangle only (the sheet's boundary, cuts included).
+int boundaryEdges(const PaperView& v) {
+    std::map<std::pair<std::uint32_t, std::uint32_t>, int> uses;
+    for (const auto& t : *v.triangles)
+        for (int c = 0; c < 3; ++c) ++uses[{std::min(t[c], t[(c + 1) % 3]), std::max(t[c], t[(c + 1) % 3])}];
+    int count = 0;
+    for (const auto& [edge, n] : uses) count += n == 1;
+    return count;
+}
+
+/// A crack starts where an edge is overstretched, also inside the sheet: two inner
+/// vertices of a free sheet (no gravity) pulled apart (10 N each, on a 20 cm sheet of 5 kN/m
+/// springs, whose edge tears at 2.5 N) stretch the edge between them past
+/// rupture first, and the sheet opens a slit there, across that edge. The first tear is
+/// exactly one split of an inner vertex along two of its fan edges: one vertex more, the
+/// same triangles, four boundary edges more (each cut edge now borders one triangle on
+/// each side of the slit), still one piece; and the split vertex is one of the two pulled.
+TEST(PaperTear, AnOverstretchedInnerEdgeStartsASlitThere) {
+    PaperDesc d;
+    d.size[0] = 0.2;
+    d.size[1] = 0.2;
+    d.resolution[0] = 9;
+    d.resolution[1] = 9;
+    d.tearable = true;
+    d.breakable = false;
+    WorldSettings settings;
+    settings.gravity = Vec3::Zero();
+    World world(settings);
+    const PaperId id = world.addPaper(d);
+    const auto left = static_cast<std::uint32_t>(d.gridVertex(4, 4)), right = static_cast<std::uint32_t>(d.gridVertex(5, 4));
+    const PaperView before = world.viewPaper(id);
+    const std::size_t vertices = before.vertexCount(), triangles = before.triangles->size();
+    const int boundary = boundaryEdges(before);
+    ASSERT_EQ(boundary, 4 * 8);
+    int step = 0;
+    for (; step < 120 && world.viewPaper(id).counters.tears == 0; ++step) {
+        world.applyPaperForce(id, left, Vec3(-10.0, 0, 0));
+        world.applyPaperForce(id, right, Vec3(10.0, 0, 0));
+        world.step(1.0 / 240.0);
+    }
+    const PaperView after = world.viewPaper(id);
+    ASSERT_EQ(after.counters.tears, 1u) << "no tear in " << step << " steps";
+    int split = -1;
+    for (const Event& e : world.events())
+        if (e.type == EventType::Tear) split = e.particle;
+    EXPECT_TRUE(split == static_cast<int>(left) || split == static_cast<int>(right)) << split;
+    EXPECT_EQ(after.vertexCount(), vertices + 1);
+    EXPECT_EQ(after.triangles->size(), triangles);
+    EXPECT_EQ(boundaryEdges(after), boundary + 4);
+    EXPECT_EQ(pieces(after), 1);
+    EXPECT_EQ(detail::checkMesh(after, d.density * 0.2 * 0.2), "");
+    std::printf("inner slit after %d steps at vertex %d\n", step, split);
 }
 
 }  // namespace

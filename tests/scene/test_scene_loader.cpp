@@ -219,7 +219,7 @@ TEST(SceneLoader, PapersParseEveryField) {
           "attachments": [ {"vertex": [0, 0], "world": true} ] },
         { "name": "card", "origin": [1, 2, 3], "size": [0.1, 0.2], "resolution": [3, 4],
           "orientation": [0, 0.7071068, 0, 0.7071068], "density": 0.3, "stiffness": 2e4, "bending": 0.2, "damping": 0.05,
-          "jacobi_iterations": 12, "integrator": "explicit", "phi": 3, "psi": 1.5, "hinge_threshold": 0.25,
+          "solver": "conjugate_gradient", "tolerance": 1e-4, "jacobi_iterations": 12, "integrator": "explicit", "phi": 3, "psi": 1.5, "hinge_threshold": 0.25,
           "breakable": false, "tearable": true, "rupture_stretch": 0.05, "tension": "momentum", "thickness": 0.002, "friction": 0.8, "seed": 42,
           "attachments": [ {"vertex": [-1, -1], "world": [5, 6, 7]}, {"vertex": 1, "body": "clip", "local": [0.1, 0, 0]},
                            {"edge": "x-", "body": "clip"} ] },
@@ -241,6 +241,10 @@ TEST(SceneLoader, PapersParseEveryField) {
     EXPECT_DOUBLE_EQ(a.stiffness, 5e3);
     EXPECT_DOUBLE_EQ(a.damping, 0.01);
     EXPECT_EQ(a.jacobi_iterations, 8);
+    EXPECT_EQ(a.solver, PaperSolver::Paper);
+    EXPECT_DOUBLE_EQ(a.tolerance, 1e-6);
+    EXPECT_EQ(scene.papers[1].desc.solver, PaperSolver::ConjugateGradient);
+    EXPECT_DOUBLE_EQ(scene.papers[1].desc.tolerance, 1e-4);
     EXPECT_DOUBLE_EQ(a.phi, 1.0);
     EXPECT_DOUBLE_EQ(a.psi, 0.5);
     EXPECT_DOUBLE_EQ(a.hinge_threshold, 0.5);
@@ -475,6 +479,8 @@ const ErrorCase kErrorCases[] = {
     {"PaperDensity", R"({"papers": [{"name": "s", "density": -1}]})", "papers[0].density", "greater than 0"},
     {"PaperStiffness", R"({"papers": [{"name": "s", "stiffness": 0}]})", "papers[0].stiffness", "greater than 0"},
     {"PaperDamping", R"({"papers": [{"name": "s", "damping": 2}]})", "papers[0].damping", "in [0, 1]"},
+    {"PaperSolver", R"({"papers": [{"name": "s", "solver": "multigrid"}]})", "papers[0].solver", "\"conjugate_gradient\" or \"paper\""},
+    {"PaperTolerance", R"({"papers": [{"name": "s", "tolerance": 0}]})", "papers[0].tolerance", "in [1e-12, 0.1]"},
     {"PaperJacobi", R"({"papers": [{"name": "s", "jacobi_iterations": 0}]})", "papers[0].jacobi_iterations", "in [1, 256]"},
     {"PaperPhi", R"({"papers": [{"name": "s", "phi": 0}]})", "papers[0].phi", "in (0, 1000]"},
     {"PaperPsi", R"({"papers": [{"name": "s", "psi": -1}]})", "papers[0].psi", "in [0, 4]"},
@@ -828,6 +834,60 @@ TEST(SceneRun, ForceAndRampActOnlyBetweenFromAndUntil) {
     }
     EXPECT_NEAR(pushed.back(), force_impulse, 1e-6 * force_impulse);
     EXPECT_NEAR(ramped.back(), ramp_impulse, 1e-6 * ramp_impulse);
+}
+
+// The same on sheets (SCENE_FORMAT.md, drivers: "force" on a cloth or paper vertex):
+// free, without gravity, a sheet's springs and yarns act in pairs, so its momentum is the
+// force's impulse, F dt per driven step, along F (a corner pushed: the sheet also turns
+// and bends, which moves no momentum). The paper's Jacobi sweeps stop at a residual whose
+// sum is a momentum error, which a uniform velocity removes (implicit.cpp, keepMomentum);
+// the conjugate gradient stops within its tolerance (1e-12 here). A
+// "move" driver takes its vertex along velocity dt per driven step, exactly (a pin).
+// The force reaches the sheet as Bullet's single-precision btVector3, each component
+// rounded by at most 2^-24 of itself: the impulse holds to that, relative.
+TEST(SceneRun, ForceAndMoveDriversOnSheetVertices) {
+    const double kFloat = std::ldexp(1.0, -24);
+    for (const char* solver : {"paper", "conjugate_gradient"}) {
+        SCOPED_TRACE(solver);
+        const Scene scene = parseScene(std::string(R"({"dt": 0.01, "steps": 40, "gravity": [0, 0, 0],
+          "papers": [{"name": "sheet", "origin": [0, 1, 0], "size": [0.2, 0.3], "resolution": [7, 9], "breakable": false,
+                      "solver": ")") + solver + R"(", "tolerance": 1e-12},
+                     {"name": "led", "origin": [1, 1, 0], "size": [0.2, 0.2], "resolution": [5, 5], "breakable": false}],
+          "cloths": [{"name": "cloth", "origin": [0, 1, 1], "size": [0.2, 0.2], "resolution": [6, 6]}],
+          "drivers": [{"type": "force", "target": "sheet", "vertex": [0, 0], "value": [0.02, 0.01, -0.015], "from": 0.1, "until": 0.3},
+                      {"type": "force", "target": "cloth", "vertex": [5, 0], "value": [0.002, 0.003, 0.001], "from": 0.1, "until": 0.3},
+                      {"type": "move", "target": "led", "vertex": [4, 4], "velocity": [0.1, 0.2, -0.05], "from": 0.1, "until": 0.3}]})");
+        const double dt = 0.01;
+        const Vec3 paper_force(0.02, 0.01, -0.015), cloth_force(0.002, 0.003, 0.001), velocity(0.1, 0.2, -0.05);
+        Vec3 led_start = Vec3::Constant(NAN);
+        int frames = 0;
+        RunOptions options;
+        options.every = 1;
+        options.on_frame = [&](const FrameState& f) {
+            const double driven = std::clamp(std::round((f.time - 0.1) / dt), 0.0, 20.0);  // driven steps so far
+            for (const FramePaper& p : f.papers) {
+                if (p.name == "led") {
+                    const Vec3 x = (*p.view.positions)[24];
+                    if (f.step == 0) led_start = x;
+                    if (driven > 0.0) EXPECT_LT((x - (led_start + velocity * dt * driven)).norm(), 1e-12) << "t = " << f.time;
+                    continue;
+                }
+                Vec3 momentum = Vec3::Zero();
+                for (std::size_t i = 0; i < p.view.vertexCount(); ++i) momentum += (*p.view.masses)[i] * (*p.view.velocities)[i];
+                const Vec3 impulse = paper_force * dt * driven;
+                EXPECT_LE((momentum - impulse).norm(), kFloat * impulse.norm() + 1e-15) << "t = " << f.time;
+            }
+            for (const FrameCloth& c : f.cloths) {
+                Vec3 momentum = Vec3::Zero();
+                for (std::size_t i = 0; i < c.view.vertexCount(); ++i) momentum += (*c.view.masses)[i] * (*c.view.velocities)[i];
+                const Vec3 impulse = cloth_force * dt * driven;
+                EXPECT_LE((momentum - impulse).norm(), kFloat * impulse.norm() + 1e-15) << "t = " << f.time;
+            }
+            ++frames;
+        };
+        runScene(scene, options);
+        EXPECT_EQ(frames, 41);
+    }
 }
 
 TEST(BuiltinScenes, UnknownNameHasNoText) {
