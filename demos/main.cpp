@@ -116,7 +116,7 @@ int main(int argc, char** argv) {
     run->add_flag("--png", png, "write frame_NNNNN.png images of every trace frame (offscreen OpenGL, OSMesa)");
     run->add_option("--size", size_text, "image size WIDTHxHEIGHT for --png and --mp4 (default 640x360)");
     run->add_flag("--mp4", mp4, "also assemble the frames into video.mp4 with ffmpeg (implies --png)");
-    run->add_flag("--plot", plot, "plot tension, length, torsional strain and stress-strain into plot.png with gnuplot");
+    run->add_flag("--plot", plot, "plot.png with gnuplot: strings' tension, length, stress-strain (and torsional strain when they twist); cloths' yarn tension and torn yarns; paper sheets' creases, tears and broken springs");
     run->add_option("--plot-size", plot_size_text, "plot.png's size WIDTHxHEIGHT (default 1200x900)");
     run->add_flag("--quiet", quiet, "no progress bar, no report");
     CLI::App* list = app.add_subcommand("list", "list the built-in scenes");
@@ -150,6 +150,7 @@ int main(int argc, char** argv) {
                 plot_size = parseSize(plot_size_text, "--plot-size");
             }
             scene = loadNamed(scene_arg);
+            if (plot) tr::checkPlottable(scene);
         }))
         return status;
     // Missing tools are found before anything is simulated.

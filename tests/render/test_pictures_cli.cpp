@@ -3,6 +3,8 @@
 // the option; missing tools exit 1 saying how to install them.
 #include "render/renderer.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -13,6 +15,7 @@
 #include <string>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <vector>
 
 namespace {
 
@@ -53,6 +56,51 @@ double greyDeviation(const Image& im) {
     }
     return std::sqrt(std::max(0.0, sum2 / n - (sum / n) * (sum / n)));
 }
+
+/// The rows of a plot data file (lines not starting with '#'), each split into numbers.
+std::vector<std::vector<double>> dataRows(const fs::path& path) {
+    std::ifstream in(path);
+    std::vector<std::vector<double>> rows;
+    std::string line;
+    while (std::getline(in, line)) {
+        if (line.empty() || line[0] == '#') continue;
+        std::istringstream fields(line);
+        std::vector<double> row;
+        std::string field;
+        while (fields >> field) row.push_back(field == "NaN" ? std::nan("") : std::stod(field));
+        rows.push_back(row);
+    }
+    return rows;
+}
+
+/// The number of lines of a text file.
+std::size_t lineCount(const fs::path& path) {
+    std::ifstream in(path);
+    std::size_t n = 0;
+    for (std::string line; std::getline(in, line);) n += !line.empty();
+    return n;
+}
+
+/// The events of `type` on `object` in events.jsonl.
+long long eventCount(const fs::path& events, const std::string& type, const std::string& object) {
+    std::ifstream in(events);
+    long long n = 0;
+    for (std::string line; std::getline(in, line);) {
+        if (line.empty()) continue;
+        const nlohmann::json e = nlohmann::json::parse(line);
+        n += e.value("type", "") == type && e.value("object", "") == object;
+    }
+    return n;
+}
+
+std::string fileText(const fs::path& path) {
+    std::ifstream in(path);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+bool haveGnuplot() { return std::system("command -v gnuplot >/dev/null 2>&1") == 0; }
 
 }  // namespace
 
@@ -127,6 +175,81 @@ TEST(Pictures, PlotOfRuptureVariation) {
     EXPECT_EQ(plot.height, 600);
     EXPECT_GT(greyDeviation(plot), 10.0);
     for (int i = 0; i < 4; ++i) EXPECT_TRUE(fs::exists(out / ("plot_" + std::to_string(i) + ".dat"))) << i;
+}
+
+// --plot on a cloth (no strings): plot.png with the cloth's panels; its data has a row per
+// trace frame, and the torn yarns of the last frame are the tear events on the cloth (the
+// trace's broken list and the event log are written by separate code).
+TEST(Pictures, PlotOfClothTear) {
+    if (!haveGnuplot()) GTEST_SKIP() << "gnuplot is not installed";
+    const fs::path out = fs::path(TEARABLES_TEST_OUT) / "pictures-plot-cloth";
+    fs::remove_all(out);
+    const Result r = cli("run cloth-tear --plot --plot-size 640x480 --quiet --out " + out.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const Image plot = readPng((out / "plot.png").string());
+    EXPECT_EQ(plot.width, 640);
+    EXPECT_GT(greyDeviation(plot), 10.0);
+    const auto rows = dataRows(out / "plot_cloth_0.dat");
+    ASSERT_EQ(rows.size(), lineCount(out / "trace.jsonl"));
+    ASSERT_EQ(rows.back().size(), 3u);
+    const long long tears = eventCount(out / "events.jsonl", "tear", "cloth");
+    EXPECT_GT(tears, 0) << "the scene tears its cloth";
+    EXPECT_EQ(static_cast<long long>(rows.back()[2]), tears);
+    for (std::size_t i = 1; i < rows.size(); ++i) EXPECT_GE(rows[i][2], rows[i - 1][2]) << "torn yarns do not heal";
+    const std::string script = fileText(out / "plot.gp");
+    EXPECT_NE(script.find("Cloth: torn yarns"), std::string::npos);
+    EXPECT_EQ(script.find("Torsional"), std::string::npos) << "a torsion panel without strings";
+    EXPECT_EQ(script.find("Stress-strain"), std::string::npos) << "a string panel without strings";
+}
+
+// --plot on a paper sheet: its creases column ends at the crease events on the sheet.
+TEST(Pictures, PlotOfPaper) {
+    if (!haveGnuplot()) GTEST_SKIP() << "gnuplot is not installed";
+    const fs::path out = fs::path(TEARABLES_TEST_OUT) / "pictures-plot-paper";
+    fs::remove_all(out);
+    const Result r = cli("run paper-ball --plot --plot-size 640x480 --quiet --out " + out.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_GT(greyDeviation(readPng((out / "plot.png").string())), 10.0);
+    std::ifstream data(out / "plot_paper_0.dat");
+    std::string header;
+    std::getline(data, header);
+    const std::string name = header.substr(2);
+    const auto rows = dataRows(out / "plot_paper_0.dat");
+    ASSERT_EQ(rows.size(), lineCount(out / "trace.jsonl"));
+    EXPECT_EQ(static_cast<long long>(rows.back()[1]), eventCount(out / "events.jsonl", "crease", name));
+    EXPECT_NE(fileText(out / "plot.gp").find("Paper: creases"), std::string::npos);
+}
+
+// The torsion panel is there only when a string twists: not for a hanging rope, and for
+// torsion-uniform (a twisted string).
+TEST(Pictures, TorsionPanelOnlyWhereStringsTwist) {
+    if (!haveGnuplot()) GTEST_SKIP() << "gnuplot is not installed";
+    const fs::path plain = fs::path(TEARABLES_TEST_OUT) / "pictures-plot-plain";
+    const fs::path twisted = fs::path(TEARABLES_TEST_OUT) / "pictures-plot-twisted";
+    fs::remove_all(plain);
+    fs::remove_all(twisted);
+    Result r = cli("run hanging-rope --plot --steps 50 --quiet --out " + plain.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_EQ(fileText(plain / "plot.gp").find("Torsional"), std::string::npos);
+    EXPECT_NE(fileText(plain / "plot.gp").find("Tension"), std::string::npos);
+    r = cli("run torsion-uniform --plot --steps 50 --quiet --out " + twisted.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(fileText(twisted / "plot.gp").find("Torsional"), std::string::npos);
+}
+
+// A scene with nothing --plot draws is refused before simulating: exit 2 naming --plot.
+TEST(Pictures, PlotOfNothingRefusedBeforeSimulating) {
+    const fs::path out = fs::path(TEARABLES_TEST_OUT) / "pictures-plot-nothing";
+    fs::remove_all(out);
+    fs::create_directories(out);
+    const fs::path scene = out / "boxes.json";
+    std::ofstream(scene) << R"({"format": "tearables-scene/1", "dt": 0.01, "steps": 10,
+        "bodies": [{"name": "ground", "shape": {"plane": [0, 1, 0, 0]}, "mass": 0},
+                   {"name": "box", "shape": {"box": [0.1, 0.1, 0.1]}, "mass": 1, "position": [0, 1, 0]}]})";
+    const Result r = cli("run " + scene.string() + " --plot --quiet --out " + out.string());
+    EXPECT_EQ(r.status, 2) << r.err;
+    EXPECT_NE(r.err.find("--plot"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(out / "trace.jsonl")) << "simulated although there is nothing to plot";
 }
 
 // --mp4 with ffmpeg installed (not in CI: skipped there): a non-empty video.mp4 beside the frames.
