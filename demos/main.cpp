@@ -1,6 +1,7 @@
 // The `tearables` command line: runs headless scenes (docs/SCENE_FORMAT.md).
 // Exit status: 0 simulated; 2 the scene or the arguments are invalid (nothing simulated);
 // 1 anything else went wrong.
+#include "render/overlay.hpp"
 #include "render/plot.hpp"
 #include "render/scene_painter.hpp"
 #include "render/tools.hpp"
@@ -180,7 +181,9 @@ int main(int argc, char** argv) {
             options.on_frame = [&](const ts::FrameState& f) {
                 char name[32];
                 std::snprintf(name, sizeof name, "frame_%05lld.png", frames++);
-                tr::writePng((std::filesystem::path(out_dir) / name).string(), tr::paintFrame(*renderer, scene, f, view));
+                tr::Image image = tr::paintFrame(*renderer, scene, f, view);
+                tr::paintOverlay(image, scene, f.time, f.step);
+                tr::writePng((std::filesystem::path(out_dir) / name).string(), image);
             };
         }
         const ts::RunResult r = ts::runScene(scene, options);

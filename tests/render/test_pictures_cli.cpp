@@ -2,6 +2,7 @@
 // PNGs exist, decode, have the size asked for and show something; bad options exit 2 naming
 // the option; missing tools exit 1 saying how to install them.
 #include "render/renderer.hpp"
+#include "tearables/colormap.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -175,6 +176,41 @@ TEST(Pictures, PlotOfRuptureVariation) {
     EXPECT_EQ(plot.height, 600);
     EXPECT_GT(greyDeviation(plot), 10.0);
     for (int i = 0; i < 4; ++i) EXPECT_TRUE(fs::exists(out / ("plot_" + std::to_string(i) + ".dat"))) << i;
+}
+
+// Headless frames carry a time stamp at the top-left and, for a scene with strings, the
+// tension colour bar at the right edge (render/overlay.hpp: x in [w - 48, w - 24), from
+// y = 40 (load 1) down to min(max(h - 250, 140), h - 30) (load 0)).
+TEST(Pictures, FramesHaveTimeStampAndColourBar) {
+    const fs::path out = fs::path(TEARABLES_TEST_OUT) / "pictures-overlay";
+    fs::remove_all(out);
+    const Result r = cli("run swing --png --steps 20 --every 20 --size 640x360 --quiet --out " + out.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const Image first = readPng((out / "frame_00000.png").string());
+    const Image second = readPng((out / "frame_00001.png").string());
+    const int x = first.width - 36;
+    const double top = 40.0, bottom = 140.0;
+    for (double u : {0.1, 0.3, 0.5, 0.7, 0.9}) {
+        const int y = static_cast<int>(std::lround(bottom - u * (bottom - top)));
+        const auto p = first.at(x, y);
+        const tearables::Rgb c = tearables::tensionColor(u);
+        // 64 bands: a band's colour differs from the exact u's by at most 1/128 of the
+        // map's span (< 3 levels), plus rounding.
+        EXPECT_NEAR(p[0], 255.0 * c.r, 6.0) << "colour bar at load " << u;
+        EXPECT_NEAR(p[1], 255.0 * c.g, 6.0) << "colour bar at load " << u;
+        EXPECT_NEAR(p[2], 255.0 * c.b, 6.0) << "colour bar at load " << u;
+    }
+    // The stamp: dark text in the box at (8, 8), 19 px high; it reads t = 0 in the first
+    // frame and t = 0.2 s in the second, so the two differ there.
+    int ink = 0, differ = 0;
+    for (int y = 8; y < 27; ++y)
+        for (int xx = 8; xx < 160; ++xx) {
+            const auto a = first.at(xx, y), b = second.at(xx, y);
+            ink += a[0] + a[1] + a[2] < 3 * 100;
+            differ += std::abs(a[0] - b[0]) + std::abs(a[1] - b[1]) + std::abs(a[2] - b[2]) > 60;
+        }
+    EXPECT_GT(ink, 40) << "no time stamp text";
+    EXPECT_GT(differ, 10) << "the time stamp did not change with the time";
 }
 
 // --plot on a cloth (no strings): plot.png with the cloth's panels; its data has a row per
