@@ -173,12 +173,24 @@ int main(int argc, char** argv) {
     return guarded(scene_arg, [&] {
         std::unique_ptr<tr::Renderer> renderer;
         tr::View view;
+        tr::Bounds seen;
         long long frames = 0;
         if (png) {
             removeOldFrames(out_dir);
             renderer = std::make_unique<tr::Renderer>(size.first, size.second);
-            view = tr::fitCamera(scene, static_cast<double>(size.first) / size.second);
-            options.on_frame = [&](const ts::FrameState& f) {
+            const double aspect = static_cast<double>(size.first) / size.second;
+            view = tr::fitCamera(scene, aspect);
+            // What moves out of the picture brings the camera back: it is refitted to the
+            // union of everything seen so far (it only widens, so it does not swing back and
+            // forth), unless the scene places the eye itself.
+            seen = tr::sceneBounds(scene);
+            options.on_frame = [&, aspect](const ts::FrameState& f) {
+                const tr::Bounds now = tr::frameBounds(f);
+                if (!scene.camera.eye && !now.empty() && !tr::inFrame(view, aspect, now)) {
+                    seen.add(now.lo);
+                    seen.add(now.hi);
+                    view = tr::fitCamera(scene, aspect, seen);
+                }
                 char name[32];
                 std::snprintf(name, sizeof name, "frame_%05lld.png", frames++);
                 tr::Image image = tr::paintFrame(*renderer, scene, f, view);

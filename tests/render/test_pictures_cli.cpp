@@ -213,6 +213,32 @@ TEST(Pictures, FramesHaveTimeStampAndColourBar) {
     EXPECT_GT(differ, 10) << "the time stamp did not change with the time";
 }
 
+// A ball falls out of the first frame's view (1.5 s: 11 m down, the scene is 1.6 m across):
+// the camera is refitted as it leaves, so the last frame still shows it (its colour, the
+// first dynamic body's brown, is in the picture), as does the first.
+TEST(Pictures, CameraKeepsAFallingBodyInFrame) {
+    const fs::path out = fs::path(TEARABLES_TEST_OUT) / "pictures-falling";
+    fs::remove_all(out);
+    fs::create_directories(out);
+    const fs::path scene = out / "falling.json";
+    std::ofstream(scene) << R"({"format": "tearables-scene/1", "dt": 0.01, "steps": 150, "output": {"every": 50},
+        "bodies": [{"name": "ball", "shape": {"sphere": 0.2}, "mass": 1, "position": [0.8, 10, 0]},
+                   {"name": "post", "shape": {"box": [0.2, 0.2, 0.2]}, "mass": 0, "position": [0, 10, 0]}]})";
+    const Result r = cli("run " + scene.string() + " --png --size 640x360 --quiet --out " + out.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const auto brown = [](const Image& im) {
+        int n = 0;
+        for (int y = 0; y < im.height; ++y)
+            for (int x = 0; x < im.width; ++x) {
+                const auto p = im.at(x, y);
+                n += p[0] > 100 && p[0] > p[2] + 50;
+            }
+        return n;
+    };
+    EXPECT_GT(brown(readPng((out / "frame_00000.png").string())), 20) << "the ball is not in the first frame";
+    EXPECT_GT(brown(readPng((out / "frame_00003.png").string())), 20) << "the ball fell out of the picture";
+}
+
 // --plot on a cloth (no strings): plot.png with the cloth's panels; its data has a row per
 // trace frame, and the torn yarns of the last frame are the tear events on the cloth (the
 // trace's broken list and the event log are written by separate code).
