@@ -19,15 +19,15 @@ std::pair<double, double> ruptureTensions(const scene::Scene& scene);
 /// A line of text placed in the picture: right-aligned at x = `right` (pixels from the left),
 /// its middle at y = `middle` (pixels from the top).
 struct TextPlacement {
-    std::string text;
-    float right = 0.0f;
-    float middle = 0.0f;
+    std::string text;      ///< ASCII
+    float right = 0.0f;    ///< x of the text's right end, pixels from the left
+    float middle = 0.0f;   ///< y of the text's middle, pixels from the top
 };
 
 /// The colour bar at the picture's right edge: load / rupture load, from the bottom (slack,
 /// tensionColor(0)) to the top (tears, tensionColor(1)), in kBands flat bands.
 struct ColorBar {
-    static constexpr int kBands = 64;
+    static constexpr int kBands = 64;                  ///< flat bands from load 0 to load 1
     float x0 = 0.0f, y0 = 0.0f, x1 = 0.0f, y1 = 0.0f;  ///< the bar's rectangle, pixels from the top-left
     std::vector<TextPlacement> labels;                 ///< ticks left of the bar, bottom to top
     /// Band k's rows [top, bottom) (k = 0 at the bottom) and colour, tensionColor((k + 0.5) / kBands).
@@ -49,8 +49,9 @@ std::string timeStamp(double time, long long step);
 /// The time stamp's box at the picture's top-left corner, pixels from the top-left: the text
 /// starts at (x0 + 6, y0) and is `kTextHeight` high.
 struct StampBox {
-    static constexpr int kTextHeight = 13;
-    float x0 = 8.0f, y0 = 8.0f;
+    static constexpr int kTextHeight = 13;  ///< pixels
+    float x0 = 8.0f;                         ///< the box's left edge, pixels
+    float y0 = 8.0f;                         ///< the box's top edge, pixels
 };
 
 /// Paints the time stamp and, where the scene shows tension, the colour bar into a headless
@@ -58,7 +59,7 @@ struct StampBox {
 /// smaller than kMinOverlayWidth x kMinOverlayHeight are left as they are (no room).
 /// Throws std::runtime_error when the font cannot be loaded, saying how to install it.
 void paintOverlay(Image& image, const scene::Scene& scene, double time, long long step);
-constexpr int kMinOverlayWidth = 240;
-constexpr int kMinOverlayHeight = 135;
+constexpr int kMinOverlayWidth = 240;   ///< pixels; narrower pictures get no overlay
+constexpr int kMinOverlayHeight = 135;  ///< pixels; lower pictures get no overlay
 
 }  // namespace tearables::render
