@@ -1,6 +1,7 @@
 // The `tearables` command line: runs headless scenes (docs/SCENE_FORMAT.md).
 // Exit status: 0 simulated; 2 the scene or the arguments are invalid (nothing simulated);
 // 1 anything else went wrong.
+#include "render/overlay.hpp"
 #include "render/plot.hpp"
 #include "render/scene_painter.hpp"
 #include "render/tools.hpp"
@@ -116,7 +117,7 @@ int main(int argc, char** argv) {
     run->add_flag("--png", png, "write frame_NNNNN.png images of every trace frame (offscreen OpenGL, OSMesa)");
     run->add_option("--size", size_text, "image size WIDTHxHEIGHT for --png and --mp4 (default 640x360)");
     run->add_flag("--mp4", mp4, "also assemble the frames into video.mp4 with ffmpeg (implies --png)");
-    run->add_flag("--plot", plot, "plot tension, length, torsional strain and stress-strain into plot.png with gnuplot");
+    run->add_flag("--plot", plot, "plot.png with gnuplot: strings' tension, length, stress-strain (and torsional strain when they twist); cloths' yarn tension and torn yarns; paper sheets' creases, tears and broken springs");
     run->add_option("--plot-size", plot_size_text, "plot.png's size WIDTHxHEIGHT (default 1200x900)");
     run->add_flag("--quiet", quiet, "no progress bar, no report");
     CLI::App* list = app.add_subcommand("list", "list the built-in scenes");
@@ -150,6 +151,7 @@ int main(int argc, char** argv) {
                 plot_size = parseSize(plot_size_text, "--plot-size");
             }
             scene = loadNamed(scene_arg);
+            if (plot) tr::checkPlottable(scene);
         }))
         return status;
     // Missing tools are found before anything is simulated.
@@ -171,15 +173,29 @@ int main(int argc, char** argv) {
     return guarded(scene_arg, [&] {
         std::unique_ptr<tr::Renderer> renderer;
         tr::View view;
+        tr::Bounds seen;
         long long frames = 0;
         if (png) {
             removeOldFrames(out_dir);
             renderer = std::make_unique<tr::Renderer>(size.first, size.second);
-            view = tr::fitCamera(scene, static_cast<double>(size.first) / size.second);
-            options.on_frame = [&](const ts::FrameState& f) {
+            const double aspect = static_cast<double>(size.first) / size.second;
+            view = tr::fitCamera(scene, aspect);
+            // What moves out of the picture brings the camera back: it is refitted to the
+            // union of everything seen so far (it only widens, so it does not swing back and
+            // forth), unless the scene places the eye itself.
+            seen = tr::sceneBounds(scene);
+            options.on_frame = [&, aspect](const ts::FrameState& f) {
+                const tr::Bounds now = tr::frameBounds(f);
+                if (!scene.camera.eye && !now.empty() && !tr::inFrame(view, aspect, now)) {
+                    seen.add(now.lo);
+                    seen.add(now.hi);
+                    view = tr::fitCamera(scene, aspect, seen);
+                }
                 char name[32];
                 std::snprintf(name, sizeof name, "frame_%05lld.png", frames++);
-                tr::writePng((std::filesystem::path(out_dir) / name).string(), tr::paintFrame(*renderer, scene, f, view));
+                tr::Image image = tr::paintFrame(*renderer, scene, f, view);
+                tr::paintOverlay(image, scene, f.time, f.step);
+                tr::writePng((std::filesystem::path(out_dir) / name).string(), image);
             };
         }
         const ts::RunResult r = ts::runScene(scene, options);

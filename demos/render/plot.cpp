@@ -9,7 +9,12 @@
 //              minus 1, and its tension over the original section pi r^2 (engineering
 //              stress, as the core's material curve is written).
 // The material curve beside the points is the bilinear one of Strings, Sec. 5.1: slope E up
-// to the yield stress, the plastic slope up to rupture.
+// to the yield stress, the plastic slope up to rupture. The torsion panel is drawn only when
+// some string twists (gamma > 0 in some frame): an all-zero panel says nothing.
+//
+// Per cloth and frame: the largest yarn tension, N, and the number of torn yarns (the trace's
+// "broken" list). Per paper sheet and frame: its crease and tear counters and its broken
+// structural springs (the trace's "creases", "tears", "broken_springs").
 #include "render/plot.hpp"
 
 #include "render/tools.hpp"
@@ -62,24 +67,39 @@ Vec3 point(const json& p) { return {p.at(0).get<double>(), p.at(1).get<double>()
 
 }  // namespace
 
+void checkPlottable(const scene::Scene& scene) {
+    if (scene.strings.empty() && scene.cloths.empty() && scene.papers.empty())
+        throw InvalidInput("--plot", "plots strings, cloths and paper sheets, and the scene has none");
+}
+
 void writePlots(const scene::Scene& scene, const std::string& dir, int width, int height) {
     if (findOnPath("gnuplot").empty())
         throw std::runtime_error(notInstalledMessage("gnuplot", "gnuplot-nox", "for --plot"));
-    if (scene.strings.empty()) throw std::runtime_error("--plot: the scene has no strings to plot");
+    checkPlottable(scene);
 
     const std::string trace_path = dir + "/trace.jsonl";
     std::ifstream trace(trace_path);
     if (!trace) throw std::runtime_error("--plot: cannot read " + trace_path);
 
-    const std::size_t n = scene.strings.size();
-    std::vector<std::ofstream> data(n);
-    std::vector<std::string> data_paths(n);
-    for (std::size_t i = 0; i < n; ++i) {
-        data_paths[i] = dir + "/plot_" + std::to_string(i) + ".dat";
-        data[i].open(data_paths[i]);
-        if (!data[i]) throw std::runtime_error("--plot: cannot write " + data_paths[i]);
-        data[i] << "# " << scene.strings[i].desc.name << "\n# t[s] tension[N] length[m] gamma strain stress[MPa]\n";
-    }
+    // One data file per string, cloth and paper sheet.
+    const std::size_t n = scene.strings.size(), nc = scene.cloths.size(), np = scene.papers.size();
+    std::vector<std::ofstream> data(n + nc + np);
+    std::vector<std::string> data_paths(n + nc + np);
+    const auto open = [&](std::size_t k, const std::string& stem, const std::string& header) {
+        data_paths[k] = dir + "/" + stem + ".dat";
+        data[k].open(data_paths[k]);
+        if (!data[k]) throw std::runtime_error("--plot: cannot write " + data_paths[k]);
+        data[k] << header;
+    };
+    for (std::size_t i = 0; i < n; ++i)
+        open(i, "plot_" + std::to_string(i),
+             "# " + scene.strings[i].desc.name + "\n# t[s] tension[N] length[m] gamma strain stress[MPa]\n");
+    for (std::size_t i = 0; i < nc; ++i)
+        open(n + i, "plot_cloth_" + std::to_string(i), "# " + scene.cloths[i].desc.name + "\n# t[s] tension[N] torn_yarns\n");
+    for (std::size_t i = 0; i < np; ++i)
+        open(n + nc + i, "plot_paper_" + std::to_string(i),
+             "# " + scene.papers[i].desc.name + "\n# t[s] creases tears broken_springs\n");
+    double most_gamma = 0.0;  // the largest torsional strain of any string in any frame
     std::vector<std::vector<double>> length0(n);  // per string, per segment: length at frame 0
     std::string line;
     std::size_t frames = 0;
@@ -92,10 +112,12 @@ void writePlots(const scene::Scene& scene, const std::string& dir, int width, in
             throw std::runtime_error("--plot: " + trace_path + " line " + std::to_string(frames + 1) + ": " + e.what());
         }
         const double t = f.at("t").get<double>();
+        const json none = json::object();
+        const json& strings = f.contains("strings") ? f.at("strings") : none;
         for (std::size_t i = 0; i < n; ++i) {
             const scene::String& spec = scene.strings[i];
-            const auto it = f.at("strings").find(spec.desc.name);
-            if (it == f.at("strings").end()) continue;
+            const auto it = strings.find(spec.desc.name);
+            if (it == strings.end()) continue;
             const json& s = *it;
             const json& x = s.at("x");
             const json& tension = s.at("tension");
@@ -123,8 +145,25 @@ void writePlots(const scene::Scene& scene, const std::string& dir, int width, in
                     if (!(g <= gamma)) gamma = g;
                 }
             }
+            if (gamma > most_gamma) most_gamma = gamma;
             data[i] << number(t) << ' ' << number(max_tension) << ' ' << number(total) << ' ' << number(gamma) << ' '
                     << number(strain) << ' ' << number(stress) << '\n';
+        }
+        const json& cloths = f.contains("cloths") ? f.at("cloths") : none;
+        for (std::size_t i = 0; i < nc; ++i) {
+            const auto it = cloths.find(scene.cloths[i].desc.name);
+            if (it == cloths.end()) continue;
+            double max_tension = kNaN;
+            for (const json& tj : it->at("tension"))
+                if (!tj.is_null() && !(tj.get<double>() <= max_tension)) max_tension = tj.get<double>();
+            data[n + i] << number(t) << ' ' << number(max_tension) << ' ' << it->at("broken").size() << '\n';
+        }
+        const json& papers = f.contains("papers") ? f.at("papers") : none;
+        for (std::size_t i = 0; i < np; ++i) {
+            const auto it = papers.find(scene.papers[i].desc.name);
+            if (it == papers.end()) continue;
+            data[n + nc + i] << number(t) << ' ' << it->value("creases", 0LL) << ' ' << it->value("tears", 0LL) << ' '
+                             << it->value("broken_springs", 0LL) << '\n';
         }
         ++frames;
     }
@@ -136,7 +175,7 @@ void writePlots(const scene::Scene& scene, const std::string& dir, int width, in
 
     // The material curves: (0, 0), (yield strain, yield), (rupture strain, rupture).
     const std::string curves_path = dir + "/plot_material.dat";
-    {
+    if (n > 0) {
         std::ofstream curves(curves_path);
         for (std::size_t i = 0; i < n; ++i) {
             const TensileCurve& c = scene.strings[i].desc.material.tensile;
@@ -148,6 +187,69 @@ void writePlots(const scene::Scene& scene, const std::string& dir, int width, in
         if (!curves) throw std::runtime_error("--plot: cannot write " + curves_path);
     }
 
+    // The panels, each a gnuplot block (title, labels, plot command).
+    std::vector<std::string> panels;
+    const auto series = [&](std::size_t first, std::size_t count, const std::string& using_cols, const std::string& style,
+                            const auto& name) {
+        std::string cmd = "plot ";
+        for (std::size_t i = 0; i < count; ++i) {
+            if (i) cmd += ", \\\n     ";
+            cmd += gpQuoted(data_paths[first + i]) + " using " + using_cols + " with " + style + " lt " +
+                   std::to_string(i + 1) + " title " + gpQuoted(label(name(i)));
+        }
+        return cmd + "\n";
+    };
+    const auto stringName = [&](std::size_t i) { return scene.strings[i].desc.name; };
+    const auto clothName = [&](std::size_t i) { return scene.cloths[i].desc.name; };
+    const auto paperName = [&](std::size_t i) { return scene.papers[i].desc.name; };
+    const std::string time_axis = "set xlabel 't [s]'\nset autoscale x\n";
+    if (n > 0) {
+        panels.push_back("set title 'Tension (most loaded segment)'\n" + time_axis + "set ylabel 'T [N]'\n" +
+                         series(0, n, "1:2", "lines lw 2", stringName));
+        panels.push_back("set title 'Length (intact segments)'\n" + time_axis + "set ylabel 'L [m]'\n" +
+                         series(0, n, "1:3", "lines lw 2", stringName));
+        std::string cmd = "plot ";
+        for (std::size_t i = 0; i < n; ++i) {
+            if (i) cmd += ", \\\n     ";
+            cmd += gpQuoted(curves_path) + " index " + std::to_string(i) + " using 1:2 with lines lw 2 dt 2 lt " +
+                   std::to_string(i + 1) + " notitle, \\\n     " + gpQuoted(data_paths[i]) +
+                   " using 5:6 with points pt 7 ps 0.5 lt " + std::to_string(i + 1) + " title " +
+                   gpQuoted(label(scene.strings[i].desc.name));
+        }
+        panels.push_back("set title 'Stress-strain (dashed: material curve)'\n"
+                         "set xlabel 'strain of the most loaded segment'\nset ylabel 'stress [MPa]'\n" +
+                         cmd + "\n");
+        if (most_gamma > 0.0) {
+            cmd = "plot ";
+            for (std::size_t i = 0; i < n; ++i) {
+                if (i) cmd += ", \\\n     ";
+                cmd += gpQuoted(data_paths[i]) + " using 1:4 with lines lw 2 lt " + std::to_string(i + 1) + " title " +
+                       gpQuoted(label(scene.strings[i].desc.name)) + ", \\\n     " +
+                       number(scene.strings[i].desc.material.torsion.rupture) + " with lines dt 2 lt " +
+                       std::to_string(i + 1) + " notitle";
+            }
+            panels.push_back("set title 'Torsional strain (dashed: rupture)'\n" + time_axis +
+                             "set ylabel '{/Symbol g} = r d{/Symbol q}/ds'\n" + cmd + "\n");
+        }
+    }
+    if (nc > 0) {
+        panels.push_back("set title 'Cloth: tension (most loaded yarn)'\n" + time_axis + "set ylabel 'T [N]'\n" +
+                         series(n, nc, "1:2", "lines lw 2", clothName));
+        panels.push_back("set title 'Cloth: torn yarns'\n" + time_axis + "set ylabel 'yarns'\n" +
+                         series(n, nc, "1:3", "steps lw 2", clothName));
+    }
+    if (np > 0) {
+        std::string cmd = series(n + nc, np, "1:2", "steps lw 2", paperName);
+        cmd.pop_back();  // the tears join the creases' plot command (a second command is a new panel)
+        for (std::size_t i = 0; i < np; ++i)
+            cmd += ", \\\n     " + gpQuoted(data_paths[n + nc + i]) + " using 1:3 with steps lw 2 dt 2 lt " +
+                   std::to_string(i + 1) + " notitle";
+        panels.push_back("set title 'Paper: creases (solid) and tears (dashed)'\n" + time_axis + "set ylabel 'count'\n" +
+                         cmd + "\n");
+        panels.push_back("set title 'Paper: broken springs'\n" + time_axis + "set ylabel 'springs'\n" +
+                         series(n + nc, np, "1:4", "steps lw 2", paperName));
+    }
+
     const std::string png_path = dir + "/plot.png";
     const std::string script_path = dir + "/plot.gp";
     {
@@ -156,45 +258,10 @@ void writePlots(const scene::Scene& scene, const std::string& dir, int width, in
         gp << "set terminal pngcairo size " << width << "," << height << " enhanced font 'DejaVu Sans,10'\n";
         gp << "set output " << gpQuoted(png_path) << "\n";
         gp << "set datafile missing 'NaN'\nset key top left box opaque font ',9'\nset grid\n";
-        gp << "set multiplot layout 2,2 title " << gpQuoted(label(scene.source.empty() ? "scene" : scene.source)) << "\n";
-        const auto plotAll = [&](const std::string& using_cols, const std::string& style) {
-            std::string cmd = "plot ";
-            for (std::size_t i = 0; i < n; ++i) {
-                if (i) cmd += ", \\\n     ";
-                cmd += gpQuoted(data_paths[i]) + " using " + using_cols + " with " + style + " lt " + std::to_string(i + 1) +
-                       " title " + gpQuoted(label(scene.strings[i].desc.name));
-            }
-            return cmd + "\n";
-        };
-        gp << "set title 'Tension (most loaded segment)'\nset xlabel 't [s]'\nset ylabel 'T [N]'\n";
-        gp << plotAll("1:2", "lines lw 2");
-        gp << "set title 'Length (intact segments)'\nset ylabel 'L [m]'\n";
-        gp << plotAll("1:3", "lines lw 2");
-        gp << "set title 'Stress-strain (dashed: material curve)'\n"
-              "set xlabel 'strain of the most loaded segment'\nset ylabel 'stress [MPa]'\n";
-        {
-            std::string cmd = "plot ";
-            for (std::size_t i = 0; i < n; ++i) {
-                if (i) cmd += ", \\\n     ";
-                cmd += gpQuoted(curves_path) + " index " + std::to_string(i) + " using 1:2 with lines lw 2 dt 2 lt " +
-                       std::to_string(i + 1) + " notitle, \\\n     " + gpQuoted(data_paths[i]) +
-                       " using 5:6 with points pt 7 ps 0.5 lt " + std::to_string(i + 1) + " title " +
-                       gpQuoted(label(scene.strings[i].desc.name));
-            }
-            gp << cmd << "\n";
-        }
-        gp << "set title 'Torsional strain (dashed: rupture)'\nset xlabel 't [s]'\nset ylabel '{/Symbol g} = r d{/Symbol q}/ds'\n";
-        {
-            std::string cmd = "plot ";
-            for (std::size_t i = 0; i < n; ++i) {
-                if (i) cmd += ", \\\n     ";
-                cmd += gpQuoted(data_paths[i]) + " using 1:4 with lines lw 2 lt " + std::to_string(i + 1) + " title " +
-                       gpQuoted(label(scene.strings[i].desc.name)) + ", \\\n     " +
-                       number(scene.strings[i].desc.material.torsion.rupture) + " with lines dt 2 lt " +
-                       std::to_string(i + 1) + " notitle";
-            }
-            gp << cmd << "\n";
-        }
+        const std::size_t cols = panels.size() == 1 ? 1 : 2, rows = (panels.size() + cols - 1) / cols;
+        gp << "set multiplot layout " << rows << "," << cols << " title "
+           << gpQuoted(label(scene.source.empty() ? "scene" : scene.source)) << "\n";
+        for (const std::string& panel : panels) gp << panel;
         gp << "unset multiplot\n";
         if (!gp) throw std::runtime_error("--plot: cannot write " + script_path);
     }

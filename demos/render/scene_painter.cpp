@@ -47,6 +47,38 @@ double torsionLoad(const StringView& v, std::size_t j, double rupture) {
     return std::isfinite(load) ? std::clamp(load, 0.0, 1.0) : 0.0;
 }
 
+/// A dark block where a string particle, a cloth vertex or a paper vertex is pinned to a world
+/// point: three times the object's radius across, and never under 8 pixels (a pin stays
+/// visible from afar).
+void drawWorldPins(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame) {
+    const Rgb color{0.22f, 0.22f, 0.26f};
+    const auto mark = [&](const Vec3& p, double radius) {
+        if (!p.allFinite()) return;
+        const double half = std::max(3.0 * radius, 4.0 * renderer.pixelSizeAt(p));
+        renderer.drawBox(Vec3::Constant(half), p, Quat::Identity(), color);
+    };
+    for (const scene::String& s : scene.strings)
+        for (const scene::Attachment& a : s.attachments)
+            if (a.world) mark(*a.world, s.desc.radius);
+    for (std::size_t k = 0; k < scene.cloths.size() && k < frame.cloths.size(); ++k) {
+        const ClothDesc& d = scene.cloths[k].desc;
+        const ClothView& v = frame.cloths[k].view;
+        const int nu = v.resolution[0], nv = v.resolution[1];
+        for (const ClothPin& pin : d.pins) {
+            const int i = pin.i < 0 ? nu + pin.i : pin.i, j = pin.j < 0 ? nv + pin.j : pin.j;
+            const std::size_t index = static_cast<std::size_t>(j) * static_cast<std::size_t>(nu) + static_cast<std::size_t>(i);
+            if (i < 0 || j < 0 || i >= nu || j >= nv || index >= v.vertexCount()) continue;
+            mark(pin.at_rest ? (*v.positions)[index] : pin.point, d.yarn_radius);
+        }
+    }
+    for (std::size_t k = 0; k < scene.papers.size() && k < frame.papers.size(); ++k) {
+        const PaperView& v = frame.papers[k].view;
+        for (const PaperAttachment& a : scene.papers[k].desc.attachments)
+            if (!a.body.valid() && a.vertex < v.positions->size())
+                mark(a.world.value_or((*v.positions)[a.vertex]), scene.papers[k].desc.thickness);
+    }
+}
+
 }  // namespace
 
 void Bounds::add(const Vec3& p, double grow) {
@@ -87,8 +119,42 @@ Bounds sceneBounds(const scene::Scene& scene) {
     return b;
 }
 
-View fitCamera(const scene::Scene& scene, double aspect) {
-    Bounds b = sceneBounds(scene);
+Bounds frameBounds(const scene::FrameState& frame) {
+    Bounds b;
+    for (const scene::FrameString& s : frame.strings)
+        for (const Vec3& p : *s.view.positions) b.add(p, s.view.radius);
+    for (const scene::FrameCloth& c : frame.cloths)
+        for (const Vec3& p : *c.view.positions) b.add(p, c.view.yarn_radius);
+    for (const scene::FramePaper& p : frame.papers)
+        for (const Vec3& x : *p.view.positions) b.add(x);
+    for (const scene::FrameBody& body : frame.bodies) {
+        if (body.shape.kind == scene::Shape::Kind::Plane) continue;
+        const Vec3 h = boundingHalfExtents(body.shape, body.orientation);
+        b.add(body.position - h);
+        b.add(body.position + h);
+    }
+    return b;
+}
+
+View fitCamera(const scene::Scene& scene, double aspect) { return fitCamera(scene, aspect, sceneBounds(scene)); }
+
+bool inFrame(const View& view, double aspect, const Bounds& bounds) {
+    if (bounds.empty()) return true;
+    const Vec3 forward = (view.target - view.eye).normalized();
+    const Vec3 right = forward.cross(view.up).normalized();
+    const Vec3 up = right.cross(forward);
+    const double tan_v = std::tan(view.fov * M_PI / 360.0), tan_h = tan_v * aspect;
+    for (int i = 0; i < 8; ++i) {
+        const Vec3 corner((i & 1) ? bounds.hi.x() : bounds.lo.x(), (i & 2) ? bounds.hi.y() : bounds.lo.y(),
+                          (i & 4) ? bounds.hi.z() : bounds.lo.z());
+        const Vec3 d = corner - view.eye;
+        const double z = d.dot(forward);
+        if (!(z > 0.0) || std::abs(d.dot(right)) > z * tan_h || std::abs(d.dot(up)) > z * tan_v) return false;
+    }
+    return true;
+}
+
+View fitCamera(const scene::Scene& scene, double aspect, Bounds b) {
     // Room for what moves: ropes swing and stretch, bodies fall a little.
     const double grow = 0.08 * (b.hi - b.lo).norm();
     b.lo.array() -= grow;
@@ -171,6 +237,7 @@ void drawFrame(Renderer& renderer, const scene::Scene& scene, const scene::Frame
                                               torsionLoad(v, j, s.torsion_rupture)));
         renderer.drawTube(*v.positions, radius, colors, *v.broken);
     }
+    drawWorldPins(renderer, scene, frame);
     // Cloths: the weave's quads as two triangles each, gone where a yarn of the quad is
     // torn; each vertex coloured by the highest load of its yarns; torn yarns' ends are
     // left open (the mesh shows the cut).

@@ -22,10 +22,18 @@ Bounds sceneBounds(const scene::Scene& scene);
 /// scene's bounds fill the picture of the given aspect (width / height), seen from the front
 /// (+z) and a little above.
 View fitCamera(const scene::Scene& scene, double aspect);
+/// As fitCamera around `bounds` instead of the scene's (grown by 8 % the same way).
+View fitCamera(const scene::Scene& scene, double aspect, Bounds bounds);
+/// Axis-aligned bounds of what a frame holds (string particles, cloth and paper vertices,
+/// bodies but planes), m.
+Bounds frameBounds(const scene::FrameState& frame);
+/// True when every corner of `bounds` is in front of the camera and inside its picture of
+/// the given aspect (width / height).
+bool inFrame(const View& view, double aspect, const Bounds& bounds);
 
 /// Draws one frame: the ground (a plane body) or a reference grid, the rigid bodies, the
 /// strings as tubes coloured by load (tension / rupture tension, colormap.hpp), broken
-/// segments left out, cloths as surfaces coloured by load and paper sheets as white
+/// segments left out, world pins as dark blocks, cloths as surfaces coloured by load and paper sheets as white
 /// surfaces with their creases and folds in dark lines. Returns the picture.
 Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view);
 /// As paintFrame without finishing the frame (the viewer draws more on top, then finishes).

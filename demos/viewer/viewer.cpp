@@ -12,6 +12,7 @@
 // The cursor moves on the plane through the picked point facing the camera.
 #include "viewer/viewer.hpp"
 
+#include "render/overlay.hpp"
 #include "render/renderer.hpp"
 #include "render/scene_painter.hpp"
 #include "tearables/bullet.hpp"
@@ -122,20 +123,7 @@ struct Grab {
 /// The name of the viewer's hand body (not drawn, not listed).
 const char* const kHandName = "viewer-hand";
 
-/// The rupture tensions (N) of the scene's strings and cloth yarns, smallest and largest
-/// (0, 0 when it has none): the colours are each object's load / its own rupture tension.
-std::pair<double, double> ruptureTensions(const scene::Scene& s) {
-    double lo = 1e300, hi = 0.0;
-    const auto offer = [&](double stress, double radius) {
-        const double f = stress * M_PI * radius * radius;
-        lo = std::min(lo, f);
-        hi = std::max(hi, f);
-    };
-    for (const scene::String& str : s.strings) offer(str.desc.material.tensile.rupture, str.desc.radius);
-    for (const scene::Cloth& c : s.cloths) offer(c.desc.material.tensile.rupture, c.desc.yarn_radius);
-    return hi > 0.0 ? std::make_pair(lo, hi) : std::make_pair(0.0, 0.0);
-}
-double largestRuptureTension(const scene::Scene& s) { return ruptureTensions(s).second; }
+double largestRuptureTension(const scene::Scene& s) { return render::ruptureTensions(s).second; }
 
 class Viewer {
 public:
@@ -631,43 +619,20 @@ void Viewer::drawScene() {
             }
 }
 
-/// The colour bar: load / rupture load, bottom (slack) to top (tears), at the window's right
-/// edge; its rectangle in pixels is colorBarRect (the tests read it there).
-struct BarRect {
-    float x0, y0, x1, y1;
-};
-BarRect colorBarRect(int w, int h) {
-    const float bottom = static_cast<float>(std::max(h - 250, 140));
-    return {static_cast<float>(w - 48), 40.0f, static_cast<float>(w - 24), bottom};
-}
-
+/// The colour bar (render/overlay.hpp, colorBar: the headless frames draw the same layout):
+/// load / rupture load, bottom (slack) to top (tears), at the window's right edge.
 void Viewer::drawColorBar() {
-    const BarRect r = colorBarRect(win_w_, win_h_);
+    const render::ColorBar bar = render::colorBar(scene_, win_w_, win_h_);
     ImDrawList* dl = ImGui::GetBackgroundDrawList();
-    const int bands = 64;
-    for (int k = 0; k < bands; ++k) {
-        const float y0 = r.y1 - (r.y1 - r.y0) * (k + 1) / bands, y1 = r.y1 - (r.y1 - r.y0) * k / bands;
-        const Rgb c = tensionColor((k + 0.5) / bands);
-        dl->AddRectFilled(ImVec2(r.x0, y0), ImVec2(r.x1, y1), ImGui::ColorConvertFloat4ToU32(ImVec4(c.r, c.g, c.b, 1.0f)));
+    for (int k = 0; k < render::ColorBar::kBands; ++k) {
+        const auto [top, bottom] = bar.bandRows(k);
+        const Rgb c = render::ColorBar::bandColor(k);
+        dl->AddRectFilled(ImVec2(bar.x0, top), ImVec2(bar.x1, bottom), ImGui::ColorConvertFloat4ToU32(ImVec4(c.r, c.g, c.b, 1.0f)));
     }
-    dl->AddRect(ImVec2(r.x0 - 1, r.y0 - 1), ImVec2(r.x1 + 1, r.y1 + 1), IM_COL32(60, 60, 60, 255));
-    // In newtons when every rope and yarn tears at the same tension; otherwise as a share
-    // of each one's own rupture tension, with their range under the bar.
-    const auto [lo, hi] = ruptureTensions(scene_);
-    const bool newtons = hi > 0.0 && hi - lo <= 1e-9 * hi;
-    char text[96];
-    for (int k = 0; k <= 4; ++k) {
-        const float y = r.y1 - (r.y1 - r.y0) * k / 4.0f;
-        if (newtons) std::snprintf(text, sizeof text, "%.4g N", hi * k / 4.0);
-        else std::snprintf(text, sizeof text, "%.2f", k / 4.0);
-        const ImVec2 size = ImGui::CalcTextSize(text);
-        dl->AddText(ImVec2(r.x0 - 6 - size.x, y - 0.5f * size.y), IM_COL32(30, 30, 30, 255), text);
-    }
-    const char* title = newtons || hi == 0.0 ? "tension" : "tension / rupture";
-    dl->AddText(ImVec2(r.x1 - ImGui::CalcTextSize(title).x, r.y0 - 22), IM_COL32(30, 30, 30, 255), title);
-    if (!newtons && hi > 0.0) {
-        std::snprintf(text, sizeof text, "rupture %.4g-%.4g N", lo, hi);
-        dl->AddText(ImVec2(r.x1 - ImGui::CalcTextSize(text).x, r.y1 + 8), IM_COL32(30, 30, 30, 255), text);
+    dl->AddRect(ImVec2(bar.x0 - 1, bar.y0 - 1), ImVec2(bar.x1 + 1, bar.y1 + 1), IM_COL32(60, 60, 60, 255));
+    for (const render::TextPlacement& t : bar.labels) {
+        const ImVec2 size = ImGui::CalcTextSize(t.text.c_str());
+        dl->AddText(ImVec2(t.right - size.x, t.middle - 0.5f * size.y), IM_COL32(30, 30, 30, 255), t.text.c_str());
     }
 }
 

@@ -107,6 +107,36 @@ TEST(Renderer, SwingRopesShowAgainstTheBackground) {
     EXPECT_EQ(frames, 3);
 }
 
+// World pins are drawn: in the swing scene each rope hangs from a world point; a few pixels
+// above it (inside the pin's block, at least 8 px across, away from the rope below) the
+// picture differs from the same frame of the scene without its attachments.
+TEST(Renderer, WorldPinsAreDrawn) {
+    const auto text = scene::builtinSceneText("swing");
+    ASSERT_TRUE(text.has_value());
+    scene::Scene s = scene::parseScene(*text);
+    scene::Scene unpinned = s;
+    for (scene::String& str : unpinned.strings) str.attachments.clear();
+    Renderer r(320, 180);
+    const View view = fitCamera(s, 320.0 / 180.0);
+    scene::RunOptions options;
+    options.steps = 0;
+    int frames = 0;
+    options.on_frame = [&](const scene::FrameState& f) {
+        ++frames;
+        const Image with = paintFrame(r, s, f, view);
+        const Image without = paintFrame(r, unpinned, f, view);
+        for (const Vec3 pin : {Vec3(-0.4, 2.5, 0.0), Vec3(0.4, 2.5, 0.0)}) {
+            const auto q = r.project(pin);
+            ASSERT_TRUE(q.has_value());
+            const int px = static_cast<int>((*q)[0]), py = static_cast<int>((*q)[1]) - 3;
+            ASSERT_GE(py, 0);
+            EXPECT_GT(difference(with.at(px, py), without.at(px, py)), 60) << "no pin at " << px << "," << py;
+        }
+    };
+    scene::runScene(s, options);
+    EXPECT_EQ(frames, 1);
+}
+
 // A camera given in the scene is used as written; fov defaults to 40 degrees.
 TEST(Renderer, SceneCameraOverridesTheFit) {
     scene::Scene s = scene::parseScene(R"({"camera": {"eye": [1, 2, 3], "target": [0, 1, 0], "fov": 55}})");

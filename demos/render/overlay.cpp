@@ -1,0 +1,61 @@
+// The overlay's layout (render/overlay.hpp): pure arithmetic, shared by the viewer's window
+// and the headless frames.
+#include "render/overlay.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace tearables::render {
+
+std::pair<double, double> ruptureTensions(const scene::Scene& s) {
+    double lo = 1e300, hi = 0.0;
+    const auto offer = [&](double stress, double radius) {
+        const double f = stress * M_PI * radius * radius;
+        lo = std::min(lo, f);
+        hi = std::max(hi, f);
+    };
+    for (const scene::String& str : s.strings) offer(str.desc.material.tensile.rupture, str.desc.radius);
+    for (const scene::Cloth& c : s.cloths) offer(c.desc.material.tensile.rupture, c.desc.yarn_radius);
+    return hi > 0.0 ? std::make_pair(lo, hi) : std::make_pair(0.0, 0.0);
+}
+
+bool showsTension(const scene::Scene& scene) { return !scene.strings.empty() || !scene.cloths.empty(); }
+
+std::pair<float, float> ColorBar::bandRows(int k) const {
+    return {y1 - (y1 - y0) * static_cast<float>(k + 1) / kBands, y1 - (y1 - y0) * static_cast<float>(k) / kBands};
+}
+
+Rgb ColorBar::bandColor(int k) { return tensionColor((k + 0.5) / kBands); }
+
+ColorBar colorBar(const scene::Scene& scene, int width, int height) {
+    ColorBar bar;
+    // A window keeps 250 px below the bar for its panels; a small picture keeps 30.
+    const float bottom = std::min(static_cast<float>(std::max(height - 250, 140)), static_cast<float>(height - 30));
+    bar.x0 = static_cast<float>(width - 48);
+    bar.x1 = static_cast<float>(width - 24);
+    bar.y0 = 40.0f;
+    bar.y1 = bottom;
+    const auto [lo, hi] = ruptureTensions(scene);
+    const bool newtons = hi > 0.0 && hi - lo <= 1e-9 * hi;
+    bar.labels.push_back({newtons || hi == 0.0 ? "tension" : "tension / rupture", bar.x1, bar.y0 - 16.0f});
+    char text[96];
+    for (int k = 0; k <= 4; ++k) {
+        if (newtons) std::snprintf(text, sizeof text, "%.4g N", hi * k / 4.0);
+        else std::snprintf(text, sizeof text, "%.2f", k / 4.0);
+        bar.labels.push_back({text, bar.x0 - 6.0f, bar.y1 - (bar.y1 - bar.y0) * static_cast<float>(k) / 4.0f});
+    }
+    if (!newtons && hi > 0.0) {
+        std::snprintf(text, sizeof text, "rupture %.4g-%.4g N", lo, hi);
+        bar.labels.push_back({text, bar.x1, bar.y1 + 14.0f});
+    }
+    return bar;
+}
+
+std::string timeStamp(double time, long long step) {
+    char text[96];
+    std::snprintf(text, sizeof text, "t = %.3f s   step %lld", time, step);
+    return text;
+}
+
+}  // namespace tearables::render

@@ -1,0 +1,65 @@
+// What is drawn over a scene's picture, in pixels: the tension colour bar and the time
+// stamp. The layout is computed here once; the viewer draws it with Dear ImGui
+// (demos/viewer/viewer.cpp), headless frames with paintOverlay (overlay_paint.cpp).
+#pragma once
+
+#include "render/renderer.hpp"
+#include "tearables/scene.hpp"
+
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace tearables::render {
+
+/// The rupture tensions (N) of the scene's strings and cloth yarns, smallest and largest
+/// (0, 0 when it has none): the colours are each object's load / its own rupture tension.
+std::pair<double, double> ruptureTensions(const scene::Scene& scene);
+
+/// A line of text placed in the picture: right-aligned at x = `right` (pixels from the left),
+/// its middle at y = `middle` (pixels from the top).
+struct TextPlacement {
+    std::string text;      ///< ASCII
+    float right = 0.0f;    ///< x of the text's right end, pixels from the left
+    float middle = 0.0f;   ///< y of the text's middle, pixels from the top
+};
+
+/// The colour bar at the picture's right edge: load / rupture load, from the bottom (slack,
+/// tensionColor(0)) to the top (tears, tensionColor(1)), in kBands flat bands.
+struct ColorBar {
+    static constexpr int kBands = 64;                  ///< flat bands from load 0 to load 1
+    float x0 = 0.0f, y0 = 0.0f, x1 = 0.0f, y1 = 0.0f;  ///< the bar's rectangle, pixels from the top-left
+    std::vector<TextPlacement> labels;                 ///< ticks left of the bar, bottom to top
+    /// Band k's rows [top, bottom) (k = 0 at the bottom) and colour, tensionColor((k + 0.5) / kBands).
+    std::pair<float, float> bandRows(int k) const;
+    static Rgb bandColor(int k);
+};
+
+/// The colour bar of a picture width x height pixels for `scene`: ticks in newtons when every
+/// rope and yarn tears at the same tension, otherwise as a share of each one's own rupture
+/// tension with their range under the bar (in `labels` too: its title above the bar first).
+ColorBar colorBar(const scene::Scene& scene, int width, int height);
+
+/// True when the scene has strings or cloths (whose colours the bar explains).
+bool showsTension(const scene::Scene& scene);
+
+/// The time stamp's text, "t = 1.250 s   step 125".
+std::string timeStamp(double time, long long step);
+
+/// The time stamp's box at the picture's top-left corner, pixels from the top-left: the text
+/// starts at (x0 + 6, y0) and is `kTextHeight` high.
+struct StampBox {
+    static constexpr int kTextHeight = 13;  ///< pixels
+    float x0 = 8.0f;                         ///< the box's left edge, pixels
+    float y0 = 8.0f;                         ///< the box's top edge, pixels
+};
+
+/// Paints the time stamp and, where the scene shows tension, the colour bar into a headless
+/// frame (with FreeType and the DejaVu Sans font of Debian's fonts-dejavu-core). Pictures
+/// smaller than kMinOverlayWidth x kMinOverlayHeight are left as they are (no room).
+/// Throws std::runtime_error when the font cannot be loaded, saying how to install it.
+void paintOverlay(Image& image, const scene::Scene& scene, double time, long long step);
+constexpr int kMinOverlayWidth = 240;   ///< pixels; narrower pictures get no overlay
+constexpr int kMinOverlayHeight = 135;  ///< pixels; lower pictures get no overlay
+
+}  // namespace tearables::render
