@@ -75,6 +75,21 @@ bool onBoundary(const PaperSheet& s, std::uint32_t v, std::vector<std::uint32_t>
     return false;
 }
 
+/// The event of a tear at edge k through vertex v; its stress is the edge's relative
+/// stretch.
+Event tearEvent(const PaperSheet& s, std::size_t k, std::uint32_t v, double stretch, const PaperStep& ctx) {
+    Event e;
+    e.type = EventType::Tear;
+    e.cause = EventCause::Tension;
+    e.object = s.desc.name;
+    e.segment = static_cast<int>(k);
+    e.particle = static_cast<int>(v);
+    e.stress = stretch;
+    e.time = ctx.time;
+    e.step = ctx.step;
+    return e;
+}
+
 }  // namespace
 
 std::uint32_t splitVertex(PaperSheet& s, std::uint32_t vertex, std::uint32_t across, std::uint32_t across2) {
@@ -225,16 +240,7 @@ void tear(PaperSheet& s, PaperId id, const PaperStep& ctx, std::vector<Event>& e
                 s.crack_tip[v] = s.crack_tip[twin] = 0;
                 s.crack_tip[plus] = s.crack_tip[minus] = 1;
                 ++s.counters.tears;
-                Event e;
-                e.type = EventType::Tear;
-                e.cause = EventCause::Tension;
-                e.object = s.desc.name;
-                e.segment = static_cast<int>(k);
-                e.particle = static_cast<int>(v);
-                e.stress = stretch;
-                e.time = ctx.time;
-                e.step = ctx.step;
-                events.push_back(e);
+                events.push_back(tearEvent(s, k, v, stretch, ctx));
                 break;
             }
             // The inner fan edge most perpendicular to the stretched edge.
@@ -265,16 +271,7 @@ void tear(PaperSheet& s, PaperId id, const PaperStep& ctx, std::vector<Event>& e
             s.crack_tip[v] = s.crack_tip[twin] = 0;  // both sides are open boundary now
             s.crack_tip[best] = 1;                    // the cut ends here
             ++s.counters.tears;
-            Event e;
-            e.type = EventType::Tear;
-            e.cause = EventCause::Tension;
-            e.object = s.desc.name;
-            e.segment = static_cast<int>(k);
-            e.particle = static_cast<int>(v);
-            e.stress = stretch;  // relative stretch of the edge that tore
-            e.time = ctx.time;
-            e.step = ctx.step;
-            events.push_back(e);
+            events.push_back(tearEvent(s, k, v, stretch, ctx));
             break;
         }
     }
