@@ -47,7 +47,7 @@ IslandClaimSolver::IslandClaimSolver(btDiscreteDynamicsWorld& world, ClaimScope 
 }
 
 IslandClaimSolver::~IslandClaimSolver() {
-    if (world_.getConstraintSolver() == this) {
+    if (!worldGone_ && world_.getConstraintSolver() == this) {
         world_.setConstraintSolver(wrapped_);
         world_.*SolverOwnership::flag() = worldOwnedWrapped_;
     } else if (worldOwnedWrapped_) {
@@ -79,7 +79,7 @@ bool IslandClaimSolver::withholds(const btCollisionObject& object) const {
     if (!anyClaimed_ || object.isStaticOrKinematicObject()) return false;
     if (scope_ == ClaimScope::Island) return contains(claimedTags_, object.getIslandTag());
     const btRigidBody* body = btRigidBody::upcast(&object);
-    return body != nullptr && contains(flagged_, body);
+    return body != nullptr && contains(flagged_, body) && !contains(jointed_, body);
 }
 
 bool IslandClaimSolver::withheldManifold(const btPersistentManifold& manifold) const {
@@ -101,15 +101,39 @@ void IslandClaimSolver::prepareSolve(int numBodies, int numManifolds) {
     anyClaimed_ = false;
     if (!flagged_.empty()) {
         const btCollisionObjectArray& objects = world_.getCollisionObjectArray();
+        // The world's joints (a body's constraint refs are kept only for joints that
+        // disable collision between their bodies, so the world's list is read).
+        jointed_.clear();
+        jointedTags_.clear();
+        if (leaveJointed_) {
+            for (int i = 0; i < world_.getNumConstraints(); ++i) {
+                const btTypedConstraint* joint = world_.getConstraint(i);
+                for (const btRigidBody* body : {&joint->getRigidBodyA(), &joint->getRigidBodyB()}) {
+                    if (body->isStaticOrKinematicObject()) continue;
+                    jointed_.push_back(body);
+                    jointedTags_.push_back(body->getIslandTag());
+                }
+            }
+            std::sort(jointed_.begin(), jointed_.end());
+        }
         for (int i = 0; i < objects.size(); ++i) {
             const btCollisionObject* object = objects[i];
             const btRigidBody* body = btRigidBody::upcast(object);
-            if (body == nullptr || body->isStaticOrKinematicObject() || !contains(flagged_, body)) continue;
-            anyClaimed_ = true;
+            if (body == nullptr || body->isStaticOrKinematicObject()) continue;
+            const bool jointed = contains(jointed_, body);
+            if (!contains(flagged_, body) || (jointed && scope_ == ClaimScope::Body)) continue;
             if (scope_ == ClaimScope::Island) claimedTags_.push_back(body->getIslandTag());
+            anyClaimed_ = true;
         }
         std::sort(claimedTags_.begin(), claimedTags_.end());
         claimedTags_.erase(std::unique(claimedTags_.begin(), claimedTags_.end()), claimedTags_.end());
+        if (scope_ == ClaimScope::Island && !jointedTags_.empty()) {
+            std::sort(jointedTags_.begin(), jointedTags_.end());
+            claimedTags_.erase(std::remove_if(claimedTags_.begin(), claimedTags_.end(),
+                                              [&](int tag) { return contains(jointedTags_, tag); }),
+                               claimedTags_.end());
+            anyClaimed_ = !claimedTags_.empty();
+        }
     }
     wrapped_->prepareSolve(numBodies, numManifolds);
 }

@@ -55,6 +55,10 @@ public:
     explicit IslandClaimSolver(btDiscreteDynamicsWorld& world, ClaimScope scope = ClaimScope::Island);
     /// Reinstalls the wrapped solver, with the ownership the world had of it.
     ~IslandClaimSolver() override;
+    /// The world has been destroyed (without this wrapper: the world never frees it): the
+    /// destructor then touches nothing of it, and frees the wrapped solver if the world
+    /// owned it (as ~btDiscreteDynamicsWorld would have).
+    void worldDestroyed() { worldGone_ = true; }
     IslandClaimSolver(const IslandClaimSolver&) = delete;
     IslandClaimSolver& operator=(const IslandClaimSolver&) = delete;
 
@@ -69,6 +73,10 @@ public:
     /// Whether `body` is flagged (its island may be claimed through another body too).
     bool isFlagged(const btRigidBody& body) const;
     ClaimScope scope() const { return scope_; }
+    /// Leaves to Bullet every island (Island scope) or flagged body (Body scope) with a
+    /// typed constraint on one of its bodies, for a caller that cannot solve joints. Off
+    /// by default.
+    void setLeaveJointed(bool leave) { leaveJointed_ = leave; }
     /// The solver that receives the unclaimed work.
     btConstraintSolver& wrapped() const { return *wrapped_; }
 
@@ -99,9 +107,13 @@ private:
     btConstraintSolver* wrapped_;
     bool worldOwnedWrapped_;  // the world allocated its solver itself and frees it when it dies
     ClaimScope scope_;
+    bool leaveJointed_ = false;
+    bool worldGone_ = false;
 
     std::vector<const btRigidBody*> flagged_;  // sorted, for binary search
     std::vector<int> claimedTags_;             // sorted island tags of flagged bodies (Island scope)
+    std::vector<int> jointedTags_;             // island tags of bodies with joints (leaveJointed_)
+    std::vector<const btRigidBody*> jointed_;  // sorted: dynamic bodies with joints (leaveJointed_)
     bool anyClaimed_ = false;                  // a flagged body is in the world this step
 
     std::vector<ClaimedBody> claimedBodies_;

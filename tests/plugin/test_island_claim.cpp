@@ -303,3 +303,24 @@ TEST(IslandClaim, IslandScopeClaimsTheJointsOtherBody) {
 }
 
 }  // namespace
+
+// A caller that cannot solve joints leaves jointed islands to Bullet: claiming a body of a
+// jointed pair withholds nothing, and the user's solver still sees the joint and both
+// bodies; a free body flagged at the same time is claimed as usual.
+TEST(IslandClaim, LeaveJointedLeavesAJointsIslandToBullet) {
+    for (const ClaimScope scope : {ClaimScope::Island, ClaimScope::Body}) {
+        Joints j;
+        btRigidBody& free = j.p.sphere(0.3, 1.0, btVector3(20, 5, 0));
+        IslandClaimSolver claims(*j.p.world, scope);
+        claims.setLeaveJointed(true);
+        claims.claim(*j.body[0]);
+        claims.claim(free);
+        j.p.step(1);
+        EXPECT_TRUE(claims.withheldConstraints().empty());
+        EXPECT_TRUE(j.user.saw(*j.ab));
+        EXPECT_FALSE(claimed(claims, *j.body[0]));
+        EXPECT_FALSE(claimed(claims, *j.body[1]));
+        EXPECT_TRUE(j.user.saw(*j.body[0]));
+        EXPECT_TRUE(claimed(claims, free));
+    }
+}
