@@ -6,6 +6,8 @@
 
 #include "tearables/colormap.hpp"
 
+#include "island_claim.hpp"
+
 #include <BulletCollision/CollisionShapes/btEmptyShape.h>
 #include <btBulletDynamicsCommon.h>
 #include <BulletCollision/BroadphaseCollision/btDbvt.h>
@@ -115,14 +117,17 @@ class BulletWorld::Contacts : public ContactProvider {
 public:
     explicit Contacts(BulletWorld& owner) : owner_(owner) {}
 
-    /// Proxies of the bodies some contact named this step, sorted.
-    std::vector<std::uint32_t> touched;
+    /// Proxies of the bodies some contact named this step, sorted; of those a string's.
+    std::vector<std::uint32_t> touched, string_touched;
 
     void findContacts(const CollisionQuery& query, std::vector<RigidContact>& out) override {
         if (!owner_.attachedToBullet()) return;  // the Bullet world is gone: no bodies to touch
         const std::size_t first = out.size();
         findStringContacts(query, out);
-        for (std::size_t k = first; k < out.size(); ++k) touched.push_back(out[k].body.index);
+        string_touched.clear();
+        for (std::size_t k = first; k < out.size(); ++k) string_touched.push_back(out[k].body.index);
+        std::sort(string_touched.begin(), string_touched.end());
+        touched.insert(touched.end(), string_touched.begin(), string_touched.end());
         std::sort(touched.begin(), touched.end());
     }
 
@@ -134,7 +139,78 @@ public:
         std::sort(touched.begin(), touched.end());
     }
 
+    /// The contacts of the bodies taken from Bullet's solver this step (the manifolds it
+    /// withheld, found at the start of the step), at the bodies' poses now: each point's
+    /// local points follow their bodies, its normal turns with body 1 (Bullet's normal on B
+    /// points from body 1 toward body 0).
+    void findBodyContacts(std::vector<BodyContact>& out) override {
+        points_.clear();
+        if (!owner_.attachedToBullet() || !owner_.claim_) return;
+        const double h = owner_.step_;
+        for (btPersistentManifold* m : owner_.claim_->withheldManifolds()) {
+            const auto* o0 = btRigidBody::upcast(m->getBody0());
+            const auto* o1 = btRigidBody::upcast(m->getBody1());
+            if (!o0 || !o1 || m->getNumContacts() == 0) continue;
+            const Side s0 = side(*o0, h), s1 = side(*o1, h);
+            if (!s0.body.valid() && !s1.body.valid()) continue;
+            for (int k = 0; k < m->getNumContacts(); ++k) {
+                const btManifoldPoint& p = m->getContactPoint(k);
+                const btVector3 a_now = s0.now * p.m_localPointA, b_now = s1.now * p.m_localPointB;
+                const btVector3 a_then = s0.then * p.m_localPointA, b_then = s1.then * p.m_localPointB;
+                BodyContact c;
+                c.a = s0.body;
+                c.b = s1.body;
+                c.point_a = toCore(a_now);
+                c.point_b = toCore(b_now);
+                c.normal = toCore(s1.now.getBasis() * (s1.then.getBasis().transpose() * p.m_normalWorldOnB));
+                c.motion = toCore((a_now - a_then) - (b_now - b_then));
+                c.depth = std::max(0.0, -static_cast<double>(p.getDistance()));
+                c.friction = static_cast<double>(p.m_combinedFriction);
+                c.force = h > 0.0 ? static_cast<double>(p.m_appliedImpulse) / h : 0.0;
+                c.host_tag = points_.size();
+                points_.push_back({m, k});
+                out.push_back(c);
+            }
+        }
+    }
+
+    /// After the step: each kept contact's impulse into its manifold point (Bullet's
+    /// warm start and users read m_appliedImpulse); the points the solve dropped carry 0.
+    void writeBodyImpulses(const std::vector<BodyContact>& solved) {
+        const double h = owner_.step_;
+        for (const auto& [m, k] : points_) m->getContactPoint(k).m_appliedImpulse = 0;
+        for (const BodyContact& c : solved)
+            if (c.host_tag < points_.size()) {
+                const auto& [m, k] = points_[c.host_tag];
+                m->getContactPoint(k).m_appliedImpulse = static_cast<btScalar>(c.force * h);
+            }
+    }
+
 private:
+    /// One body of a withheld manifold: its proxy (none for a fixed one: static,
+    /// kinematic, or a body not claimed), and its poses now and at the step's start.
+    struct Side {
+        RigidId body;
+        btTransform now, then;
+    };
+    Side side(const btRigidBody& body, double h) const {
+        Side s;
+        s.now = now(body);
+        s.then = s.now;
+        if (body.isKinematicObject())
+            btTransformUtil::integrateTransform(s.now, -body.getLinearVelocity(), -body.getAngularVelocity(),
+                                                static_cast<btScalar>(h), s.then);
+        if (!std::binary_search(owner_.claimed_.begin(), owner_.claimed_.end(), &body)) return s;
+        const auto it = owner_.proxies_.find(&body);
+        if (it == owner_.proxies_.end()) return s;
+        s.body = it->second;
+        for (const ClaimedBody& c : owner_.claim_->claimedBodies())
+            if (c.body == &body) s.then = c.transform;
+        return s;
+    }
+
+    std::vector<std::pair<btPersistentManifold*, int>> points_;  // per body contact: its manifold point
+
     void findStringContacts(const CollisionQuery& query, std::vector<RigidContact>& out) {
         const double h = owner_.step_;
         // Trees of strings that are gone (removed, frozen) are dropped.
@@ -586,6 +662,12 @@ BulletWorld::BulletWorld(btDiscreteDynamicsWorld& world, const WorldSettings& se
     : world_(&world), core_(std::make_unique<World>(settings)), action_(std::make_unique<Action>(*this)),
       contacts_(std::make_unique<Contacts>(*this)) {
     core_->setContactProvider(contacts_.get());
+    try {
+        claim_ = std::make_unique<IslandClaimSolver>(world, ClaimScope::Island);
+        claim_->setLeaveJointed(true);  // the island solve has no joints
+    } catch (const std::invalid_argument&) {
+        claim_.reset();  // a multibody solver: Bullet keeps solving the bodies' contacts
+    }
     // Group and mask 0: the sentinel never pairs with anything nor answers ray tests.
     world_->addCollisionObject(&action_->sentinel(), 0, 0);
     world_->addAction(action_.get());
@@ -656,6 +738,8 @@ BulletWorld::~BulletWorld() {
     if (attachedToBullet()) {
         world_->removeAction(action_.get());
         world_->removeCollisionObject(&action_->sentinel());
+    } else if (claim_) {
+        claim_->worldDestroyed();
     }
 }
 
@@ -894,6 +978,48 @@ void BulletWorld::writeBodies() {
     }
 }
 
+// The bodies Bullet's solver left to us this step (IslandClaimSolver): Bullet has moved
+// each by h times its last velocity, without this step's forces. They start from the pose
+// they had at the solve with the motion Bullet's solver gives a body before its contacts
+// (btSequentialImpulseConstraintSolver::initSolverBody and convertBodies): the step's
+// forces and gravity, h F / m and h I^-1 T, and the implicit gyroscopic term; then the
+// core's island solve keeps them apart and holds them on their ropes.
+void BulletWorld::startClaimedBodies(double h) {
+    claimed_.clear();
+    if (!claim_) return;
+    const btScalar step = static_cast<btScalar>(h);
+    for (const ClaimedBody& c : claim_->claimedBodies()) {
+        btRigidBody& body = *c.body;
+        claimed_.push_back(&body);
+        body.setCenterOfMassTransform(c.transform);
+        body.setAngularVelocity(c.angularVelocity);
+        const btVector3 v = c.linearVelocity + body.getTotalForce() * (body.getInvMass() * step);
+        btVector3 w = c.angularVelocity + body.getInvInertiaTensorWorld() * body.getTotalTorque() * step;
+        if (body.getFlags() & BT_ENABLE_GYROSCOPIC_FORCE_IMPLICIT_BODY) w += body.computeGyroscopicImpulseImplicit_Body(step);
+        btTransform moved;
+        btTransformUtil::integrateTransform(c.transform, v, w, step, moved);
+        body.setCenterOfMassTransform(moved);
+        body.setLinearVelocity(v);
+        body.setAngularVelocity(w);
+        proxyFor(body);
+    }
+    std::sort(claimed_.begin(), claimed_.end());
+}
+
+// The bodies a string holds or touched this step are taken from Bullet's solver at the
+// next, with every body of their Bullet islands (a crate resting on a roped board comes
+// with the board), unless a joint is in the island.
+void BulletWorld::claimIslandBodies() {
+    if (!claim_) return;
+    claim_->releaseAll();
+    for (const auto& [key, id] : proxies_) {
+        btRigidBody* body = const_cast<btRigidBody*>(key);
+        if (body->isStaticOrKinematicObject() || !(core_->rigid(id).inverse_mass > 0.0)) continue;
+        if (core_->rigidInUse(id) || std::binary_search(contacts_->string_touched.begin(), contacts_->string_touched.end(), id.index))
+            claim_->claim(*body);
+    }
+}
+
 // What the user gave for the next stepSimulation, spread over its internal steps: forces
 // on every step, pins followed linearly to their target at the last one; both are done
 // with at the frame's last step.
@@ -1000,6 +1126,7 @@ void BulletWorld::substep(double h, int tick, int ticks) {
         tick_ = tick;
         ticks_ = ticks;
         candidates_.clear();
+        startClaimedBodies(h);
         if (core_->settings().rigid_contacts) findCandidates(h);
         // Bodies in: drop those that left the world, copy the others' state. Whether a body
         // is still in the world is read from the world's list, not from the body: a body
@@ -1015,7 +1142,8 @@ void BulletWorld::substep(double h, int tick, int ticks) {
                 it = proxies_.erase(it);
                 continue;
             }
-            if (!core_->rigidInUse(it->second) && !isCandidate(body)) {  // no string holds or touches it
+            if (!core_->rigidInUse(it->second) && !isCandidate(body) &&
+                !std::binary_search(claimed_.begin(), claimed_.end(), body)) {  // nothing holds, touches or claims it
                 core_->removeRigid(it->second);
                 it = proxies_.erase(it);
                 continue;
@@ -1038,6 +1166,8 @@ void BulletWorld::substep(double h, int tick, int ticks) {
         core_->step(h);
 
         writeBodies();
+        contacts_->writeBodyImpulses(core_->lastBodyContacts());
+        claimIslandBodies();
         const std::vector<Event>& ev = core_->events();
         events_.insert(events_.end(), ev.begin(), ev.end());
         recordPeaks();

@@ -53,6 +53,8 @@ static_assert(sizeof(btScalar) == (TEARABLES_BULLET_DOUBLE ? sizeof(double) : si
 
 namespace tearables {
 
+class IslandClaimSolver;
+
 /// Converts between Bullet and the core (the only place that does).
 inline Vec3 toCore(const btVector3& v) { return Vec3(v.x(), v.y(), v.z()); }
 inline btVector3 toBullet(const Vec3& v) {
@@ -201,7 +203,15 @@ private:
     /// in a deterministic order.
     std::vector<btRigidBody*> bodiesIn(const Vec3& lo, const Vec3& hi) const;
 
+    /// Bodies that ropes hold or touch are taken from Bullet's solver with their Bullet
+    /// islands (plugin/island_claim.hpp) and solved in the core's islands, contacts and
+    /// all. `claim_` is null where the world's solver cannot be wrapped (multibody).
+    void startClaimedBodies(double h);
+    void claimIslandBodies();
+
     btDiscreteDynamicsWorld* world_;
+    std::unique_ptr<IslandClaimSolver> claim_;
+    std::vector<const btRigidBody*> claimed_;  // this step's claimed bodies, sorted
     std::unique_ptr<World> core_;
     std::unique_ptr<Action> action_;
     std::unique_ptr<Contacts> contacts_;

@@ -88,6 +88,30 @@ struct RigidContact {
     double friction = 0.5;         ///< Coulomb coefficient, >= 0
 };
 
+/// A contact between two rigid bodies that the host hands to the island solve (the
+/// Bullet plugin: the contact manifolds of the bodies it takes over from Bullet's solver).
+/// Islands then keep such bodies apart together with the strings that hold them, exactly
+/// non-penetrating with Coulomb friction, instead of the host's solver and the strings'
+/// undoing each other. The gap is normal . (point_a - point_b), negative where they overlap.
+struct BodyContact {
+    RigidId a;                     ///< a movable body's proxy
+    RigidId b;                     ///< the other body's proxy, or none: a surface the host alone moves
+    Vec3 point_a = Vec3::Zero();   ///< world, m: a's nearest point, at the poses in the table
+    Vec3 point_b = Vec3::Zero();   ///< world, m: b's nearest point
+    Vec3 normal = Vec3::UnitY();   ///< unit, from b toward a
+    /// m: how far a's point has moved relative to b's since the start of the step (the
+    /// bodies' free motion so far): friction acts on the whole step's slip.
+    Vec3 motion = Vec3::Zero();
+    /// m, >= 0: how far a reached into b at the start of the step. An overlap the solve did
+    /// not make is pushed out over several steps (a fraction a step), not in one.
+    double depth = 0.0;
+    double friction = 0.5;         ///< Coulomb coefficient, >= 0
+    /// N: in, the normal force of the last step (friction acts from the first pass); out
+    /// (World::lastBodyContacts), the force the solve found.
+    double force = 0.0;
+    std::size_t host_tag = 0;      ///< the host's own name for the contact, returned unchanged
+};
+
 /// Positions a host's collision query sees: every live string's particles after the
 /// prediction (where they would go), and where they were at the start of the step.
 struct CollisionQuery {
@@ -156,6 +180,10 @@ public:
         (void)query;
         (void)out;
     }
+    /// Appends the contacts between rigid bodies that the island solve is to keep (the
+    /// bodies' poses are those of the table when the step starts). A host that solves its
+    /// bodies' contacts itself reports none.
+    virtual void findBodyContacts(std::vector<BodyContact>& out) { (void)out; }
 };
 
 /// Read-only view of a string's state, valid until the next step or change.
@@ -254,6 +282,9 @@ public:
     /// The islands of the last step, in the order of their first string (none where no
     /// string holds or touches a movable body).
     const std::vector<IslandSummary>& lastIslands() const;
+    /// The host's body-body contacts of the last step (findBodyContacts), with the normal
+    /// force each carried (`force`, N); those between bodies outside every island carry 0.
+    const std::vector<BodyContact>& lastBodyContacts() const;
 
     /// Advances all strings, cloths and paper sheets by `h` seconds, [1e-7, 1]. Throws
     /// InvalidInput ("h", or the name of a setting made invalid through settings()) before

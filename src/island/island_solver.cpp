@@ -47,9 +47,26 @@ constexpr int kPredictRounds = 3;
 
 }  // namespace
 
+void IslandSolver::setBodyContacts(std::vector<BodyContact> contacts, const RigidTable& rigids) {
+    body_contacts_ = std::move(contacts);
+    prepareBodyContacts(body_contacts_, rigids);
+}
+
 void IslandSolver::solve(const std::vector<IslandMember*>& members, RigidTable& rigids, const StepContext& ctx) {
     reports_.clear();
-    group(members, rigids);
+    all_members_ = members;
+    std::size_t pairs = 0;
+    for (std::size_t first = 0; first < body_contacts_.size();) {
+        std::size_t end = first + 1;
+        while (end < body_contacts_.size() && body_contacts_[end].a == body_contacts_[first].a &&
+               body_contacts_[end].b == body_contacts_[first].b)
+            ++end;
+        if (body_members_.size() == pairs) body_members_.emplace_back();
+        body_members_[pairs++].start(body_contacts_, first, end - first, rigids, ctx);
+        first = end;
+    }
+    for (std::size_t k = 0; k < pairs; ++k) all_members_.push_back(&body_members_[k]);  // after any growth
+    group(all_members_, rigids);
     inv_h2_ = ctx.inv_h * ctx.inv_h;
     pool_ = ctx.pool;
     for (std::size_t i = 0; i < used_; ++i) reports_.push_back(solveIsland(islands_[i], rigids, ctx));
@@ -178,7 +195,7 @@ void IslandSolver::warmStart(Island& island, RigidTable& rigids, const StepConte
 
 IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, const StepContext& ctx) {
     IslandSummary report;
-    report.strings = island.members.size();
+    for (const IslandMember* m : island.members) report.strings += m->isBodyContacts() ? 0 : 1;
     report.bodies = island.bodies.size();
     mass_.resize(island.bodies.size());
     for (std::size_t b = 0; b < island.bodies.size(); ++b) mass_[b] = bodyMass(rigids.bodies[island.bodies[b].index]);

@@ -2,6 +2,7 @@
 // islands and each solved as one system with its bodies' six unknowns (sim/island.hpp).
 #pragma once
 
+#include "island/body_contacts.hpp"
 #include "sim/body_motion.hpp"
 #include "sim/island.hpp"
 
@@ -18,6 +19,12 @@ class ThreadPool;
 class IslandSolver final : public IslandSolve {
 public:
     void solve(const std::vector<IslandMember*>& members, RigidTable& rigids, const StepContext& ctx) override;
+    bool hasOwnMembers() const override { return !body_contacts_.empty(); }
+    /// The host's contacts between bodies for this step (ContactProvider::findBodyContacts):
+    /// those the solve can keep (prepareBodyContacts) join the islands of their bodies.
+    void setBodyContacts(std::vector<BodyContact> contacts, const RigidTable& rigids);
+    /// This step's body contacts, with the normal force each carried (0 before the solve).
+    const std::vector<BodyContact>& bodyContacts() const { return body_contacts_; }
     /// Forgets the last step's islands (a step may have none to solve).
     void clearReports() { reports_.clear(); }
     /// The islands of the last solve, in the order of their first member.
@@ -42,6 +49,9 @@ private:
     void moveBodies(Island& island, RigidTable& rigids, const StepContext& ctx, double alpha);
     void warmStart(Island& island, RigidTable& rigids, const StepContext& ctx);
 
+    std::vector<BodyContact> body_contacts_;      ///< grouped by pair (prepareBodyContacts)
+    std::vector<BodyContactMember> body_members_;  ///< one per pair; kept from step to step
+    std::vector<IslandMember*> all_members_;       ///< the strings', then the pairs'
     std::vector<Island> islands_;  ///< kept from step to step: a step does not allocate
     std::size_t used_ = 0;         ///< of which this step's
     std::vector<IslandSummary> reports_;

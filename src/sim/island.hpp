@@ -61,6 +61,8 @@ public:
     virtual double reweigh() = 0;
     /// End of the solve.
     virtual void finish(int iterations) = 0;
+    /// Whether the member is contacts between bodies rather than a string (reports count strings).
+    virtual bool isBodyContacts() const { return false; }
 };
 
 /// Groups members into islands (members sharing a body) and solves each.
@@ -68,6 +70,9 @@ class IslandSolve {
 public:
     virtual ~IslandSolve() = default;
     virtual void solve(const std::vector<IslandMember*>& members, RigidTable& rigids, const StepContext& ctx) = 0;
+    /// Whether the step has members of the solve's own (contacts between bodies): it is
+    /// then called even where no string holds or touches a movable body.
+    virtual bool hasOwnMembers() const = 0;
 };
 
 }  // namespace tearables::detail

@@ -355,7 +355,7 @@ void StringSystem::limitStrain(RigidTable& rigids, const StepContext& ctx) {
             detail::limitStrain(s, rigids, ctx);
         }
     }
-    if (used_members_ > 0) {
+    if (used_members_ > 0 || (ctx.islands && ctx.islands->hasOwnMembers())) {
         member_list_.clear();
         for (std::size_t k = 0; k < used_members_; ++k) member_list_.push_back(&members_[k]);
         ctx.islands->solve(member_list_, rigids, ctx);

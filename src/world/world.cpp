@@ -117,6 +117,20 @@ struct World::Impl {
         return host;
     }
 
+    /// The host's contacts between bodies, for the islands; a host that throws gives none
+    /// this step.
+    void collideBodies() {
+        std::vector<BodyContact> found;
+        if (contact_provider && settings.rigid_contacts) {
+            try {
+                contact_provider->findBodyContacts(found);
+            } catch (...) {
+                found.clear();
+            }
+        }
+        islands.setBodyContacts(std::move(found), rigids);
+    }
+
     /// The host's contacts of mesh vertices (sheets, cloths) with rigid bodies: only those
     /// that name a vertex of the query and a body of the table, with finite data and a
     /// unit normal, are kept. A host that throws gives none this step.
@@ -335,6 +349,7 @@ void World::step(double h) {
     const detail::FlushSubnormals mode;  // subnormals cost ~100 cycles an operation (float_mode.hpp)
     const StepContext ctx = w.beginStep(h);
     const detail::HostContacts host = w.hostContacts();
+    w.collideBodies();
 
     // The materials one after another, each over its own stages; each reads the bodies as
     // the one before left them.
@@ -393,6 +408,7 @@ void World::setContactProvider(ContactProvider* provider) { impl_->contact_provi
 const std::vector<RigidContact>& World::lastContacts() const { return impl_->strings.lastContacts(); }
 
 const std::vector<IslandSummary>& World::lastIslands() const { return impl_->islands.reports(); }
+const std::vector<BodyContact>& World::lastBodyContacts() const { return impl_->islands.bodyContacts(); }
 const StageTimes& World::lastStageTimes() const { return impl_->last; }
 detail::ClothSystem& World::clothSystem() { return impl_->cloths; }
 const detail::ClothSystem& World::clothSystem() const { return impl_->cloths; }
