@@ -7,8 +7,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <vector>
 
 namespace {
 
@@ -318,4 +320,89 @@ TEST(Renderer, TwistedStringsAreColouredByTorsionalLoad) {
     };
     scene::runScene(s, options);
     EXPECT_EQ(checked, 1);
+}
+
+namespace {
+
+/// The rows of column x where `with` differs from `without` (by more than 30 in the sum of
+/// the channels), top to bottom.
+std::vector<int> coveredRows(const Image& with, const Image& without, int x) {
+    std::vector<int> rows;
+    for (int y = 0; y < with.height; ++y)
+        if (difference(with.at(x, y), without.at(x, y)) > 30) rows.push_back(y);
+    return rows;
+}
+
+/// A straight rope of the given radius along x at height 1 m, 2 m in front of the scene's
+/// camera, without gravity: frame 0 of the scene, painted with and without the rope.
+struct RopePicture {
+    Image with, without;
+    std::array<double, 2> middle{0.0, 0.0};  // where (0.05, 1, 0), mid-segment, projects
+    double pixel = 0.0;                      // the size of a pixel there, m
+};
+RopePicture paintRope(double radius, int width, int height) {
+    scene::Scene s = scene::parseScene(R"({"gravity": [0, 0, 0], "steps": 0,
+        "camera": {"eye": [0, 1, 2], "target": [0, 1, 0], "fov": 40},
+        "strings": [{"name": "rope", "from": [-0.6, 1, 0], "to": [0.6, 1, 0], "segments": 12,
+                     "radius": )" + std::to_string(radius) + "}]}");
+    Renderer r(width, height);
+    const View view = fitCamera(s, static_cast<double>(width) / height);
+    RopePicture picture;
+    scene::RunOptions options;
+    options.on_frame = [&](const scene::FrameState& f) {
+        if (f.step != 0) return;
+        picture.with = paintFrame(r, s, f, view);
+        scene::FrameState bare = f;
+        bare.strings.clear();
+        picture.without = paintFrame(r, s, bare, view);
+        picture.middle = *r.project({0.05, 1.0, 0.0});
+        picture.pixel = r.pixelSizeAt({0.05, 1.0, 0.0});
+    };
+    scene::runScene(s, options);
+    return picture;
+}
+
+}  // namespace
+
+// A thick rope is drawn at its true radius, as a lit tube. Seen across from d = 2 m, a
+// cylinder of radius r spans the angle 2 asin(r/d): on a picture H pixels high with a
+// vertical field of view fov, 2 f r / sqrt(d^2 - r^2) pixels, f = H / (2 tan(fov/2)). The
+// 16-sided tube is within cos(pi/16) (2 %) of the circle, and anti-aliasing blurs each edge
+// by under a pixel: the covered rows match to 2 pixels. The key light comes from above, so
+// the brightness across the tube changes (the diffuse term alone spans 0.91 of the key's
+// 0.75 on the upper half).
+TEST(Renderer, ThickRopeIsALitTubeAtItsTrueRadius) {
+    const double radius = 0.04, d = 2.0;
+    const int height = 360;
+    const RopePicture p = paintRope(radius, 640, height);
+    const double f = height / (2.0 * std::tan(20.0 * M_PI / 180.0));
+    const double expected = 2.0 * f * radius / std::sqrt(d * d - radius * radius);
+    const std::vector<int> rows = coveredRows(p.with, p.without, static_cast<int>(p.middle[0]));
+    ASSERT_FALSE(rows.empty());
+    std::printf("thick rope: %zu rows covered, %.2f expected\n", rows.size(), expected);
+    EXPECT_NEAR(static_cast<double>(rows.size()), expected, 2.0);
+    EXPECT_EQ(rows.back() - rows.front() + 1, static_cast<int>(rows.size()));  // one band, no gaps
+    EXPECT_NEAR(0.5 * (rows.front() + rows.back() + 1), p.middle[1], 1.5);    // centred on the axis
+    // Shading: the sum of the channels across the inner rows (edges left out) varies, and
+    // the brightest row is above the darkest one (the key light is above).
+    int brightest = -1, darkest = 1000, y_bright = 0, y_dark = 0;
+    for (std::size_t k = 2; k + 2 < rows.size(); ++k) {
+        const auto c = p.with.at(static_cast<int>(p.middle[0]), rows[k]);
+        const int sum = c[0] + c[1] + c[2];
+        if (sum > brightest) brightest = sum, y_bright = rows[k];
+        if (sum < darkest) darkest = sum, y_dark = rows[k];
+    }
+    std::printf("thick rope: brightness %d to %d across it\n", darkest, brightest);
+    EXPECT_GT(brightest - darkest, 40);
+    EXPECT_LT(y_bright, y_dark);
+}
+
+// A rope thinner than 3 pixels on screen is drawn 3 pixels wide (1.5 pixels either side of
+// its axis), so that it stays visible: 2 to 4 rows covered, whatever its true radius.
+TEST(Renderer, ThinRopeIsDrawnThreePixelsWide) {
+    const RopePicture p = paintRope(0.0005, 320, 180);
+    ASSERT_GT(p.pixel, 0.0005 * 3.0);  // the true width is under a pixel
+    const std::vector<int> rows = coveredRows(p.with, p.without, static_cast<int>(p.middle[0]));
+    EXPECT_GE(rows.size(), 2u);
+    EXPECT_LE(rows.size(), 4u);
 }
