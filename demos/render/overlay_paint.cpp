@@ -100,19 +100,19 @@ void paintOverlay(Image& image, const scene::Scene& scene, double time, long lon
     const std::string stamp = timeStamp(time, step);
     fillRect(image, box.x0, box.y0, box.x0 + textWidth(stamp) + 12.0f, box.y0 + StampBox::kTextHeight + 6.0f, paper, 0.75f);
     drawText(image, stamp, box.x0 + 6.0f, box.y0 + 3.0f + 0.5f * StampBox::kTextHeight, ink);
-    if (!showsTension(scene)) return;
-    const ColorBar bar = colorBar(scene, image.width, image.height);
-    for (int k = 0; k < ColorBar::kBands; ++k) {
-        const auto [top, bottom] = bar.bandRows(k);
-        const Rgb c = ColorBar::bandColor(k);
-        fillRect(image, bar.x0, top, bar.x1, bottom, {255.0f * c.r, 255.0f * c.g, 255.0f * c.b});
+    for (const ColorBar& bar : colorBars(scene, image.width, image.height)) {
+        for (int k = 0; k < ColorBar::kBands; ++k) {
+            const auto [top, bottom] = bar.bandRows(k);
+            const Rgb c = ColorBar::bandColor(k);
+            fillRect(image, bar.x0, top, bar.x1, bottom, {255.0f * c.r, 255.0f * c.g, 255.0f * c.b});
+        }
+        const std::array<float, 3> frame{60.0f, 60.0f, 60.0f};
+        fillRect(image, bar.x0 - 1, bar.y0 - 1, bar.x1 + 1, bar.y0, frame);
+        fillRect(image, bar.x0 - 1, bar.y1, bar.x1 + 1, bar.y1 + 1, frame);
+        fillRect(image, bar.x0 - 1, bar.y0, bar.x0, bar.y1, frame);
+        fillRect(image, bar.x1, bar.y0, bar.x1 + 1, bar.y1, frame);
+        for (const TextPlacement& t : bar.labels) drawText(image, t.text, t.right - textWidth(t.text), t.middle, ink);
     }
-    const std::array<float, 3> frame{60.0f, 60.0f, 60.0f};
-    fillRect(image, bar.x0 - 1, bar.y0 - 1, bar.x1 + 1, bar.y0, frame);
-    fillRect(image, bar.x0 - 1, bar.y1, bar.x1 + 1, bar.y1 + 1, frame);
-    fillRect(image, bar.x0 - 1, bar.y0, bar.x0, bar.y1, frame);
-    fillRect(image, bar.x1, bar.y0, bar.x1 + 1, bar.y1, frame);
-    for (const TextPlacement& t : bar.labels) drawText(image, t.text, t.right - textWidth(t.text), t.middle, ink);
 }
 
 }  // namespace tearables::render

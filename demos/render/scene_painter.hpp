@@ -31,10 +31,21 @@ Bounds frameBounds(const scene::FrameState& frame);
 /// the given aspect (width / height).
 bool inFrame(const View& view, double aspect, const Bounds& bounds);
 
+/// A cloth's damage per vertex, [0, 1]: the mean over the weave's cells around the vertex of
+/// each cell's most damaged yarn, a yarn's damage being 1 when torn, otherwise its plastic
+/// strain (rest length over the grid spacing of `desc`, less 1) over the plastic strain
+/// `desc`'s material curve leaves at rupture.
+std::vector<double> clothDamage(const ClothView& view, const ClothDesc& desc);
+/// A paper sheet's damage per vertex, [0, 1]: the share of the triangles around the vertex
+/// with an edge on a crease or fold (paperCreaseLines) or on a tear (an edge of the sheet's
+/// border that was not on the border of `desc`'s mesh).
+std::vector<double> paperDamage(const PaperView& view, const PaperDesc& desc);
+
 /// Draws one frame: the ground (a plane body) or a reference grid, the rigid bodies, the
 /// strings as tubes coloured by load (tension / rupture tension, colormap.hpp), broken
-/// segments left out, world pins as dark blocks, cloths as surfaces coloured by load and paper sheets as white
-/// surfaces with their creases and folds in dark lines. Returns the picture.
+/// segments left out, world pins as dark blocks, cloths and paper sheets as surfaces
+/// coloured by damage (clothDamage, paperDamage) with the creases and folds of paper in dark
+/// lines; torn yarns open the cloth. Returns the picture.
 Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view);
 /// As paintFrame without finishing the frame (the viewer draws more on top, then finishes).
 void drawFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view);

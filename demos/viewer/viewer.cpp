@@ -619,20 +619,22 @@ void Viewer::drawScene() {
             }
 }
 
-/// The colour bar (render/overlay.hpp, colorBar: the headless frames draw the same layout):
-/// load / rupture load, bottom (slack) to top (tears), at the window's right edge.
+/// The colour bars (render/overlay.hpp, colorBars: the headless frames draw the same
+/// layout): tension of strings and damage of sheets, bottom (0) to top (1), at the window's
+/// right edge.
 void Viewer::drawColorBar() {
-    const render::ColorBar bar = render::colorBar(scene_, win_w_, win_h_);
     ImDrawList* dl = ImGui::GetBackgroundDrawList();
-    for (int k = 0; k < render::ColorBar::kBands; ++k) {
-        const auto [top, bottom] = bar.bandRows(k);
-        const Rgb c = render::ColorBar::bandColor(k);
-        dl->AddRectFilled(ImVec2(bar.x0, top), ImVec2(bar.x1, bottom), ImGui::ColorConvertFloat4ToU32(ImVec4(c.r, c.g, c.b, 1.0f)));
-    }
-    dl->AddRect(ImVec2(bar.x0 - 1, bar.y0 - 1), ImVec2(bar.x1 + 1, bar.y1 + 1), IM_COL32(60, 60, 60, 255));
-    for (const render::TextPlacement& t : bar.labels) {
-        const ImVec2 size = ImGui::CalcTextSize(t.text.c_str());
-        dl->AddText(ImVec2(t.right - size.x, t.middle - 0.5f * size.y), IM_COL32(30, 30, 30, 255), t.text.c_str());
+    for (const render::ColorBar& bar : render::colorBars(scene_, win_w_, win_h_)) {
+        for (int k = 0; k < render::ColorBar::kBands; ++k) {
+            const auto [top, bottom] = bar.bandRows(k);
+            const Rgb c = render::ColorBar::bandColor(k);
+            dl->AddRectFilled(ImVec2(bar.x0, top), ImVec2(bar.x1, bottom), ImGui::ColorConvertFloat4ToU32(ImVec4(c.r, c.g, c.b, 1.0f)));
+        }
+        dl->AddRect(ImVec2(bar.x0 - 1, bar.y0 - 1), ImVec2(bar.x1 + 1, bar.y1 + 1), IM_COL32(60, 60, 60, 255));
+        for (const render::TextPlacement& t : bar.labels) {
+            const ImVec2 size = ImGui::CalcTextSize(t.text.c_str());
+            dl->AddText(ImVec2(t.right - size.x, t.middle - 0.5f * size.y), IM_COL32(30, 30, 30, 255), t.text.c_str());
+        }
     }
 }
 

@@ -1,5 +1,6 @@
 // The offscreen renderer (OSMesa): pictures have the size asked for, what is drawn lands
 // where the camera says, PNG files round-trip, and a scene's rope shows against its background.
+#include "render/overlay.hpp"
 #include "render/renderer.hpp"
 #include "render/scene_painter.hpp"
 #include "tearables/scene.hpp"
@@ -405,4 +406,118 @@ TEST(Renderer, ThinRopeIsDrawnThreePixelsWide) {
     const std::vector<int> rows = coveredRows(p.with, p.without, static_cast<int>(p.middle[0]));
     EXPECT_GE(rows.size(), 2u);
     EXPECT_LE(rows.size(), 4u);
+}
+
+namespace {
+
+/// Pixels coloured from the damage end of the colour map (tensionColor(u) for u above about
+/// 0.4 has more red than blue; the intact end, the sky, the grid and the pins do not) in the
+/// box around where `points` project.
+int damageColouredPixels(const Renderer& r, const Image& im, const std::vector<Vec3>& points) {
+    double x0 = 1e9, y0 = 1e9, x1 = -1e9, y1 = -1e9;
+    for (const Vec3& p : points)
+        if (const auto q = r.project(p)) {
+            x0 = std::min(x0, (*q)[0]), y0 = std::min(y0, (*q)[1]);
+            x1 = std::max(x1, (*q)[0]), y1 = std::max(y1, (*q)[1]);
+        }
+    int n = 0;
+    for (int y = std::max(0, static_cast<int>(y0)); y <= std::min(im.height - 1, static_cast<int>(y1)); ++y)
+        for (int x = std::max(0, static_cast<int>(x0)); x <= std::min(im.width - 1, static_cast<int>(x1)); ++x) {
+            const auto c = im.at(x, y);
+            n += c[0] > c[2] + 20;
+        }
+    return n;
+}
+
+}  // namespace
+
+// Paper is coloured by damage: at the end of paper-ball the breakable sheet keeps its
+// creases and the elastic one has none. Every vertex on a crease line has damage (its faces
+// along the line border it); the elastic sheet has none anywhere. On the picture the
+// breakable sheet shows the damage end of the colour map and the elastic one does not; the
+// overlay's only bar is the damage bar.
+TEST(Renderer, PaperIsColouredByDamage) {
+    const auto text = scene::builtinSceneText("paper-ball");
+    ASSERT_TRUE(text.has_value());
+    scene::Scene s = scene::parseScene(*text);
+    Renderer r(640, 360);
+    const View view = fitCamera(s, 640.0 / 360.0);
+    scene::RunOptions options;
+    options.every = 1000000;  // frames at step 0 and the last
+    int checked = 0;
+    options.on_frame = [&](const scene::FrameState& f) {
+        if (f.step == 0) return;
+        ASSERT_EQ(f.papers.size(), 2u);
+        const Image picture = paintFrame(r, s, f, view);
+        for (std::size_t k = 0; k < 2; ++k) {
+            const PaperView& v = f.papers[k].view;
+            const std::vector<double> damage = paperDamage(v, s.papers[k].desc);
+            ASSERT_EQ(damage.size(), v.vertexCount());
+            const auto lines = paperCreaseLines(v);
+            const int coloured = damageColouredPixels(r, picture, *v.positions);
+            std::printf("%s: %zu crease lines, %d damage-coloured pixels\n", f.papers[k].name.c_str(), lines.size(), coloured);
+            if (f.papers[k].name == "paper") {
+                ASSERT_GT(lines.size(), 0u);
+                for (const auto& l : lines) {
+                    EXPECT_GT(damage[l[0]], 0.0);
+                    EXPECT_GT(damage[l[1]], 0.0);
+                }
+                EXPECT_GT(coloured, 100);
+            } else {
+                EXPECT_EQ(lines.size(), 0u);
+                for (double d : damage) EXPECT_EQ(d, 0.0);
+                EXPECT_LT(coloured, 5);
+            }
+        }
+        const std::vector<ColorBar> bars = colorBars(s, 640, 360);
+        ASSERT_EQ(bars.size(), 1u);
+        EXPECT_EQ(bars[0].kind, BarKind::Damage);
+        EXPECT_EQ(bars[0].labels.front().text, "damage");
+        ++checked;
+    };
+    scene::runScene(s, options);
+    EXPECT_EQ(checked, 1);
+}
+
+// A cloth is coloured by damage: at the end of cloth-tear, both ends of every torn yarn
+// have half or more of their cells damaged (a yarn borders two cells, or one on the edge,
+// and both contain both its ends; a vertex has at most four). The intact cloth of step 0
+// has no damage and shows none of the colour map's damage end; the torn one does.
+TEST(Renderer, ClothIsColouredByDamage) {
+    const auto text = scene::builtinSceneText("cloth-tear");
+    ASSERT_TRUE(text.has_value());
+    scene::Scene s = scene::parseScene(*text);
+    Renderer r(320, 180);
+    const View view = fitCamera(s, 320.0 / 180.0);
+    scene::RunOptions options;
+    options.every = 1000000;  // frames at step 0 and the last
+    int checked = 0;
+    options.on_frame = [&](const scene::FrameState& f) {
+        ASSERT_EQ(f.cloths.size(), 1u);
+        const ClothView& v = f.cloths[0].view;
+        const std::vector<double> damage = clothDamage(v, s.cloths[0].desc);
+        const int coloured = damageColouredPixels(r, paintFrame(r, s, f, view), *v.positions);
+        std::printf("cloth at step %lld: %d damage-coloured pixels\n", f.step, coloured);
+        if (f.step == 0) {
+            for (double d : damage) EXPECT_EQ(d, 0.0);
+            EXPECT_LT(coloured, 5);
+        } else {
+            std::size_t torn = 0;
+            for (std::size_t e = 0; e < v.edgeCount(); ++e) {
+                if (!(*v.broken)[e]) continue;
+                ++torn;
+                EXPECT_GE(damage[(*v.edges)[e][0]], 0.5);
+                EXPECT_GE(damage[(*v.edges)[e][1]], 0.5);
+            }
+            EXPECT_GT(torn, 0u);
+            EXPECT_GT(coloured, 20);
+        }
+        ++checked;
+    };
+    scene::runScene(s, options);
+    EXPECT_EQ(checked, 2);
+    // Its colour bar is the damage bar (the scene has no strings).
+    const std::vector<ColorBar> bars = colorBars(s, 320, 180);
+    ASSERT_EQ(bars.size(), 1u);
+    EXPECT_EQ(bars[0].kind, BarKind::Damage);
 }
