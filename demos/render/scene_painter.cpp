@@ -236,6 +236,45 @@ std::vector<double> paperDamage(const PaperView& v, const PaperDesc& desc) {
     return damage;
 }
 
+void checkFollowable(const scene::Scene& scene, const std::string& name, const std::string& option) {
+    std::vector<std::string> names;
+    for (const scene::Body& b : scene.bodies) names.push_back(b.name);
+    for (const scene::Driver& d : scene.drivers)
+        if (d.body) names.push_back(d.body->name);
+    for (const scene::String& s : scene.strings) names.push_back(s.desc.name);
+    for (const scene::Cloth& c : scene.cloths) names.push_back(c.desc.name);
+    for (const scene::Paper& p : scene.papers) names.push_back(p.desc.name);
+    if (std::find(names.begin(), names.end(), name) != names.end()) return;
+    std::string list;
+    for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
+    throw InvalidInput(option, "no body, string, cloth or paper sheet named \"" + name + "\" in the scene (" +
+                                   (list.empty() ? std::string("it names none") : "its names: " + list) + ")");
+}
+
+std::optional<Vec3> followPoint(const scene::FrameState& frame, const std::string& name) {
+    for (const scene::FrameBody& b : frame.bodies)
+        if (b.name == name && b.position.allFinite()) return b.position;
+    Bounds bounds;
+    for (const scene::FrameString& s : frame.strings)
+        if (s.name == name)
+            for (const Vec3& p : *s.view.positions) bounds.add(p);
+    for (const scene::FrameCloth& c : frame.cloths)
+        if (c.name == name)
+            for (const Vec3& p : *c.view.positions) bounds.add(p);
+    for (const scene::FramePaper& p : frame.papers)
+        if (p.name == name)
+            for (const Vec3& x : *p.view.positions) bounds.add(x);
+    if (bounds.empty()) return std::nullopt;
+    return Vec3(0.5 * (bounds.lo + bounds.hi));
+}
+
+View followView(const View& view, const Vec3& point) {
+    View v = view;
+    v.eye = point + (view.eye - view.target);
+    v.target = point;
+    return v;
+}
+
 View fitCamera(const scene::Scene& scene, double aspect) { return fitCamera(scene, aspect, sceneBounds(scene)); }
 
 bool inFrame(const View& view, double aspect, const Bounds& bounds) {

@@ -6,6 +6,10 @@
 #include "render/renderer.hpp"
 #include "tearables/scene.hpp"
 
+#include <optional>
+#include <string>
+#include <vector>
+
 namespace tearables::render {
 
 /// Axis-aligned bounds of what a scene holds at the start (string points, cloths, paper
@@ -30,6 +34,17 @@ Bounds frameBounds(const scene::FrameState& frame);
 /// True when every corner of `bounds` is in front of the camera and inside its picture of
 /// the given aspect (width / height).
 bool inFrame(const View& view, double aspect, const Bounds& bounds);
+
+/// Checks a name for --follow: a body of the scene (or one it spawns), a string, a cloth or a
+/// paper sheet. Throws InvalidInput naming `option` and listing the names when it is none.
+void checkFollowable(const scene::Scene& scene, const std::string& name, const std::string& option = "--follow");
+/// Where the named body, string, cloth or sheet is in a frame: a body's centre of mass, or
+/// the middle of the bounds of the others' points, m; nullopt when the frame does not hold
+/// it (a body not spawned yet).
+std::optional<Vec3> followPoint(const scene::FrameState& frame, const std::string& name);
+/// `view` carried along so that it looks at `point` from the same offset (a camera on a
+/// dolly: the direction and the distance of the eye from the target are kept).
+View followView(const View& view, const Vec3& point);
 
 /// A cloth's damage per vertex, [0, 1]: the mean over the weave's cells around the vertex of
 /// each cell's most damaged yarn, a yarn's damage being 1 when torn, otherwise its plastic

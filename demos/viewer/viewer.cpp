@@ -596,6 +596,8 @@ void Viewer::drawScene() {
     scene::FrameState frame = rec_ ? rec_->state(rec_->frameAt(play_time_)) : run_->frame();
     frame.bodies.erase(std::remove_if(frame.bodies.begin(), frame.bodies.end(), [](const scene::FrameBody& b) { return b.name == kHandName; }),
                        frame.bodies.end());
+    if (!opt_.follow.empty())
+        if (const auto p = render::followPoint(frame, opt_.follow)) camera_.target = *p;
     render::drawFrame(*renderer_, scene_, frame, camera_.view());
     // The held point and the cursor, joined by the "spring".
     if (grab_.kind != Grab::Kind::None && run_) {

@@ -199,6 +199,38 @@ TEST(Viewer, ScreenshotAfterStepsWritesTheWindow) {
     expectColourBar(im);
 }
 
+// --follow in the window: a ball falls 11 m in 1.5 s; after 150 steps the middle of its
+// pixels (brown) is in the central third of the screenshot both ways.
+TEST(Viewer, FollowKeepsAFallingBodyCentred) {
+    if (tearables::render::findOnPath("xvfb-run").empty()) GTEST_SKIP() << "xvfb-run is not installed (apt-get install xvfb xauth)";
+    const fs::path dir = fs::path(TEARABLES_TEST_OUT) / "viewer" / "follow";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    std::ofstream(dir / "falling.json") << R"({"format": "tearables-scene/1", "dt": 0.01, "steps": 150,
+        "bodies": [{"name": "ball", "shape": {"sphere": 0.2}, "mass": 1, "position": [0.8, 10, 0]},
+                   {"name": "post", "shape": {"box": [0.2, 0.2, 0.2]}, "mass": 0, "position": [0, 10, 0]}]})";
+    const Outcome r = runIn(dir, "xvfb-run -a -s '-screen 0 1024x768x24' " + kViewer +
+                                 " falling.json --size 800x600 --hide-panels --follow ball --screenshot shot.png --steps 150");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const Image im = tearables::render::readPng((dir / "shot.png").string());
+    double sx = 0.0, sy = 0.0;
+    int n = 0;
+    for (int y = 0; y < im.height; ++y)
+        for (int x = 0; x < im.width; ++x) {
+            const auto p = im.at(x, y);
+            if (p[0] > 100 && p[0] > p[2] + 50) sx += x, sy += y, ++n;
+        }
+    ASSERT_GT(n, 50) << "the ball is not in the window";
+    EXPECT_GT(sx / n, im.width / 3.0);
+    EXPECT_LT(sx / n, 2.0 * im.width / 3.0);
+    EXPECT_GT(sy / n, im.height / 3.0);
+    EXPECT_LT(sy / n, 2.0 * im.height / 3.0);
+    // An unknown name is refused before any window, naming the option.
+    const Outcome bad = runIn(dir, "env -u DISPLAY " + kViewer + " falling.json --follow crate");
+    EXPECT_EQ(bad.status, 2);
+    EXPECT_NE(bad.err.find("--follow"), std::string::npos) << bad.err;
+}
+
 // Refusals come before any window: no display is needed for them.
 TEST(Viewer, BadScriptIsRefusedNamingTheLine) {
     const fs::path dir = fs::path(TEARABLES_TEST_OUT) / "viewer" / "bad_script";
