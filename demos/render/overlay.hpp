@@ -47,8 +47,16 @@ struct ColorBar {
 /// (left of the tension bar when both). Tension ticks are in newtons when every rope tears at
 /// the same tension, otherwise a share of each one's own rupture tension with their range
 /// under the bar; damage ticks are the share 0..1 with what counts as damage under the bar.
-/// `labels` holds the title above the bar first.
-std::vector<ColorBar> colorBars(const scene::Scene& scene, int width, int height);
+/// `labels` holds the title above the bar first. Lengths are `scale` times those of a
+/// 640x360 picture (1 in the viewer's window, whose text does not scale; overlayScale for
+/// headless frames); text is kTextHeight * scale pixels high.
+std::vector<ColorBar> colorBars(const scene::Scene& scene, int width, int height, float scale = 1.0f);
+
+/// The overlay's scale for a headless frame: its height over 360 pixels (the overlay keeps
+/// its share of the picture), but at least kMinOverlayScale so that the text stays legible.
+float overlayScale(int width, int height);
+constexpr float kMinOverlayScale = 0.7f;  ///< text 9 pixels high
+constexpr int kTextHeight = 13;           ///< the overlay's text height at scale 1, pixels
 
 /// True when the scene has strings (whose colours the tension bar explains).
 bool showsTension(const scene::Scene& scene);
@@ -59,14 +67,16 @@ bool showsDamage(const scene::Scene& scene);
 std::string timeStamp(double time, long long step);
 
 /// The time stamp's box at the picture's top-left corner, pixels from the top-left: the text
-/// starts at (x0 + 6, y0) and is `kTextHeight` high.
+/// starts at (x0 + 6 scale, y0 + 3 scale) and is kTextHeight * scale high.
 struct StampBox {
-    static constexpr int kTextHeight = 13;  ///< pixels
-    float x0 = 8.0f;                         ///< the box's left edge, pixels
-    float y0 = 8.0f;                         ///< the box's top edge, pixels
+    float x0 = 8.0f;     ///< the box's left edge, pixels
+    float y0 = 8.0f;     ///< the box's top edge, pixels
+    float scale = 1.0f;  ///< as colorBars' scale
+    /// The box at a scale (its corner 8 * scale pixels from the picture's).
+    static StampBox at(float scale) { return {8.0f * scale, 8.0f * scale, scale}; }
 };
 
-/// Paints the time stamp and the scene's colour bars (colorBars) into a headless
+/// Paints the time stamp and the scene's colour bars (colorBars) at overlayScale into a headless
 /// frame (with FreeType and the DejaVu Sans font of Debian's fonts-dejavu-core). Pictures
 /// smaller than kMinOverlayWidth x kMinOverlayHeight are left as they are (no room).
 /// Throws std::runtime_error when the font cannot be loaded, saying how to install it.

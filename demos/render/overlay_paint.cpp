@@ -26,7 +26,12 @@ public:
             throw std::runtime_error(std::string("the overlay's font ") + kFontPath +
                                      " could not be loaded: sudo apt-get install fonts-dejavu-core");
         }
-        FT_Set_Pixel_Sizes(face_, 0, StampBox::kTextHeight - 2);
+        setHeight(kTextHeight);
+    }
+    /// Sets the glyphs' size for text `height` pixels high (line height; the em is 2 less).
+    void setHeight(int height) {
+        if (height != height_) FT_Set_Pixel_Sizes(face_, 0, static_cast<FT_UInt>(std::max(height - 2, 4)));
+        height_ = height;
     }
     ~Font() {
         FT_Done_Face(face_);
@@ -39,6 +44,7 @@ public:
 private:
     FT_Library library_ = nullptr;
     FT_Face face_ = nullptr;
+    int height_ = 0;
 };
 
 Font& font() {
@@ -96,11 +102,14 @@ void paintOverlay(Image& image, const scene::Scene& scene, double time, long lon
     const std::array<float, 3> ink{30.0f, 30.0f, 30.0f}, paper{255.0f, 255.0f, 255.0f};
     // The time stamp on a light box (the sky and the ground are both light; the box keeps
     // the text readable over a dark body).
-    const StampBox box;
+    const float scale = overlayScale(image.width, image.height);
+    const float text_height = static_cast<float>(kTextHeight) * scale;
+    font().setHeight(static_cast<int>(std::lround(text_height)));
+    const StampBox box = StampBox::at(scale);
     const std::string stamp = timeStamp(time, step);
-    fillRect(image, box.x0, box.y0, box.x0 + textWidth(stamp) + 12.0f, box.y0 + StampBox::kTextHeight + 6.0f, paper, 0.75f);
-    drawText(image, stamp, box.x0 + 6.0f, box.y0 + 3.0f + 0.5f * StampBox::kTextHeight, ink);
-    for (const ColorBar& bar : colorBars(scene, image.width, image.height)) {
+    fillRect(image, box.x0, box.y0, box.x0 + textWidth(stamp) + 12.0f * scale, box.y0 + text_height + 6.0f * scale, paper, 0.75f);
+    drawText(image, stamp, box.x0 + 6.0f * scale, box.y0 + 3.0f * scale + 0.5f * text_height, ink);
+    for (const ColorBar& bar : colorBars(scene, image.width, image.height, scale)) {
         for (int k = 0; k < ColorBar::kBands; ++k) {
             const auto [top, bottom] = bar.bandRows(k);
             const Rgb c = ColorBar::bandColor(k);

@@ -332,10 +332,15 @@ Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::Fra
 
 void drawFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view) {
     const Bounds b = sceneBounds(scene);
-    const Vec3 centre = 0.5 * (b.lo + b.hi);
     const double size = std::max((b.hi - b.lo).norm(), 0.1);
     const double distance = (view.eye - view.target).norm();
     renderer.begin(view, distance * 0.01, distance * 10.0 + size * 20.0);
+    // The floor and the grid go where the camera looks (a refitted or following camera keeps
+    // them under it), wide enough to reach the picture's edges: at the target's depth the
+    // picture is 2 d tan(fov/2) high, and from 20 degrees above the floor is seen up to a
+    // few times that far.
+    const Vec3 centre = view.target;
+    const double half_view = distance * std::tan(view.fov * M_PI / 360.0);
 
     bool ground = false;
     for (std::size_t i = 0; i < frame.bodies.size(); ++i) {
@@ -351,7 +356,7 @@ void drawFrame(Renderer& renderer, const scene::Scene& scene, const scene::Frame
         const Rgb c = bodyColor(body, i, is_static);
         switch (s.kind) {
             case scene::Shape::Kind::Plane:
-                renderer.drawGround(s.plane_normal, s.plane_offset, centre, std::max(3.0 * size, 2.0));
+                renderer.drawGround(s.plane_normal, s.plane_offset, centre, std::max({3.0 * size, 2.0, 8.0 * half_view}));
                 ground = true;
                 break;
             case scene::Shape::Kind::Box: renderer.drawBox(s.half_extents, body.position, body.orientation, c); break;
@@ -361,8 +366,12 @@ void drawFrame(Renderer& renderer, const scene::Scene& scene, const scene::Frame
                 break;
         }
     }
-    // Without a ground, a faint grid below the scene still gives depth and scale.
-    if (!ground) renderer.drawReferenceGrid(Vec3::UnitY(), b.lo.y() - 0.3 * size, centre, std::max(1.5 * size, 1.0));
+    // Without a ground, a faint grid below the scene still gives depth and scale: below what
+    // the scene starts with, and below the lower part of the view when the camera has moved
+    // down (something fell).
+    if (!ground)
+        renderer.drawReferenceGrid(Vec3::UnitY(), std::min(b.lo.y() - 0.3 * size, view.target.y() - 0.9 * half_view), centre,
+                                   std::max({1.5 * size, 1.0, 4.0 * half_view}));
 
     std::vector<double> radius;
     std::vector<Rgb> colors;

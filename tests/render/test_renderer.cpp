@@ -521,3 +521,84 @@ TEST(Renderer, ClothIsColouredByDamage) {
     ASSERT_EQ(bars.size(), 1u);
     EXPECT_EQ(bars[0].kind, BarKind::Damage);
 }
+
+// The grid stays under a refitted camera: a ball falls 11 m below a post in a scene without
+// a ground; the camera refitted to everything seen (as --png does) looks far below where
+// the scene started, and the grid is drawn there: the lower quarter of the picture has grid
+// lines (pixels off the empty sky's gradient), as does the first frame's.
+TEST(Renderer, GridStaysUnderARefittedCamera) {
+    scene::Scene s = scene::parseScene(R"({"dt": 0.01, "steps": 150,
+        "bodies": [{"name": "ball", "shape": {"sphere": 0.2}, "mass": 1, "position": [0.8, 10, 0]},
+                   {"name": "post", "shape": {"box": [0.2, 0.2, 0.2]}, "mass": 0, "position": [0, 10, 0]}]})");
+    const int w = 320, h = 180;
+    Renderer r(w, h);
+    Bounds seen = sceneBounds(s);
+    View view = fitCamera(s, static_cast<double>(w) / h);
+    scene::RunOptions options;
+    options.every = 150;
+    int checked = 0;
+    options.on_frame = [&](const scene::FrameState& f) {
+        const Bounds now = frameBounds(f);
+        if (!inFrame(view, static_cast<double>(w) / h, now)) {
+            seen.add(now.lo);
+            seen.add(now.hi);
+            view = fitCamera(s, static_cast<double>(w) / h, seen);
+        }
+        const Image picture = paintFrame(r, s, f, view);
+        r.begin(view);
+        const Image sky = r.finish();
+        int lines = 0;
+        for (int y = 3 * h / 4; y < h; ++y)
+            for (int x = 0; x < w; ++x) lines += difference(picture.at(x, y), sky.at(x, y)) > 20;
+        std::printf("step %lld: camera target y = %.2f m, %d grid pixels in the lower quarter\n", f.step, view.target.y(), lines);
+        EXPECT_GT(lines, 100) << "no grid under the camera at step " << f.step;
+        ++checked;
+    };
+    scene::runScene(s, options);
+    EXPECT_EQ(checked, 2);
+    EXPECT_LT(view.target.y(), 6.0);  // the camera was refitted down
+}
+
+// The overlay scales with the frame: at 1280x720 the colour bar's rectangle is twice that
+// of 640x360 (the same share of the picture), at 320x180 it is 0.7 times (the least scale,
+// so that 9-pixel text stays legible), and the time stamp's box scales alike.
+TEST(Renderer, OverlayScalesWithTheFrame) {
+    const auto text = scene::builtinSceneText("swing");
+    ASSERT_TRUE(text.has_value());
+    const scene::Scene s = scene::parseScene(*text);
+    EXPECT_FLOAT_EQ(overlayScale(640, 360), 1.0f);
+    EXPECT_FLOAT_EQ(overlayScale(1280, 720), 2.0f);
+    EXPECT_FLOAT_EQ(overlayScale(320, 180), kMinOverlayScale);
+    const ColorBar small = colorBars(s, 640, 360, overlayScale(640, 360)).at(0);
+    const ColorBar large = colorBars(s, 1280, 720, overlayScale(1280, 720)).at(0);
+    EXPECT_FLOAT_EQ(large.x0, 2.0f * small.x0);
+    EXPECT_FLOAT_EQ(large.x1, 2.0f * small.x1);
+    EXPECT_FLOAT_EQ(large.y0, 2.0f * small.y0);
+    EXPECT_FLOAT_EQ(large.y1, 2.0f * small.y1);
+    const ColorBar tiny = colorBars(s, 320, 180, overlayScale(320, 180)).at(0);
+    EXPECT_NEAR(tiny.x1 - tiny.x0, 0.7f * (small.x1 - small.x0), 1e-3);
+    EXPECT_LE(tiny.y1, 180.0f - 0.7f * 30.0f);
+    EXPECT_FLOAT_EQ(StampBox::at(2.0f).x0, 2.0f * StampBox::at(1.0f).x0);
+    // Painted: the bar's bands at 1280x720 lie where the layout puts them.
+    Image image;
+    image.width = 1280;
+    image.height = 720;
+    image.rgb.assign(1280 * 720 * 3, 255);
+    paintOverlay(image, s, 0.0, 0);
+    for (int k : {5, 30, 60}) {
+        const auto [top, bottom] = large.bandRows(k);
+        const auto p = image.at(static_cast<int>(0.5f * (large.x0 + large.x1)), static_cast<int>(0.5f * (top + bottom)));
+        const Rgb c = ColorBar::bandColor(k);
+        EXPECT_NEAR(p[0], 255.0 * c.r, 2.0);
+        EXPECT_NEAR(p[1], 255.0 * c.g, 2.0);
+        EXPECT_NEAR(p[2], 255.0 * c.b, 2.0);
+    }
+    // The stamp's text is 26 px high at this scale: dark ink well below row 8 + 13.
+    int ink_low = 0;
+    for (int y = 30; y < 50; ++y)
+        for (int x = 16; x < 200; ++x) {
+            const auto p = image.at(x, y);
+            ink_low += p[0] + p[1] + p[2] < 300;
+        }
+    EXPECT_GT(ink_low, 30);
+}
