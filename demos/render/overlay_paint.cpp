@@ -110,6 +110,15 @@ void paintOverlay(Image& image, const scene::Scene& scene, double time, long lon
     fillRect(image, box.x0, box.y0, box.x0 + textWidth(stamp) + 12.0f * scale, box.y0 + text_height + 6.0f * scale, paper, 0.75f);
     drawText(image, stamp, box.x0 + 6.0f * scale, box.y0 + 3.0f * scale + 0.5f * text_height, ink);
     for (const ColorBar& bar : colorBars(scene, image.width, image.height, scale)) {
+        // A light box under the bar and its labels, as under the stamp.
+        float box_left = bar.x0 - 1.0f, box_top = bar.y0 - 1.0f, box_bottom = bar.y1 + 1.0f;
+        for (const TextPlacement& t : bar.labels) {
+            box_left = std::min(box_left, t.right - textWidth(t.text));
+            box_top = std::min(box_top, t.middle - 0.5f * text_height);
+            box_bottom = std::max(box_bottom, t.middle + 0.5f * text_height);
+        }
+        const float pad = 4.0f * scale;
+        fillRect(image, box_left - pad, box_top - pad, bar.x1 + 1.0f + pad, box_bottom + pad, paper, 0.75f);
         for (int k = 0; k < ColorBar::kBands; ++k) {
             const auto [top, bottom] = bar.bandRows(k);
             const Rgb c = ColorBar::bandColor(k);

@@ -767,7 +767,7 @@ void Viewer::drawCommonPanels() {
             "wheel zooms; shift-click (or the cut tool) cuts a rope.\n"
             "keys: Space play/pause, N one step, S slow motion, +/- speed, R restart, C cut tool, G drag tool, "
             "B drop a crate, W wind, F fit the camera, H this help, P all panels, Q or Esc quit.\n"
-            "ropes are coloured by tension / rupture tension (the bar at the right).");
+            "ropes are coloured by tension / rupture tension, cloths and paper by damage (the bars at the right).");
         ImGui::End();
     }
 }
