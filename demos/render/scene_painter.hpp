@@ -56,7 +56,8 @@ std::vector<double> clothDamage(const ClothView& view, const ClothDesc& desc);
 /// border that was not on the border of `desc`'s mesh).
 std::vector<double> paperDamage(const PaperView& view, const PaperDesc& desc);
 
-/// Draws one frame: the ground (a plane body) or a reference grid, the rigid bodies, the
+/// Draws one frame: the ground (a plane body) or a reference grid, both around where `view`
+/// looks (so they stay under a refitted or following camera), the rigid bodies, the
 /// strings as tubes coloured by load (tension / rupture tension, colormap.hpp), broken
 /// segments left out, world pins as dark blocks, cloths and paper sheets as surfaces
 /// coloured by damage (clothDamage, paperDamage) with the creases and folds of paper in dark
