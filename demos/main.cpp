@@ -107,7 +107,7 @@ int main(int argc, char** argv) {
     long long steps = -1;
     int every = 0;
     bool png = false, quiet = false, mp4 = false, plot = false;
-    std::string size_text, plot_size_text;
+    std::string size_text, plot_size_text, follow;
     CLI::App* run = app.add_subcommand("run", "run a scene file or a built-in scene");
     run->add_option("SCENE", scene_arg, "a scene JSON file, or a built-in scene's name")->required();
     run->add_option("--out", out_dir, "output directory (default: tearables-out/<scene>)");
@@ -116,6 +116,7 @@ int main(int argc, char** argv) {
     run->add_option("--every", every, "write a trace frame every K steps")->check(CLI::PositiveNumber);
     run->add_flag("--png", png, "write frame_NNNNN.png images of every trace frame (offscreen OpenGL, OSMesa)");
     run->add_option("--size", size_text, "image size WIDTHxHEIGHT for --png and --mp4 (default 640x360)");
+    run->add_option("--follow", follow, "keep the named body, string, cloth or paper sheet in the middle of the pictures (the camera moves with it)");
     run->add_flag("--mp4", mp4, "also assemble the frames into video.mp4 with ffmpeg (implies --png)");
     run->add_flag("--plot", plot, "plot.png with gnuplot: strings' tension, length, stress-strain (and torsional strain when they twist); cloths' yarn tension and torn yarns; paper sheets' creases, tears and broken springs");
     run->add_option("--plot-size", plot_size_text, "plot.png's size WIDTHxHEIGHT (default 1200x900)");
@@ -150,7 +151,10 @@ int main(int argc, char** argv) {
                 if (!plot) throw tearables::InvalidInput("--plot-size", "sets the size of plot.png: give it with --plot");
                 plot_size = parseSize(plot_size_text, "--plot-size");
             }
+            if (!follow.empty() && !png)
+                throw tearables::InvalidInput("--follow", "moves the camera of pictures: give it with --png or --mp4");
             scene = loadNamed(scene_arg);
+            if (!follow.empty()) tr::checkFollowable(scene, follow);
             if (plot) tr::checkPlottable(scene);
         }))
         return status;
@@ -186,7 +190,10 @@ int main(int argc, char** argv) {
             seen = tr::sceneBounds(scene);
             options.on_frame = [&, aspect](const ts::FrameState& f) {
                 const tr::Bounds now = tr::frameBounds(f);
-                if (!scene.camera.eye && !now.empty() && !tr::inFrame(view, aspect, now)) {
+                if (!follow.empty()) {
+                    // Following: the camera keeps its offset from the followed thing.
+                    if (const auto p = tr::followPoint(f, follow)) view = tr::followView(view, *p);
+                } else if (!scene.camera.eye && !now.empty() && !tr::inFrame(view, aspect, now)) {
                     seen.add(now.lo);
                     seen.add(now.hi);
                     view = tr::fitCamera(scene, aspect, seen);

@@ -1,5 +1,5 @@
-// What is drawn over a scene's picture, in pixels: the tension colour bar and the time
-// stamp. The layout is computed here once; the viewer draws it with Dear ImGui
+// What is drawn over a scene's picture, in pixels: the colour bars (tension of strings,
+// damage of cloths and paper sheets) and the time stamp. The layout is computed here once; the viewer draws it with Dear ImGui
 // (demos/viewer/viewer.cpp), headless frames with paintOverlay (overlay_paint.cpp).
 #pragma once
 
@@ -12,8 +12,8 @@
 
 namespace tearables::render {
 
-/// The rupture tensions (N) of the scene's strings and cloth yarns, smallest and largest
-/// (0, 0 when it has none): the colours are each object's load / its own rupture tension.
+/// The rupture tensions (N) of the scene's strings, smallest and largest (0, 0 when it has
+/// none): the colours of ropes are each one's load / its own rupture tension.
 std::pair<double, double> ruptureTensions(const scene::Scene& scene);
 
 /// A line of text placed in the picture: right-aligned at x = `right` (pixels from the left),
@@ -24,9 +24,16 @@ struct TextPlacement {
     float middle = 0.0f;   ///< y of the text's middle, pixels from the top
 };
 
-/// The colour bar at the picture's right edge: load / rupture load, from the bottom (slack,
-/// tensionColor(0)) to the top (tears, tensionColor(1)), in kBands flat bands.
+/// What a colour bar explains.
+enum class BarKind {
+    Tension,  ///< strings: load / rupture load
+    Damage,   ///< cloths and paper sheets: the damaged share around each vertex (clothDamage, paperDamage)
+};
+
+/// A colour bar: from the bottom (tensionColor(0): slack, or intact) to the top
+/// (tensionColor(1): tears, or all damaged), in kBands flat bands.
 struct ColorBar {
+    BarKind kind = BarKind::Tension;                   ///< what the colours mean
     static constexpr int kBands = 64;                  ///< flat bands from load 0 to load 1
     float x0 = 0.0f, y0 = 0.0f, x1 = 0.0f, y1 = 0.0f;  ///< the bar's rectangle, pixels from the top-left
     std::vector<TextPlacement> labels;                 ///< ticks left of the bar, bottom to top
@@ -35,26 +42,41 @@ struct ColorBar {
     static Rgb bandColor(int k);
 };
 
-/// The colour bar of a picture width x height pixels for `scene`: ticks in newtons when every
-/// rope and yarn tears at the same tension, otherwise as a share of each one's own rupture
-/// tension with their range under the bar (in `labels` too: its title above the bar first).
-ColorBar colorBar(const scene::Scene& scene, int width, int height);
+/// The colour bars of a picture width x height pixels for `scene`, right to left: tension at
+/// the right edge where the scene has strings, damage where it has cloths or paper sheets
+/// (left of the tension bar when both). Tension ticks are in newtons when every rope tears at
+/// the same tension, otherwise a share of each one's own rupture tension with their range
+/// under the bar; damage ticks are the share 0..1 with what counts as damage under the bar.
+/// `labels` holds the title above the bar first. Lengths are `scale` times those of a
+/// 640x360 picture (1 in the viewer's window, whose text does not scale; overlayScale for
+/// headless frames); text is kTextHeight * scale pixels high.
+std::vector<ColorBar> colorBars(const scene::Scene& scene, int width, int height, float scale = 1.0f);
 
-/// True when the scene has strings or cloths (whose colours the bar explains).
+/// The overlay's scale for a headless frame: its height over 360 pixels (the overlay keeps
+/// its share of the picture), but at least kMinOverlayScale so that the text stays legible.
+float overlayScale(int width, int height);
+constexpr float kMinOverlayScale = 0.7f;  ///< text 9 pixels high
+constexpr int kTextHeight = 13;           ///< the overlay's text height at scale 1, pixels
+
+/// True when the scene has strings (whose colours the tension bar explains).
 bool showsTension(const scene::Scene& scene);
+/// True when the scene has cloths or paper sheets (whose colours the damage bar explains).
+bool showsDamage(const scene::Scene& scene);
 
 /// The time stamp's text, "t = 1.250 s   step 125".
 std::string timeStamp(double time, long long step);
 
 /// The time stamp's box at the picture's top-left corner, pixels from the top-left: the text
-/// starts at (x0 + 6, y0) and is `kTextHeight` high.
+/// starts at (x0 + 6 scale, y0 + 3 scale) and is kTextHeight * scale high.
 struct StampBox {
-    static constexpr int kTextHeight = 13;  ///< pixels
-    float x0 = 8.0f;                         ///< the box's left edge, pixels
-    float y0 = 8.0f;                         ///< the box's top edge, pixels
+    float x0 = 8.0f;     ///< the box's left edge, pixels
+    float y0 = 8.0f;     ///< the box's top edge, pixels
+    float scale = 1.0f;  ///< as colorBars' scale
+    /// The box at a scale (its corner 8 * scale pixels from the picture's).
+    static StampBox at(float scale) { return {8.0f * scale, 8.0f * scale, scale}; }
 };
 
-/// Paints the time stamp and, where the scene shows tension, the colour bar into a headless
+/// Paints the time stamp and the scene's colour bars (colorBars) at overlayScale into a headless
 /// frame (with FreeType and the DejaVu Sans font of Debian's fonts-dejavu-core). Pictures
 /// smaller than kMinOverlayWidth x kMinOverlayHeight are left as they are (no room).
 /// Throws std::runtime_error when the font cannot be loaded, saying how to install it.

@@ -26,7 +26,12 @@ public:
             throw std::runtime_error(std::string("the overlay's font ") + kFontPath +
                                      " could not be loaded: sudo apt-get install fonts-dejavu-core");
         }
-        FT_Set_Pixel_Sizes(face_, 0, StampBox::kTextHeight - 2);
+        setHeight(kTextHeight);
+    }
+    /// Sets the glyphs' size for text `height` pixels high (line height; the em is 2 less).
+    void setHeight(int height) {
+        if (height != height_) FT_Set_Pixel_Sizes(face_, 0, static_cast<FT_UInt>(std::max(height - 2, 4)));
+        height_ = height;
     }
     ~Font() {
         FT_Done_Face(face_);
@@ -39,6 +44,7 @@ public:
 private:
     FT_Library library_ = nullptr;
     FT_Face face_ = nullptr;
+    int height_ = 0;
 };
 
 Font& font() {
@@ -96,23 +102,35 @@ void paintOverlay(Image& image, const scene::Scene& scene, double time, long lon
     const std::array<float, 3> ink{30.0f, 30.0f, 30.0f}, paper{255.0f, 255.0f, 255.0f};
     // The time stamp on a light box (the sky and the ground are both light; the box keeps
     // the text readable over a dark body).
-    const StampBox box;
+    const float scale = overlayScale(image.width, image.height);
+    const float text_height = static_cast<float>(kTextHeight) * scale;
+    font().setHeight(static_cast<int>(std::lround(text_height)));
+    const StampBox box = StampBox::at(scale);
     const std::string stamp = timeStamp(time, step);
-    fillRect(image, box.x0, box.y0, box.x0 + textWidth(stamp) + 12.0f, box.y0 + StampBox::kTextHeight + 6.0f, paper, 0.75f);
-    drawText(image, stamp, box.x0 + 6.0f, box.y0 + 3.0f + 0.5f * StampBox::kTextHeight, ink);
-    if (!showsTension(scene)) return;
-    const ColorBar bar = colorBar(scene, image.width, image.height);
-    for (int k = 0; k < ColorBar::kBands; ++k) {
-        const auto [top, bottom] = bar.bandRows(k);
-        const Rgb c = ColorBar::bandColor(k);
-        fillRect(image, bar.x0, top, bar.x1, bottom, {255.0f * c.r, 255.0f * c.g, 255.0f * c.b});
+    fillRect(image, box.x0, box.y0, box.x0 + textWidth(stamp) + 12.0f * scale, box.y0 + text_height + 6.0f * scale, paper, 0.75f);
+    drawText(image, stamp, box.x0 + 6.0f * scale, box.y0 + 3.0f * scale + 0.5f * text_height, ink);
+    for (const ColorBar& bar : colorBars(scene, image.width, image.height, scale)) {
+        // A light box under the bar and its labels, as under the stamp.
+        float box_left = bar.x0 - 1.0f, box_top = bar.y0 - 1.0f, box_bottom = bar.y1 + 1.0f;
+        for (const TextPlacement& t : bar.labels) {
+            box_left = std::min(box_left, t.right - textWidth(t.text));
+            box_top = std::min(box_top, t.middle - 0.5f * text_height);
+            box_bottom = std::max(box_bottom, t.middle + 0.5f * text_height);
+        }
+        const float pad = 4.0f * scale;
+        fillRect(image, box_left - pad, box_top - pad, bar.x1 + 1.0f + pad, box_bottom + pad, paper, 0.75f);
+        for (int k = 0; k < ColorBar::kBands; ++k) {
+            const auto [top, bottom] = bar.bandRows(k);
+            const Rgb c = ColorBar::bandColor(k);
+            fillRect(image, bar.x0, top, bar.x1, bottom, {255.0f * c.r, 255.0f * c.g, 255.0f * c.b});
+        }
+        const std::array<float, 3> frame{60.0f, 60.0f, 60.0f};
+        fillRect(image, bar.x0 - 1, bar.y0 - 1, bar.x1 + 1, bar.y0, frame);
+        fillRect(image, bar.x0 - 1, bar.y1, bar.x1 + 1, bar.y1 + 1, frame);
+        fillRect(image, bar.x0 - 1, bar.y0, bar.x0, bar.y1, frame);
+        fillRect(image, bar.x1, bar.y0, bar.x1 + 1, bar.y1, frame);
+        for (const TextPlacement& t : bar.labels) drawText(image, t.text, t.right - textWidth(t.text), t.middle, ink);
     }
-    const std::array<float, 3> frame{60.0f, 60.0f, 60.0f};
-    fillRect(image, bar.x0 - 1, bar.y0 - 1, bar.x1 + 1, bar.y0, frame);
-    fillRect(image, bar.x0 - 1, bar.y1, bar.x1 + 1, bar.y1 + 1, frame);
-    fillRect(image, bar.x0 - 1, bar.y0, bar.x0, bar.y1, frame);
-    fillRect(image, bar.x1, bar.y0, bar.x1 + 1, bar.y1, frame);
-    for (const TextPlacement& t : bar.labels) drawText(image, t.text, t.right - textWidth(t.text), t.middle, ink);
 }
 
 }  // namespace tearables::render

@@ -276,7 +276,8 @@ double Renderer::pixelSizeAt(const Vec3& point) const {
 
 void Renderer::drawTube(const std::vector<Vec3>& points, const std::vector<double>& radius, const std::vector<Rgb>& colors,
                         const std::vector<std::uint8_t>& skip) {
-    constexpr int kSides = 10;
+    // 16 sides: the polygon's silhouette is within cos(pi/16) (2 %) of the true diameter.
+    constexpr int kSides = 16;
     const std::size_t segments = points.size() < 2 ? 0 : points.size() - 1;
     for (std::size_t j = 0; j < segments; ++j) {
         if (j < skip.size() && skip[j]) continue;

@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <set>
 
 namespace tearables::render {
 
@@ -136,6 +138,143 @@ Bounds frameBounds(const scene::FrameState& frame) {
     return b;
 }
 
+std::vector<double> clothDamage(const ClothView& v, const ClothDesc& desc) {
+    const int nu = v.resolution[0], nv = v.resolution[1];
+    const std::size_t n = v.vertexCount();
+    std::vector<double> damage(n, 0.0);
+    if (nu < 2 || nv < 2 || n != static_cast<std::size_t>(nu) * static_cast<std::size_t>(nv)) return damage;
+    // A yarn's damage: 1 when torn; otherwise its permanent (plastic) strain over the one
+    // it would keep at rupture. The yarns start at the grid spacing (src/cloth/mesh.cpp) and
+    // plasticity lengthens them to (1 + eps_p) times that, where on the bilinear curve
+    // eps_p(sigma) = sigma_y / E + (sigma - sigma_y) / H - sigma / E past yield (unloading
+    // parallel to the elastic line; src/sim/material_curve.hpp).
+    const TensileCurve& curve = desc.material.tensile;
+    const double at_rupture =
+        curve.yield / curve.young + (curve.rupture - curve.yield) / curve.plastic_modulus - curve.rupture / curve.young;
+    const double spacing[2] = {desc.size[0] / (nu - 1), desc.size[1] / (nv - 1)};
+    std::vector<double> right_damage(n, 0.0), up_damage(n, 0.0);  // the yarn to (i+1, j) / (i, j+1)
+    for (std::size_t e = 0; e < v.edgeCount(); ++e) {
+        const std::uint32_t lo = std::min((*v.edges)[e][0], (*v.edges)[e][1]), hi = std::max((*v.edges)[e][0], (*v.edges)[e][1]);
+        if (hi >= n) continue;
+        const bool right = hi == lo + 1, up = hi == lo + static_cast<std::uint32_t>(nu);
+        if (!right && !up) continue;
+        // (Rest lengths are measured between rotated grid points: under 1e-9 is rounding.)
+        double plastic = (*v.rest_length)[e] / spacing[right ? 0 : 1] - 1.0;
+        if (plastic < 1e-9) plastic = 0.0;
+        double d = (*v.broken)[e] ? 1.0 : at_rupture > 0.0 ? plastic / at_rupture : 0.0;
+        d = std::isfinite(d) ? std::clamp(d, 0.0, 1.0) : 0.0;
+        (right ? right_damage : up_damage)[lo] = d;
+    }
+    // A cell is as damaged as its most damaged yarn; a vertex takes the mean of its cells.
+    std::vector<int> cells(n, 0);
+    std::vector<double> hurt(n, 0.0);
+    for (int j = 0; j + 1 < nv; ++j)
+        for (int i = 0; i + 1 < nu; ++i) {
+            const auto idx = [nu](int u, int w) { return static_cast<std::size_t>(w) * static_cast<std::size_t>(nu) + static_cast<std::size_t>(u); };
+            const std::size_t p00 = idx(i, j), p10 = idx(i + 1, j), p01 = idx(i, j + 1), p11 = idx(i + 1, j + 1);
+            const double cell = std::max({right_damage[p00], up_damage[p00], right_damage[p01], up_damage[p10]});
+            for (std::size_t p : {p00, p10, p01, p11}) {
+                ++cells[p];
+                hurt[p] += cell;
+            }
+        }
+    for (std::size_t p = 0; p < n; ++p) damage[p] = cells[p] > 0 ? hurt[p] / cells[p] : 0.0;
+    return damage;
+}
+
+std::vector<double> paperDamage(const PaperView& v, const PaperDesc& desc) {
+    const std::size_t n = v.vertexCount();
+    std::vector<double> damage(n, 0.0);
+    if (!v.triangles || !v.springs) return damage;
+    const auto key = [](std::uint32_t a, std::uint32_t b) {
+        return (static_cast<std::uint64_t>(std::min(a, b)) << 32) | std::max(a, b);
+    };
+    // Which vertices were on the sheet's border at rest: the rectangle's edge rows and
+    // columns, or the ends of the mesh's edges that belong to one triangle only.
+    std::vector<std::uint8_t> border(n, 0);
+    if (desc.vertices.empty()) {
+        const int nu = desc.resolution[0], nv = desc.resolution[1];
+        for (int k = 0; k < nv; ++k)
+            for (int i = 0; i < nu; ++i) {
+                const std::size_t p = static_cast<std::size_t>(desc.gridVertex(i, k));
+                if (p < n && (i == 0 || k == 0 || i == nu - 1 || k == nv - 1)) border[p] = 1;
+            }
+    } else {
+        std::map<std::uint64_t, int> uses;
+        for (const auto& t : desc.triangles)
+            for (int c = 0; c < 3; ++c) ++uses[key(t[c], t[(c + 1) % 3])];
+        for (const auto& [edge, count] : uses)
+            if (count == 1)
+                for (std::uint64_t p : {edge >> 32, edge & 0xffffffffu})
+                    if (p < n) border[p] = 1;
+    }
+    // A crease vertex inserted on a border edge is on the border (springs are appended in
+    // order, so its edge's ends are settled before it); a vertex split by a tear is not.
+    for (const PaperSpring& sp : *v.springs)
+        if (sp.kind == PaperSpringKind::Auxiliary && sp.hinge[0] < n && sp.a < n && sp.b < n)
+            border[sp.hinge[0]] = border[sp.a] && border[sp.b];
+    std::set<std::uint64_t> damaged_edges;
+    for (const auto& line : paperCreaseLines(v)) damaged_edges.insert(key(line[0], line[1]));
+    std::map<std::uint64_t, int> uses;
+    for (const auto& t : *v.triangles)
+        for (int c = 0; c < 3; ++c) ++uses[key(t[c], t[(c + 1) % 3])];
+    for (const auto& [edge, count] : uses) {
+        const std::uint64_t a = edge >> 32, b = edge & 0xffffffffu;
+        if (count == 1 && a < n && b < n && !(border[a] && border[b])) damaged_edges.insert(edge);
+    }
+    std::vector<int> faces(n, 0), hurt(n, 0);
+    for (const auto& t : *v.triangles) {
+        if (t[0] >= n || t[1] >= n || t[2] >= n) continue;
+        bool damaged = false;
+        for (int c = 0; c < 3; ++c) damaged = damaged || damaged_edges.count(key(t[c], t[(c + 1) % 3])) > 0;
+        for (std::uint32_t p : t) {
+            ++faces[p];
+            hurt[p] += damaged;
+        }
+    }
+    for (std::size_t p = 0; p < n; ++p) damage[p] = faces[p] > 0 ? static_cast<double>(hurt[p]) / faces[p] : 0.0;
+    return damage;
+}
+
+void checkFollowable(const scene::Scene& scene, const std::string& name, const std::string& option) {
+    std::vector<std::string> names;
+    for (const scene::Body& b : scene.bodies) names.push_back(b.name);
+    for (const scene::Driver& d : scene.drivers)
+        if (d.body) names.push_back(d.body->name);
+    for (const scene::String& s : scene.strings) names.push_back(s.desc.name);
+    for (const scene::Cloth& c : scene.cloths) names.push_back(c.desc.name);
+    for (const scene::Paper& p : scene.papers) names.push_back(p.desc.name);
+    if (std::find(names.begin(), names.end(), name) != names.end()) return;
+    std::string list;
+    for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
+    throw InvalidInput(option, "no body, string, cloth or paper sheet named \"" + name + "\" in the scene (" +
+                                   (list.empty() ? std::string("it names none") : "its names: " + list) + ")");
+}
+
+std::optional<Vec3> followPoint(const scene::FrameState& frame, const std::string& name) {
+    for (const scene::FrameBody& b : frame.bodies)
+        if (b.name == name && b.position.allFinite()) return b.position;
+    Bounds bounds;
+    for (const scene::FrameString& s : frame.strings)
+        if (s.name == name)
+            for (const Vec3& p : *s.view.positions) bounds.add(p);
+    for (const scene::FrameCloth& c : frame.cloths)
+        if (c.name == name)
+            for (const Vec3& p : *c.view.positions) bounds.add(p);
+    for (const scene::FramePaper& p : frame.papers)
+        if (p.name == name)
+            for (const Vec3& x : *p.view.positions) bounds.add(x);
+    if (bounds.empty()) return std::nullopt;
+    return Vec3(0.5 * (bounds.lo + bounds.hi));
+}
+
+View followView(const View& view, const Vec3& point) {
+    View v = view;
+    v.eye = point + (view.eye - view.target);
+    v.target = point;
+    return v;
+}
+
 View fitCamera(const scene::Scene& scene, double aspect) { return fitCamera(scene, aspect, sceneBounds(scene)); }
 
 bool inFrame(const View& view, double aspect, const Bounds& bounds) {
@@ -193,10 +332,15 @@ Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::Fra
 
 void drawFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view) {
     const Bounds b = sceneBounds(scene);
-    const Vec3 centre = 0.5 * (b.lo + b.hi);
     const double size = std::max((b.hi - b.lo).norm(), 0.1);
     const double distance = (view.eye - view.target).norm();
     renderer.begin(view, distance * 0.01, distance * 10.0 + size * 20.0);
+    // The floor and the grid go where the camera looks (a refitted or following camera keeps
+    // them under it), wide enough to reach the picture's edges: at the target's depth the
+    // picture is 2 d tan(fov/2) high, and from 20 degrees above the floor is seen up to a
+    // few times that far.
+    const Vec3 centre = view.target;
+    const double half_view = distance * std::tan(view.fov * M_PI / 360.0);
 
     bool ground = false;
     for (std::size_t i = 0; i < frame.bodies.size(); ++i) {
@@ -212,7 +356,7 @@ void drawFrame(Renderer& renderer, const scene::Scene& scene, const scene::Frame
         const Rgb c = bodyColor(body, i, is_static);
         switch (s.kind) {
             case scene::Shape::Kind::Plane:
-                renderer.drawGround(s.plane_normal, s.plane_offset, centre, std::max(3.0 * size, 2.0));
+                renderer.drawGround(s.plane_normal, s.plane_offset, centre, std::max({3.0 * size, 2.0, 8.0 * half_view}));
                 ground = true;
                 break;
             case scene::Shape::Kind::Box: renderer.drawBox(s.half_extents, body.position, body.orientation, c); break;
@@ -222,8 +366,12 @@ void drawFrame(Renderer& renderer, const scene::Scene& scene, const scene::Frame
                 break;
         }
     }
-    // Without a ground, a faint grid below the scene still gives depth and scale.
-    if (!ground) renderer.drawReferenceGrid(Vec3::UnitY(), b.lo.y() - 0.3 * size, centre, std::max(1.5 * size, 1.0));
+    // Without a ground, a faint grid below the scene still gives depth and scale: below what
+    // the scene starts with, and below the lower part of the view when the camera has moved
+    // down (something fell).
+    if (!ground)
+        renderer.drawReferenceGrid(Vec3::UnitY(), std::min(b.lo.y() - 0.3 * size, view.target.y() - 0.9 * half_view), centre,
+                                   std::max({1.5 * size, 1.0, 4.0 * half_view}));
 
     std::vector<double> radius;
     std::vector<Rgb> colors;
@@ -239,32 +387,25 @@ void drawFrame(Renderer& renderer, const scene::Scene& scene, const scene::Frame
     }
     drawWorldPins(renderer, scene, frame);
     // Cloths: the weave's quads as two triangles each, gone where a yarn of the quad is
-    // torn; each vertex coloured by the highest load of its yarns; torn yarns' ends are
-    // left open (the mesh shows the cut).
+    // torn (the mesh shows the cut); each vertex coloured by its damage (clothDamage).
     std::vector<std::array<std::uint32_t, 3>> triangles;
     std::vector<Rgb> vertex_colors;
-    std::vector<double> vertex_load;
-    for (const scene::FrameCloth& c : frame.cloths) {
-        const ClothView& v = c.view;
+    for (std::size_t k = 0; k < frame.cloths.size(); ++k) {
+        const ClothView& v = frame.cloths[k].view;
         const int nu = v.resolution[0], nv = v.resolution[1];
         const std::size_t n = v.vertexCount();
-        vertex_load.assign(n, 0.0);
         std::vector<std::uint8_t> cut_right(n, 0), cut_up(n, 0);  // the yarn to (i+1, j) / (i, j+1) is torn
         for (std::size_t e = 0; e < v.edgeCount(); ++e) {
-            const auto [ea, eb] = (*v.edges)[e];
-            if (ea >= n || eb >= n) continue;
-            if ((*v.broken)[e]) {
-                const std::uint32_t lo = std::min(ea, eb), hi = std::max(ea, eb);
-                if (hi == lo + 1) cut_right[lo] = 1;
-                else if (hi == lo + static_cast<std::uint32_t>(nu)) cut_up[lo] = 1;
-                continue;
-            }
-            const double load = loadFraction((*v.tension)[e], c.rupture_stress, v.yarn_radius);
-            vertex_load[ea] = std::max(vertex_load[ea], load);
-            vertex_load[eb] = std::max(vertex_load[eb], load);
+            if (!(*v.broken)[e]) continue;
+            const std::uint32_t lo = std::min((*v.edges)[e][0], (*v.edges)[e][1]), hi = std::max((*v.edges)[e][0], (*v.edges)[e][1]);
+            if (hi >= n) continue;
+            if (hi == lo + 1) cut_right[lo] = 1;
+            else if (hi == lo + static_cast<std::uint32_t>(nu)) cut_up[lo] = 1;
         }
+        const std::vector<double> damage =
+            k < scene.cloths.size() ? clothDamage(v, scene.cloths[k].desc) : std::vector<double>(n, 0.0);
         vertex_colors.resize(n);
-        for (std::size_t p = 0; p < n; ++p) vertex_colors[p] = tensionColor(vertex_load[p]);
+        for (std::size_t p = 0; p < n; ++p) vertex_colors[p] = tensionColor(damage[p]);
         triangles.clear();
         for (int j = 0; j + 1 < nv; ++j)
             for (int i = 0; i + 1 < nu; ++i) {
@@ -280,18 +421,23 @@ void drawFrame(Renderer& renderer, const scene::Scene& scene, const scene::Frame
         mesh.vertex_colors = &vertex_colors;
         renderer.drawTriangleMesh(mesh);
     }
-    // Paper sheets: the current triangles (creases insert vertices and split triangles) in
-    // a warm paper colour (it stands out from the bluish sky and grid), and their creases
-    // and folds as darker lines (paperCreaseLines).
+    // Paper sheets: the current triangles (creases insert vertices and split triangles),
+    // each vertex coloured by its damage (paperDamage), and the creases and folds as dark
+    // lines (paperCreaseLines).
     std::vector<std::array<std::uint32_t, 2>> lines;
-    for (const scene::FramePaper& p : frame.papers) {
-        lines = paperCreaseLines(p.view);
+    for (std::size_t k = 0; k < frame.papers.size(); ++k) {
+        const PaperView& v = frame.papers[k].view;
+        lines = paperCreaseLines(v);
+        const std::vector<double> damage =
+            k < scene.papers.size() ? paperDamage(v, scene.papers[k].desc) : std::vector<double>(v.vertexCount(), 0.0);
+        vertex_colors.resize(v.vertexCount());
+        for (std::size_t p = 0; p < v.vertexCount(); ++p) vertex_colors[p] = tensionColor(damage[p]);
         TriangleMesh mesh;
-        mesh.positions = p.view.positions;
-        mesh.triangles = p.view.triangles;
-        mesh.color = {0.98f, 0.93f, 0.78f};
+        mesh.positions = v.positions;
+        mesh.triangles = v.triangles;
+        mesh.vertex_colors = &vertex_colors;
         mesh.lines = &lines;
-        mesh.line_color = {0.42f, 0.38f, 0.34f};
+        mesh.line_color = {0.15f, 0.13f, 0.12f};
         renderer.drawTriangleMesh(mesh);
     }
 }

@@ -596,6 +596,8 @@ void Viewer::drawScene() {
     scene::FrameState frame = rec_ ? rec_->state(rec_->frameAt(play_time_)) : run_->frame();
     frame.bodies.erase(std::remove_if(frame.bodies.begin(), frame.bodies.end(), [](const scene::FrameBody& b) { return b.name == kHandName; }),
                        frame.bodies.end());
+    if (!opt_.follow.empty())
+        if (const auto p = render::followPoint(frame, opt_.follow)) camera_.target = *p;
     render::drawFrame(*renderer_, scene_, frame, camera_.view());
     // The held point and the cursor, joined by the "spring".
     if (grab_.kind != Grab::Kind::None && run_) {
@@ -619,20 +621,22 @@ void Viewer::drawScene() {
             }
 }
 
-/// The colour bar (render/overlay.hpp, colorBar: the headless frames draw the same layout):
-/// load / rupture load, bottom (slack) to top (tears), at the window's right edge.
+/// The colour bars (render/overlay.hpp, colorBars: the headless frames draw the same
+/// layout): tension of strings and damage of sheets, bottom (0) to top (1), at the window's
+/// right edge.
 void Viewer::drawColorBar() {
-    const render::ColorBar bar = render::colorBar(scene_, win_w_, win_h_);
     ImDrawList* dl = ImGui::GetBackgroundDrawList();
-    for (int k = 0; k < render::ColorBar::kBands; ++k) {
-        const auto [top, bottom] = bar.bandRows(k);
-        const Rgb c = render::ColorBar::bandColor(k);
-        dl->AddRectFilled(ImVec2(bar.x0, top), ImVec2(bar.x1, bottom), ImGui::ColorConvertFloat4ToU32(ImVec4(c.r, c.g, c.b, 1.0f)));
-    }
-    dl->AddRect(ImVec2(bar.x0 - 1, bar.y0 - 1), ImVec2(bar.x1 + 1, bar.y1 + 1), IM_COL32(60, 60, 60, 255));
-    for (const render::TextPlacement& t : bar.labels) {
-        const ImVec2 size = ImGui::CalcTextSize(t.text.c_str());
-        dl->AddText(ImVec2(t.right - size.x, t.middle - 0.5f * size.y), IM_COL32(30, 30, 30, 255), t.text.c_str());
+    for (const render::ColorBar& bar : render::colorBars(scene_, win_w_, win_h_)) {
+        for (int k = 0; k < render::ColorBar::kBands; ++k) {
+            const auto [top, bottom] = bar.bandRows(k);
+            const Rgb c = render::ColorBar::bandColor(k);
+            dl->AddRectFilled(ImVec2(bar.x0, top), ImVec2(bar.x1, bottom), ImGui::ColorConvertFloat4ToU32(ImVec4(c.r, c.g, c.b, 1.0f)));
+        }
+        dl->AddRect(ImVec2(bar.x0 - 1, bar.y0 - 1), ImVec2(bar.x1 + 1, bar.y1 + 1), IM_COL32(60, 60, 60, 255));
+        for (const render::TextPlacement& t : bar.labels) {
+            const ImVec2 size = ImGui::CalcTextSize(t.text.c_str());
+            dl->AddText(ImVec2(t.right - size.x, t.middle - 0.5f * size.y), IM_COL32(30, 30, 30, 255), t.text.c_str());
+        }
     }
 }
 
@@ -763,7 +767,7 @@ void Viewer::drawCommonPanels() {
             "wheel zooms; shift-click (or the cut tool) cuts a rope.\n"
             "keys: Space play/pause, N one step, S slow motion, +/- speed, R restart, C cut tool, G drag tool, "
             "B drop a crate, W wind, F fit the camera, H this help, P all panels, Q or Esc quit.\n"
-            "ropes are coloured by tension / rupture tension (the bar at the right).");
+            "ropes are coloured by tension / rupture tension, cloths and paper by damage (the bars at the right).");
         ImGui::End();
     }
 }

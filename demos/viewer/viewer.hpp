@@ -21,6 +21,7 @@ struct ViewerOptions {
     bool paused = false;         ///< --paused: start paused
     bool hide_panels = false;    ///< --hide-panels: start without the panels (P shows them)
     std::string trace_dir;       ///< --trace DIR: play back the run recorded there (trace.jsonl)
+    std::string follow;          ///< --follow NAME: the camera keeps this body, string, cloth or sheet centred ("" = none)
 };
 
 /// Opens the window and runs until it is closed (or the script quits, or the screenshot is

@@ -1,6 +1,7 @@
 // tearables-view: the interactive viewer's program (`tearables view` runs it). Exit status
 // as the command line's: 0 done; 2 the scene, the script or the arguments are invalid;
 // 1 anything else went wrong (no window could be opened).
+#include "render/scene_painter.hpp"
 #include "viewer/viewer.hpp"
 
 #include <CLI/CLI.hpp>
@@ -68,6 +69,7 @@ int main(int argc, char** argv) {
     app.add_flag("--print-state", options.print_state, "at exit, print the world state (torn segments, events) as JSON on stdout");
     app.add_flag("--paused", options.paused, "start paused");
     app.add_flag("--hide-panels", options.hide_panels, "start without the panels (the colour bar stays; P shows them)");
+    app.add_option("--follow", options.follow, "keep the named body, string, cloth or paper sheet in the middle of the window (orbit and zoom still work)");
     app.add_option("--trace", options.trace_dir, "play back the run `tearables run SCENE --out DIR` recorded in DIR");
     try {
         app.parse(argc, argv);
@@ -81,6 +83,7 @@ int main(int argc, char** argv) {
             throw tearables::InvalidInput("--steps", "sets the steps before --screenshot: give it with --screenshot");
         options.scene = loadNamed(scene_arg, options.description);
         options.scene_arg = scene_arg;
+        if (!options.follow.empty()) tearables::render::checkFollowable(options.scene, options.follow);
         return tearables::viewer::runViewer(options);
     } catch (const tearables::InvalidInput& e) {
         std::fprintf(stderr, "tearables view: %s: %s\n", scene_arg.c_str(), e.what());

@@ -1,5 +1,6 @@
 // The offscreen renderer (OSMesa): pictures have the size asked for, what is drawn lands
 // where the camera says, PNG files round-trip, and a scene's rope shows against its background.
+#include "render/overlay.hpp"
 #include "render/renderer.hpp"
 #include "render/scene_painter.hpp"
 #include "tearables/scene.hpp"
@@ -7,8 +8,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <vector>
 
 namespace {
 
@@ -318,4 +321,284 @@ TEST(Renderer, TwistedStringsAreColouredByTorsionalLoad) {
     };
     scene::runScene(s, options);
     EXPECT_EQ(checked, 1);
+}
+
+namespace {
+
+/// The rows of column x where `with` differs from `without` (by more than 30 in the sum of
+/// the channels), top to bottom.
+std::vector<int> coveredRows(const Image& with, const Image& without, int x) {
+    std::vector<int> rows;
+    for (int y = 0; y < with.height; ++y)
+        if (difference(with.at(x, y), without.at(x, y)) > 30) rows.push_back(y);
+    return rows;
+}
+
+/// A straight rope of the given radius along x at height 1 m, 2 m in front of the scene's
+/// camera, without gravity: frame 0 of the scene, painted with and without the rope.
+struct RopePicture {
+    Image with, without;
+    std::array<double, 2> middle{0.0, 0.0};  // where (0.05, 1, 0), mid-segment, projects
+    double pixel = 0.0;                      // the size of a pixel there, m
+};
+RopePicture paintRope(double radius, int width, int height) {
+    scene::Scene s = scene::parseScene(R"({"gravity": [0, 0, 0], "steps": 0,
+        "camera": {"eye": [0, 1, 2], "target": [0, 1, 0], "fov": 40},
+        "strings": [{"name": "rope", "from": [-0.6, 1, 0], "to": [0.6, 1, 0], "segments": 12,
+                     "radius": )" + std::to_string(radius) + "}]}");
+    Renderer r(width, height);
+    const View view = fitCamera(s, static_cast<double>(width) / height);
+    RopePicture picture;
+    scene::RunOptions options;
+    options.on_frame = [&](const scene::FrameState& f) {
+        if (f.step != 0) return;
+        picture.with = paintFrame(r, s, f, view);
+        scene::FrameState bare = f;
+        bare.strings.clear();
+        picture.without = paintFrame(r, s, bare, view);
+        picture.middle = *r.project({0.05, 1.0, 0.0});
+        picture.pixel = r.pixelSizeAt({0.05, 1.0, 0.0});
+    };
+    scene::runScene(s, options);
+    return picture;
+}
+
+}  // namespace
+
+// A thick rope is drawn at its true radius, as a lit tube. Seen across from d = 2 m, a
+// cylinder of radius r spans the angle 2 asin(r/d): on a picture H pixels high with a
+// vertical field of view fov, 2 f r / sqrt(d^2 - r^2) pixels, f = H / (2 tan(fov/2)). The
+// 16-sided tube is within cos(pi/16) (2 %) of the circle, and anti-aliasing blurs each edge
+// by under a pixel: the covered rows match to 2 pixels. The key light comes from above, so
+// the brightness across the tube changes (the diffuse term alone spans 0.91 of the key's
+// 0.75 on the upper half).
+TEST(Renderer, ThickRopeIsALitTubeAtItsTrueRadius) {
+    const double radius = 0.04, d = 2.0;
+    const int height = 360;
+    const RopePicture p = paintRope(radius, 640, height);
+    const double f = height / (2.0 * std::tan(20.0 * M_PI / 180.0));
+    const double expected = 2.0 * f * radius / std::sqrt(d * d - radius * radius);
+    const std::vector<int> rows = coveredRows(p.with, p.without, static_cast<int>(p.middle[0]));
+    ASSERT_FALSE(rows.empty());
+    std::printf("thick rope: %zu rows covered, %.2f expected\n", rows.size(), expected);
+    EXPECT_NEAR(static_cast<double>(rows.size()), expected, 2.0);
+    EXPECT_EQ(rows.back() - rows.front() + 1, static_cast<int>(rows.size()));  // one band, no gaps
+    EXPECT_NEAR(0.5 * (rows.front() + rows.back() + 1), p.middle[1], 1.5);    // centred on the axis
+    // Shading: the sum of the channels across the inner rows (edges left out) varies, and
+    // the brightest row is above the darkest one (the key light is above).
+    int brightest = -1, darkest = 1000, y_bright = 0, y_dark = 0;
+    for (std::size_t k = 2; k + 2 < rows.size(); ++k) {
+        const auto c = p.with.at(static_cast<int>(p.middle[0]), rows[k]);
+        const int sum = c[0] + c[1] + c[2];
+        if (sum > brightest) brightest = sum, y_bright = rows[k];
+        if (sum < darkest) darkest = sum, y_dark = rows[k];
+    }
+    std::printf("thick rope: brightness %d to %d across it\n", darkest, brightest);
+    EXPECT_GT(brightest - darkest, 40);
+    EXPECT_LT(y_bright, y_dark);
+}
+
+// A rope thinner than 3 pixels on screen is drawn 3 pixels wide (1.5 pixels either side of
+// its axis), so that it stays visible: 2 to 4 rows covered, whatever its true radius.
+TEST(Renderer, ThinRopeIsDrawnThreePixelsWide) {
+    const RopePicture p = paintRope(0.0005, 320, 180);
+    ASSERT_GT(p.pixel, 0.0005 * 3.0);  // the true width is under a pixel
+    const std::vector<int> rows = coveredRows(p.with, p.without, static_cast<int>(p.middle[0]));
+    EXPECT_GE(rows.size(), 2u);
+    EXPECT_LE(rows.size(), 4u);
+}
+
+namespace {
+
+/// Pixels coloured from the damage end of the colour map (tensionColor(u) for u above about
+/// 0.4 has more red than blue; the intact end, the sky, the grid and the pins do not) in the
+/// box around where `points` project.
+int damageColouredPixels(const Renderer& r, const Image& im, const std::vector<Vec3>& points) {
+    double x0 = 1e9, y0 = 1e9, x1 = -1e9, y1 = -1e9;
+    for (const Vec3& p : points)
+        if (const auto q = r.project(p)) {
+            x0 = std::min(x0, (*q)[0]), y0 = std::min(y0, (*q)[1]);
+            x1 = std::max(x1, (*q)[0]), y1 = std::max(y1, (*q)[1]);
+        }
+    int n = 0;
+    for (int y = std::max(0, static_cast<int>(y0)); y <= std::min(im.height - 1, static_cast<int>(y1)); ++y)
+        for (int x = std::max(0, static_cast<int>(x0)); x <= std::min(im.width - 1, static_cast<int>(x1)); ++x) {
+            const auto c = im.at(x, y);
+            n += c[0] > c[2] + 20;
+        }
+    return n;
+}
+
+}  // namespace
+
+// Paper is coloured by damage: at the end of paper-ball the breakable sheet keeps its
+// creases and the elastic one has none. Every vertex on a crease line has damage (its faces
+// along the line border it); the elastic sheet has none anywhere. On the picture the
+// breakable sheet shows the damage end of the colour map and the elastic one does not; the
+// overlay's only bar is the damage bar.
+TEST(Renderer, PaperIsColouredByDamage) {
+    const auto text = scene::builtinSceneText("paper-ball");
+    ASSERT_TRUE(text.has_value());
+    scene::Scene s = scene::parseScene(*text);
+    Renderer r(640, 360);
+    const View view = fitCamera(s, 640.0 / 360.0);
+    scene::RunOptions options;
+    options.every = 1000000;  // frames at step 0 and the last
+    int checked = 0;
+    options.on_frame = [&](const scene::FrameState& f) {
+        if (f.step == 0) return;
+        ASSERT_EQ(f.papers.size(), 2u);
+        const Image picture = paintFrame(r, s, f, view);
+        for (std::size_t k = 0; k < 2; ++k) {
+            const PaperView& v = f.papers[k].view;
+            const std::vector<double> damage = paperDamage(v, s.papers[k].desc);
+            ASSERT_EQ(damage.size(), v.vertexCount());
+            const auto lines = paperCreaseLines(v);
+            const int coloured = damageColouredPixels(r, picture, *v.positions);
+            std::printf("%s: %zu crease lines, %d damage-coloured pixels\n", f.papers[k].name.c_str(), lines.size(), coloured);
+            if (f.papers[k].name == "paper") {
+                ASSERT_GT(lines.size(), 0u);
+                for (const auto& l : lines) {
+                    EXPECT_GT(damage[l[0]], 0.0);
+                    EXPECT_GT(damage[l[1]], 0.0);
+                }
+                EXPECT_GT(coloured, 100);
+            } else {
+                EXPECT_EQ(lines.size(), 0u);
+                for (double d : damage) EXPECT_EQ(d, 0.0);
+                EXPECT_LT(coloured, 5);
+            }
+        }
+        const std::vector<ColorBar> bars = colorBars(s, 640, 360);
+        ASSERT_EQ(bars.size(), 1u);
+        EXPECT_EQ(bars[0].kind, BarKind::Damage);
+        EXPECT_EQ(bars[0].labels.front().text, "damage");
+        ++checked;
+    };
+    scene::runScene(s, options);
+    EXPECT_EQ(checked, 1);
+}
+
+// A cloth is coloured by damage: at the end of cloth-tear, both ends of every torn yarn
+// have half or more of their cells damaged (a yarn borders two cells, or one on the edge,
+// and both contain both its ends; a vertex has at most four). The intact cloth of step 0
+// has no damage and shows none of the colour map's damage end; the torn one does.
+TEST(Renderer, ClothIsColouredByDamage) {
+    const auto text = scene::builtinSceneText("cloth-tear");
+    ASSERT_TRUE(text.has_value());
+    scene::Scene s = scene::parseScene(*text);
+    Renderer r(320, 180);
+    const View view = fitCamera(s, 320.0 / 180.0);
+    scene::RunOptions options;
+    options.every = 1000000;  // frames at step 0 and the last
+    int checked = 0;
+    options.on_frame = [&](const scene::FrameState& f) {
+        ASSERT_EQ(f.cloths.size(), 1u);
+        const ClothView& v = f.cloths[0].view;
+        const std::vector<double> damage = clothDamage(v, s.cloths[0].desc);
+        const int coloured = damageColouredPixels(r, paintFrame(r, s, f, view), *v.positions);
+        std::printf("cloth at step %lld: %d damage-coloured pixels\n", f.step, coloured);
+        if (f.step == 0) {
+            for (double d : damage) EXPECT_EQ(d, 0.0);
+            EXPECT_LT(coloured, 5);
+        } else {
+            std::size_t torn = 0;
+            for (std::size_t e = 0; e < v.edgeCount(); ++e) {
+                if (!(*v.broken)[e]) continue;
+                ++torn;
+                EXPECT_GE(damage[(*v.edges)[e][0]], 0.5);
+                EXPECT_GE(damage[(*v.edges)[e][1]], 0.5);
+            }
+            EXPECT_GT(torn, 0u);
+            EXPECT_GT(coloured, 20);
+        }
+        ++checked;
+    };
+    scene::runScene(s, options);
+    EXPECT_EQ(checked, 2);
+    // Its colour bar is the damage bar (the scene has no strings).
+    const std::vector<ColorBar> bars = colorBars(s, 320, 180);
+    ASSERT_EQ(bars.size(), 1u);
+    EXPECT_EQ(bars[0].kind, BarKind::Damage);
+}
+
+// The grid stays under a refitted camera: a ball falls 11 m below a post in a scene without
+// a ground; the camera refitted to everything seen (as --png does) looks far below where
+// the scene started, and the grid is drawn there: the lower quarter of the picture has grid
+// lines (pixels off the empty sky's gradient), as does the first frame's.
+TEST(Renderer, GridStaysUnderARefittedCamera) {
+    scene::Scene s = scene::parseScene(R"({"dt": 0.01, "steps": 150,
+        "bodies": [{"name": "ball", "shape": {"sphere": 0.2}, "mass": 1, "position": [0.8, 10, 0]},
+                   {"name": "post", "shape": {"box": [0.2, 0.2, 0.2]}, "mass": 0, "position": [0, 10, 0]}]})");
+    const int w = 320, h = 180;
+    Renderer r(w, h);
+    Bounds seen = sceneBounds(s);
+    View view = fitCamera(s, static_cast<double>(w) / h);
+    scene::RunOptions options;
+    options.every = 150;
+    int checked = 0;
+    options.on_frame = [&](const scene::FrameState& f) {
+        const Bounds now = frameBounds(f);
+        if (!inFrame(view, static_cast<double>(w) / h, now)) {
+            seen.add(now.lo);
+            seen.add(now.hi);
+            view = fitCamera(s, static_cast<double>(w) / h, seen);
+        }
+        const Image picture = paintFrame(r, s, f, view);
+        r.begin(view);
+        const Image sky = r.finish();
+        int lines = 0;
+        for (int y = 3 * h / 4; y < h; ++y)
+            for (int x = 0; x < w; ++x) lines += difference(picture.at(x, y), sky.at(x, y)) > 20;
+        std::printf("step %lld: camera target y = %.2f m, %d grid pixels in the lower quarter\n", f.step, view.target.y(), lines);
+        EXPECT_GT(lines, 100) << "no grid under the camera at step " << f.step;
+        ++checked;
+    };
+    scene::runScene(s, options);
+    EXPECT_EQ(checked, 2);
+    EXPECT_LT(view.target.y(), 6.0);  // the camera was refitted down
+}
+
+// The overlay scales with the frame: at 1280x720 the colour bar's rectangle is twice that
+// of 640x360 (the same share of the picture), at 320x180 it is 0.7 times (the least scale,
+// so that 9-pixel text stays legible), and the time stamp's box scales alike.
+TEST(Renderer, OverlayScalesWithTheFrame) {
+    const auto text = scene::builtinSceneText("swing");
+    ASSERT_TRUE(text.has_value());
+    const scene::Scene s = scene::parseScene(*text);
+    EXPECT_FLOAT_EQ(overlayScale(640, 360), 1.0f);
+    EXPECT_FLOAT_EQ(overlayScale(1280, 720), 2.0f);
+    EXPECT_FLOAT_EQ(overlayScale(320, 180), kMinOverlayScale);
+    const ColorBar small = colorBars(s, 640, 360, overlayScale(640, 360)).at(0);
+    const ColorBar large = colorBars(s, 1280, 720, overlayScale(1280, 720)).at(0);
+    EXPECT_FLOAT_EQ(large.x0, 2.0f * small.x0);
+    EXPECT_FLOAT_EQ(large.x1, 2.0f * small.x1);
+    EXPECT_FLOAT_EQ(large.y0, 2.0f * small.y0);
+    EXPECT_FLOAT_EQ(large.y1, 2.0f * small.y1);
+    const ColorBar tiny = colorBars(s, 320, 180, overlayScale(320, 180)).at(0);
+    EXPECT_NEAR(tiny.x1 - tiny.x0, 0.7f * (small.x1 - small.x0), 1e-3);
+    EXPECT_LE(tiny.y1, 180.0f - 0.7f * 30.0f);
+    EXPECT_FLOAT_EQ(StampBox::at(2.0f).x0, 2.0f * StampBox::at(1.0f).x0);
+    // Painted: the bar's bands at 1280x720 lie where the layout puts them.
+    Image image;
+    image.width = 1280;
+    image.height = 720;
+    image.rgb.assign(1280 * 720 * 3, 255);
+    paintOverlay(image, s, 0.0, 0);
+    for (int k : {5, 30, 60}) {
+        const auto [top, bottom] = large.bandRows(k);
+        const auto p = image.at(static_cast<int>(0.5f * (large.x0 + large.x1)), static_cast<int>(0.5f * (top + bottom)));
+        const Rgb c = ColorBar::bandColor(k);
+        EXPECT_NEAR(p[0], 255.0 * c.r, 2.0);
+        EXPECT_NEAR(p[1], 255.0 * c.g, 2.0);
+        EXPECT_NEAR(p[2], 255.0 * c.b, 2.0);
+    }
+    // The stamp's text is 26 px high at this scale: dark ink well below row 8 + 13.
+    int ink_low = 0;
+    for (int y = 30; y < 50; ++y)
+        for (int x = 16; x < 200; ++x) {
+            const auto p = image.at(x, y);
+            ink_low += p[0] + p[1] + p[2] < 300;
+        }
+    EXPECT_GT(ink_low, 30);
 }

@@ -199,6 +199,71 @@ TEST(Viewer, ScreenshotAfterStepsWritesTheWindow) {
     expectColourBar(im);
 }
 
+// The window draws ropes with the same code as the headless frames: a straight rope of
+// radius r = 0.04 m seen across from d = 2 m covers 2 f r / sqrt(d^2 - r^2) rows, f =
+// H / (2 tan(fov/2)) (the 16-sided tube is within 2 % of the circle: to 2 px), and its
+// shading varies across it.
+TEST(Viewer, ThickRopeIsATubeAtItsTrueRadius) {
+    if (tearables::render::findOnPath("xvfb-run").empty()) GTEST_SKIP() << "xvfb-run is not installed (apt-get install xvfb xauth)";
+    const fs::path dir = fs::path(TEARABLES_TEST_OUT) / "viewer" / "thick_rope";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    std::ofstream(dir / "rope.json") << R"({"format": "tearables-scene/1", "gravity": [0, 0, 0], "steps": 0,
+        "camera": {"eye": [0, 1, 2], "target": [0, 1, 0], "fov": 40},
+        "strings": [{"name": "rope", "from": [-0.6, 1, 0], "to": [0.6, 1, 0], "segments": 12, "radius": 0.04}]})";
+    const Outcome r = runIn(dir, "xvfb-run -a -s '-screen 0 1024x768x24' " + kViewer +
+                                 " rope.json --size 640x480 --hide-panels --paused --screenshot shot.png");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const Image im = tearables::render::readPng((dir / "shot.png").string());
+    ASSERT_EQ(im.height, 480);
+    const int x = 320 + 16;  // right of the middle joint: (0.05, 1, 0) is 16 px from the centre
+    std::vector<int> rows, sums;
+    for (int y = 0; y < im.height; ++y) {
+        const auto p = im.at(x, y);
+        const int sum = p[0] + p[1] + p[2];
+        if (sum < 450) rows.push_back(y), sums.push_back(sum);  // the sky is lighter than 600
+    }
+    ASSERT_FALSE(rows.empty());
+    const double f = 480.0 / (2.0 * std::tan(20.0 * M_PI / 180.0));
+    const double expected = 2.0 * f * 0.04 / std::sqrt(4.0 - 0.04 * 0.04);
+    std::printf("window: thick rope covers %zu rows, %.2f expected\n", rows.size(), expected);
+    EXPECT_NEAR(static_cast<double>(rows.size()), expected, 2.0);
+    EXPECT_NEAR(0.5 * (rows.front() + rows.back() + 1), 240.0, 1.5);
+    EXPECT_GT(*std::max_element(sums.begin() + 2, sums.end() - 2) - *std::min_element(sums.begin() + 2, sums.end() - 2), 40);
+}
+
+// --follow in the window: a ball falls 11 m in 1.5 s; after 150 steps the middle of its
+// pixels (brown) is in the central third of the screenshot both ways.
+TEST(Viewer, FollowKeepsAFallingBodyCentred) {
+    if (tearables::render::findOnPath("xvfb-run").empty()) GTEST_SKIP() << "xvfb-run is not installed (apt-get install xvfb xauth)";
+    const fs::path dir = fs::path(TEARABLES_TEST_OUT) / "viewer" / "follow";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    std::ofstream(dir / "falling.json") << R"({"format": "tearables-scene/1", "dt": 0.01, "steps": 150,
+        "bodies": [{"name": "ball", "shape": {"sphere": 0.2}, "mass": 1, "position": [0.8, 10, 0]},
+                   {"name": "post", "shape": {"box": [0.2, 0.2, 0.2]}, "mass": 0, "position": [0, 10, 0]}]})";
+    const Outcome r = runIn(dir, "xvfb-run -a -s '-screen 0 1024x768x24' " + kViewer +
+                                 " falling.json --size 800x600 --hide-panels --follow ball --screenshot shot.png --steps 150");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const Image im = tearables::render::readPng((dir / "shot.png").string());
+    double sx = 0.0, sy = 0.0;
+    int n = 0;
+    for (int y = 0; y < im.height; ++y)
+        for (int x = 0; x < im.width; ++x) {
+            const auto p = im.at(x, y);
+            if (p[0] > 100 && p[0] > p[2] + 50) sx += x, sy += y, ++n;
+        }
+    ASSERT_GT(n, 50) << "the ball is not in the window";
+    EXPECT_GT(sx / n, im.width / 3.0);
+    EXPECT_LT(sx / n, 2.0 * im.width / 3.0);
+    EXPECT_GT(sy / n, im.height / 3.0);
+    EXPECT_LT(sy / n, 2.0 * im.height / 3.0);
+    // An unknown name is refused before any window, naming the option.
+    const Outcome bad = runIn(dir, "env -u DISPLAY " + kViewer + " falling.json --follow crate");
+    EXPECT_EQ(bad.status, 2);
+    EXPECT_NE(bad.err.find("--follow"), std::string::npos) << bad.err;
+}
+
 // Refusals come before any window: no display is needed for them.
 TEST(Viewer, BadScriptIsRefusedNamingTheLine) {
     const fs::path dir = fs::path(TEARABLES_TEST_OUT) / "viewer" / "bad_script";
