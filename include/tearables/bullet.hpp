@@ -83,7 +83,9 @@ public:
     /// group & mask) are both non-zero (Bullet's needsCollision rule, on the body's broadphase
     /// proxy). Bodies it is glued to hold it whatever the filter.
     StringId addString(const StringDesc& desc, int group, int mask);
-    /// Removes a string.
+    /// Removes a string; its id becomes stale: every call given it afterwards throws
+    /// InvalidInput("string", "stale id: ...") and changes nothing, also once the slot holds
+    /// a new string (ids carry the slot's generation).
     void removeString(StringId id);
     /// Pins a particle (negative index counts from the end) to a world point.
     void attach(StringId id, int particle, const btVector3& world_point);
@@ -98,7 +100,7 @@ public:
     ClothId addCloth(const ClothDesc& desc);
     /// The same with a collision filter (as addString(desc, group, mask)).
     ClothId addCloth(const ClothDesc& desc, int group, int mask);
-    /// Removes a cloth.
+    /// Removes a cloth; its id becomes stale (as removeString).
     void removeCloth(ClothId id);
     /// Pins a cloth vertex (flat index j * resolution[0] + i; negative counts from the end) to a world point.
     void attachCloth(ClothId id, int vertex, const btVector3& world_point);
@@ -107,11 +109,28 @@ public:
     /// Drops every attachment to `body` now (call before deleting a body strings hold).
     void forgetBody(const btRigidBody& body);
 
+    /// A pointer of the user's (a game object, an entity) kept with a string, cloth or
+    /// sheet, as btCollisionObject::setUserPointer: null until set, never dereferenced by
+    /// the plugin, dropped when the object is removed. A tear makes no new object (a torn
+    /// rope stays one StringId, its pieces the runs of intact segments between the broken
+    /// ones; a torn cloth or sheet stays one id), so every piece keeps the pointer. Not part
+    /// of snapshots: loadSnapshot leaves the pointers as they were. Throws
+    /// InvalidInput("string"/"cloth"/"paper") for an unknown or stale id; nothing changes then.
+    void setUserPointer(StringId id, void* user);
+    void setUserPointer(ClothId id, void* user);
+    void setUserPointer(PaperId id, void* user);
+    /// The pointer set with setUserPointer (null if none). Throws as setUserPointer.
+    void* userPointer(StringId id) const;
+    void* userPointer(ClothId id) const;
+    void* userPointer(PaperId id) const;
+
     /// Validates and creates a paper sheet (throws InvalidInput naming the field). Its
     /// vertices collide with the world's rigid bodies, two ways.
     PaperId addPaper(const PaperDesc& desc);
     /// The same with a collision filter (as addString(desc, group, mask)).
     PaperId addPaper(const PaperDesc& desc, int group, int mask);
+    /// Removes a sheet; its id becomes stale.
+    void removePaper(PaperId id);
     /// Pins a vertex of a sheet to a world point.
     void attachPaper(PaperId id, std::uint32_t vertex, const btVector3& world_point);
     /// Glues a vertex of a sheet to a rigid body at a point in the body's frame (relative
@@ -218,12 +237,16 @@ private:
     struct PendingPin {
         Vec3 from, to;  // m
     };
-    // Keyed by (string slot, particle): deterministic order.
-    std::map<std::pair<std::uint32_t, int>, Vec3> forces_;     // N, until the end of the next stepSimulation
-    std::map<std::pair<std::uint32_t, int>, Vec3> cloth_forces_;
-    std::map<std::pair<std::uint32_t, std::uint32_t>, Vec3> paper_forces_;
-    std::map<std::pair<std::uint32_t, int>, PendingPin> pins_;
-    std::map<std::uint32_t, std::vector<double>> peaks_;       // per string slot, per segment, N
+    // Keyed by (object, particle or vertex): deterministic order.
+    std::map<std::pair<StringId, int>, Vec3> forces_;     // N, until the end of the next stepSimulation
+    std::map<std::pair<ClothId, int>, Vec3> cloth_forces_;
+    std::map<std::pair<PaperId, std::uint32_t>, Vec3> paper_forces_;
+    std::map<std::pair<StringId, int>, PendingPin> pins_;
+    std::map<StringId, std::vector<double>> peaks_;       // per string, per segment, N
+    // setUserPointer's, per object.
+    std::map<StringId, void*> string_users_;
+    std::map<ClothId, void*> cloth_users_;
+    std::map<PaperId, void*> paper_users_;
     // Collision filters other than Bullet's default, per slot.
     std::map<std::uint32_t, Filter> string_filters_, cloth_filters_, paper_filters_;
 
