@@ -729,7 +729,7 @@ BulletWorld::Filter BulletWorld::meshFilter(const PointQuery& query, std::size_t
     }
     return Filter{};
 }
-const std::vector<Event>& BulletWorld::events() const { return events_; }
+const std::vector<BulletEvent>& BulletWorld::events() const { return events_; }
 void BulletWorld::clearEvents() { events_.clear(); }
 const StageTimes& BulletWorld::totalStageTimes() const { return total_; }
 const std::string& BulletWorld::lastError() const { return last_error_; }
@@ -1055,11 +1055,10 @@ void BulletWorld::substep(double h, int tick, int ticks) {
         core_->step(h);
 
         writeBodies();
-        const std::vector<Event>& ev = core_->events();
-        events_.insert(events_.end(), ev.begin(), ev.end());
         recordPeaks();
         total_ += core_->lastStageTimes();
         last_error_.clear();  // this step succeeded
+        reportStep(h);
     } catch (const std::exception& e) {
         last_error_ = e.what();  // never throw into Bullet's step
     } catch (...) {

@@ -25,6 +25,7 @@
 
 #include "tearables/events.hpp"
 #include "tearables/paper.hpp"
+#include "tearables/queries.hpp"
 #include "tearables/string.hpp"
 #include "tearables/world.hpp"
 
@@ -34,6 +35,7 @@
 #include <LinearMath/btVector3.h>
 
 #include <cstdint>
+#include <functional>
 #include <iosfwd>
 #include <map>
 #include <memory>
@@ -58,6 +60,38 @@ inline Vec3 toCore(const btVector3& v) { return Vec3(v.x(), v.y(), v.z()); }
 inline btVector3 toBullet(const Vec3& v) {
     return btVector3(static_cast<btScalar>(v.x()), static_cast<btScalar>(v.y()), static_cast<btScalar>(v.z()));
 }
+
+/// A string's contact with a Bullet body in the last internal step (what a btManifoldPoint
+/// gives for two bodies), with the force the step's solve put through it.
+struct BulletContact {
+    btRigidBody* body = nullptr;  ///< the body touched (static, kinematic or dynamic)
+    StringId string;              ///< the string
+    int segment = 0;              ///< its segment
+    double s = 0.0;               ///< fraction along the segment, [0, 1] (0 = its first particle)
+    btVector3 position{0, 0, 0};  ///< world, m: the string's surface point facing the body
+    btVector3 normal{0, 1, 0};    ///< unit, from the body toward the string (Bullet's normalWorldOnB, B the body)
+    double normal_force = 0.0;    ///< N, > 0: the push along the normal
+    btVector3 force{0, 0, 0};     ///< N: the whole force on the body (push and friction) = -(force on the string)
+    btVector3 impulse{0, 0, 0};   ///< N s: `force` times the internal step
+};
+
+/// An event as a Bullet user reads it: the core's Event (type, cause, string, segment,
+/// stress, time, step) and where and on what it happened.
+struct BulletEvent : Event {
+    /// World, m: the middle of a string's torn or yielded segment, a released particle;
+    /// (0, 0, 0) for cloth and sheet events.
+    btVector3 position{0, 0, 0};
+    /// N: for a string's tear or yield by tension, the load (stress over the original
+    /// section, pi r^2; a tear's is at or above the rupture load); else 0.
+    double force = 0.0;
+    /// A string's tear: the body the torn segment touched in that internal step (the one
+    /// it pressed hardest), else the body its piece hung from (the glued particle nearest
+    /// the segment, along the intact segments on either side); else null.
+    btRigidBody* body = nullptr;
+    /// A yield: how many segments of the string first yielded in that internal step. They
+    /// are one event; its segment, stress, position and force are the worst one's.
+    int count = 1;
+};
 
 /// A tearables world living inside a Bullet dynamics world.
 class BulletWorld {
@@ -158,9 +192,22 @@ public:
     /// Starts a new peak for every segment of `id` (throws InvalidInput("string")).
     void clearPeakTension(StringId id);
 
-    /// Events since the last clearEvents(), over every internal step Bullet took.
-    const std::vector<Event>& events() const;
+    /// Events since the last clearEvents(), over every internal step Bullet took, in
+    /// order; a string's yields in one internal step are one event (BulletEvent::count).
+    const std::vector<BulletEvent>& events() const;
     void clearEvents();
+    /// The contacts of strings with Bullet bodies in the last internal step that pressed
+    /// (normal force > 0), by string, then as found; replaced at every internal step.
+    const std::vector<BulletContact>& contacts() const;
+    /// Called for every tear (a string's, a cloth's yarn, a sheet's), in the order of
+    /// events(), at the end of the internal step in which it happened; empty = none.
+    /// Called inside stepSimulation, after tearables' step: read anything, but add, remove
+    /// or attach nothing (tearables' or Bullet's) there. What it throws is caught and
+    /// reported by lastError().
+    void setTearCallback(std::function<void(const BulletEvent&)> callback);
+    /// Called for every entry of contacts() at the end of each internal step (as
+    /// setTearCallback, and with its rules).
+    void setContactCallback(std::function<void(const BulletContact&)> callback);
     /// Stage times summed over all steps so far, s.
     const StageTimes& totalStageTimes() const;
     /// False once the Bullet world was destroyed (or this plugin was removed from it).
@@ -204,6 +251,12 @@ private:
     void substep(double h, int tick, int ticks);
     void drive(int tick, int ticks);
     void recordPeaks();
+    /// The last internal step's contacts and events as Bullet users read them, then the
+    /// callbacks (bullet_api.cpp).
+    void reportStep(double h);
+    void describe(BulletEvent& e) const;
+    btRigidBody* bodyOf(RigidId id) const;
+    btRigidBody* hangingBody(StringId id, int segment) const;
     /// Bodies out: the core's corrections written back; only bodies that a string, sheet or
     /// cloth holds or touched are woken.
     void writeBodies();
@@ -229,7 +282,12 @@ private:
     std::vector<btRigidBody*> mesh_candidates_;  // bodies near some mesh object this step (sorted)
     std::vector<std::pair<const btRigidBody*, RigidId>> proxy_order_;  // scratch
     std::vector<const btCollisionObject*> in_world_;  // scratch: the Bullet world's objects, sorted
-    std::vector<Event> events_;
+    std::vector<BulletEvent> events_;
+    std::vector<BulletContact> contact_list_;
+    std::vector<ContactForce> contact_forces_;                     // scratch: the core's
+    std::vector<std::pair<std::uint32_t, btRigidBody*>> body_of_;  // scratch: proxy -> body, sorted
+    std::function<void(const BulletEvent&)> on_tear_;
+    std::function<void(const BulletContact&)> on_contact_;
     StageTimes total_;
     std::string last_error_;
     double step_ = 0.0;  // the internal step Bullet is taking

@@ -8,6 +8,7 @@
 #include <btBulletDynamicsCommon.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <functional>
@@ -179,6 +180,138 @@ TEST(Identity, UserPointerRoundTripsAndSurvivesATear) {
     EXPECT_EQ(again.index, rope.index);
     EXPECT_EQ(ropes.userPointer(again), nullptr);  // the new rope in the slot has none
     EXPECT_EQ(ropes.userPointer(other), &theirs);
+}
+
+// --- contacts and events ------------------------------------------------------------------
+
+// A box resting on two parallel ropes between pins (on one it would balance on a knife
+// edge): over half a second, the impulses the ropes' contacts report on the box are the
+// box's momentum balance, sum J = m (v_end - v_start) + m g T (Bullet integrates gravity;
+// the ropes are the only other things it touches). The reported forces are the solve's
+// own (its penalties' multipliers and the friction of its last pass), so they meet it to
+// the solve's tolerance (measured: 1e-7 of m g T; asserted to 1e-3).
+TEST(Contacts, ABoxOnARopeIsHeldByTheReportedForces) {
+    Physics p;
+    BulletWorld ropes(*p.world);
+    const StringId front = ropes.addString(tearables::testing::plainRope({-0.5, 1, 0.03}, {0.5, 1, 0.03}, 40));
+    const StringId back = ropes.addString(tearables::testing::plainRope({-0.5, 1, -0.03}, {0.5, 1, -0.03}, 40));
+    for (const StringId id : {front, back}) {
+        const Vec3 z(0, 0, id == front ? 0.03 : -0.03);
+        ropes.attach(id, 0, tearables::toBullet(Vec3(-0.5, 1, 0) + z));
+        ropes.attach(id, -1, tearables::toBullet(Vec3(0.5, 1, 0) + z));
+    }
+    const double m = 2.0, g = 9.81, h = 1.0 / 240.0;
+    btRigidBody& box = p.box(btVector3(0.05f, 0.05f, 0.05f), m, btVector3(0, 1.06f, 0));
+    box.setActivationState(DISABLE_DEACTIVATION);
+    int called = 0;
+    std::size_t reported = 0;
+    ropes.setContactCallback([&](const tearables::BulletContact& c) {
+        ++called;
+        EXPECT_EQ(c.body, &box);
+        EXPECT_TRUE(c.string == front || c.string == back);
+    });
+    p.step(240, h);  // 1 s: settled
+    ASSERT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+    const btVector3 v0 = box.getLinearVelocity();
+    const int steps = 120;
+    Vec3 impulse = Vec3::Zero();
+    for (int i = 0; i < steps; ++i) {
+        called = 0;
+        p.step(1, h);
+        reported = ropes.contacts().size();
+        EXPECT_EQ(static_cast<std::size_t>(called), reported);
+        for (const auto& c : ropes.contacts()) {
+            EXPECT_GT(c.normal_force, 0.0);
+            EXPECT_NEAR(c.normal.length(), 1.0, 1e-5);
+            EXPECT_GE(c.s, 0.0);
+            EXPECT_LE(c.s, 1.0);
+            EXPECT_NEAR(static_cast<double>(c.impulse.y()), static_cast<double>(c.force.y()) * h, 1e-6 * std::abs(static_cast<double>(c.force.y())) * h);  // float
+            // On the box's underside.
+            EXPECT_NEAR(static_cast<double>(c.position.y()), static_cast<double>(box.getCenterOfMassPosition().y()) - 0.05, 0.01);
+            impulse += tearables::toCore(c.impulse);
+        }
+    }
+    ASSERT_GT(reported, 0u);
+    const double T = steps * h;
+    const Vec3 expected = m * (tearables::toCore(box.getLinearVelocity()) - tearables::toCore(v0)) + Vec3(0, m * g * T, 0);
+    EXPECT_NEAR(impulse.y(), expected.y(), 1e-3 * m * g * T);
+    EXPECT_NEAR(impulse.x(), expected.x(), 1e-3 * m * g * T);
+    EXPECT_NEAR(impulse.z(), expected.z(), 1e-3 * m * g * T);
+}
+
+// A rope hanging a crate heavier than its rupture load tears once: the event carries the
+// load it tore at (at or above the rupture load), the torn segment's middle and the crate
+// (the piece it was part of hung it); the callback sees the same event.
+TEST(Events, ATearCarriesItsForcePositionAndBody) {
+    Physics p;
+    BulletWorld ropes(*p.world);
+    StringDesc d = StringDesc::straight({0, 2, 0}, {0, 1, 0}, 10);
+    d.material.variation = 0.0;
+    const double rupture_load = d.material.tensile.rupture * 3.14159265358979323846 * d.radius * d.radius;  // 1005 N
+    const StringId rope = ropes.addString(d);
+    ropes.attach(rope, 0, btVector3(0, 2, 0));
+    btRigidBody& crate = p.box(btVector3(0.1f, 0.1f, 0.1f), 150.0, btVector3(0, 0.9f, 0));  // 1471 N
+    ropes.attach(rope, -1, crate, btVector3(0, 0.1f, 0));
+    std::vector<tearables::BulletEvent> seen;
+    ropes.setTearCallback([&](const tearables::BulletEvent& e) { seen.push_back(e); });
+    for (int i = 0; i < 120 && seen.empty(); ++i) p.step(1, 1.0 / 240.0);
+    ASSERT_EQ(seen.size(), 1u);
+    const tearables::BulletEvent& e = seen.front();
+    EXPECT_EQ(e.type, tearables::EventType::Tear);
+    EXPECT_EQ(e.cause, tearables::EventCause::Tension);
+    EXPECT_EQ(e.string, rope);
+    EXPECT_GE(e.force, rupture_load * (1.0 - 1e-12));
+    EXPECT_EQ(e.body, &crate);
+    const auto v = ropes.core().view(rope);
+    ASSERT_EQ((*v.broken)[e.segment], 1);
+    const Vec3 middle = 0.5 * ((*v.positions)[e.segment] + (*v.positions)[e.segment + 1]);
+    EXPECT_LT((tearables::toCore(e.position) - middle).norm(), 1e-6);
+    int tears = 0;
+    for (const auto& o : ropes.events())
+        if (o.type == tearables::EventType::Tear) {
+            ++tears;
+            EXPECT_EQ(o.force, e.force);
+            EXPECT_EQ(o.body, e.body);
+        }
+    EXPECT_EQ(tears, 1);
+}
+
+// A rope loaded past its yield everywhere at once: one yield event per string and internal
+// step, counting the core's per-segment events of that step, with the worst stress.
+TEST(Events, YieldsAreOneEventPerStringAndStep) {
+    Physics p;
+    BulletWorld ropes(*p.world);
+    StringDesc d = StringDesc::straight({0, 2, 0}, {0, 1, 0}, 20);
+    d.material.tensile.rupture = 4e8;  // yields (at 503 N), never tears
+    const StringId rope = ropes.addString(d);
+    ropes.attach(rope, 0, btVector3(0, 2, 0));
+    btRigidBody& crate = p.box(btVector3(0.1f, 0.1f, 0.1f), 60.0, btVector3(0, 0.9f, 0));  // 589 N
+    ropes.attach(rope, -1, crate, btVector3(0, 0.1f, 0));
+    int core_yields = 0, merged = 0;
+    for (int i = 0; i < 120; ++i) {
+        p.step(1, 1.0 / 240.0);  // one internal step: core().events() are that step's
+        int here = 0;
+        double worst = 0.0;
+        for (const auto& e : ropes.core().events())
+            if (e.type == tearables::EventType::Yield) {
+                ++here;
+                worst = std::max(worst, e.stress);
+            }
+        int events = 0;
+        for (const auto& e : ropes.events())
+            if (e.type == tearables::EventType::Yield) {
+                ++events;
+                EXPECT_EQ(e.count, here);
+                EXPECT_EQ(e.stress, worst);
+                EXPECT_NEAR(e.force, worst * 3.14159265358979323846 * d.radius * d.radius, 1e-9 * e.force);
+            }
+        EXPECT_EQ(events, here > 0 ? 1 : 0);
+        core_yields += here;
+        merged += events;
+        ropes.clearEvents();
+    }
+    EXPECT_EQ(core_yields, 20);  // every segment yields once
+    EXPECT_LT(merged, core_yields);
 }
 
 }  // namespace
