@@ -57,6 +57,13 @@ void* BulletWorld::userPointer(PaperId id) const {
     return user(paper_users_, id);
 }
 
+void BulletWorld::setVelocities(StringId id, const std::vector<btVector3>& velocities) {
+    std::vector<Vec3> v;
+    v.reserve(velocities.size());
+    for (const btVector3& b : velocities) v.push_back(tearables::toCore(b));
+    tearables::setVelocities(*core_, id, v);
+}
+
 // --- contacts and events as a Bullet user reads them --------------------------------------
 
 const std::vector<BulletContact>& BulletWorld::contacts() const { return contact_list_; }

@@ -23,8 +23,10 @@
 // *delete* such a body, remove it from the world and step, or call forgetBody().
 #pragma once
 
+#include "tearables/controls.hpp"
 #include "tearables/events.hpp"
 #include "tearables/paper.hpp"
+#include "tearables/presets.hpp"
 #include "tearables/queries.hpp"
 #include "tearables/string.hpp"
 #include "tearables/world.hpp"
@@ -129,6 +131,10 @@ public:
     void attach(StringId id, int particle, btRigidBody& body, const btVector3& local_point);
     /// Frees a particle (a Release event is reported).
     void detach(StringId id, int particle);
+    /// Sets the particles' velocities, m/s: one for all or one per particle; held particles
+    /// keep moving with what holds them (tearables::setVelocities, controls.hpp). Throws
+    /// InvalidInput ("string", "velocities", "velocities[i]") and changes nothing then.
+    void setVelocities(StringId id, const std::vector<btVector3>& velocities);
     /// Validates and creates a cloth (throws InvalidInput naming the field). Cloths collide
     /// with the Bullet bodies near them (spheres of the yarn radius at the vertices).
     ClothId addCloth(const ClothDesc& desc);

@@ -1,6 +1,7 @@
 // The Bullet-facing API (issue 31): identity (generation-checked ids, user pointers),
 // contacts and events a Bullet user can use, and the everyday controls.
 #include "tearables/bullet.hpp"
+#include "tearables/presets.hpp"
 #include "tearables/snapshot.hpp"
 
 #include "bullet_fixture.hpp"
@@ -312,6 +313,148 @@ TEST(Events, YieldsAreOneEventPerStringAndStep) {
     }
     EXPECT_EQ(core_yields, 20);  // every segment yields once
     EXPECT_LT(merged, core_yields);
+}
+
+// --- controls -----------------------------------------------------------------------------
+
+// The C++ preset is the scene's: the one lookup both use.
+TEST(Controls, MaterialPresetsByName) {
+    const tearables::Material m = tearables::materialPreset("rubber_cord");
+    const tearables::MaterialPreset* p = tearables::findMaterialPreset("rubber_cord");
+    ASSERT_NE(p, nullptr);
+    EXPECT_EQ(m.tensile.young, p->material.tensile.young);
+    EXPECT_EQ(m.tensile.rupture, p->material.tensile.rupture);
+    EXPECT_EQ(m.torsion.modulus, p->material.torsion.modulus);
+    EXPECT_EQ(m.variation, p->material.variation);
+    std::string problem;
+    EXPECT_EQ(refusal([] { tearables::materialPreset("kevlar"); }, &problem), "preset");
+    EXPECT_NE(problem.find("unknown material preset \"kevlar\""), std::string::npos) << problem;
+    EXPECT_NE(problem.find("nylon_rope"), std::string::npos) << problem;
+}
+
+// The shape is the catenary of that length through both points (closed form, Irvine ch. 1),
+// and it is where the rope settles: after 2 s pinned at both ends its lowest point is within
+// 1% of the catenary's sag, and the first step moves no particle by more than 1% of it.
+TEST(Controls, BetweenBuildsTheHangingShape) {
+    const Vec3 a(0, 1, 0), b(1, 1.2, 0);
+    const double L = 1.3;
+    StringDesc d = StringDesc::between(a, b, L, 40);
+    ASSERT_EQ(d.points.size(), 41u);
+    EXPECT_EQ(d.points.front(), a);
+    EXPECT_EQ(d.points.back(), b);
+    double chords = 0.0, lowest = 1e9;
+    for (std::size_t i = 1; i < d.points.size(); ++i) chords += (d.points[i] - d.points[i - 1]).norm();
+    for (const Vec3& p : d.points) lowest = std::min(lowest, p.y());
+    EXPECT_LT(chords, L);
+    EXPECT_GT(chords, L * (1.0 - 1e-3));
+    // The catenary's own lowest point: c from sqrt(L^2 - V^2) = 2 c sinh(H / 2c), by bisection.
+    const double H = 1.0, V = 0.2, r = std::sqrt(L * L - V * V);
+    double lo = 1e-3, hi = 10.0;
+    for (int k = 0; k < 200; ++k) {
+        const double c = 0.5 * (lo + hi);
+        (2.0 * c * std::sinh(H / (2.0 * c)) > r ? lo : hi) = c;
+    }
+    const double c = 0.5 * (lo + hi);
+    const double xm = 0.5 * H - c * std::atanh(V / L);
+    ASSERT_GT(xm, 0.0);
+    const double bottom = a.y() + c * (1.0 - std::cosh(xm / c));
+    const double sag = a.y() - bottom;
+    EXPECT_NEAR(lowest, bottom, 0.005 * sag);  // the particles near the bottom, 1/40 apart
+
+    Physics p;
+    BulletWorld ropes(*p.world);
+    d.material.variation = 0.0;
+    d.tearable = false;
+    const StringId rope = ropes.addString(d);
+    ropes.attach(rope, 0, tearables::toBullet(a));
+    ropes.attach(rope, -1, tearables::toBullet(b));
+    const std::vector<Vec3> start = *ropes.core().view(rope).positions;
+    p.step(1, 1.0 / 240.0);
+    double jump = 0.0;
+    for (std::size_t i = 0; i < start.size(); ++i) jump = std::max(jump, ((*ropes.core().view(rope).positions)[i] - start[i]).norm());
+    EXPECT_LT(jump, 0.01 * sag);
+    p.step(479, 1.0 / 240.0);
+    double settled = 1e9;
+    for (const Vec3& x : *ropes.core().view(rope).positions) settled = std::min(settled, x.y());
+    EXPECT_NEAR(settled, bottom, 0.01 * sag);
+    std::string problem;
+    EXPECT_EQ(refusal([&] { StringDesc::between(a, b, 0.9, 10); }, &problem), "length");
+    EXPECT_EQ(refusal([&] { StringDesc::between(a, a, 1.0, 10); }), "b");
+    EXPECT_EQ(refusal([&] { StringDesc::between(a, a + Vec3(0, 1, 0), 2.0, 10); }), "b");
+    EXPECT_EQ(refusal([&] { StringDesc::between(a, b, std::nan(""), 10); }), "length");
+    EXPECT_EQ(refusal([&] { StringDesc::between(Vec3(std::nan(""), 0, 0), b, L, 10); }), "a");
+    EXPECT_EQ(refusal([&] { StringDesc::between(a, b, L, 0); }), "segments");
+    EXPECT_EQ(StringDesc::between(a, b, (b - a).norm(), 4).points[2], 0.5 * (a + b));
+}
+
+// A crate hung at s = 0.37 of a slack rope's length between two pins hangs there: the two
+// pieces, pulled straight by its weight (the rope weighs 0.2% of it), are 0.37 L and 0.63 L
+// long, to the rope's stretch under the load (T / EA: 0.22% and 0.12%), once the crate's
+// swing has died out.
+TEST(Controls, AMassHungAtAFractionOfTheLengthHangsThere) {
+    const Vec3 a(0, 2, 0), b(1, 2, 0);
+    const double L = 1.4;
+    StringDesc d = StringDesc::between(a, b, L, 30);
+    d.material.variation = 0.0;
+    d.tearable = false;
+    const int k = tearables::insertParticle(d, 0.37);
+    ASSERT_EQ(d.points.size(), 32u);
+    double along = 0.0;
+    for (int i = 1; i <= k; ++i) along += (d.points[i] - d.points[i - 1]).norm();
+    EXPECT_NEAR(along, 0.37 * L, 0.37 * L * 1e-3);  // chords of the catenary's arcs
+    EXPECT_EQ(tearables::insertParticle(d, 0.37), k);  // already there
+    Physics p;
+    BulletWorld ropes(*p.world);
+    const StringId rope = ropes.addString(d);
+    ropes.attach(rope, 0, tearables::toBullet(a));
+    ropes.attach(rope, -1, tearables::toBullet(b));
+    btRigidBody& crate = p.box(btVector3(0.05f, 0.05f, 0.05f), 10.0, tearables::toBullet(d.points[k]));
+    crate.setActivationState(DISABLE_DEACTIVATION);
+    crate.setDamping(0.9f, 0.9f);  // its swing along the ellipse |x - a| + |x - b| = L dies out
+    ropes.attach(rope, k, crate, btVector3(0, 0, 0));
+    p.step(720, 1.0 / 240.0);
+    ASSERT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+    const Vec3 at = (*ropes.core().view(rope).positions)[k];
+    EXPECT_NEAR((at - a).norm(), 0.37 * L, 0.005 * 0.37 * L);
+    EXPECT_NEAR((b - at).norm(), 0.63 * L, 0.005 * 0.63 * L);
+    EXPECT_LT((tearables::toCore(crate.getCenterOfMassPosition()) - at).norm(), 1e-3);
+    StringDesc bad = d;
+    EXPECT_EQ(refusal([&] { tearables::insertParticle(bad, 1.5); }), "s");
+    EXPECT_EQ(refusal([&] { tearables::insertParticle(bad, std::nan("")); }), "s");
+    EXPECT_EQ(bad.points.size(), d.points.size());
+}
+
+// Initial velocities: a free rope in zero gravity given a velocity per particle carries
+// their momentum sum m_i v_i, and keeps it (nothing acts on it from outside).
+TEST(Controls, InitialVelocitiesGiveTheirMomentum) {
+    Physics p(0.0);
+    BulletWorld ropes(*p.world);
+    StringDesc d = StringDesc::straight({0, 1, 0}, {1, 1, 0}, 20);
+    const StringId rope = ropes.addString(d);
+    std::vector<btVector3> v;
+    const auto view = ropes.core().view(rope);
+    Vec3 expected = Vec3::Zero();
+    for (std::size_t i = 0; i < view.particleCount(); ++i) {
+        // A drift and a spin about the middle: v = V + w x (x - c).
+        const Vec3 vi = Vec3(0.3, -0.2, 0.1) + Vec3(0, 0, 2.0).cross((*view.positions)[i] - Vec3(0.5, 1, 0));
+        v.push_back(tearables::toBullet(vi));
+        expected += (*view.masses)[i] * tearables::toCore(v.back());
+    }
+    ropes.setVelocities(rope, v);
+    Vec3 now = Vec3::Zero();
+    for (std::size_t i = 0; i < view.particleCount(); ++i) now += (*view.masses)[i] * (*view.velocities)[i];
+    EXPECT_LT((now - expected).norm(), 1e-12);
+    p.step(60, 1.0 / 60.0);
+    Vec3 later = Vec3::Zero();
+    const auto after = ropes.core().view(rope);
+    for (std::size_t i = 0; i < after.particleCount(); ++i) later += (*after.masses)[i] * (*after.velocities)[i];
+    EXPECT_LT((later - expected).norm(), 1e-6 * expected.norm());
+    EXPECT_EQ(refusal([&] { ropes.setVelocities(rope, std::vector<btVector3>(3)); }), "velocities");
+    std::vector<btVector3> fast(view.particleCount(), btVector3(0, 0, 0));
+    fast[4] = btVector3(1e4f, 0, 0);
+    const std::vector<Vec3> before = *after.velocities;
+    EXPECT_EQ(refusal([&] { ropes.setVelocities(rope, fast); }), "velocities[4]");
+    EXPECT_EQ(*ropes.core().view(rope).velocities, before);
 }
 
 }  // namespace
