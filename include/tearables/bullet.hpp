@@ -16,6 +16,11 @@
 // glued to moves by its velocity on each, and peakTension()/events() keep what every
 // internal step saw until the user clears them.
 //
+// Threads: a BulletWorld (and its core World) is used from one thread at a time, the one
+// that steps the Bullet world; WorldSettings::threads only sets the workers its own step
+// uses inside, and the tear and contact callbacks run on the stepping thread. Separate
+// worlds may be stepped on separate threads.
+//
 // Lifetime: destroying the BulletWorld detaches it from Bullet; destroying the Bullet
 // world first is safe too (the plugin notices and never touches it again). A body that
 // strings are glued to may be removed from the Bullet world at any time: at the next
