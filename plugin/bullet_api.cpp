@@ -7,6 +7,7 @@
 #include <btBulletDynamicsCommon.h>
 
 #include <algorithm>
+#include <cmath>
 
 namespace tearables {
 
@@ -62,6 +63,28 @@ void BulletWorld::setVelocities(StringId id, const std::vector<btVector3>& veloc
     v.reserve(velocities.size());
     for (const btVector3& b : velocities) v.push_back(tearables::toCore(b));
     tearables::setVelocities(*core_, id, v);
+}
+
+void BulletWorld::reel(StringId id, int end, double speed, RestMass mode) {
+    if (!std::isfinite(speed) || std::abs(speed) > 1000.0) throw InvalidInput("speed", "must be finite, at most 1000 m/s either way");
+    tearables::reel(*core_, id, end, 0.0, mode);  // checks the string, the end and the mode; changes nothing
+    if (speed == 0.0)
+        winches_.erase({id, end});
+    else
+        winches_[{id, end}] = Winch{speed, mode};
+}
+
+// Winches of strings since removed, or whose end was unpinned, stop.
+void BulletWorld::turnWinches(double h) {
+    for (auto it = winches_.begin(); it != winches_.end();) {
+        const auto [id, end] = it->first;
+        if (!core_->contains(id) || !core_->pinTarget(id, end, nullptr)) {
+            it = winches_.erase(it);
+            continue;
+        }
+        tearables::reel(*core_, id, end, it->second.speed * h, it->second.mode);
+        ++it;
+    }
 }
 
 // --- contacts and events as a Bullet user reads them --------------------------------------

@@ -1050,6 +1050,7 @@ void BulletWorld::substep(double h, int tick, int ticks) {
             ++it;
         }
         drive(tick, ticks);
+        turnWinches(h);
         contacts_->touched.clear();
 
         core_->step(h);

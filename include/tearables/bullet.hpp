@@ -140,6 +140,12 @@ public:
     /// keep moving with what holds them (tearables::setVelocities, controls.hpp). Throws
     /// InvalidInput ("string", "velocities", "velocities[i]") and changes nothing then.
     void setVelocities(StringId id, const std::vector<btVector3>& velocities);
+    /// A winch at a pinned end (0 or -1): from the next internal step on, every internal
+    /// step of h takes in (`speed` < 0) or pays out (`speed` > 0) |speed| h of rope
+    /// (tearables::reel, controls.hpp), until reel(id, end, 0) or the end is unpinned.
+    /// Throws InvalidInput ("string"; "end": not 0 or -1, or not pinned; "speed": not
+    /// finite or over 1000 m/s; "mode") and changes nothing then.
+    void reel(StringId id, int end, double speed, RestMass mode = RestMass::Conserve);
     /// Validates and creates a cloth (throws InvalidInput naming the field). Cloths collide
     /// with the Bullet bodies near them (spheres of the yarn radius at the vertices).
     ClothId addCloth(const ClothDesc& desc);
@@ -262,6 +268,8 @@ private:
     void substep(double h, int tick, int ticks);
     void drive(int tick, int ticks);
     void recordPeaks();
+    /// The winches' rope for an internal step of h (bullet_api.cpp).
+    void turnWinches(double h);
     /// The last internal step's contacts and events as Bullet users read them, then the
     /// callbacks (bullet_api.cpp).
     void reportStep(double h);
@@ -312,6 +320,11 @@ private:
     std::map<std::pair<PaperId, std::uint32_t>, Vec3> paper_forces_;
     std::map<std::pair<StringId, int>, PendingPin> pins_;
     std::map<StringId, std::vector<double>> peaks_;       // per string, per segment, N
+    struct Winch {
+        double speed = 0.0;  // m/s, > 0 pays out
+        RestMass mode = RestMass::Conserve;
+    };
+    std::map<std::pair<StringId, int>, Winch> winches_;  // by (string, end)
     // setUserPointer's, per object.
     std::map<StringId, void*> string_users_;
     std::map<ClothId, void*> cloth_users_;

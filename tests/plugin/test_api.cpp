@@ -457,4 +457,54 @@ TEST(Controls, InitialVelocitiesGiveTheirMomentum) {
     EXPECT_EQ(*ropes.core().view(rope).velocities, before);
 }
 
+// A winch at a rope's pinned top hauls a hanging crate in at speed v: once the start's
+// transient has passed the crate rises at v (to 2%: the segment being wound is stiffer
+// as it shortens), and the rope holds it with m (g + a) = m g (to 2%). With
+// RestMass::Add the rope taken in takes its mass, rho pi r^2 per metre, with it.
+TEST(Controls, AWinchHaulsAHangingMassAtItsSpeed) {
+    Physics p;
+    BulletWorld ropes(*p.world);
+    StringDesc d = tearables::testing::plainRope({0, 2, 0}, {0, 1, 0}, 20);
+    const StringId rope = ropes.addString(d);
+    ropes.attach(rope, 0, btVector3(0, 2, 0));
+    const double m = 5.0, g = 9.81, h = 1.0 / 240.0, v = 0.1;
+    btRigidBody& crate = p.box(btVector3(0.05f, 0.05f, 0.05f), m, btVector3(0, 0.95f, 0));
+    crate.setActivationState(DISABLE_DEACTIVATION);
+    ropes.attach(rope, -1, crate, btVector3(0, 0.05f, 0));
+    p.step(240, h);
+    ropes.reel(rope, 0, -v);
+    p.step(240, h);  // 1 s: the transient
+    const double y0 = static_cast<double>(crate.getCenterOfMassPosition().y());
+    double tension = 0.0;
+    const int steps = 240;
+    for (int i = 0; i < steps; ++i) {
+        p.step(1, h);
+        tension += ropes.core().view(rope).tension->back() / steps;
+    }
+    ASSERT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+    const double rise = static_cast<double>(crate.getCenterOfMassPosition().y()) - y0;
+    EXPECT_NEAR(rise / (steps * h), v, 0.02 * v);
+    EXPECT_NEAR(tension, m * g, 0.02 * m * g);
+    EXPECT_TRUE(ropes.core().isAttached(rope, 3));  // 0.2 m wound: the first segments on the drum
+
+    const StringId other = ropes.addString(tearables::testing::plainRope({1, 2, 0}, {1, 1, 0}, 20));
+    ropes.attach(other, 0, btVector3(1, 2, 0));
+    auto mass = [&](StringId id) {
+        double sum = 0.0;
+        for (double x : *ropes.core().view(id).masses) sum += x;
+        return sum;
+    };
+    const double before = mass(other);
+    tearables::reel(ropes.core(), other, 0, -0.12, tearables::RestMass::Add);
+    const double area = 3.14159265358979323846 * d.radius * d.radius;
+    EXPECT_NEAR(before - mass(other), d.density * area * 0.12, 1e-12);
+    EXPECT_TRUE(ropes.core().isAttached(other, 2));  // 0.12 m: two segments of 0.05 m wound
+    EXPECT_FALSE(ropes.core().isAttached(other, 3));
+    EXPECT_EQ(refusal([&] { ropes.reel(other, 1, -0.1); }), "end");
+    EXPECT_EQ(refusal([&] { ropes.reel(other, -1, -0.1); }), "end");  // not pinned
+    EXPECT_EQ(refusal([&] { ropes.reel(other, 0, std::nan("")); }), "speed");
+    EXPECT_EQ(refusal([&] { tearables::setRestLength(ropes.core(), other, 40, 0.1); }), "segment");
+    EXPECT_EQ(refusal([&] { tearables::setRestLength(ropes.core(), other, 4, 0.0); }), "length");
+}
+
 }  // namespace
