@@ -635,13 +635,11 @@ void parseMaterial(const Node& n, Material& m) {
     // A named preset first (presets.hpp); the fields below override parts of it.
     if (const auto p = n.field("preset")) {
         const std::string name = p->asString();
-        const MaterialPreset* preset = findMaterialPreset(name);
-        if (!preset) {
-            std::vector<const char*> names;
-            for (const MaterialPreset& mp : materialPresets()) names.push_back(mp.name);
-            p->fail("unknown material preset " + jsonQuoted(name) + " (known: " + joinNames(names) + ")");
+        try {
+            m = materialPreset(name);  // the lookup C++ programs use too
+        } catch (const InvalidInput& e) {
+            p->fail(e.problem());
         }
-        m = preset->material;
     }
     if (const auto t = n.field("tensile")) {
         t->checkNoUnknownFields({"young", "yield", "plastic_modulus", "rupture"});

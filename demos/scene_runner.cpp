@@ -662,7 +662,7 @@ void SceneRun::Impl::advance() {
     }
     if (!ropes->lastError().empty()) throw std::runtime_error("step " + std::to_string(step) + ": " + ropes->lastError());
 
-    last_events = ropes->events();
+    last_events = ropes->core().events();  // one internal step a frame: that step's, one per segment
     for (const Event& e : last_events) {
         ++counts[toString(e.type)];
         if (write) events << eventJson(e).dump() << '\n';

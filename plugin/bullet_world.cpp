@@ -49,6 +49,12 @@ btTransform tickPose(const btRigidBody& body, double h, int tick, int ticks) {
     return at;
 }
 
+// Throw InvalidInput("string"/"cloth"/"paper") unless `id` names a live object; a stale id
+// (its object removed) is named as such by the core.
+void requireLive(const World& core, StringId id) { (void)core.desc(id); }
+void requireLive(const World& core, ClothId id) { (void)core.clothDesc(id); }
+void requireLive(const World& core, PaperId id) { (void)core.paperDesc(id); }
+
 }  // namespace
 
 // The per-substep callback, plus a sentinel collision object that tells us whether the
@@ -215,7 +221,8 @@ private:
         const double h = owner_.step_;
         // Trees of strings that are gone (removed, frozen) are dropped.
         for (auto it = trees_.begin(); it != trees_.end();) {
-            const bool live = std::find(query.strings.begin(), query.strings.end(), StringId{it->first}) != query.strings.end();
+            const bool live = std::any_of(query.strings.begin(), query.strings.end(),
+                                          [&](StringId s) { return s.index == it->first; });
             it = live ? std::next(it) : trees_.erase(it);
         }
         for (std::size_t i = 0; i < query.strings.size(); ++i) {
@@ -770,13 +777,15 @@ StringId BulletWorld::addString(const StringDesc& desc, int group, int mask) {
     string_filters_[id.index] = Filter{group, mask};
     return id;
 }
-// A removed string's slot may name the next string added: nothing of it is kept.
+// A removed string's slot may hold the next string added (with the next generation):
+// nothing of it is kept.
 void BulletWorld::removeString(StringId id) {
     core_->removeString(id);
     string_filters_.erase(id.index);
-    peaks_.erase(id.index);
-    forces_.erase(forces_.lower_bound({id.index, INT_MIN}), forces_.lower_bound({id.index + 1, INT_MIN}));
-    pins_.erase(pins_.lower_bound({id.index, INT_MIN}), pins_.lower_bound({id.index + 1, INT_MIN}));
+    peaks_.erase(id);
+    string_users_.erase(id);
+    forces_.erase(forces_.lower_bound({id, INT_MIN}), forces_.upper_bound({id, INT_MAX}));
+    pins_.erase(pins_.lower_bound({id, INT_MIN}), pins_.upper_bound({id, INT_MAX}));
 }
 
 // Bullet's rule (btOverlappingPairCache's needsBroadphaseCollision), both ways.
@@ -804,7 +813,7 @@ BulletWorld::Filter BulletWorld::meshFilter(const PointQuery& query, std::size_t
     }
     return Filter{};
 }
-const std::vector<Event>& BulletWorld::events() const { return events_; }
+const std::vector<BulletEvent>& BulletWorld::events() const { return events_; }
 void BulletWorld::clearEvents() { events_.clear(); }
 const StageTimes& BulletWorld::totalStageTimes() const { return total_; }
 const std::string& BulletWorld::lastError() const { return last_error_; }
@@ -875,7 +884,7 @@ RigidId BulletWorld::proxyFor(btRigidBody& body) {
 
 void BulletWorld::attach(StringId id, int particle, btRigidBody& body, const btVector3& local_point) {
     if (!body.getBroadphaseHandle()) throw InvalidInput("body", "is not in the Bullet world");
-    if (!core_->contains(id)) throw InvalidInput("string", "no such string");
+    requireLive(*core_, id);
     core_->resolveParticle(id, particle);  // validates before anything is created
     core_->attachToRigid(id, particle, proxyFor(body), toCore(local_point));
 }
@@ -895,7 +904,15 @@ ClothId BulletWorld::addCloth(const ClothDesc& desc, int group, int mask) {
 void BulletWorld::removeCloth(ClothId id) {
     core_->removeCloth(id);
     cloth_filters_.erase(id.index);
-    cloth_forces_.erase(cloth_forces_.lower_bound({id.index, INT_MIN}), cloth_forces_.lower_bound({id.index + 1, INT_MIN}));
+    cloth_users_.erase(id);
+    cloth_forces_.erase(cloth_forces_.lower_bound({id, INT_MIN}), cloth_forces_.upper_bound({id, INT_MAX}));
+}
+
+void BulletWorld::removePaper(PaperId id) {
+    core_->removePaper(id);
+    paper_filters_.erase(id.index);
+    paper_users_.erase(id);
+    paper_forces_.erase(paper_forces_.lower_bound({id, 0u}), paper_forces_.upper_bound({id, UINT32_MAX}));
 }
 
 void BulletWorld::attachCloth(ClothId id, int vertex, const btVector3& world_point) {
@@ -904,7 +921,7 @@ void BulletWorld::attachCloth(ClothId id, int vertex, const btVector3& world_poi
 
 void BulletWorld::attachCloth(ClothId id, int vertex, btRigidBody& body, const btVector3& local_point) {
     if (!body.getBroadphaseHandle()) throw InvalidInput("body", "is not in the Bullet world");
-    if (!core_->contains(id)) throw InvalidInput("cloth", "no such cloth");
+    requireLive(*core_, id);
     const int n = core_->clothDesc(id).vertexCount();
     if (vertex < -n || vertex >= n) throw InvalidInput("vertex", "vertex index " + std::to_string(vertex) + " out of range");
     core_->attachClothToRigid(id, vertex, proxyFor(body), toCore(local_point));
@@ -927,7 +944,7 @@ void BulletWorld::attachPaper(PaperId id, std::uint32_t vertex, const btVector3&
 
 void BulletWorld::attachPaper(PaperId id, std::uint32_t vertex, btRigidBody& body, const btVector3& local_point) {
     if (!body.getBroadphaseHandle()) throw InvalidInput("body", "is not in the Bullet world");
-    if (!core_->contains(id)) throw InvalidInput("paper", "no such paper sheet");
+    requireLive(*core_, id);
     if (vertex >= core_->viewPaper(id).vertexCount()) throw InvalidInput("vertex", "out of range");
     core_->attachPaperToRigid(id, vertex, proxyFor(body), toCore(local_point));
 }
@@ -1025,15 +1042,15 @@ void BulletWorld::claimIslandBodies() {
 // with at the frame's last step.
 void BulletWorld::drive(int tick, int ticks) {
     for (auto it = forces_.begin(); it != forces_.end(); ++it) {
-        const StringId id{it->first.first};
+        const StringId id = it->first.first;
         if (core_->contains(id)) core_->applyForce(id, it->first.second, it->second);
     }
     for (const auto& [key, force] : cloth_forces_)
-        if (core_->contains(ClothId{key.first})) core_->applyClothForce(ClothId{key.first}, key.second, force);
+        if (core_->contains(key.first)) core_->applyClothForce(key.first, key.second, force);
     for (const auto& [key, force] : paper_forces_)
-        if (core_->contains(PaperId{key.first})) core_->applyPaperForce(PaperId{key.first}, key.second, force);
+        if (core_->contains(key.first)) core_->applyPaperForce(key.first, key.second, force);
     for (auto it = pins_.begin(); it != pins_.end(); ++it) {
-        const StringId id{it->first.first};
+        const StringId id = it->first.first;
         Vec3 now;
         if (!core_->contains(id) || !core_->pinTarget(id, it->first.second, &now)) continue;  // detached since
         const double f = static_cast<double>(tick) / static_cast<double>(ticks);
@@ -1054,16 +1071,16 @@ void BulletWorld::drive(int tick, int ticks) {
 void BulletWorld::recordPeaks() {
     const std::vector<StringId> live = core_->strings();
     for (auto it = peaks_.begin(); it != peaks_.end();)
-        it = core_->contains(StringId{it->first}) ? std::next(it) : peaks_.erase(it);
+        it = core_->contains(it->first) ? std::next(it) : peaks_.erase(it);
     for (const StringId id : live) {
         const std::vector<double>& t = *core_->view(id).tension;
-        std::vector<double>& peak = peaks_[id.index];
+        std::vector<double>& peak = peaks_[id];
         peak.resize(t.size(), 0.0);
         for (std::size_t j = 0; j < t.size(); ++j) peak[j] = std::max(peak[j], t[j]);
     }
     for (const Event& e : core_->events()) {
         if (e.type != EventType::Tear || e.cause != EventCause::Tension || !core_->contains(e.string)) continue;
-        std::vector<double>& peak = peaks_[e.string.index];
+        std::vector<double>& peak = peaks_[e.string];
         const double r0 = core_->desc(e.string).radius;
         if (e.segment >= 0 && static_cast<std::size_t>(e.segment) < peak.size())
             peak[e.segment] = std::max(peak[e.segment], e.stress * kPi * r0 * r0);
@@ -1071,11 +1088,11 @@ void BulletWorld::recordPeaks() {
 }
 
 void BulletWorld::applyForce(StringId id, int particle, const btVector3& force) {
-    if (!core_->contains(id)) throw InvalidInput("string", "no such string");
+    requireLive(*core_, id);
     const int p = core_->resolveParticle(id, particle);
     const Vec3 f = tearables::toCore(force);
     if (!f.allFinite()) throw InvalidInput("force", "must be finite");
-    auto [it, fresh] = forces_.try_emplace({id.index, p}, Vec3::Zero());
+    auto [it, fresh] = forces_.try_emplace({id, p}, Vec3::Zero());
     it->second += f;
 }
 
@@ -1084,7 +1101,7 @@ void BulletWorld::applyClothForce(ClothId id, int vertex, const btVector3& force
     const Vec3 f = tearables::toCore(force);
     core_->applyClothForce(id, vertex, Vec3::Zero());
     if (!f.allFinite()) throw InvalidInput("force", "must be finite");
-    auto [it, fresh] = cloth_forces_.try_emplace({id.index, vertex}, Vec3::Zero());
+    auto [it, fresh] = cloth_forces_.try_emplace({id, vertex}, Vec3::Zero());
     it->second += f;
 }
 
@@ -1092,31 +1109,31 @@ void BulletWorld::applyPaperForce(PaperId id, std::uint32_t vertex, const btVect
     const Vec3 f = tearables::toCore(force);
     core_->applyPaperForce(id, vertex, Vec3::Zero());
     if (!f.allFinite()) throw InvalidInput("force", "must be finite");
-    auto [it, fresh] = paper_forces_.try_emplace({id.index, vertex}, Vec3::Zero());
+    auto [it, fresh] = paper_forces_.try_emplace({id, vertex}, Vec3::Zero());
     it->second += f;
 }
 
 void BulletWorld::movePin(StringId id, int particle, const btVector3& point) {
-    if (!core_->contains(id)) throw InvalidInput("string", "no such string");
+    requireLive(*core_, id);
     const int p = core_->resolveParticle(id, particle);
     Vec3 now;
     if (!core_->pinTarget(id, p, &now)) throw InvalidInput("particle", "particle " + std::to_string(particle) + " is not pinned to a world point");
     const Vec3 to = tearables::toCore(point);
     if (!to.allFinite()) throw InvalidInput("point", "must be finite");
-    auto [it, fresh] = pins_.try_emplace({id.index, p}, PendingPin{now, to});
+    auto [it, fresh] = pins_.try_emplace({id, p}, PendingPin{now, to});
     it->second.to = to;  // a second move before the step keeps the first start
 }
 
 std::vector<double> BulletWorld::peakTension(StringId id) const {
-    if (!core_->contains(id)) throw InvalidInput("string", "no such string");
-    const auto it = peaks_.find(id.index);
+    requireLive(*core_, id);
+    const auto it = peaks_.find(id);
     if (it != peaks_.end()) return it->second;
     return std::vector<double>(core_->view(id).segmentCount(), 0.0);
 }
 
 void BulletWorld::clearPeakTension(StringId id) {
-    if (!core_->contains(id)) throw InvalidInput("string", "no such string");
-    peaks_.erase(id.index);
+    requireLive(*core_, id);
+    peaks_.erase(id);
 }
 
 void BulletWorld::substep(double h, int tick, int ticks) {
@@ -1161,6 +1178,7 @@ void BulletWorld::substep(double h, int tick, int ticks) {
             ++it;
         }
         drive(tick, ticks);
+        turnWinches(h);
         contacts_->touched.clear();
 
         core_->step(h);
@@ -1168,11 +1186,10 @@ void BulletWorld::substep(double h, int tick, int ticks) {
         writeBodies();
         contacts_->writeBodyImpulses(core_->lastBodyContacts());
         claimIslandBodies();
-        const std::vector<Event>& ev = core_->events();
-        events_.insert(events_.end(), ev.begin(), ev.end());
         recordPeaks();
         total_ += core_->lastStageTimes();
         last_error_.clear();  // this step succeeded
+        reportStep(h);
     } catch (const std::exception& e) {
         last_error_ = e.what();  // never throw into Bullet's step
     } catch (...) {

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "tearables/material.hpp"
+#include "tearables/types.hpp"
 
 #include <string>
 #include <vector>
@@ -32,5 +33,11 @@ const std::vector<MaterialPreset>& materialPresets();
 /// The preset with this name (exact, case-sensitive match), or nullptr when there is none.
 /// The pointer stays valid for the program's life.
 const MaterialPreset* findMaterialPreset(const std::string& name);
+
+/// The material of the preset with this name, exactly as a scene's
+/// `"material": {"preset": name}` gives it (the scene loader calls this): the preset's
+/// curves and variation; its suggested radius and density are in findMaterialPreset().
+/// Throws InvalidInput("preset", "unknown material preset \"name\" (known: thread, ...)").
+Material materialPreset(const std::string& name);
 
 }  // namespace tearables

@@ -1,4 +1,4 @@
-// tearables: queries on a world's strings (ray tests), read-only.
+// tearables: queries on a world's strings (ray tests, contact forces, holds), read-only.
 #pragma once
 
 #include "tearables/world.hpp"
@@ -24,5 +24,31 @@ std::optional<RayHit> rayTest(const World& world, const Vec3& from, const Vec3& 
 /// Ray against one capsule (axis a-b, radius r): the entry fraction along the ray in
 /// [0, 1] and the axis fraction of the hit, or nothing. A ray starting inside hits at 0.
 std::optional<std::pair<double, double>> rayCapsule(const Vec3& from, const Vec3& to, const Vec3& a, const Vec3& b, double r);
+
+/// A string's contact with a rigid body in the last step and the force it carried: the
+/// strain-limit solve's penalty k_c max(0, -g) at the gap g where the solve stopped (its
+/// Lagrange multiplier: the solve minimises inertia + springs + k_c g^2 / 2, so at its
+/// minimum the penalty's gradient is the contact's normal force), and the lagged Coulomb
+/// friction -w u_t (w = mu F / max(|u_t|, eps), contact_rows.cpp: the weight of the last
+/// solve) on the slip u_t.
+struct ContactForce {
+    StringId string;                     ///< the string
+    std::uint32_t segment = 0;           ///< its segment
+    double s = 0.0;                      ///< fraction along the segment, [0, 1] (0 = its first particle)
+    RigidId body;                        ///< the body's proxy
+    Vec3 point = Vec3::Zero();           ///< world, m: the string's surface point facing the body
+    Vec3 normal = Vec3::UnitY();         ///< unit, from the body toward the string
+    double normal_force = 0.0;           ///< N, > 0
+    Vec3 friction_force = Vec3::Zero();  ///< N, on the string, tangent to the body
+};
+
+/// Replaces `out` with the last step's string-body contacts that pressed (normal force
+/// > 0), by string slot, then in the order the host reported them. Valid until the next
+/// step or change (as the views).
+void lastContactForces(const World& world, std::vector<ContactForce>& out);
+
+/// The body a string's particle is glued to (negative counts from the end), or an invalid
+/// id when it is free or pinned to a world point. Throws InvalidInput ("string", "particle").
+RigidId gluedBody(const World& world, StringId id, int particle);
 
 }  // namespace tearables

@@ -19,7 +19,8 @@
 //   "WRLD"  settings, time, steps, and the slot counts of strings, rigid bodies, cloths
 //           and paper sheets;
 //   "RIGD"  the rigid proxies by slot;
-//   "STRG"  one per string slot (dead slots included: ids stay);
+//   "STRG"  one per string slot (dead slots included: ids stay, with each slot's
+//           generation, so that an id kept across a removal stays refused);
 //   "CLTH"  one per cloth slot: descriptor, vertices (positions, velocities, forces, masses,
 //           holds), yarn edges (lengths, tension, damage, material after variation), soft
 //           springs, adjacency, the random generator; scratch and factors are rebuilt;
@@ -47,7 +48,7 @@
 namespace tearables {
 
 /// The version this build writes and the only one it reads.
-constexpr std::uint32_t kSnapshotVersion = 6;
+constexpr std::uint32_t kSnapshotVersion = 7;
 
 /// A snapshot was refused: field() is "snapshot" or "snapshot.<section>", problem() says
 /// what is wrong (wrong magic, version, checksum, truncated, inconsistent section).

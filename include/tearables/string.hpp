@@ -60,6 +60,16 @@ struct StringDesc {
 
     /// A straight string from `from` to `to` with `segments` equal segments.
     static StringDesc straight(const Vec3& from, const Vec3& to, int segments);
+    /// A string of `length` (m) from `a` to `b` in `segments` segments, hanging as a uniform
+    /// heavy rope does under gravity along -y: the catenary through a and b of that arc
+    /// length, the particles at equal arc lengths (each segment's rest length is its chord,
+    /// short of length / segments by (k l)^2 / 24 of it, k the curvature, l the segment).
+    /// With `length` equal to |b - a| (to 1e-9 relative) the string is straight. Pin or glue
+    /// its ends where it starts and it starts at rest in its hanging shape. Throws
+    /// InvalidInput ("a", "b": finite, in range, 1e-6 m apart or more, and apart
+    /// horizontally by 1e-6 of the length or more when there is slack; "length": finite,
+    /// at least |b - a|, at most 1e6 m; "segments": 1..10 million).
+    static StringDesc between(const Vec3& a, const Vec3& b, double length, int segments);
 };
 
 /// Throws InvalidInput naming the field when `desc` is not valid.

@@ -20,9 +20,17 @@ using Quat = Eigen::Quaterniond;
 /// Identifies a string (rope, thread) in a World; stays valid until the string is removed.
 struct StringId {
     std::uint32_t index = UINT32_MAX;  ///< slot in the world; UINT32_MAX = none
+    /// Which object that slot held: a slot's generation grows by one when its string is
+    /// removed, so an id kept after the removal is refused (InvalidInput naming the
+    /// argument) instead of naming the next string put in the slot.
+    std::uint32_t generation = 0;
     bool valid() const { return index != UINT32_MAX; }
-    friend bool operator==(StringId a, StringId b) { return a.index == b.index; }
-    friend bool operator!=(StringId a, StringId b) { return a.index != b.index; }
+    friend bool operator==(StringId a, StringId b) { return a.index == b.index && a.generation == b.generation; }
+    friend bool operator!=(StringId a, StringId b) { return !(a == b); }
+    /// By slot, then generation (for ordered containers).
+    friend bool operator<(StringId a, StringId b) {
+        return a.index != b.index ? a.index < b.index : a.generation < b.generation;
+    }
 };
 
 /// Identifies a rigid body proxy in the core World (the Bullet plugin creates them).

@@ -75,6 +75,8 @@ struct ClothBodyNode {
 struct ClothState {
     ClothDesc desc;
     bool alive = true;
+    /// The slot's generation (the id's): grows by one when the object is removed.
+    std::uint32_t generation = 0;
     bool frozen = false;
     int nu = 0, nv = 0;  ///< vertices along local x and z
 
@@ -183,6 +185,8 @@ public:
     ClothState& get(ClothId id);
     const ClothState& get(ClothId id) const;
     bool contains(ClothId id) const;
+    /// The id of the cloth in `slot` (its current generation).
+    ClothId idAt(std::size_t slot) const;
     std::vector<ClothId> ids() const;
     bool empty() const;
 

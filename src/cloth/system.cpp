@@ -18,35 +18,46 @@ ClothId ClothSystem::add(const ClothDesc& desc) {
     ClothState state = makeCloth(desc);
     for (std::size_t i = 0; i < cloths_.size(); ++i)
         if (!cloths_[i].alive) {
+            state.generation = cloths_[i].generation;
             cloths_[i] = std::move(state);
-            return ClothId{static_cast<std::uint32_t>(i)};
+            return idAt(i);
         }
     cloths_.push_back(std::move(state));
-    return ClothId{static_cast<std::uint32_t>(cloths_.size() - 1)};
+    return idAt(cloths_.size() - 1);
 }
 
 void ClothSystem::remove(ClothId id) {
-    get(id);
+    const std::uint32_t generation = get(id).generation + 1;
     cloths_[id.index] = ClothState{};
     cloths_[id.index].alive = false;
+    cloths_[id.index].generation = generation;
 }
 
 ClothState& ClothSystem::get(ClothId id) {
-    if (!contains(id)) throw InvalidInput("cloth", "no such cloth");
-    return cloths_[id.index];
+    return const_cast<ClothState&>(static_cast<const ClothSystem&>(*this).get(id));
 }
 
 const ClothState& ClothSystem::get(ClothId id) const {
-    if (!contains(id)) throw InvalidInput("cloth", "no such cloth");
+    if (!contains(id)) {
+        if (id.index < cloths_.size() && id.generation < cloths_[id.index].generation)
+            throw InvalidInput("cloth", "stale id: the cloth in slot " + std::to_string(id.index) + " was removed");
+        throw InvalidInput("cloth", "no such cloth");
+    }
     return cloths_[id.index];
 }
 
-bool ClothSystem::contains(ClothId id) const { return id.index < cloths_.size() && cloths_[id.index].alive; }
+bool ClothSystem::contains(ClothId id) const {
+    return id.index < cloths_.size() && cloths_[id.index].alive && cloths_[id.index].generation == id.generation;
+}
+
+ClothId ClothSystem::idAt(std::size_t slot) const {
+    return ClothId{static_cast<std::uint32_t>(slot), cloths_[slot].generation};
+}
 
 std::vector<ClothId> ClothSystem::ids() const {
     std::vector<ClothId> out;
     for (std::size_t i = 0; i < cloths_.size(); ++i)
-        if (cloths_[i].alive) out.push_back(ClothId{static_cast<std::uint32_t>(i)});
+        if (cloths_[i].alive) out.push_back(idAt(i));
     return out;
 }
 
@@ -84,7 +95,7 @@ void ClothSystem::releaseBody(RigidId body, double time, std::int64_t step, std:
         if (!c.alive) continue;
         for (std::size_t p = 0; p < c.vertices(); ++p)
             if (c.hold[p].gluedTo(body))
-                release(ClothId{static_cast<std::uint32_t>(i)}, p, EventCause::BodyRemoved, time, step, pending);
+                release(idAt(i), p, EventCause::BodyRemoved, time, step, pending);
     }
 }
 

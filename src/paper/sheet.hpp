@@ -57,6 +57,8 @@ struct alignas(32) JacobiEntry {
 struct PaperSheet {
     PaperDesc desc;
     bool alive = true;
+    /// The slot's generation (the id's): grows by one when the object is removed.
+    std::uint32_t generation = 0;
     bool frozen = false;
     // per vertex (n)
     std::vector<Vec3> x;          ///< positions at the start of the step / after it, m

@@ -53,31 +53,37 @@ PaperId PaperSystem::add(const PaperDesc& desc, const RigidTable& rigids) {
     s.x_pred = s.x;
     for (std::size_t i = 0; i < sheets_.size(); ++i)
         if (!sheets_[i].alive) {
+            s.generation = sheets_[i].generation;
             sheets_[i] = std::move(s);
-            return PaperId{static_cast<std::uint32_t>(i)};
+            return idAt(i);
         }
     sheets_.push_back(std::move(s));
-    return PaperId{static_cast<std::uint32_t>(sheets_.size() - 1)};
+    return idAt(sheets_.size() - 1);
 }
 
 void PaperSystem::remove(PaperId id) {
-    get(id) = PaperSheet{};
+    const std::uint32_t generation = get(id).generation + 1;
+    sheets_[id.index] = PaperSheet{};
     sheets_[id.index].alive = false;
+    sheets_[id.index].generation = generation;
 }
 
 std::vector<PaperId> PaperSystem::ids() const {
     std::vector<PaperId> out;
     for (std::size_t i = 0; i < sheets_.size(); ++i)
-        if (sheets_[i].alive) out.push_back(PaperId{static_cast<std::uint32_t>(i)});
+        if (sheets_[i].alive) out.push_back(idAt(i));
     return out;
 }
 
 PaperSheet& PaperSystem::get(PaperId id) {
-    if (!contains(id)) throw InvalidInput("paper", "no such paper sheet");
-    return sheets_[id.index];
+    return const_cast<PaperSheet&>(static_cast<const PaperSystem&>(*this).get(id));
 }
 const PaperSheet& PaperSystem::get(PaperId id) const {
-    if (!contains(id)) throw InvalidInput("paper", "no such paper sheet");
+    if (!contains(id)) {
+        if (id.index < sheets_.size() && id.generation < sheets_[id.index].generation)
+            throw InvalidInput("paper", "stale id: the paper sheet in slot " + std::to_string(id.index) + " was removed");
+        throw InvalidInput("paper", "no such paper sheet");
+    }
     return sheets_[id.index];
 }
 
@@ -140,7 +146,7 @@ void PaperSystem::releaseBody(RigidId body, double time, std::int64_t step, std:
         if (!sheets_[i].alive) continue;
         for (std::size_t v = 0; v < sheets_[i].vertices(); ++v)
             if (sheets_[i].hold[v].gluedTo(body))
-                release(PaperId{static_cast<std::uint32_t>(i)}, static_cast<std::uint32_t>(v), EventCause::BodyRemoved, time, step, events);
+                release(idAt(i), static_cast<std::uint32_t>(v), EventCause::BodyRemoved, time, step, events);
     }
 }
 
@@ -271,7 +277,7 @@ void PaperSystem::positions(RigidTable& rigids, const PaperStep& ctx) {
 
 void PaperSystem::crease(const PaperStep& ctx, std::vector<Event>& events) {
     for (std::size_t i = 0; i < sheets_.size(); ++i)
-        if (live(sheets_[i])) creaseAndFold(sheets_[i], PaperId{static_cast<std::uint32_t>(i)}, ctx, events);
+        if (live(sheets_[i])) creaseAndFold(sheets_[i], idAt(i), ctx, events);
 }
 
 /// Tears, then the finite check: a sheet left non-finite is frozen where it is (its
@@ -280,7 +286,7 @@ void PaperSystem::tearAndCheck(const StepContext& step, const PaperStep& ctx, st
     for (std::size_t i = 0; i < sheets_.size(); ++i) {
         PaperSheet& s = sheets_[i];
         if (!live(s)) continue;
-        tear(s, PaperId{static_cast<std::uint32_t>(i)}, ctx, events);
+        tear(s, idAt(i), ctx, events);
         bool ok = true;
         for (std::size_t v = 0; v < s.vertices() && ok; ++v) ok = s.x[v].allFinite() && s.v[v].allFinite();
         if (!ok) {

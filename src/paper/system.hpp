@@ -16,7 +16,11 @@ public:
     PaperId add(const PaperDesc& desc, const RigidTable& rigids);
     void remove(PaperId id);
     std::vector<PaperId> ids() const;
-    bool contains(PaperId id) const { return id.index < sheets_.size() && sheets_[id.index].alive; }
+    bool contains(PaperId id) const {
+        return id.index < sheets_.size() && sheets_[id.index].alive && sheets_[id.index].generation == id.generation;
+    }
+    /// The id of the sheet in `slot` (its current generation).
+    PaperId idAt(std::size_t slot) const { return PaperId{static_cast<std::uint32_t>(slot), sheets_[slot].generation}; }
     PaperSheet& get(PaperId id);
     const PaperSheet& get(PaperId id) const;
     PaperView view(PaperId id) const;

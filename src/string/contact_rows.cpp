@@ -155,6 +155,7 @@ double weighRigidFriction(StringState& s) {
             w = c.friction * c.force / std::max(rigidSlip(s, c, xs).norm(), kRigidSlip * c.gap);
         const double scale = std::max(w, c.friction_weight);
         if (scale > 0.0) change = std::max(change, std::abs(w - c.friction_weight) / scale);
+        c.solved_weight = c.friction_weight;
         c.friction_weight = w;
     }
     return change;

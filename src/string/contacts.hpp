@@ -38,6 +38,9 @@ struct RigidSegmentContact {
     Vec3 plane_arm = Vec3::Zero();    ///< plane_point minus the body's centre
     Vec3 start_point = Vec3::Zero();  ///< the body's contact point where the step started
     double friction_weight = 0.0;     ///< friction's lagged weight mu F / max(slip, eps), N/m
+    /// The weight the last solve balanced (weighRigidFriction replaces friction_weight
+    /// after each solve): its friction force on the string is -solved_weight u_t.
+    double solved_weight = 0.0;
 };
 
 /// One pair of segments, named from one side: segment `segment` of string `string` against

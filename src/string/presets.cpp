@@ -197,4 +197,11 @@ const MaterialPreset* findMaterialPreset(const std::string& name) {
     return nullptr;
 }
 
+Material materialPreset(const std::string& name) {
+    if (const MaterialPreset* p = findMaterialPreset(name)) return p->material;
+    std::string known;
+    for (const MaterialPreset& p : materialPresets()) known += (known.empty() ? "" : ", ") + std::string(p.name);
+    throw InvalidInput("preset", "unknown material preset \"" + name + "\" (known: " + known + ")");
+}
+
 }  // namespace tearables

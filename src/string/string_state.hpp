@@ -131,6 +131,8 @@ struct StringDiagnostics {
 struct StringState {
     StringDesc desc;
     bool alive = true;
+    /// The slot's generation (the id's): grows by one when the object is removed.
+    std::uint32_t generation = 0;
     bool frozen = false;
 
     // --- particles (n + 1) --------------------------------------------------------------

@@ -143,8 +143,9 @@ StringId StringSystem::add(const StringDesc& desc) {
     // Reuse a free slot so ids stay small; the order of strings is the slot order.
     for (std::size_t i = 0; i < strings_.size(); ++i)
         if (!strings_[i].alive) {
+            s.generation = strings_[i].generation;
             strings_[i] = std::move(s);
-            return StringId{static_cast<std::uint32_t>(i)};
+            return idAt(i);
         }
     strings_.push_back(std::move(s));
     // The step's per-string index lists get their room here, not in a step (own_ is empty
@@ -152,31 +153,42 @@ StringId StringSystem::add(const StringDesc& desc) {
     // stops touching it).
     live_.reserve(strings_.size());
     own_.reserve(strings_.size());
-    return StringId{static_cast<std::uint32_t>(strings_.size() - 1)};
+    return idAt(strings_.size() - 1);
 }
 
 void StringSystem::remove(StringId id) {
     StringState& s = get(id);
+    const std::uint32_t generation = s.generation + 1;
     s = StringState{};
     s.alive = false;
+    s.generation = generation;
 }
 
 StringState& StringSystem::get(StringId id) {
-    if (!contains(id)) throw InvalidInput("string", "no such string");
-    return strings_[id.index];
+    return const_cast<StringState&>(static_cast<const StringSystem&>(*this).get(id));
 }
 
 const StringState& StringSystem::get(StringId id) const {
-    if (!contains(id)) throw InvalidInput("string", "no such string");
+    if (!contains(id)) {
+        if (id.index < strings_.size() && id.generation < strings_[id.index].generation)
+            throw InvalidInput("string", "stale id: the string in slot " + std::to_string(id.index) + " was removed");
+        throw InvalidInput("string", "no such string");
+    }
     return strings_[id.index];
 }
 
-bool StringSystem::contains(StringId id) const { return id.index < strings_.size() && strings_[id.index].alive; }
+bool StringSystem::contains(StringId id) const {
+    return id.index < strings_.size() && strings_[id.index].alive && strings_[id.index].generation == id.generation;
+}
+
+StringId StringSystem::idAt(std::size_t slot) const {
+    return StringId{static_cast<std::uint32_t>(slot), strings_[slot].generation};
+}
 
 std::vector<StringId> StringSystem::ids() const {
     std::vector<StringId> out;
     for (std::size_t i = 0; i < strings_.size(); ++i)
-        if (strings_[i].alive) out.push_back(StringId{static_cast<std::uint32_t>(i)});
+        if (strings_[i].alive) out.push_back(idAt(i));
     return out;
 }
 
@@ -194,7 +206,7 @@ void StringSystem::releaseBody(RigidId body, double time, std::int64_t step, std
         if (!s.alive) continue;
         for (std::size_t p = 0; p < s.particles(); ++p)
             if (s.hold[p].gluedTo(body))
-                release(StringId{static_cast<std::uint32_t>(i)}, p, EventCause::BodyRemoved, time, step, pending);
+                release(idAt(i), p, EventCause::BodyRemoved, time, step, pending);
     }
 }
 
@@ -272,7 +284,7 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host) {
     for (std::size_t i = 0; i < strings_.size(); ++i) {
         const StringState& s = strings_[i];
         if (!s.alive || s.frozen) continue;
-        query_.strings.push_back(StringId{static_cast<std::uint32_t>(i)});
+        query_.strings.push_back(idAt(i));
         query_.start.push_back(&s.x_prev);
         query_.predicted.push_back(&s.x);
         query_.radius.push_back(&s.radius);
@@ -280,7 +292,7 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host) {
     }
     host.segments(query_, contacts_);
     for (const RigidContact& c : contacts_) {
-        if (c.string.index >= strings_.size() || !strings_[c.string.index].alive) continue;
+        if (!contains(c.string)) continue;
         StringState& s = strings_[c.string.index];
         if (s.frozen || c.segment >= s.segments() || s.broken[c.segment]) continue;
         if (c.body.index >= rigids.bodies.size() || !rigids.used[c.body.index]) continue;
@@ -379,7 +391,7 @@ void StringSystem::respondMaterial(const StepContext& ctx, std::vector<Event>& e
     if (live_events_.size() < live_.size()) live_events_.resize(live_.size());
     pool_->forEach(live_.size(), [&](std::size_t k) {
         live_events_[k].clear();
-        detail::respondMaterial(strings_[live_[k]], StringId{live_[k]}, ctx, live_events_[k]);
+        detail::respondMaterial(strings_[live_[k]], idAt(live_[k]), ctx, live_events_[k]);
     });
     for (std::size_t k = 0; k < live_.size(); ++k) events.insert(events.end(), live_events_[k].begin(), live_events_[k].end());
 }
@@ -409,7 +421,7 @@ void StringSystem::updateVelocities(const StepContext& ctx, std::vector<Event>& 
         }
         std::fill(s.tension.begin(), s.tension.end(), 0.0);
         Event e = freezeNonFinite(s.v, s.frozen, s.desc.name, ctx);
-        e.string = StringId{live_[k]};
+        e.string = idAt(live_[k]);
         events.push_back(e);
     }
 }

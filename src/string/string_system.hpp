@@ -33,6 +33,8 @@ public:
     StringState& get(StringId id);
     const StringState& get(StringId id) const;
     bool contains(StringId id) const;
+    /// The id of the string in `slot` (its current generation).
+    StringId idAt(std::size_t slot) const;
     std::vector<StringId> ids() const;
 
     /// One step of every live string (the first material of World::step).

@@ -202,6 +202,7 @@ void io(A& a, detail::PairKey& k) {
 template <class A>
 void io(A& a, StringId& id) {
     io(a, id.index);
+    io(a, id.generation);
 }
 template <class A>
 void io(A& a, RigidId& id) {
@@ -389,7 +390,8 @@ void io(A& a, std::vector<T>& v) {
 template <class A>
 void io(A& a, detail::StringState& s) {
     io(a, s.alive);
-    if (!s.alive) return;  // a free slot: only its place is kept
+    io(a, s.generation);
+    if (!s.alive) return;  // a free slot: only its place and generation are kept
     io(a, s.desc);
     io(a, s.frozen);
     io(a, s.x);
@@ -483,6 +485,7 @@ void io(A& a, ClothDesc& d) {
 template <class A>
 void io(A& a, detail::ClothState& c) {
     io(a, c.alive);
+    io(a, c.generation);
     io(a, c.desc);
     io(a, c.frozen);
     io(a, c.nu);
@@ -555,6 +558,7 @@ void io(A& a, PaperDesc& d) {
 template <class A>
 void io(A& a, detail::PaperSheet& s) {
     io(a, s.alive);
+    io(a, s.generation);
     io(a, s.desc);
     io(a, s.frozen);
     io(a, s.x);
@@ -725,8 +729,10 @@ detail::ClothState readCloth(const std::string& payload, const detail::RigidTabl
     io(s, c);
     if (s.remaining() != 0) s.fail(std::to_string(s.remaining()) + " bytes left over at the end of the section");
     if (!c.alive) {
+        const std::uint32_t generation = c.generation;
         c = detail::ClothState{};
         c.alive = false;
+        c.generation = generation;
         return c;
     }
     checkCloth(c, rigids, where);
@@ -977,8 +983,10 @@ Snapshot Snapshot::read(std::istream& in) {
             if (string.alive) {
                 checkString(string, d.rigids, "snapshot.STRG[" + std::to_string(d.strings.size() - 1) + "]");
             } else {
+                const std::uint32_t generation = string.generation;
                 string = detail::StringState{};
                 string.alive = false;
+                string.generation = generation;
             }
         } else if (tag == "CLTH") {
             if (!have_rigids) s.fail("out of order (expected after RIGD)");
@@ -996,8 +1004,10 @@ Snapshot Snapshot::read(std::istream& in) {
             if (sheet.alive) {
                 checkPaper(sheet, d.rigids, "snapshot.PAPR[" + std::to_string(d.papers.size() - 1) + "]");
             } else {
+                const std::uint32_t generation = sheet.generation;
                 sheet = detail::PaperSheet{};
                 sheet.alive = false;
+                sheet.generation = generation;
             }
         } else if (tag == "SCOL") {
             io(s, d.previous_pairs);

@@ -56,7 +56,8 @@ bool bodyFinite(const btRigidBody& b) {
            ok(xf.getBasis().getRow(2)) && ok(b.getLinearVelocity()) && ok(b.getAngularVelocity());
 }
 
-int countEvents(const std::vector<tearables::Event>& events, EventType type) {
+template <class Events>
+int countEvents(const Events& events, EventType type) {
     int n = 0;
     for (const auto& e : events) n += e.type == type;
     return n;
