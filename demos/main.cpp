@@ -48,6 +48,20 @@ std::pair<int, int> parseSize(const std::string& text, const std::string& option
     return {w, h};
 }
 
+/// A size in bytes: a number with an optional suffix K, M, G or T (powers of 1000), e.g.
+/// 8G; within [1 MB, 1 PB].
+double parseBytes(const std::string& text, const std::string& option) {
+    static const std::regex pattern("([0-9]+(\\.[0-9]+)?)([KMGT]?)B?");
+    std::smatch m;
+    if (!std::regex_match(text, m, pattern))
+        throw tearables::InvalidInput(option, "expected a size in bytes, e.g. 8G or 500M (got \"" + text + "\")");
+    const std::string unit = m[3];
+    const double scale = unit == "K" ? 1e3 : unit == "M" ? 1e6 : unit == "G" ? 1e9 : unit == "T" ? 1e12 : 1.0;
+    const double bytes = std::stod(m[1]) * scale;
+    if (!(bytes >= 1e6 && bytes <= 1e15)) throw tearables::InvalidInput(option, "must be in [1M, 1000T] (got " + text + ")");
+    return bytes;
+}
+
 /// Deletes frame_*.png left in `dir` by an earlier run (a video would pick them up).
 void removeOldFrames(const std::filesystem::path& dir) {
     std::error_code ec;
@@ -107,12 +121,18 @@ int main(int argc, char** argv) {
     long long steps = -1;
     int every = 0;
     bool png = false, quiet = false, mp4 = false, plot = false;
-    std::string size_text, plot_size_text, follow;
+    std::string size_text, plot_size_text, follow, max_memory_text;
+    double max_step_seconds = tearables::scene::ResourceLimits{}.step_seconds;
     CLI::App* run = app.add_subcommand("run", "run a scene file or a built-in scene");
     run->add_option("SCENE", scene_arg, "a scene JSON file, or a built-in scene's name")->required();
     run->add_option("--out", out_dir, "output directory (default: tearables-out/<scene>)");
     run->add_option("--steps", steps, "override the scene's step count, 0..1000000000 (as the scene's steps)")
         ->check(CLI::Range(0LL, 1'000'000'000LL));
+    run->add_option("--max-memory", max_memory_text,
+                    "refuse a scene whose estimated memory passes this, bytes with K/M/G/T (default 4G)");
+    run->add_option("--max-step-seconds", max_step_seconds,
+                    "refuse a scene whose estimated step takes longer on one core, s (default 10)")
+        ->check(CLI::Range(1e-3, 1e6));
     run->add_option("--every", every, "write a trace frame every K steps")->check(CLI::PositiveNumber);
     run->add_flag("--png", png, "write frame_NNNNN.png images of every trace frame (offscreen OpenGL, OSMesa)");
     run->add_option("--size", size_text, "image size WIDTHxHEIGHT for --png and --mp4 (default 640x360)");
@@ -173,6 +193,12 @@ int main(int argc, char** argv) {
     options.out_dir = out_dir;
     if (steps >= 0) options.steps = steps;
     if (every > 0) options.every = every;
+    options.limits.step_seconds = max_step_seconds;
+    if (const int status = guarded(scene_arg, [&] {
+            if (!max_memory_text.empty()) options.limits.memory_bytes = parseBytes(max_memory_text, "--max-memory");
+            ts::checkResources(scene, options.limits);
+        }))
+        return status;
     options.progress = !quiet && isatty(fileno(stderr));
     return guarded(scene_arg, [&] {
         std::unique_ptr<tr::Renderer> renderer;

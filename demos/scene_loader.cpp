@@ -735,6 +735,7 @@ String parseString(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     StringDesc& d = s.desc;
     d.name = requiredName(n);
     d.points = parseGeometry(n);
+    s.geometry_field = n.has("points") ? "points" : "segments";
     const auto particles = static_cast<long long>(d.points.size());
     d.radius = n.number("radius", d.radius, Range::positive());
     d.density = n.number("density", d.density, Range::positive());

@@ -404,6 +404,7 @@ SceneRun::Impl::Impl(const Scene& scene_in, const RunOptions& options_in)
       every(options_in.every.value_or(scene_in.output_every)), dt(scene_in.dt) {
     if (steps < 0 || steps > 1'000'000'000) throw InvalidInput("--steps", "must be in [0, 1000000000] (got " + std::to_string(steps) + ")");
     if (every < 1) throw InvalidInput("--every", "must be >= 1");
+    checkResources(scene, options.limits);
 
     for (std::size_t d = 0; d < scene.drivers.size(); ++d) {
         const Driver& drv = scene.drivers[d];

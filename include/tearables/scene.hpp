@@ -69,6 +69,7 @@ struct String {
     std::vector<Attachment> attachments;  ///< at most one per particle
     int collision_group = 1;              ///< Bullet's collision filter (as addSoftBody): btBroadphaseProxy::DefaultFilter
     int collision_mask = -1;              ///< AllFilter: touches every body whose mask has its group
+    std::string geometry_field = "segments";  ///< the field that gave the particles: "segments" or "points" (for messages)
 };
 
 /// What holds a cloth's vertex (pins to world points are in ClothDesc::pins).
@@ -203,6 +204,34 @@ struct FrameState {
 };
 
 /// How to run a scene.
+/// What a run may take, as estimated from the scene before anything is built
+/// (estimateResources). A scene past either limit is refused (InvalidInput naming the
+/// field of the object that costs most: `strings[0].segments`, `cloths[1].resolution`).
+struct ResourceLimits {
+    double memory_bytes = 4e9;   ///< estimated peak memory, bytes, > 0 (`--max-memory`)
+    double step_seconds = 10.0;  ///< estimated wall time of one step on one core, s, > 0 (`--max-step-seconds`)
+};
+
+/// A scene's estimated needs: totals, and the object field that costs most of each.
+struct ResourceEstimate {
+    double memory_bytes = 0.0;   ///< bytes, the whole run (the program's own included)
+    double step_seconds = 0.0;   ///< s, one step on one core
+    std::string memory_field;    ///< JSON path of the field behind the largest share of memory ("" for none)
+    double memory_share = 0.0;   ///< bytes, that object's
+    std::string step_field;      ///< JSON path of the field behind the largest share of a step's time
+    double step_share = 0.0;     ///< s, that object's
+};
+
+/// The estimate: per string particle and per pair of segments within reach of each other
+/// along the chain (a thick string of short segments: about 2 r / l per segment), per cloth
+/// vertex (its yarns' least-squares tension solve grows as V^1.5) and per paper vertex.
+/// The per-item costs are measured (docs/resource-limits.md).
+ResourceEstimate estimateResources(const Scene& scene);
+
+/// Throws InvalidInput naming the costliest field when the estimate passes a limit (or a
+/// limit is not a positive finite number: "--max-memory", "--max-step-seconds").
+void checkResources(const Scene& scene, const ResourceLimits& limits);
+
 struct RunOptions {
     std::string out_dir;               ///< where trace.jsonl, events.jsonl, summary.json go; "" = write nothing
     std::optional<long long> steps;    ///< overrides Scene::steps
@@ -211,6 +240,7 @@ struct RunOptions {
     /// Called at step 0 and at every written frame (every `every` steps and the last), even
     /// when out_dir is "": the CLI renders pictures from it. An exception it throws ends the run.
     std::function<void(const FrameState&)> on_frame;
+    ResourceLimits limits;             ///< checked before anything is built (checkResources)
 };
 
 /// How the islands' solves went over a run (see IslandSummary): one solve per island per

@@ -1,0 +1,36 @@
+// tearables_tunnel_probe: does a fast body pass through a rope, sheet or cloth held at its
+// ends or edges (issue 35, item 4)? Prints one row per shot of tests/tunnel_scenes.hpp:
+// the outcome (stopped, tore, through) and the body's speed and height at the end. Not a
+// test: docs/tunnelling.md keeps its table; tests/plugin/test_tunnelling.cpp holds the cases.
+// Run: build/tests/benchmarks/tearables_tunnel_probe [dt]
+#include "tunnel_scenes.hpp"
+
+#include <cstdio>
+#include <cstdlib>
+
+int main(int argc, char** argv) {
+    using namespace tearables::tunnel;
+    const double dt = argc > 1 ? std::atof(argv[1]) : 0.01;
+    std::printf("| target | body | mass kg | speed m/s | outcome | end speed m/s | end y m | peak T / rupture load |\n");
+    std::printf("|---|---|---|---|---|---|---|---|\n");
+    for (Target target : {Target::Rope, Target::TearableRope, Target::Paper, Target::Cloth})
+        for (Shape shape : {Shape::Sphere, Shape::Box})
+            for (double mass : {1.0, 100.0})
+                for (double speed : {50.0, 100.0, 300.0, 500.0}) {
+                    Shot shot;
+                    shot.target = target;
+                    shot.shape = shape;
+                    shot.mass = mass;
+                    shot.speed = speed;
+                    shot.dt = dt;
+                    const Outcome o = fire(shot);
+                    const char* what = o.through ? "THROUGH" : o.tore ? "tore" : o.end_y < -o.half ? "stopped or turned aside" : "held or bounced";
+                    char load[32] = "-";
+                    if (o.rupture_load > 0) std::snprintf(load, sizeof load, "%.2f", o.peak_tension / o.rupture_load);
+                    std::printf("| %s | %s | %g | %g | %s%s%s | %.1f | %.3f | %s |\n", name(target),
+                                shape == Shape::Sphere ? "sphere r 1 cm" : "box 10 cm", mass, speed, what,
+                                o.error.empty() ? "" : "; error: ", o.error.c_str(), o.end_speed, o.end_y, load);
+                    std::fflush(stdout);
+                }
+    return 0;
+}
