@@ -47,8 +47,8 @@ constexpr int kPredictRounds = 3;
 
 }  // namespace
 
-void IslandSolver::setBodyContacts(std::vector<BodyContact> contacts, const RigidTable& rigids) {
-    body_contacts_ = std::move(contacts);
+void IslandSolver::setBodyContacts(const std::vector<BodyContact>& contacts, const RigidTable& rigids) {
+    body_contacts_.assign(contacts.begin(), contacts.end());
     prepareBodyContacts(body_contacts_, rigids);
 }
 

@@ -22,7 +22,7 @@ public:
     bool hasOwnMembers() const override { return !body_contacts_.empty(); }
     /// The host's contacts between bodies for this step (ContactProvider::findBodyContacts):
     /// those the solve can keep (prepareBodyContacts) join the islands of their bodies.
-    void setBodyContacts(std::vector<BodyContact> contacts, const RigidTable& rigids);
+    void setBodyContacts(const std::vector<BodyContact>& contacts, const RigidTable& rigids);
     /// This step's body contacts, with the normal force each carried (0 before the solve).
     const std::vector<BodyContact>& bodyContacts() const { return body_contacts_; }
     /// Forgets the last step's islands (a step may have none to solve).

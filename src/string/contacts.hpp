@@ -24,6 +24,7 @@ struct RigidSegmentContact {
     double friction = 0.5;
     int node = -1;               ///< index into body_nodes when the body is movable
     double depth = 0.0;          ///< penetration of the predicted position, m (>= 0)
+    double start_depth = 0.0;    ///< penetration where the step started, m (>= 0)
     double stiffness = 0.0;      ///< penalty k_c used by the last solve, N/m
     bool active = false;         ///< held as an equality in the current pass
     /// Active only because the Newton step would run into it (an island's solve): its

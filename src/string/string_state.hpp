@@ -175,6 +175,13 @@ struct StringState {
     std::vector<RigidSegmentContact> contacts;
     std::vector<BodyNode> body_nodes;
     std::vector<std::uint8_t> colliding;  ///< per particle: in a string-string contact last step (3x heavier in CSM)
+    /// Per segment: may still be inside a body it overlapped when the string was made
+    /// (created through a block, or held inside one): cleared at the first step it is not,
+    /// never set again. Such overlaps are pushed out gradually, or not at all next to a
+    /// hold (StringSystem::collideBodies); any other overlap is the contacts' own give and
+    /// is pushed back at once (a fast body must not pass). Not in snapshots: a restored
+    /// string has none.
+    std::vector<std::uint8_t> made_inside;
 
     // --- chain shape matching (Strings Sec. 3) -----------------------------------------
     std::vector<Vec3> rest_direction;     ///< per segment, unit direction at creation

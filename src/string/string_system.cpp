@@ -32,6 +32,62 @@ bool ownsNothing(const StringState& s) {
     return true;
 }
 
+/// Overlaps deeper than this fraction of a string's radius where the step started are
+/// pushed out gradually, kOverlapRecovery of them a step (collideBodies).
+constexpr double kDeepOverlap = 0.1;
+constexpr double kOverlapRecovery = 0.2;
+/// A segment is buried in a body (exemptBuriedEnds) when its axis started the step inside
+/// it: an overlap of more than its radius.
+constexpr double kBuried = 1.0;
+
+/// A string held (glued or pinned) inside a body, as when it is created through a block or
+/// glued at a body's centre: the run of segments from the held particle that started the
+/// step with its axis inside the body has no contact with it, as Bullet's soft-body anchors may
+/// disable collision with their body (btSoftBody::appendAnchor). Pushed out, the run would
+/// only stretch between the hold and the body's surface, and tear. The run goes on
+/// through segments the host reports no contact for (wholly inside, or clear of the body)
+/// and ends at the first contact whose axis is outside the body, so the rest of the string, and
+/// the run once it has left, collides as before (a rope pinned above a floor lying on it,
+/// a rope glued on a drum and wound round it). A glued particle's own segments never touch
+/// its body: one end is on it by construction (and inside it the host's normal is
+/// arbitrary); a pinned particle's own segments may report such a contact without ending
+/// the run.
+void exemptBuriedEnds(StringState& s, std::vector<std::uint8_t>& buried) {
+    buried.assign(s.segments(), 0);
+    if (s.contacts.empty()) return;
+    std::vector<std::uint8_t> exempt(s.contacts.size(), 0);
+    bool any = false;
+    for (std::size_t p = 0; p < s.hold.size(); ++p) {
+        const ParticleHold& hold = s.hold[p];
+        if (hold.kind == ParticleHold::Kind::Free) continue;
+        const bool glued = hold.kind == ParticleHold::Kind::Glue;
+        for (const int dir : {-1, 1}) {
+            const long first = dir > 0 ? static_cast<long>(p) : static_cast<long>(p) - 1;
+            for (long j = first; j >= 0 && static_cast<std::size_t>(j) < s.segments(); j += dir) {
+                bool clear = false;
+                for (std::size_t k = 0; k < s.contacts.size(); ++k) {
+                    const RigidSegmentContact& c = s.contacts[k];
+                    if (c.segment != static_cast<std::uint32_t>(j) || (glued && !(c.body == hold.body))) continue;
+                    const bool inside = s.made_inside[c.segment] && c.start_depth > kBuried * s.radius[c.segment];
+                    if ((glued && j == first) || inside) {
+                        exempt[k] = 1;
+                        buried[c.segment] = 1;
+                        any = true;
+                    } else if (j != first) {
+                        clear = true;
+                    }
+                }
+                if (clear) break;
+            }
+        }
+    }
+    if (!any) return;
+    std::size_t kept = 0;
+    for (std::size_t k = 0; k < s.contacts.size(); ++k)
+        if (!exempt[k]) s.contacts[kept++] = s.contacts[k];
+    s.contacts.resize(kept);
+}
+
 }  // namespace
 
 int resolveIndex(int particle, std::size_t count, const char* field) {
@@ -57,6 +113,7 @@ StringId StringSystem::add(const StringDesc& desc) {
     s.force.assign(n, Vec3::Zero());
     s.mass.assign(n, 0.0);
     s.hold.assign(n, ParticleHold{});
+    s.made_inside.assign(m, 1);
     s.glue_impulse.assign(n, Vec3::Zero());
     s.glue_movable.assign(n, 0);
     s.rest_length.resize(m);
@@ -224,7 +281,7 @@ void StringSystem::step(RigidTable& rigids, const StepContext& ctx, const HostCo
     StageTimer timer;
     shapeMatch();                                     timer.lap(t.shape_matching);
     predict(rigids, ctx);                             timer.lap(t.predict);
-    collideBodies(rigids, host);                      timer.lap(t.collision);
+    collideBodies(rigids, host, ctx.h);               timer.lap(t.collision);
     limitStrain(rigids, ctx);                         timer.lap(t.strain_limit);
     // The strings that touch are solved again, together, before the tension stage reads
     // their motion; what overlap that leaves is projected away after it (so it never
@@ -264,7 +321,7 @@ void StringSystem::predict(const RigidTable& rigids, const StepContext& ctx) {
 /// Collision with rigid bodies: the host's narrow phase on the predicted positions. Each
 /// string gets its own contacts, checked (a bad contact from the host is dropped, never
 /// trusted).
-void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host) {
+void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host, double h) {
     pool_->forEach(strings_.size(), [this](std::size_t i) {
         StringState& s = strings_[i];
         s.contacts.clear();
@@ -318,6 +375,18 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host) {
         sc.gap = s.radius[c.segment];
         const Vec3 xs = (1.0 - sc.s) * s.x[c.segment] + sc.s * s.x[c.segment + 1];
         sc.depth = std::max(0.0, -(sc.normal.dot(xs - c.point) - s.radius[c.segment]));
+        // Where the step started: the string at x_prev, the body's point back along its
+        // velocity (the host has moved it by h v).
+        const Vec3 xs0 = (1.0 - sc.s) * s.x_prev[c.segment] + sc.s * s.x_prev[c.segment + 1];
+        const Vec3 p0 = c.point - h * (body.linear_velocity + body.angular_velocity.cross(c.point - body.position));
+        sc.start_depth = std::max(0.0, -(sc.normal.dot(xs0 - p0) - s.radius[c.segment]));
+        // An overlap the step did not make (a string created inside a body, a body placed
+        // on it) is pushed out over several steps, a fraction a step (Bullet's contact ERP
+        // for bodies, 0.2), not in one: all at once would stretch the string past its
+        // rupture and fling it out at depth / h. Shallower overlaps, the contacts' own give
+        // under load (F / k_c, micrometres), keep the exact constraint.
+        if (c.segment < s.made_inside.size() && s.made_inside[c.segment] && sc.start_depth > kDeepOverlap * sc.gap)
+            sc.gap -= (1.0 - kOverlapRecovery) * sc.start_depth;
         if (rigids.movable(c.body)) {
             int node = -1;
             for (std::size_t b = 0; b < s.body_nodes.size(); ++b)
@@ -331,7 +400,22 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host) {
         }
         s.contacts.push_back(sc);
     }
+    eachLive([&](StringState& s) {
+        std::vector<std::uint8_t>& inside = s.made_inside;
+        if (inside.size() != s.segments()) inside.assign(s.segments(), 0);
+        if (std::find(inside.begin(), inside.end(), 1) == inside.end()) return;
+        std::vector<std::uint8_t> buried;
+        exemptBuriedEnds(s, buried);
+        // Segments clear of every body (no deep overlap where the step started, and not
+        // in a buried run) are done with their start.
+        std::vector<std::uint8_t> deep(inside.size(), 0);
+        for (const RigidSegmentContact& c : s.contacts)
+            if (c.start_depth > kDeepOverlap * s.radius[c.segment]) deep[c.segment] = 1;
+        for (std::size_t j = 0; j < inside.size(); ++j) inside[j] = inside[j] && (deep[j] || buried[j]);
+    });
 }
+
+
 
 /// Strain limiting. Strings that neither hold nor touch a movable body are solved alone
 /// (their solve is exact), in parallel. Those that do are members of islands, each island

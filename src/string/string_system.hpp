@@ -62,7 +62,7 @@ private:
     void listLive();
     void shapeMatch();
     void predict(const RigidTable& rigids, const StepContext& ctx);
-    void collideBodies(RigidTable& rigids, const HostContacts& host);
+    void collideBodies(RigidTable& rigids, const HostContacts& host, double h);
     void limitStrain(RigidTable& rigids, const StepContext& ctx);
     void solveTwist(RigidTable& rigids, const StepContext& ctx);
     void estimateTension(const StepContext& ctx);

@@ -60,6 +60,7 @@ struct World::Impl {
     detail::PaperSystem papers;
     detail::ThreadPool pool;  // independent strings' stages (WorldSettings::threads)
     detail::IslandSolver islands;  // strings coupled through movable bodies
+    std::vector<BodyContact> body_found;  // the host's body contacts this step (kept: no allocation)
     std::vector<Event> events;
     std::vector<Event> pending;  // emitted between steps, reported with the next step
     StageTimes last;
@@ -120,15 +121,15 @@ struct World::Impl {
     /// The host's contacts between bodies, for the islands; a host that throws gives none
     /// this step.
     void collideBodies() {
-        std::vector<BodyContact> found;
+        body_found.clear();
         if (contact_provider && settings.rigid_contacts) {
             try {
-                contact_provider->findBodyContacts(found);
+                contact_provider->findBodyContacts(body_found);
             } catch (...) {
-                found.clear();
+                body_found.clear();
             }
         }
-        islands.setBodyContacts(std::move(found), rigids);
+        islands.setBodyContacts(body_found, rigids);
     }
 
     /// The host's contacts of mesh vertices (sheets, cloths) with rigid bodies: only those
