@@ -30,7 +30,7 @@ Rgb ColorBar::bandColor(int k) { return tensionColor((k + 0.5) / kBands); }
 
 float overlayScale(int /*width*/, int height) { return std::max(kMinOverlayScale, static_cast<float>(height) / 360.0f); }
 
-std::vector<ColorBar> colorBars(const scene::Scene& scene, int width, int height, float scale) {
+std::vector<ColorBar> colorBars(const scene::Scene& scene, int width, int height, float scale, RopeColors colors) {
     std::vector<ColorBar> bars;
     const float h = static_cast<float>(height);
     // A window keeps 250 px below the bars for its panels; a small picture keeps 30.
@@ -47,7 +47,16 @@ std::vector<ColorBar> colorBars(const scene::Scene& scene, int width, int height
         return bar;
     };
     char text[96];
-    if (showsTension(scene)) {
+    if (showsTension(scene) && colors == RopeColors::Twist) {
+        ColorBar bar = place(BarKind::Twist);
+        bar.labels.push_back({"twist / rupture twist", bar.x1, bar.y0 - 16.0f * scale});
+        for (int k = 0; k <= 4; ++k) {
+            std::snprintf(text, sizeof text, "%.2f", k / 4.0);
+            bar.labels.push_back({text, bar.x0 - 6.0f * scale, bar.y1 - (bar.y1 - bar.y0) * static_cast<float>(k) / 4.0f});
+        }
+        bar.labels.push_back({"r |dtheta| / l over rupture", bar.x1, bar.y1 + 14.0f * scale});
+        bars.push_back(bar);
+    } else if (showsTension(scene)) {
         ColorBar bar = place(BarKind::Tension);
         const auto [lo, hi] = ruptureTensions(scene);
         const bool newtons = hi > 0.0 && hi - lo <= 1e-9 * hi;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "render/renderer.hpp"
+#include "render/scene_painter.hpp"
 #include "tearables/scene.hpp"
 
 #include <string>
@@ -27,6 +28,7 @@ struct TextPlacement {
 /// What a colour bar explains.
 enum class BarKind {
     Tension,  ///< strings: load / rupture load
+    Twist,    ///< strings: torsional strain / torsional rupture strain (RopeColors::Twist)
     Damage,   ///< cloths and paper sheets: the damaged share around each vertex (clothDamage, paperDamage)
 };
 
@@ -50,7 +52,10 @@ struct ColorBar {
 /// `labels` holds the title above the bar first. Lengths are `scale` times those of a
 /// 640x360 picture (1 in the viewer's window, whose text does not scale; overlayScale for
 /// headless frames); text is kTextHeight * scale pixels high.
-std::vector<ColorBar> colorBars(const scene::Scene& scene, int width, int height, float scale = 1.0f);
+/// With RopeColors::Twist the strings' bar is the twist's: torsional strain over the
+/// torsional rupture strain, 0..1.
+std::vector<ColorBar> colorBars(const scene::Scene& scene, int width, int height, float scale = 1.0f,
+                                RopeColors colors = RopeColors::Load);
 
 /// The overlay's scale for a headless frame: its height over 360 pixels (the overlay keeps
 /// its share of the picture), but at least kMinOverlayScale so that the text stays legible.

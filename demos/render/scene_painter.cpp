@@ -325,12 +325,14 @@ View fitCamera(const scene::Scene& scene, double aspect, Bounds b) {
     return v;
 }
 
-Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view) {
-    drawFrame(renderer, scene, frame, view);
+Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view,
+                 RopeColors colors) {
+    drawFrame(renderer, scene, frame, view, colors);
     return renderer.finish();
 }
 
-void drawFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view) {
+void drawFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view,
+               RopeColors rope_colors) {
     const Bounds b = sceneBounds(scene);
     const double size = std::max((b.hi - b.lo).norm(), 0.1);
     const double distance = (view.eye - view.target).norm();
@@ -380,9 +382,12 @@ void drawFrame(Renderer& renderer, const scene::Scene& scene, const scene::Frame
         const std::size_t n = v.segmentCount();
         radius.assign(n, v.radius);
         colors.resize(n);
-        for (std::size_t j = 0; j < n; ++j)
-            colors[j] = tensionColor(std::max(loadFraction((*v.tension)[j], s.rupture_stress, v.radius),
-                                              torsionLoad(v, j, s.torsion_rupture)));
+        for (std::size_t j = 0; j < n; ++j) {
+            const double twist = torsionLoad(v, j, s.torsion_rupture);
+            colors[j] = tensionColor(rope_colors == RopeColors::Twist
+                                         ? twist
+                                         : std::max(loadFraction((*v.tension)[j], s.rupture_stress, v.radius), twist));
+        }
         renderer.drawTube(*v.positions, radius, colors, *v.broken);
     }
     drawWorldPins(renderer, scene, frame);

@@ -12,6 +12,11 @@
 
 namespace tearables::render {
 
+/// What the strings' colours show: their load, the larger of tension over the rupture
+/// tension and torsional strain over the torsional rupture strain (the default); or their
+/// twist alone, the torsional share (the viewer's "twist" toggle).
+enum class RopeColors { Load, Twist };
+
 /// Axis-aligned bounds of what a scene holds at the start (string points, cloths, paper
 /// sheets, bodies, spawned bodies; planes excluded), m.
 struct Bounds {
@@ -62,8 +67,10 @@ std::vector<double> paperDamage(const PaperView& view, const PaperDesc& desc);
 /// segments left out, world pins as dark blocks, cloths and paper sheets as surfaces
 /// coloured by damage (clothDamage, paperDamage) with the creases and folds of paper in dark
 /// lines; torn yarns open the cloth. Returns the picture.
-Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view);
+Image paintFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view,
+                 RopeColors colors = RopeColors::Load);
 /// As paintFrame without finishing the frame (the viewer draws more on top, then finishes).
-void drawFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view);
+void drawFrame(Renderer& renderer, const scene::Scene& scene, const scene::FrameState& frame, const View& view,
+               RopeColors colors = RopeColors::Load);
 
 }  // namespace tearables::render

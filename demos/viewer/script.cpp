@@ -11,7 +11,7 @@ namespace tearables::viewer {
 namespace {
 
 /// The keys a script may press: the viewer's keyboard controls.
-const std::set<std::string> kKeys = {"space", "n", "r", "s", "c", "g", "f", "h", "p", "w", "b", "plus", "minus", "escape", "q", "left", "right", "backspace"};
+const std::set<std::string> kKeys = {"t", "space", "n", "r", "s", "c", "g", "f", "h", "p", "w", "b", "plus", "minus", "escape", "q", "left", "right", "backspace"};
 
 double number(std::istringstream& in, const std::string& where, const std::string& what) {
     std::string word;

@@ -181,6 +181,7 @@ private:
     bool cut_tool_ = false;
     bool show_help_ = true;
     bool show_panels_ = true;     // the ImGui panels (the colour bar stays)
+    render::RopeColors rope_colors_ = render::RopeColors::Load;  // T: twist alone
     bool quit_ = false;
 
     Grab grab_;
@@ -552,6 +553,7 @@ void Viewer::onKey(const std::string& key) {
     else if (key == "f") camera_ = OrbitCamera::from(render::fitCamera(scene_, static_cast<double>(win_w_) / win_h_));
     else if (key == "h") show_help_ = !show_help_;
     else if (key == "p") show_panels_ = !show_panels_;
+    else if (key == "t") rope_colors_ = rope_colors_ == render::RopeColors::Twist ? render::RopeColors::Load : render::RopeColors::Twist;
     else if (key == "left" || key == "right") {
         paused_ = true;
         const double keep = play_speed_;
@@ -598,7 +600,7 @@ void Viewer::drawScene() {
                        frame.bodies.end());
     if (!opt_.follow.empty())
         if (const auto p = render::followPoint(frame, opt_.follow)) camera_.target = *p;
-    render::drawFrame(*renderer_, scene_, frame, camera_.view());
+    render::drawFrame(*renderer_, scene_, frame, camera_.view(), rope_colors_);
     // The held point and the cursor, joined by the "spring".
     if (grab_.kind != Grab::Kind::None && run_) {
         World& core = run_->ropes().core();
@@ -626,7 +628,7 @@ void Viewer::drawScene() {
 /// right edge.
 void Viewer::drawColorBar() {
     ImDrawList* dl = ImGui::GetBackgroundDrawList();
-    for (const render::ColorBar& bar : render::colorBars(scene_, win_w_, win_h_)) {
+    for (const render::ColorBar& bar : render::colorBars(scene_, win_w_, win_h_, 1.0f, rope_colors_)) {
         for (int k = 0; k < render::ColorBar::kBands; ++k) {
             const auto [top, bottom] = bar.bandRows(k);
             const Rgb c = render::ColorBar::bandColor(k);
@@ -676,6 +678,8 @@ void Viewer::drawPlaybackPanel() {
     if (ImGui::Button("reverse")) play_speed_ = -play_speed_;
     ImGui::Text("most loaded: %.4g N %s", max_tension_, max_tension_where_.c_str());
     ImGui::Checkbox("help (H)", &show_help_);
+    bool twist = rope_colors_ == render::RopeColors::Twist;
+    if (ImGui::Checkbox("colour by twist (T)", &twist)) rope_colors_ = twist ? render::RopeColors::Twist : render::RopeColors::Load;
 }
 
 void Viewer::drawLivePanel() {
@@ -716,6 +720,8 @@ void Viewer::drawLivePanel() {
     ImGui::Text("most loaded: %.4g N %s", max_tension_, max_tension_where_.c_str());
     if (!status_.empty()) ImGui::TextWrapped("%s", status_.c_str());
     ImGui::Checkbox("help (H)", &show_help_);
+    bool twist = rope_colors_ == render::RopeColors::Twist;
+    if (ImGui::Checkbox("colour by twist (T)", &twist)) rope_colors_ = twist ? render::RopeColors::Twist : render::RopeColors::Load;
 }
 
 void Viewer::drawCommonPanels() {
@@ -766,8 +772,9 @@ void Viewer::drawCommonPanels() {
             "left-drag elsewhere orbits; right-drag pans; "
             "wheel zooms; shift-click (or the cut tool) cuts a rope.\n"
             "keys: Space play/pause, N one step, S slow motion, +/- speed, R restart, C cut tool, G drag tool, "
-            "B drop a crate, W wind, F fit the camera, H this help, P all panels, Q or Esc quit.\n"
-            "ropes are coloured by tension / rupture tension, cloths and paper by damage (the bars at the right).");
+            "B drop a crate, W wind, F fit the camera, T colour by twist, H this help, P all panels, Q or Esc quit.\n"
+            "ropes are coloured by load (tension / rupture tension, or torsion / rupture torsion where larger; "
+            "T: twist alone), cloths and paper by damage (the bars at the right).");
         ImGui::End();
     }
 }
@@ -827,7 +834,7 @@ void Viewer::keyCallback(GLFWwindow* w, int key, int, int action, int) {
     if (action != GLFW_PRESS || ImGui::GetIO().WantCaptureKeyboard) return;
     static const std::map<int, std::string> names = {
         {GLFW_KEY_SPACE, "space"}, {GLFW_KEY_N, "n"}, {GLFW_KEY_R, "r"}, {GLFW_KEY_S, "s"},
-        {GLFW_KEY_C, "c"},         {GLFW_KEY_G, "g"}, {GLFW_KEY_F, "f"}, {GLFW_KEY_H, "h"}, {GLFW_KEY_P, "p"},
+        {GLFW_KEY_C, "c"},         {GLFW_KEY_G, "g"}, {GLFW_KEY_F, "f"}, {GLFW_KEY_H, "h"}, {GLFW_KEY_P, "p"}, {GLFW_KEY_T, "t"},
         {GLFW_KEY_W, "w"},         {GLFW_KEY_B, "b"}, {GLFW_KEY_EQUAL, "plus"}, {GLFW_KEY_KP_ADD, "plus"},
         {GLFW_KEY_LEFT, "left"}, {GLFW_KEY_RIGHT, "right"}, {GLFW_KEY_BACKSPACE, "backspace"}, {GLFW_KEY_MINUS, "minus"}, {GLFW_KEY_KP_SUBTRACT, "minus"}, {GLFW_KEY_ESCAPE, "escape"}, {GLFW_KEY_Q, "q"}};
     if (const auto it = names.find(key); it != names.end()) self(w)->onKey(it->second);

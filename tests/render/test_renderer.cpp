@@ -602,3 +602,53 @@ TEST(Renderer, OverlayScalesWithTheFrame) {
         }
     EXPECT_GT(ink_low, 30);
 }
+
+// Ropes coloured by twist alone (the viewer's T): in hanging-rope, whose rope never
+// twists, loaded to half its rupture tension, the twist picture is the load picture of the
+// same frame with every tension zero, pixel for pixel, and differs from the load picture
+// where the rope is; the strings' bar then explains twist, 0..1.
+TEST(Renderer, RopesColouredByTwistAloneShowNoTensionWhereNothingTwists) {
+    const auto text = scene::builtinSceneText("hanging-rope");
+    ASSERT_TRUE(text.has_value());
+    scene::Scene s = scene::parseScene(*text);
+    Renderer r(320, 180);
+    const View view = fitCamera(s, 320.0 / 180.0);
+    scene::RunOptions options;
+    options.steps = 50;
+    options.every = 50;
+    int checked = 0;
+    options.on_frame = [&](const scene::FrameState& f) {
+        if (f.step != 50) return;
+        ASSERT_FALSE(f.strings.empty());
+        for (const scene::FrameString& str : f.strings)
+            for (double t : *str.view.twist) ASSERT_EQ(t, 0.0);
+        std::vector<std::vector<double>> zero, half;
+        zero.reserve(f.strings.size());
+        half.reserve(f.strings.size());
+        scene::FrameState slack = f, loaded = f;
+        for (std::size_t k = 0; k < f.strings.size(); ++k) {
+            const StringView& v = f.strings[k].view;
+            zero.emplace_back(v.tension->size(), 0.0);
+            half.emplace_back(v.tension->size(), 0.5 * f.strings[k].rupture_stress * M_PI * v.radius * v.radius);
+            slack.strings[k].view.tension = &zero.back();
+            loaded.strings[k].view.tension = &half.back();
+        }
+        const Image load = paintFrame(r, s, loaded, view);
+        const Image twist = paintFrame(r, s, loaded, view, RopeColors::Twist);
+        const Image unloaded = paintFrame(r, s, slack, view);
+        int differs = 0;
+        for (int y = 0; y < 180; ++y)
+            for (int x = 0; x < 320; ++x) {
+                ASSERT_EQ(difference(twist.at(x, y), unloaded.at(x, y)), 0) << x << "," << y;
+                differs += difference(twist.at(x, y), load.at(x, y)) > 30;
+            }
+        EXPECT_GT(differs, 20);
+        const std::vector<ColorBar> bars = colorBars(s, 320, 180, overlayScale(320, 180), RopeColors::Twist);
+        ASSERT_EQ(bars.size(), 1u);
+        EXPECT_EQ(bars[0].kind, BarKind::Twist);
+        EXPECT_EQ(bars[0].labels.front().text, "twist / rupture twist");
+        ++checked;
+    };
+    scene::runScene(s, options);
+    EXPECT_EQ(checked, 1);
+}
