@@ -179,9 +179,11 @@ struct StringState {
     /// (created through a block, or held inside one): cleared at the first step it is not,
     /// never set again. Such overlaps are pushed out gradually, or not at all next to a
     /// hold (StringSystem::collideBodies); any other overlap is the contacts' own give and
-    /// is pushed back at once (a fast body must not pass). Not in snapshots: a restored
-    /// string has none.
+    /// is pushed back at once (a fast body must not pass).
     std::vector<std::uint8_t> made_inside;
+    /// The bodies an Overlap event has named for this string: a start overlap is reported
+    /// once per body, at the first step it is pushed out.
+    std::vector<RigidId> overlap_reported;
 
     // --- chain shape matching (Strings Sec. 3) -----------------------------------------
     std::vector<Vec3> rest_direction;     ///< per segment, unit direction at creation
