@@ -82,6 +82,9 @@ struct StringScratch {
     /// The strain solve started warm this step (strain_limit.cpp, warmStart) and has not
     /// made its first Newton iteration yet.
     bool strain_warm_start = false;
+    /// Slack exactly at the rest length (no taut band): set by the island solve after its
+    /// first iterations (StringIslandMember::condense).
+    bool exact_slack = false;
     std::vector<double> geometric_tension;  ///< per segment: the tension estimate of the chain Hessian's geometric term, N
     std::vector<Mat3> row_projector;      ///< per particle: I, or I minus the normals of the bodies pressing it
     bool rows_pressed = false;            ///< whether any row_projector may differ from I (none does where false)
