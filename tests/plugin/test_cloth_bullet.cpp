@@ -24,7 +24,7 @@ ClothDesc trampoline() {
     d.name = "cloth";
     d.resolution = {9, 9};
     d.size = {0.6, 0.6};
-    d.origin = Vec3(-0.3, 1.0, -0.3);
+    d.corner = Vec3(-0.3, 1.0, -0.3);
     d.areal_density = 0.2;
     d.yarn_radius = 5e-4;
     d.material.variation = 0.0;
