@@ -989,8 +989,7 @@ Cloth parseCloth(const Node& n, std::uint64_t seed, const NameMap& bodies) {
                 ClothPin pin;
                 pin.i = i;
                 pin.j = j;
-                pin.at_rest = !h.world;
-                if (h.world) pin.point = *h.world;
+                pin.world = h.world;
                 d.pins.push_back(pin);
             }
         }

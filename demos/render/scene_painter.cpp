@@ -70,7 +70,7 @@ void drawWorldPins(Renderer& renderer, const scene::Scene& scene, const scene::F
             const int i = pin.i < 0 ? nu + pin.i : pin.i, j = pin.j < 0 ? nv + pin.j : pin.j;
             const std::size_t index = static_cast<std::size_t>(j) * static_cast<std::size_t>(nu) + static_cast<std::size_t>(i);
             if (i < 0 || j < 0 || i >= nu || j >= nv || index >= v.vertexCount()) continue;
-            mark(pin.at_rest ? (*v.positions)[index] : pin.point, d.yarn_radius);
+            mark(pin.world ? *pin.world : (*v.positions)[index], d.yarn_radius);
         }
     }
     for (std::size_t k = 0; k < scene.papers.size() && k < frame.papers.size(); ++k) {

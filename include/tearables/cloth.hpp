@@ -37,12 +37,12 @@ struct ClothId {
     }
 };
 
-/// A vertex of the weave pinned to a world point at creation.
+/// A vertex of the weave pinned to a world point at creation (the words of a paper sheet's
+/// PaperAttachment without a body).
 struct ClothPin {
     int i = 0;                  ///< column (along local x), negative counts from the end (-1 = last)
     int j = 0;                  ///< row (along local z), negative counts from the end
-    bool at_rest = true;        ///< true: pinned where the vertex starts; false: pinned at `point`
-    Vec3 point = Vec3::Zero();  ///< world point, m (used when at_rest is false), each coordinate in [-1e6, 1e6]
+    std::optional<Vec3> world;  ///< the world point, m, each coordinate in [-1e6, 1e6]; default: where the vertex starts
 };
 
 /// Which yarn an edge belongs to.

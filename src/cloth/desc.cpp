@@ -69,8 +69,7 @@ void validate(const ClothDesc& d) {
         const int b = resolveAxis(p.j, d.resolution[1], f + ".j");
         if (!taken.insert(b * d.resolution[0] + a).second)
             throw InvalidInput(f, "vertex (" + std::to_string(a) + ", " + std::to_string(b) + ") is already pinned");
-        if (!p.at_rest)
-            requirePosition(f + ".point", p.point);
+        if (p.world) requirePosition(f + ".world", *p.world);
     }
     std::set<std::pair<int, int>> weak;  // (kind, flat index of the first vertex)
     for (std::size_t k = 0; k < d.weak_yarns.size(); ++k) {

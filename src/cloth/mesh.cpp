@@ -138,7 +138,7 @@ ClothState makeCloth(const ClothDesc& desc) {
     for (const ClothPin& pin : desc.pins) {
         const int p = desc.vertex(pin.i, pin.j);
         c.hold[p].kind = ParticleHold::Kind::Pin;
-        c.hold[p].point = pin.at_rest ? c.x[p] : pin.point;
+        c.hold[p].point = pin.world ? *pin.world : c.x[p];
         c.x[p] = c.x_prev[p] = c.x_pred[p] = c.hold[p].point;
     }
 

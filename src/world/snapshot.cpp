@@ -330,8 +330,7 @@ template <class A>
 void io(A& a, ClothPin& p) {
     io(a, p.i);
     io(a, p.j);
-    io(a, p.at_rest);
-    io(a, p.point);
+    io(a, p.world);
 }
 template <class A>
 void io(A& a, YarnKind& k) {

@@ -393,7 +393,7 @@ TEST(ClothDesc, BadInputNamesTheField) {
         {"plastic_time", [](ClothDesc& d) { d.plastic_time = 11.0; }},
         {"pins[0].i", [](ClothDesc& d) { d.pins = {{12, 0}}; }},
         {"pins[1]", [](ClothDesc& d) { d.pins = {{0, 0}, {0, 0}}; }},
-        {"pins[0].point", [&](ClothDesc& d) { d.pins = {{0, 0, false, Vec3(nan, 0, 0)}}; }},
+        {"pins[0].world", [&](ClothDesc& d) { d.pins = {{0, 0, Vec3(nan, 0, 0)}}; }},
         {"weak_yarns[0].i", [](ClothDesc& d) { d.weak_yarns = {{6, 0, YarnKind::Warp, 0.5}}; }},
         {"weak_yarns[0].j", [](ClothDesc& d) { d.weak_yarns = {{0, -7, YarnKind::Weft, 0.5}}; }},
         {"weak_yarns[0].i", [](ClothDesc& d) { d.weak_yarns = {{-1, 0, YarnKind::Warp, 0.5}}; }},  // no warp yarn starts in the last column
@@ -613,9 +613,8 @@ TEST(ClothScene, LoadsClothFields) {
     EXPECT_DOUBLE_EQ(a.lambda, 1e-5);
     ASSERT_EQ(a.pins.size(), 2u);
     EXPECT_EQ(a.vertex(a.pins[0].i, a.pins[0].j), 8);
-    EXPECT_TRUE(a.pins[0].at_rest);
-    EXPECT_FALSE(a.pins[1].at_rest);
-    EXPECT_EQ(a.pins[1].point, Vec3(1, 2, 3));
+    EXPECT_FALSE(a.pins[0].world.has_value());  // true: where the vertex starts
+    EXPECT_EQ(a.pins[1].world, std::optional<Vec3>(Vec3(1, 2, 3)));
     EXPECT_DOUBLE_EQ(s.cloths[1].desc.areal_density, 0.0);
     EXPECT_DOUBLE_EQ(s.cloths[1].desc.density, 1000.0);
     // Weak yarns: the vertex resolved like an attachment's, the kind and strength as given.

@@ -34,8 +34,7 @@ ClothDesc trampoline() {
             tearables::ClothPin pin;
             pin.i = i;
             pin.j = j;
-            pin.at_rest = false;
-            pin.point = Vec3(i == 0 ? -0.27 : 0.27, 1.0, j == 0 ? -0.27 : 0.27);
+            pin.world = Vec3(i == 0 ? -0.27 : 0.27, 1.0, j == 0 ? -0.27 : 0.27);
             d.pins.push_back(pin);
         }
     return d;

@@ -159,7 +159,7 @@ TEST(Words, AttachmentsMeanTheSameOnEveryObject) {
     for (int v = 0; v < 3; ++v) {
         EXPECT_EQ(c.desc.pins[static_cast<std::size_t>(v)].i, v);
         EXPECT_EQ(c.desc.pins[static_cast<std::size_t>(v)].j, 0);
-        EXPECT_TRUE(c.desc.pins[static_cast<std::size_t>(v)].at_rest);
+        EXPECT_FALSE(c.desc.pins[static_cast<std::size_t>(v)].world.has_value());
     }
     ASSERT_EQ(c.attachments.size(), 1u);
     EXPECT_EQ(c.attachments[0].i, 0);  // 6 = 2 * 3 + 0
