@@ -466,16 +466,81 @@ private:
 // Shared field readers
 // =============================================================================================
 
-/// Every vertex of a sheet or cloth lies within `reach` of its origin in any orientation
-/// (half the diagonal of a sheet centred there, the whole diagonal of a cloth cornered
-/// there): all must stay within the position bound.
-void checkCorners(const Node& n, const Vec3& origin, double reach) {
-    if (origin.cwiseAbs().maxCoeff() + reach <= kMaxPosition) return;
+/// The words of a sheet or cloth that meant something else before (docs/SCENE_FORMAT.md,
+/// "Words"): each is refused with what to write now.
+void refuseOldSheetWords(const Node& n, bool paper) {
+    if (const auto origin = n.field("origin")) {
+        const std::string v = origin->value().dump();
+        origin->fail(paper ? "is not a word for sheets: a paper's origin was its centre; write \"center\": " + v +
+                                 " (or \"corner\" for where vertex [0, 0] lies)"
+                           : "is not a word for sheets: a cloth's origin was its corner, vertex [0, 0]; write \"corner\": " + v +
+                                 " (or \"center\" for its centre)");
+    }
+    if (paper)
+        if (const auto density = n.field("density"))
+            density->fail("is kg/m^3 of material (a string's, a cloth's yarn fibre); a sheet's mass per area is areal_density, "
+                          "kg/m^2: write \"areal_density\": " + density->value().dump());
+}
+
+/// Where a rectangular sheet or cloth lies: "center" or "corner" (not both; neither: its
+/// centre at defaultSheetCenter()). Every vertex lies within `diagonal` of its corner
+/// and half of it of its centre, in any orientation: all must stay within the position bound.
+void parsePlacement(const Node& n, std::optional<Vec3>& center, std::optional<Vec3>& corner, double diagonal) {
+    const auto c = n.field("center");
+    const auto k = n.field("corner");
+    if (c && k) k->fail("give center or corner, not both");
+    if (c) center = c->asVec3(Range::bullet());
+    if (k) corner = k->asVec3(Range::bullet());
+    const Vec3 anchor = corner ? *corner : center.value_or(defaultSheetCenter());
+    const double reach = anchor.cwiseAbs().maxCoeff() + (corner ? diagonal : 0.5 * diagonal);
+    if (reach <= kMaxPosition) return;
     const auto size = n.field("size");
-    (size ? *size : n.required("origin"))
-        .fail("its corners may reach " + formatNumber(origin.cwiseAbs().maxCoeff() + reach) +
-              " m from the world's origin along an axis (the origin's largest coordinate plus the farthest a vertex lies from it), past the position bound of " +
-              formatNumber(kMaxPosition) + " m");
+    (size ? *size : k ? *k : n.required("center"))
+        .fail("its corners may reach " + formatNumber(reach) +
+              " m from the world's origin along an axis (the largest coordinate of its " + (corner ? "corner" : "centre") +
+              " plus the farthest a vertex lies from it), past the position bound of " + formatNumber(kMaxPosition) + " m");
+}
+
+/// A vertex of a rectangular grid of nx x nz vertices (a paper sheet's or a cloth's; the
+/// same words for both): a flat index k * nx + i, or [i, k] with i along local x and k
+/// along local z; each negative counts from the end. Returns the flat index.
+std::uint32_t gridVertexIndex(const Node& n, long long nx, long long nz, const char* what) {
+    const long long count = nx * nz;
+    if (n.value().is_array()) {
+        if (n.value().size() != 2) n.fail("expected a vertex index or [i, k] (2 integers), got " + describe(n.value()));
+        const std::vector<Node> ik = n.asArray();
+        long long out[2];
+        for (int a = 0; a < 2; ++a) {
+            const long long v = ik[a].asInteger();
+            const long long along = a == 0 ? nx : nz;
+            if (v < -along || v >= along)
+                ik[a].fail("vertex index out of range (got " + std::to_string(v) + "; the " + what + " has " + std::to_string(along) +
+                           " vertices along this axis)");
+            out[a] = v < 0 ? v + along : v;
+        }
+        return static_cast<std::uint32_t>(out[1] * nx + out[0]);
+    }
+    if (!n.value().is_number()) n.fail("expected a vertex index or [i, k] (2 integers), got " + describe(n.value()));
+    const long long v = n.asInteger();
+    if (v < -count || v >= count)
+        n.fail("vertex index out of range (got " + std::to_string(v) + "; the " + what + " has " + std::to_string(count) +
+               " vertices: 0.." + std::to_string(count - 1) + ", or -" + std::to_string(count) + "..-1 from the end)");
+    return static_cast<std::uint32_t>(v < 0 ? v + count : v);
+}
+
+/// The vertices of a side of a rectangular grid: "x-", "x+", "z-" or "z+" (the side at the
+/// low or high end of that local axis), in order along it.
+std::vector<std::uint32_t> gridEdge(const Node& n, int nx, int nz) {
+    const std::string e = n.asString();
+    std::vector<std::uint32_t> out;
+    if (e == "x-" || e == "x+") {
+        for (int k = 0; k < nz; ++k) out.push_back(static_cast<std::uint32_t>(k * nx + (e == "x-" ? 0 : nx - 1)));
+    } else if (e == "z-" || e == "z+") {
+        for (int i = 0; i < nx; ++i) out.push_back(static_cast<std::uint32_t>((e == "z-" ? 0 : nz - 1) * nx + i));
+    } else {
+        n.fail("must be \"x-\", \"x+\", \"z-\" or \"z+\" (got " + jsonQuoted(e) + ")");
+    }
+    return out;
 }
 
 /// The required, non-empty "name" field.
@@ -687,7 +752,11 @@ StringIntegrator parseIntegrator(const Node& n) {
     n.fail("must be \"backward_euler\" or \"bdf2\" (got " + jsonQuoted(v) + ")");
 }
 
-std::vector<Attachment> parseAttachments(const Node& list, long long particles, const NameMap& bodies) {
+/// A string's "attachments", with a sheet's words (parseSheetAttachments): {"particle": an
+/// index; "body": a name, with "local": a point in its frame (default: where the particle
+/// is) | "world": true (where the particle is) or a point}.
+std::vector<Attachment> parseAttachments(const Node& list, const std::vector<Vec3>& points, const NameMap& bodies) {
+    const auto particles = static_cast<long long>(points.size());
     std::vector<Attachment> out;
     std::map<int, std::string> taken;  // resolved particle -> attachment path
     for (const Node& n : list.asArray()) {
@@ -701,14 +770,19 @@ std::vector<Attachment> parseAttachments(const Node& list, long long particles, 
         const auto world = n.field("world");
         const auto local = n.field("local");
         if (body && world) world->fail("give either body or world, not both");
-        if (!body && !world) n.fail("needs body (a body's name) or world (a point)");
+        if (!body && !world) n.fail("needs body (a body's name) or world (true: where the particle is, or a point)");
         if (body) {
             a.body = body->asString();
             if (bodies.count(*a.body) == 0) body->fail("no body named " + jsonQuoted(*a.body) + knownNames(namesOf(bodies), "bodies"));
             if (local) a.local = local->asVec3(Range::bullet());
         } else {
             if (local) local->fail("only allowed with body");
-            a.world = world->asVec3(Range::bullet());
+            if (world->value().is_boolean()) {
+                if (!world->asBool()) world->fail("false attaches nothing: give true (where the particle is) or a point");
+                a.world = points[static_cast<std::size_t>(a.particle)];
+            } else {
+                a.world = world->asVec3(Range::bullet());
+            }
         }
         out.push_back(std::move(a));
     }
@@ -755,30 +829,84 @@ String parseString(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     } catch (const InvalidInput& e) {
         throw InvalidInput(e.field().empty() ? n.path() : n.path() + "." + e.field(), e.problem());
     }
-    if (const auto a = n.field("attachments")) s.attachments = parseAttachments(*a, particles, bodies);
+    if (const auto a = n.field("attachments")) s.attachments = parseAttachments(*a, d.points, bodies);
     parseFilter(n, s);
     return s;
+}
+
+// =============================================================================================
+// Sheets and cloths: the same words for both
+// =============================================================================================
+
+/// A vertex of a paper sheet or cloth: gridVertexIndex on a rectangle; on a mesh (`grid`
+/// false, `vertices` of them) only a flat index.
+std::uint32_t sheetVertex(const Node& n, bool grid, int nx, int nz, std::size_t vertices, const char* what) {
+    if (!grid) {
+        if (n.value().is_array()) n.fail("[i, k] names a grid vertex: this sheet is a mesh, give an index");
+        return gridVertexIndex(n, static_cast<long long>(vertices), 1, what);
+    }
+    return gridVertexIndex(n, nx, nz, what);
+}
+
+/// What holds a vertex of a sheet or cloth at creation.
+struct SheetHold {
+    std::uint32_t vertex = 0;         ///< flat index
+    std::optional<std::string> body;  ///< glued to this body, or (none) pinned in the world
+    std::optional<Vec3> local;        ///< with body: the point in its frame, m; default: where the vertex is
+    std::optional<Vec3> world;        ///< without body: the world point, m; default (true): where the vertex is
+};
+
+/// The "attachments" of a paper sheet or cloth, one per vertex: {"vertex": an index or
+/// [i, k] | "edge": "x-", "x+", "z-" or "z+"; "body": a name, with "local": a point in its
+/// frame | "world": true or a point}. `grid` is false for a sheet given as a mesh.
+std::vector<SheetHold> parseSheetAttachments(const Node& list, bool grid, int nx, int nz, std::size_t vertices, const char* what,
+                                             const NameMap& bodies) {
+    std::vector<SheetHold> out;
+    std::map<std::uint32_t, std::string> taken;  // vertex -> attachment path
+    for (const Node& a : list.asArray()) {
+        a.checkNoUnknownFields({"vertex", "edge", "world", "body", "local"});
+        const auto vertex = a.field("vertex");
+        const auto edge = a.field("edge");
+        if (vertex && edge) edge->fail("give vertex or edge, not both");
+        if (!vertex && !edge) a.fail("needs vertex (an index or [i, k]) or edge (\"x-\", \"x+\", \"z-\", \"z+\")");
+        if (edge && !grid) edge->fail("edges are those of the rectangle: this sheet is a mesh");
+        const std::vector<std::uint32_t> which =
+            vertex ? std::vector<std::uint32_t>{sheetVertex(*vertex, grid, nx, nz, vertices, what)} : gridEdge(*edge, nx, nz);
+        const auto body = a.field("body");
+        const auto world = a.field("world");
+        const auto local = a.field("local");
+        if (body && world) world->fail("give either body or world, not both");
+        if (!body && !world) a.fail("needs body (a body's name) or world (true: where the vertex is, or a point)");
+        if (local && !body) local->fail("only allowed with body");
+        if (local && edge) local->fail("an edge is glued where it is: give no local point");
+        SheetHold h;
+        if (body) {
+            h.body = body->asString();
+            if (bodies.count(*h.body) == 0) body->fail("no body named " + jsonQuoted(*h.body) + knownNames(namesOf(bodies), "bodies"));
+            if (local) h.local = local->asVec3(Range::bullet());
+        } else if (world->value().is_boolean()) {
+            if (!world->asBool()) world->fail("false attaches nothing: give true (where the vertex is) or a point");
+        } else {
+            h.world = world->asVec3(Range::bullet());
+        }
+        for (std::uint32_t v : which) {
+            if (const auto [it, fresh] = taken.emplace(v, a.path()); !fresh)
+                (vertex ? *vertex : *edge).fail("vertex " + std::to_string(v) + " already has an attachment (" + it->second + ")");
+            h.vertex = v;
+            out.push_back(h);
+        }
+    }
+    return out;
 }
 
 // =============================================================================================
 // Cloths
 // =============================================================================================
 
-/// [i, j] of a cloth vertex (negative counts from the end), resolved.
+/// [i, j] of a cloth vertex given as an index or [i, j] (negative counts from the end), resolved.
 std::pair<int, int> clothVertex(const Node& n, const ClothDesc& d) {
-    if (!n.value().is_array() || n.value().size() != 2)
-        n.fail("expected an array of 2 integers [i, j], got " + describe(n.value()));
-    const std::vector<Node> ij = n.asArray();
-    int out[2];
-    for (int k = 0; k < 2; ++k) {
-        const long long v = ij[k].asInteger();
-        const long long count = d.resolution[k];
-        if (v < -count || v >= count)
-            ij[k].fail("vertex index out of range (got " + std::to_string(v) + "; the cloth has " + std::to_string(count) +
-                       " vertices along this axis)");
-        out[k] = static_cast<int>(v < 0 ? v + count : v);
-    }
-    return {out[0], out[1]};
+    const std::uint32_t v = gridVertexIndex(n, d.resolution[0], d.resolution[1], "cloth");
+    return {static_cast<int>(v % static_cast<std::uint32_t>(d.resolution[0])), static_cast<int>(v / static_cast<std::uint32_t>(d.resolution[0]))};
 }
 
 /// A weak yarn of a cloth whose resolution is known: {"vertex": [i, j], "yarn": "warp" |
@@ -796,24 +924,24 @@ ClothWeakYarn parseWeakYarn(const Node& n, const ClothDesc& d) {
     if (kind == "warp") w.kind = YarnKind::Warp;
     else if (kind == "weft") w.kind = YarnKind::Weft;
     else yarn.fail("must be \"warp\" or \"weft\" (got " + jsonQuoted(kind) + ")");
-    const std::vector<Node> ij = vertex.asArray();
+    const bool pair = vertex.value().is_array();
     if (w.kind == YarnKind::Warp && w.i + 1 >= d.resolution[0])
-        ij[0].fail("no warp yarn starts in the last column: a warp yarn joins [i, j] and [i + 1, j]");
+        (pair ? vertex.asArray()[0] : vertex).fail("no warp yarn starts in the last column: a warp yarn joins [i, j] and [i + 1, j]");
     if (w.kind == YarnKind::Weft && w.j + 1 >= d.resolution[1])
-        ij[1].fail("no weft yarn starts in the last row: a weft yarn joins [i, j] and [i, j + 1]");
+        (pair ? vertex.asArray()[1] : vertex).fail("no weft yarn starts in the last row: a weft yarn joins [i, j] and [i, j + 1]");
     w.strength = n.required("strength").asNumber(Range::leftOpen(0.0, 1.0));
     return w;
 }
 
 /// A cloth; `seed` is its material variation seed, `bodies` the bodies it may attach to.
 Cloth parseCloth(const Node& n, std::uint64_t seed, const NameMap& bodies) {
-    n.checkNoUnknownFields({"name", "origin", "size", "resolution", "orientation", "areal_density", "density",
+    refuseOldSheetWords(n, /*paper=*/false);
+    n.checkNoUnknownFields({"name", "center", "corner", "size", "resolution", "orientation", "areal_density", "density",
                             "yarn_radius", "material", "lambda", "shear_stiffness", "bending_stiffness", "damping",
                             "plastic_time", "tearable", "weak_yarns", "attachments", "collision_group", "collision_mask"});
     Cloth c;
     ClothDesc& d = c.desc;
     d.name = requiredName(n);
-    d.origin = n.vec3("origin", d.origin, Range::bullet());
     if (const auto size = n.field("size")) {
         const std::vector<double> v = size->asNumbers(2, Range::closed(0.0, 2.0 * kMaxPosition));
         d.size = {v[0], v[1]};
@@ -825,7 +953,7 @@ Cloth parseCloth(const Node& n, std::uint64_t seed, const NameMap& bodies) {
         d.resolution = {static_cast<int>(r[0].asInteger(1, 2000)), static_cast<int>(r[1].asInteger(1, 2000))};
     }
     if (const auto q = n.field("orientation")) d.orientation = q->asQuaternion();
-    checkCorners(n, d.origin, std::hypot(d.size[0], d.size[1]));  // origin: vertex (0, 0)
+    parsePlacement(n, d.center, d.corner, std::hypot(d.size[0], d.size[1]));
     // One of the two densities: giving density alone switches areal_density off.
     const bool has_density = n.has("density");
     d.areal_density = n.number("areal_density", has_density ? 0.0 : d.areal_density, Range::atLeast(0.0));
@@ -845,38 +973,25 @@ Cloth parseCloth(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     } catch (const InvalidInput& e) {
         throw InvalidInput(e.field().empty() ? n.path() : n.path() + "." + e.field(), e.problem());
     }
-    std::map<int, std::string> taken;
-    for (const Node& a : n.array("attachments")) {
-        a.checkNoUnknownFields({"vertex", "world", "body", "local"});
-        const Node vertex = a.required("vertex");
-        const auto [i, j] = clothVertex(vertex, d);
-        if (const auto [it, fresh] = taken.emplace(j * d.resolution[0] + i, a.path()); !fresh)
-            vertex.fail("vertex [" + std::to_string(i) + ", " + std::to_string(j) + "] already has an attachment (" + it->second + ")");
-        const auto body = a.field("body");
-        const auto world = a.field("world");
-        const auto local = a.field("local");
-        if (body && world) world->fail("give either body or world, not both");
-        if (!body && !world) a.fail("needs body (a body's name) or world (true: where the vertex starts, or a point)");
-        if (body) {
-            ClothAttachment att;
-            att.i = i;
-            att.j = j;
-            att.body = body->asString();
-            if (bodies.count(att.body) == 0) body->fail("no body named " + jsonQuoted(att.body) + knownNames(namesOf(bodies), "bodies"));
-            if (local) att.local = local->asVec3(Range::bullet());
-            c.attachments.push_back(att);
-        } else {
-            if (local) local->fail("only allowed with body");
-            ClothPin pin;
-            pin.i = i;
-            pin.j = j;
-            if (world->value().is_boolean()) {
-                if (!world->asBool()) world->fail("must be true (pinned where the vertex starts) or a point [x, y, z]");
+    if (const auto list = n.field("attachments")) {
+        const std::size_t vertices = static_cast<std::size_t>(d.resolution[0]) * static_cast<std::size_t>(d.resolution[1]);
+        for (const SheetHold& h : parseSheetAttachments(*list, true, d.resolution[0], d.resolution[1], vertices, "cloth", bodies)) {
+            const int i = static_cast<int>(h.vertex % static_cast<std::uint32_t>(d.resolution[0]));
+            const int j = static_cast<int>(h.vertex / static_cast<std::uint32_t>(d.resolution[0]));
+            if (h.body) {
+                ClothAttachment att;
+                att.i = i;
+                att.j = j;
+                att.body = *h.body;
+                att.local = h.local;
+                c.attachments.push_back(att);
             } else {
-                pin.at_rest = false;
-                pin.point = world->asVec3(Range::bullet());
+                ClothPin pin;
+                pin.i = i;
+                pin.j = j;
+                pin.world = h.world;
+                d.pins.push_back(pin);
             }
-            d.pins.push_back(pin);
         }
     }
     parseFilter(n, c);
@@ -887,45 +1002,15 @@ Cloth parseCloth(const Node& n, std::uint64_t seed, const NameMap& bodies) {
 // Papers
 // =============================================================================================
 
-/// A vertex of a sheet: an index, or [i, k] on the rectangle's grid (i along x, k along z;
-/// negative counts from the far side).
+/// A vertex of a sheet: an index, or [i, k] on the rectangle's grid (sheetVertex).
 std::uint32_t paperVertex(const Node& n, const PaperDesc& d, std::size_t vertices) {
-    if (n.value().is_array()) {
-        if (!d.vertices.empty()) n.fail("[i, k] names a grid vertex: this sheet is a mesh, give an index");
-        const std::vector<Node> ik = n.asArray();
-        if (ik.size() != 2) n.fail("expected [i, k] (2 integers), got " + describe(n.value()));
-        const long long nx = d.resolution[0], nz = d.resolution[1];
-        long long i = ik[0].asInteger(-nx, nx - 1), k = ik[1].asInteger(-nz, nz - 1);
-        if (i < 0) i += nx;
-        if (k < 0) k += nz;
-        return static_cast<std::uint32_t>(k * nx + i);
-    }
-    const auto count = static_cast<long long>(vertices);
-    long long v = n.asInteger(-count, count - 1);
-    if (v < 0) v += count;
-    return static_cast<std::uint32_t>(v);
-}
-
-/// The vertices of an edge of the rectangle: "x-", "x+", "z-" or "z+" (the side at the
-/// low or high end of that local axis).
-std::vector<std::uint32_t> paperEdge(const Node& n, const PaperDesc& d) {
-    if (!d.vertices.empty()) n.fail("edges are those of the rectangle: this sheet is a mesh");
-    const std::string e = n.asString();
-    std::vector<std::uint32_t> out;
-    const int nx = d.resolution[0], nz = d.resolution[1];
-    if (e == "x-" || e == "x+") {
-        for (int k = 0; k < nz; ++k) out.push_back(static_cast<std::uint32_t>(d.gridVertex(e == "x-" ? 0 : nx - 1, k)));
-    } else if (e == "z-" || e == "z+") {
-        for (int i = 0; i < nx; ++i) out.push_back(static_cast<std::uint32_t>(d.gridVertex(i, e == "z-" ? 0 : nz - 1)));
-    } else {
-        n.fail("must be \"x-\", \"x+\", \"z-\" or \"z+\" (got " + jsonQuoted(e) + ")");
-    }
-    return out;
+    return sheetVertex(n, d.vertices.empty(), d.resolution[0], d.resolution[1], vertices, "sheet");
 }
 
 /// A paper sheet (SCENE_FORMAT.md, "papers"); `seed` unless it gives "seed".
 Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
-    n.checkNoUnknownFields({"name", "origin", "size", "resolution", "orientation", "vertices", "triangles", "density",
+    refuseOldSheetWords(n, /*paper=*/true);
+    n.checkNoUnknownFields({"name", "center", "corner", "size", "resolution", "orientation", "vertices", "triangles", "areal_density",
                             "stiffness", "bending", "damping", "solver", "tolerance", "jacobi_iterations", "integrator", "phi", "psi",
                             "hinge_threshold", "breakable", "tearable", "rupture_stretch", "tension", "thickness", "friction",
                             "seed", "attachments", "collision_group", "collision_mask"});
@@ -934,7 +1019,7 @@ Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     d.name = requiredName(n);
     const bool mesh = n.has("vertices") || n.has("triangles");
     if (mesh) {
-        for (const char* rect : {"origin", "size", "resolution", "orientation"})
+        for (const char* rect : {"center", "corner", "size", "resolution", "orientation"})
             if (const auto f = n.field(rect)) f->fail("belongs to a rectangle: this sheet gives vertices and triangles");
         for (const Node& v : n.required("vertices").asArray()) d.vertices.push_back(v.asVec3(Range::bullet()));
         for (const Node& t : n.required("triangles").asArray()) {
@@ -946,7 +1031,6 @@ Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
             d.triangles.push_back(tri);
         }
     } else {
-        d.origin = n.vec3("origin", d.origin, Range::bullet());
         if (const auto size = n.field("size")) {
             const std::vector<double> v = size->asNumbers(2, Range::leftOpen(0.0, 2.0 * kMaxPosition));
             d.size[0] = v[0];
@@ -959,9 +1043,9 @@ Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
             d.resolution[1] = static_cast<int>(v[1].asInteger(2, 1024));
         }
         if (const auto q = n.field("orientation")) d.orientation = q->asQuaternion();
-        checkCorners(n, d.origin, 0.5 * std::hypot(d.size[0], d.size[1]));  // origin: the centre
+        parsePlacement(n, d.center, d.corner, std::hypot(d.size[0], d.size[1]));
     }
-    d.density = n.number("density", d.density, Range::positive());
+    d.areal_density = n.number("areal_density", d.areal_density, Range::closed(1e-9, 1e6));
     d.stiffness = n.number("stiffness", d.stiffness, Range::positive());
     d.bending = n.number("bending", d.bending, Range::closed(0.0, 1.0));
     d.damping = n.number("damping", d.damping, Range::closed(0.0, 1.0));
@@ -1001,41 +1085,18 @@ Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     }
     const std::size_t vertices = d.vertices.empty() ? static_cast<std::size_t>(d.resolution[0]) * d.resolution[1] : d.vertices.size();
     if (const auto list = n.field("attachments")) {
-        std::map<std::uint32_t, std::string> taken;  // vertex -> attachment path
-        for (const Node& a : list->asArray()) {
-            a.checkNoUnknownFields({"vertex", "edge", "world", "body", "local"});
-            const auto vertex = a.field("vertex");
-            const auto edge = a.field("edge");
-            if (vertex && edge) edge->fail("give vertex or edge, not both");
-            if (!vertex && !edge) a.fail("needs vertex (an index or [i, k]) or edge (\"x-\", \"x+\", \"z-\", \"z+\")");
-            const std::vector<std::uint32_t> which = vertex ? std::vector<std::uint32_t>{paperVertex(*vertex, d, vertices)} : paperEdge(*edge, d);
-            const auto body = a.field("body");
-            const auto world = a.field("world");
-            const auto local = a.field("local");
-            if (body && world) world->fail("give either body or world, not both");
-            if (!body && !world) a.fail("needs body (a body's name) or world (true: where the vertex is, or a point)");
-            if (local && !body) local->fail("only allowed with body");
-            if (local && edge) local->fail("an edge is glued where it is: give no local point");
-            for (std::uint32_t v : which) {
-                if (const auto [it, fresh] = taken.emplace(v, a.path()); !fresh)
-                    (vertex ? *vertex : *edge).fail("vertex " + std::to_string(v) + " already has an attachment (" + it->second + ")");
-                if (body) {
-                    PaperGlue g;
-                    g.vertex = v;
-                    g.body = body->asString();
-                    if (bodies.count(g.body) == 0) body->fail("no body named " + jsonQuoted(g.body) + knownNames(namesOf(bodies), "bodies"));
-                    if (local) g.local = local->asVec3(Range::bullet());
-                    p.glue.push_back(g);
-                } else {
-                    PaperAttachment pin;
-                    pin.vertex = v;
-                    if (world->value().is_boolean()) {
-                        if (!world->asBool()) world->fail("false attaches nothing: give true (where the vertex is) or a point");
-                    } else {
-                        pin.world = world->asVec3(Range::bullet());
-                    }
-                    d.attachments.push_back(pin);
-                }
+        for (const SheetHold& h : parseSheetAttachments(*list, d.vertices.empty(), d.resolution[0], d.resolution[1], vertices, "sheet", bodies)) {
+            if (h.body) {
+                PaperGlue g;
+                g.vertex = h.vertex;
+                g.body = *h.body;
+                g.local = h.local;
+                p.glue.push_back(g);
+            } else {
+                PaperAttachment pin;
+                pin.vertex = h.vertex;
+                pin.world = h.world;
+                d.attachments.push_back(pin);
             }
         }
     }

@@ -454,7 +454,11 @@ SceneRun::Impl::Impl(const Scene& scene_in, const RunOptions& options_in)
                 if (a.world) {
                     ropes->attach(ids.back(), a.particle, toBullet(*a.world));
                 } else {
-                    ropes->attach(ids.back(), a.particle, *bs.by_name.at(*a.body), toBullet(a.local));
+                    // Without local: glued where the particle is, in the body's frame.
+                    btRigidBody* body = bs.by_name.at(*a.body);
+                    const btVector3 at = toBullet(s.desc.points[static_cast<std::size_t>(a.particle)]);
+                    const btVector3 local = a.local ? toBullet(*a.local) : body->getCenterOfMassTransform().inverse() * at;
+                    ropes->attach(ids.back(), a.particle, *body, local);
                 }
             }
         } catch (const InvalidInput& e) {
@@ -466,8 +470,14 @@ SceneRun::Impl::Impl(const Scene& scene_in, const RunOptions& options_in)
         const std::string path = "cloths[" + std::to_string(i) + "]";
         try {
             cloth_ids.push_back(ropes->addCloth(c.desc, c.collision_group, c.collision_mask));
-            for (const ClothAttachment& a : c.attachments)
-                ropes->attachCloth(cloth_ids.back(), c.desc.vertex(a.i, a.j), *bs.by_name.at(a.body), toBullet(a.local));
+            for (const ClothAttachment& a : c.attachments) {
+                // Without local: glued where the vertex is, in the body's frame.
+                btRigidBody* body = bs.by_name.at(a.body);
+                const int v = c.desc.vertex(a.i, a.j);
+                const btVector3 at = toBullet((*ropes->core().viewCloth(cloth_ids.back()).positions)[static_cast<std::size_t>(v)]);
+                const btVector3 local = a.local ? toBullet(*a.local) : body->getCenterOfMassTransform().inverse() * at;
+                ropes->attachCloth(cloth_ids.back(), v, *body, local);
+            }
         } catch (const InvalidInput& e) {
             throw InvalidInput(path + "." + e.field(), e.problem());
         }

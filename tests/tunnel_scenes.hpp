@@ -85,7 +85,7 @@ inline Outcome fire(const Shot& shot) {
         out.rupture_load = d.material.tensile.rupture * 3.14159265358979 * d.radius * d.radius;
     } else if (shot.target == Target::Paper) {
         PaperDesc d;
-        d.origin = Vec3(0, 0, 0);
+        d.center = Vec3(0, 0, 0);
         d.size[0] = d.size[1] = 0.4;
         d.resolution[0] = d.resolution[1] = 21;
         d.breakable = false;
@@ -97,7 +97,7 @@ inline Outcome fire(const Shot& shot) {
         paper = world.addPaper(d);
     } else {
         ClothDesc d;
-        d.origin = Vec3(-0.2, 0, -0.2);
+        d.corner = Vec3(-0.2, 0, -0.2);
         d.size = {0.4, 0.4};
         d.resolution = {21, 21};
         d.material.variation = 0.0;

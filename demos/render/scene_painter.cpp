@@ -70,7 +70,7 @@ void drawWorldPins(Renderer& renderer, const scene::Scene& scene, const scene::F
             const int i = pin.i < 0 ? nu + pin.i : pin.i, j = pin.j < 0 ? nv + pin.j : pin.j;
             const std::size_t index = static_cast<std::size_t>(j) * static_cast<std::size_t>(nu) + static_cast<std::size_t>(i);
             if (i < 0 || j < 0 || i >= nu || j >= nv || index >= v.vertexCount()) continue;
-            mark(pin.at_rest ? (*v.positions)[index] : pin.point, d.yarn_radius);
+            mark(pin.world ? *pin.world : (*v.positions)[index], d.yarn_radius);
         }
     }
     for (std::size_t k = 0; k < scene.papers.size() && k < frame.papers.size(); ++k) {
@@ -99,20 +99,22 @@ Bounds sceneBounds(const scene::Scene& scene) {
         b.add(body.position - h);
         b.add(body.position + h);
     };
-    for (const scene::Cloth& c : scene.cloths) {
-        const Mat3 r = c.desc.orientation.normalized().toRotationMatrix();
-        for (int k = 0; k < 4; ++k)
-            b.add(c.desc.origin + r * Vec3((k & 1) ? c.desc.size[0] : 0.0, 0.0, (k & 2) ? c.desc.size[1] : 0.0), c.desc.yarn_radius);
-    }
+    // A rectangle's four corners, from its corner (vertex (0, 0)) or its centre.
+    const auto addSheet = [&](const std::optional<Vec3>& center, const std::optional<Vec3>& corner, const Quat& q, double sx,
+                              double sz, double pad) {
+        const Mat3 r = q.normalized().toRotationMatrix();
+        const Vec3 c0 = corner ? *corner : Vec3(center.value_or(defaultSheetCenter()) - r * Vec3(0.5 * sx, 0.0, 0.5 * sz));
+        for (int k = 0; k < 4; ++k) b.add(c0 + r * Vec3((k & 1) ? sx : 0.0, 0.0, (k & 2) ? sz : 0.0), pad);
+    };
+    for (const scene::Cloth& c : scene.cloths)
+        addSheet(c.desc.center, c.desc.corner, c.desc.orientation, c.desc.resolution[0] > 1 ? c.desc.size[0] : 0.0,
+                 c.desc.resolution[1] > 1 ? c.desc.size[1] : 0.0, c.desc.yarn_radius);
     for (const scene::Paper& p : scene.papers) {
         if (!p.desc.vertices.empty()) {
             for (const Vec3& x : p.desc.vertices) b.add(x, p.desc.thickness);
             continue;
         }
-        const Mat3 r = p.desc.orientation.normalized().toRotationMatrix();
-        for (int k = 0; k < 4; ++k)
-            b.add(p.desc.origin + r * Vec3(((k & 1) ? 0.5 : -0.5) * p.desc.size[0], 0.0, ((k & 2) ? 0.5 : -0.5) * p.desc.size[1]),
-                  p.desc.thickness);
+        addSheet(p.desc.center, p.desc.corner, p.desc.orientation, p.desc.size[0], p.desc.size[1], p.desc.thickness);
     }
     for (const scene::Body& body : scene.bodies) addBody(body);
     for (const scene::Driver& d : scene.drivers)

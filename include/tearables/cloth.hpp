@@ -15,6 +15,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -36,12 +37,12 @@ struct ClothId {
     }
 };
 
-/// A vertex of the weave pinned to a world point at creation.
+/// A vertex of the weave pinned to a world point at creation (the words of a paper sheet's
+/// PaperAttachment without a body).
 struct ClothPin {
     int i = 0;                  ///< column (along local x), negative counts from the end (-1 = last)
     int j = 0;                  ///< row (along local z), negative counts from the end
-    bool at_rest = true;        ///< true: pinned where the vertex starts; false: pinned at `point`
-    Vec3 point = Vec3::Zero();  ///< world point, m (used when at_rest is false), each coordinate in [-1e6, 1e6]
+    std::optional<Vec3> world;  ///< the world point, m, each coordinate in [-1e6, 1e6]; default: where the vertex starts
 };
 
 /// Which yarn an edge belongs to.
@@ -62,12 +63,18 @@ struct ClothWeakYarn {
 };
 
 /// Everything needed to create a cloth. Vertex (i, j) starts at
-/// origin + orientation * (i * size[0] / (resolution[0] - 1), 0, j * size[1] / (resolution[1] - 1)):
-/// the cloth lies in its local x-z plane, vertex (0, 0) at `origin`. Its flat index is
-/// j * resolution[0] + i. A resolution of 1 along one axis makes a single yarn (a chain).
+/// corner + orientation * (i * size[0] / (resolution[0] - 1), 0, j * size[1] / (resolution[1] - 1)):
+/// the cloth lies in its local x-z plane, vertex (0, 0) at `corner`, or half the extent
+/// ((resolution - 1) times the spacing) back from `center` along each local axis. Its flat
+/// index is j * resolution[0] + i, as a paper sheet's. A resolution of 1 along one axis
+/// makes a single yarn (a chain).
 struct ClothDesc {
     std::string name;                     ///< for events and traces; may be empty
-    Vec3 origin{0.0, 1.0, 0.0};           ///< position of vertex (0, 0), m, each coordinate in [-1e6, 1e6]
+    /// Where the cloth lies (docs/SCENE_FORMAT.md, "Words"): give `center` (its centre) or
+    /// `corner` (where vertex (0, 0), the local -x -z corner, lies), not both; neither puts its
+    /// centre at (0, 1, 0). m, each coordinate in [-1e6, 1e6].
+    std::optional<Vec3> center;
+    std::optional<Vec3> corner;           ///< see `center`
     std::array<double, 2> size{1.0, 1.0}; ///< extent along local x and z, m, > 0 (ignored along an axis of resolution 1); every vertex within 1e6 m per axis
     std::array<int, 2> resolution{21, 21};///< vertices along local x and z, each 1..2000, at least 2 vertices in all
     Quat orientation = Quat::Identity();  ///< local to world, non-zero (normalised on creation)

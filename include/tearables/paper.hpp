@@ -69,15 +69,20 @@ enum class PaperTension {
 struct PaperDesc {
     std::string name = "paper";          ///< for events and scenes
     // --- the rectangle (used when `vertices` is empty) ---
-    Vec3 origin{0.0, 1.0, 0.0};          ///< centre of the sheet, m, each coordinate in [-1e6, 1e6]
+    /// Where the rectangle lies (docs/SCENE_FORMAT.md, "Words"): give `center` (its centre) or
+    /// `corner` (where vertex (0, 0), the local -x -z corner, lies), not both; neither puts its
+    /// centre at (0, 1, 0). m, each coordinate in [-1e6, 1e6].
+    std::optional<Vec3> center;
+    std::optional<Vec3> corner;          ///< see `center`
     Quat orientation = Quat::Identity(); ///< the sheet lies in its local x-z plane; non-zero (normalised)
     double size[2] = {0.21, 0.297};      ///< extent along local x and z, m, each > 0; every vertex within 1e6 m per axis
-    int resolution[2] = {22, 30};        ///< vertices along local x and z, each 2..1024; vertex (i, k) is k * resolution[0] + i
+    int resolution[2] = {22, 30};        ///< vertices along local x and z, each 2..1024; vertex (i, k) is k * resolution[0] + i,
+                                         ///< at corner + orientation * (i size[0] / (resolution[0] - 1), 0, k size[1] / (resolution[1] - 1))
     // --- or any triangle mesh (used when non-empty) ---
     std::vector<Vec3> vertices;                          ///< rest positions, m, finite
     std::vector<std::array<std::uint32_t, 3>> triangles; ///< counter-clockwise seen from the normal; non-degenerate, a manifold
     // --- material ---
-    double density = 0.08;               ///< kg/m^2 (office paper: 0.08), [1e-9, 1e6]
+    double areal_density = 0.08;         ///< mass per area, kg/m^2 (office paper: 0.08), [1e-9, 1e6]: the sheet weighs areal_density * its area
     double stiffness = 5e3;              ///< N/m, spring constant of the edges, (0, 1e12]. In a 2-D lattice this is also the
                                          ///< sheet's membrane stiffness, so it does not change with the resolution
     double bending = 0.05;               ///< bending springs' stiffness as a fraction of `stiffness`, [0, 1]

@@ -55,12 +55,12 @@ struct Body {
     double restitution = 0.0;            ///< [0, 1]
 };
 
-/// What holds a string's particle.
+/// What holds a string's particle (the same words as a sheet's: docs/SCENE_FORMAT.md, "Words").
 struct Attachment {
     int particle = 0;                  ///< index; negative counts from the end; checked in range
     std::optional<std::string> body;   ///< the body's name (must exist), or
-    Vec3 local = Vec3::Zero();         ///< with body: point in the body's frame, m
-    std::optional<Vec3> world;         ///< a world point, m (exactly one of body / world)
+    std::optional<Vec3> local;         ///< with body: point in the body's frame, m; default: where the particle is
+    std::optional<Vec3> world;         ///< a world point, m (exactly one of body / world; "world": true gives the particle's rest point)
 };
 
 /// A string of the scene.
@@ -76,7 +76,7 @@ struct String {
 struct ClothAttachment {
     int i = 0, j = 0;                  ///< the vertex, resolved to [0, resolution)
     std::string body;                  ///< the body's name (must exist)
-    Vec3 local = Vec3::Zero();         ///< point in the body's frame, m
+    std::optional<Vec3> local;         ///< point in the body's frame, m; default: where the vertex is
 };
 
 /// A cloth of the scene.

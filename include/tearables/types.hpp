@@ -17,6 +17,9 @@ using Mat3 = Eigen::Matrix3d;
 /// A unit quaternion (orientation).
 using Quat = Eigen::Quaterniond;
 
+/// The centre of a paper sheet or cloth that gives neither `center` nor `corner`, m.
+inline Vec3 defaultSheetCenter() { return Vec3(0.0, 1.0, 0.0); }
+
 /// Identifies a string (rope, thread) in a World; stays valid until the string is removed.
 struct StringId {
     std::uint32_t index = UINT32_MAX;  ///< slot in the world; UINT32_MAX = none

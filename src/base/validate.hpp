@@ -7,6 +7,7 @@
 #include "tearables/types.hpp"
 
 #include <cmath>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <string_view>
@@ -53,14 +54,25 @@ inline void requirePosition(std::string_view field, const Vec3& v) {
     for (int k = 0; k < 3; ++k) requireRange(field, v[k], -kMaxCoordinate, kMaxCoordinate);
 }
 
-/// Every vertex of a sheet or cloth lies within `span` of its `origin` (half the diagonal
-/// of a sheet centred there, the whole diagonal of a cloth cornered there), in any
-/// orientation: they all stay within the position bound.
-inline void requireExtentWithinBound(std::string_view field, const Vec3& origin, double span) {
-    const double reach = origin.cwiseAbs().maxCoeff() + span;
+/// Every vertex of a sheet or cloth lies within `span` of its `anchor` (half the diagonal
+/// from its centre, the whole diagonal from its corner), in any orientation: they all stay
+/// within the position bound.
+inline void requireExtentWithinBound(std::string_view field, const Vec3& anchor, double span) {
+    const double reach = anchor.cwiseAbs().maxCoeff() + span;
     if (!(reach <= kMaxCoordinate))
         throw InvalidInput(std::string(field), "its vertices may reach " + num(reach) + " m along an axis, past the position bound of " +
                                                    num(kMaxCoordinate) + " m");
+}
+
+/// Where a rectangular sheet or cloth lies: `center` or `corner`, not both (neither: the
+/// default centre). Checks the one given and that every vertex stays within the position
+/// bound: `diagonal` is the rectangle's diagonal, m.
+inline void requireSheetPlacement(const std::optional<Vec3>& center, const std::optional<Vec3>& corner, double diagonal) {
+    if (center && corner) throw InvalidInput("corner", "give center or corner, not both");
+    if (center) requirePosition("center", *center);
+    if (corner) requirePosition("corner", *corner);
+    if (corner) requireExtentWithinBound("size", *corner, diagonal);
+    else requireExtentWithinBound("size", center ? *center : defaultSheetCenter(), 0.5 * diagonal);
 }
 
 }  // namespace tearables::detail

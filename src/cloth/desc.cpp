@@ -16,7 +16,6 @@ using detail::requireFinite;
 using detail::requirePositive;
 using detail::requireRange;
 using detail::requirePosition;
-using detail::requireExtentWithinBound;
 
 int resolveAxis(int k, int count, const std::string& field) {
     if (k < -count || k >= count)
@@ -34,7 +33,6 @@ int ClothDesc::vertex(int i, int j) const {
 }
 
 void validate(const ClothDesc& d) {
-    requirePosition("origin", d.origin);
     for (int k = 0; k < 2; ++k) {
         const std::string f = "resolution[" + std::to_string(k) + "]";
         if (d.resolution[k] < 1 || d.resolution[k] > 2000)
@@ -44,7 +42,7 @@ void validate(const ClothDesc& d) {
     for (int k = 0; k < 2; ++k)
         if (d.resolution[k] > 1) requirePositive("size[" + std::to_string(k) + "]", d.size[k]);
         else requireFinite("size[" + std::to_string(k) + "]", d.size[k]);
-    requireExtentWithinBound("size", d.origin, std::hypot(d.size[0], d.size[1]));  // origin: vertex (0, 0)
+    detail::requireSheetPlacement(d.center, d.corner, std::hypot(d.size[0], d.size[1]));
     const Eigen::Vector4d q = d.orientation.coeffs();
     for (int k = 0; k < 4; ++k) requireFinite("orientation", q[k]);
     if (!(q.norm() > 1e-9)) throw InvalidInput("orientation", "must be a non-zero quaternion");
@@ -71,8 +69,7 @@ void validate(const ClothDesc& d) {
         const int b = resolveAxis(p.j, d.resolution[1], f + ".j");
         if (!taken.insert(b * d.resolution[0] + a).second)
             throw InvalidInput(f, "vertex (" + std::to_string(a) + ", " + std::to_string(b) + ") is already pinned");
-        if (!p.at_rest)
-            requirePosition(f + ".point", p.point);
+        if (p.world) requirePosition(f + ".world", *p.world);
     }
     std::set<std::pair<int, int>> weak;  // (kind, flat index of the first vertex)
     for (std::size_t k = 0; k < d.weak_yarns.size(); ++k) {

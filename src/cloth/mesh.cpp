@@ -21,8 +21,21 @@ ClothState makeCloth(const ClothDesc& desc) {
     const Mat3 rot = c.desc.orientation.toRotationMatrix();
     auto index = [nu](int i, int j) { return static_cast<std::uint32_t>(j * nu + i); };
     c.x.resize(n);
-    for (int j = 0; j < nv; ++j)
-        for (int i = 0; i < nu; ++i) c.x[index(i, j)] = desc.origin + rot * Vec3(i * dx, 0.0, j * dz);
+    // Vertex (i, j) from the corner: (i dx, 0, j dz) in the cloth's frame; from the centre,
+    // the same less half the extent along each axis (a paper sheet's grid, paper/desc.cpp,
+    // places its vertices the same way). An axis of resolution 1 has no extent.
+    if (desc.corner) {
+        for (int j = 0; j < nv; ++j)
+            for (int i = 0; i < nu; ++i) c.x[index(i, j)] = *desc.corner + rot * Vec3(i * dx, 0.0, j * dz);
+    } else {
+        const Vec3 center = desc.center.value_or(defaultSheetCenter());
+        const double hx = nu > 1 ? 0.5 * desc.size[0] : 0.0, hz = nv > 1 ? 0.5 * desc.size[1] : 0.0;
+        for (int j = 0; j < nv; ++j)
+            for (int i = 0; i < nu; ++i) {
+                const double u = nu > 1 ? desc.size[0] * i / (nu - 1) : 0.0, w = nv > 1 ? desc.size[1] * j / (nv - 1) : 0.0;
+                c.x[index(i, j)] = center + rot * Vec3(u - hx, 0.0, w - hz);
+            }
+    }
     c.v.assign(n, Vec3::Zero());
     c.x_prev = c.x;
     c.x_pred = c.x;
@@ -125,7 +138,7 @@ ClothState makeCloth(const ClothDesc& desc) {
     for (const ClothPin& pin : desc.pins) {
         const int p = desc.vertex(pin.i, pin.j);
         c.hold[p].kind = ParticleHold::Kind::Pin;
-        c.hold[p].point = pin.at_rest ? c.x[p] : pin.point;
+        c.hold[p].point = pin.world ? *pin.world : c.x[p];
         c.x[p] = c.x_prev[p] = c.x_pred[p] = c.hold[p].point;
     }
 

@@ -12,8 +12,6 @@ namespace tearables {
 
 namespace {
 
-bool finiteVec(const Vec3& v) { return v.allFinite(); }
-
 void requireRange(double value, double lo, double hi, const char* field, const char* range) {
     if (!std::isfinite(value) || value < lo || value > hi) throw InvalidInput(field, std::string("must be in ") + range);
 }
@@ -22,17 +20,17 @@ void requireRange(double value, double lo, double hi, const char* field, const c
 
 void validate(const PaperDesc& d) {
     if (d.vertices.empty()) {
-        if (!finiteVec(d.origin)) throw InvalidInput("origin", "must be finite");
         if (!d.orientation.coeffs().allFinite() || d.orientation.coeffs().norm() < 1e-9)
             throw InvalidInput("orientation", "must be a finite, non-zero quaternion");
         for (int a = 0; a < 2; ++a) {
             if (!std::isfinite(d.size[a]) || !(d.size[a] > 0.0)) throw InvalidInput("size", "both extents must be finite and > 0 m");
             if (d.resolution[a] < 2 || d.resolution[a] > 1024) throw InvalidInput("resolution", "each must be 2..1024 vertices");
         }
-        detail::requirePosition("origin", d.origin);
-        detail::requireExtentWithinBound("size", d.origin, 0.5 * std::hypot(d.size[0], d.size[1]));  // origin: the centre
+        detail::requireSheetPlacement(d.center, d.corner, std::hypot(d.size[0], d.size[1]));
         if (!d.triangles.empty()) throw InvalidInput("triangles", "given without vertices");
     } else {
+        if (d.center) throw InvalidInput("center", "belongs to a rectangle: this sheet gives vertices");
+        if (d.corner) throw InvalidInput("corner", "belongs to a rectangle: this sheet gives vertices");
         for (std::size_t i = 0; i < d.vertices.size(); ++i)
             detail::requirePosition("vertices[" + std::to_string(i) + "]", d.vertices[i]);
         if (d.triangles.empty()) throw InvalidInput("triangles", "a mesh needs at least one triangle");
@@ -62,7 +60,7 @@ void validate(const PaperDesc& d) {
         for (std::uint32_t v = 0; v < n; ++v)
             if (!used[v]) throw InvalidInput("vertices[" + std::to_string(v) + "]", "is used by no triangle");
     }
-    requireRange(d.density, 1e-9, 1e6, "density", "(0, 1e6] kg/m^2");
+    requireRange(d.areal_density, 1e-9, 1e6, "areal_density", "[1e-9, 1e6] kg/m^2");
     if (!std::isfinite(d.stiffness) || !(d.stiffness > 0.0) || d.stiffness > 1e12) throw InvalidInput("stiffness", "must be in (0, 1e12] N/m");
     requireRange(d.bending, 0.0, 1.0, "bending", "[0, 1] (fraction of stiffness)");
     requireRange(d.damping, 0.0, 1.0, "damping", "[0, 1] s");
@@ -103,10 +101,16 @@ void restMesh(const PaperDesc& d, std::vector<Vec3>& x, std::vector<std::array<s
     const int nx = d.resolution[0], nz = d.resolution[1];
     const Quat q = d.orientation.normalized();
     x.resize(static_cast<std::size_t>(nx) * nz);
+    // Vertex (i, k) from the corner: (i size[0] / (nx - 1), 0, k size[1] / (nz - 1)) in the
+    // sheet's frame; from the centre, the same less half the size along each axis (the
+    // cloth's grid, cloth/mesh.cpp, places its vertices the same way).
+    const bool from_corner = d.corner.has_value();
+    const Vec3 anchor = from_corner ? *d.corner : d.center.value_or(defaultSheetCenter());
     for (int k = 0; k < nz; ++k)
         for (int i = 0; i < nx; ++i) {
-            const Vec3 local(-0.5 * d.size[0] + d.size[0] * i / (nx - 1), 0.0, -0.5 * d.size[1] + d.size[1] * k / (nz - 1));
-            x[static_cast<std::size_t>(d.gridVertex(i, k))] = d.origin + q * local;
+            const Vec3 local = from_corner ? Vec3(i * (d.size[0] / (nx - 1)), 0.0, k * (d.size[1] / (nz - 1)))
+                                           : Vec3(-0.5 * d.size[0] + d.size[0] * i / (nx - 1), 0.0, -0.5 * d.size[1] + d.size[1] * k / (nz - 1));
+            x[static_cast<std::size_t>(d.gridVertex(i, k))] = anchor + q * local;
         }
     triangles.clear();
     // Counter-clockwise seen from the local +y normal; the diagonals alternate in a
@@ -141,7 +145,7 @@ PaperSheet buildSheet(const PaperDesc& desc) {
     // Lumped masses: a third of each triangle's mass to each corner.
     for (const auto& t : s.triangles) {
         const double area = 0.5 * (s.x[t[1]] - s.x[t[0]]).cross(s.x[t[2]] - s.x[t[0]]).norm();
-        for (std::uint32_t v : t) s.mass[v] += desc.density * area / 3.0;
+        for (std::uint32_t v : t) s.mass[v] += desc.areal_density * area / 3.0;
     }
     s.total_mass = 0.0;
     for (double m : s.mass) s.total_mass += m;

@@ -332,8 +332,7 @@ template <class A>
 void io(A& a, ClothPin& p) {
     io(a, p.i);
     io(a, p.j);
-    io(a, p.at_rest);
-    io(a, p.point);
+    io(a, p.world);
 }
 template <class A>
 void io(A& a, YarnKind& k) {
@@ -460,7 +459,8 @@ void io(A& a, detail::StringState& s) {
 template <class A>
 void io(A& a, ClothDesc& d) {
     io(a, d.name);
-    io(a, d.origin);
+    io(a, d.center);
+    io(a, d.corner);
     io(a, d.size);
     io(a, d.resolution);
     io(a, d.orientation);
@@ -526,13 +526,14 @@ void io(A& a, detail::ClothState& c) {
 template <class A>
 void io(A& a, PaperDesc& d) {
     io(a, d.name);
-    io(a, d.origin);
+    io(a, d.center);
+    io(a, d.corner);
     io(a, d.orientation);
     ioArray(a, d.size);
     ioArray(a, d.resolution);
     io(a, d.vertices);
     io(a, d.triangles);
-    io(a, d.density);
+    io(a, d.areal_density);
     io(a, d.stiffness);
     io(a, d.bending);
     io(a, d.damping);

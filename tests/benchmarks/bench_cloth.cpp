@@ -19,6 +19,7 @@ namespace {
 /// rows of a cloth in motion whose least-squares answer is T_true (residual ~0).
 tearables::detail::ClothState drapedCloth(int n) {
     tearables::ClothDesc d;
+    d.corner = tearables::Vec3(0.0, 1.0, 0.0);
     d.resolution = {n, n};
     d.size = {0.01 * (n - 1), 0.01 * (n - 1)};
     for (int i = 0; i < n; ++i) d.pins.push_back({i, 0});
@@ -68,6 +69,7 @@ void BM_ClothStep(benchmark::State& state) {
     const int n = static_cast<int>(state.range(0));
     tearables::World world;
     tearables::ClothDesc d;
+    d.corner = tearables::Vec3(0.0, 1.0, 0.0);
     d.resolution = {n, n};
     d.size = {0.01 * (n - 1), 0.01 * (n - 1)};
     d.pins = {{0, 0}, {-1, 0}};

@@ -39,7 +39,7 @@ ClothDesc yarn(int n, double length) {
     ClothDesc d;
     d.resolution = {1, n};
     d.size = {0.0, length};
-    d.origin = Vec3(0, 1, 0);
+    d.corner = Vec3(0, 1, 0);
     d.orientation = tearables::Quat(Eigen::AngleAxisd(kPi / 2, Vec3::UnitX()));  // local z -> world -y
     d.areal_density = 0.0;
     d.density = 1150.0;
@@ -53,7 +53,7 @@ ClothDesc square(int n, double size) {
     ClothDesc d;
     d.resolution = {n, n};
     d.size = {size, size};
-    d.origin = Vec3(0, 1, 0);
+    d.corner = Vec3(0, 1, 0);
     d.material.variation = 0.0;
     return d;
 }
@@ -109,6 +109,7 @@ TEST(ClothTension, ChainLeastSquaresEqualsDirectSolve) {
 TEST(ClothTension, RefinementReachesItsTolerance) {
     const int n = 30;
     ClothDesc d;
+    d.corner = Vec3(0.0, 1.0, 0.0);
     d.resolution = {n, n};
     d.size = {0.01 * (n - 1), 0.01 * (n - 1)};
     for (int i = 0; i < n; ++i) d.pins.push_back({i, 0});
@@ -340,6 +341,7 @@ TEST(ClothTension, HangingFromTwoCornersCarriesItsWeight) {
 TEST(ClothStrain, SwingingClothSolveEndsNearItsMinimum) {
     World world;
     ClothDesc d;
+    d.corner = Vec3(0.0, 1.0, 0.0);
     d.resolution = {20, 20};
     d.size = {0.19, 0.19};
     d.pins = {{0, 0}, {-1, 0}};
@@ -366,7 +368,9 @@ TEST(ClothDesc, BadInputNamesTheField) {
         std::function<void(ClothDesc&)> spoil;
     };
     const std::vector<Case> cases = {
-        {"origin", [&](ClothDesc& d) { d.origin.x() = nan; }},
+        {"center", [&](ClothDesc& d) { d.corner.reset(); d.center = Vec3(nan, 0, 0); }},
+        {"corner", [&](ClothDesc& d) { d.corner = Vec3(0, nan, 0); }},
+        {"corner", [&](ClothDesc& d) { d.corner = Vec3(0, 1, 0); d.center = Vec3(0, 1, 0); }},
         {"size[0]", [](ClothDesc& d) { d.size[0] = 0.0; }},
         {"size[1]", [](ClothDesc& d) { d.size[1] = -1.0; }},
         {"resolution[0]", [](ClothDesc& d) { d.resolution[0] = 0; }},
@@ -389,7 +393,7 @@ TEST(ClothDesc, BadInputNamesTheField) {
         {"plastic_time", [](ClothDesc& d) { d.plastic_time = 11.0; }},
         {"pins[0].i", [](ClothDesc& d) { d.pins = {{12, 0}}; }},
         {"pins[1]", [](ClothDesc& d) { d.pins = {{0, 0}, {0, 0}}; }},
-        {"pins[0].point", [&](ClothDesc& d) { d.pins = {{0, 0, false, Vec3(nan, 0, 0)}}; }},
+        {"pins[0].world", [&](ClothDesc& d) { d.pins = {{0, 0, Vec3(nan, 0, 0)}}; }},
         {"weak_yarns[0].i", [](ClothDesc& d) { d.weak_yarns = {{6, 0, YarnKind::Warp, 0.5}}; }},
         {"weak_yarns[0].j", [](ClothDesc& d) { d.weak_yarns = {{0, -7, YarnKind::Weft, 0.5}}; }},
         {"weak_yarns[0].i", [](ClothDesc& d) { d.weak_yarns = {{-1, 0, YarnKind::Warp, 0.5}}; }},  // no warp yarn starts in the last column
@@ -433,7 +437,7 @@ TEST(ClothTear, WeakerYarnTearsFirst) {
     ClothDesc left = yarn(11, 0.2), right = yarn(11, 0.2);
     left.name = "left";
     right.name = "right";
-    right.origin.x() = 0.1;
+    right.corner->x() = 0.1;
     left.material.tensile = {1e9, 2e7, 1e8, 4e7};
     right.material.tensile = {3e9, 4e7, 3e8, 8e7};
     const ClothId a = world.addCloth(left), b = world.addCloth(right);
@@ -609,9 +613,8 @@ TEST(ClothScene, LoadsClothFields) {
     EXPECT_DOUBLE_EQ(a.lambda, 1e-5);
     ASSERT_EQ(a.pins.size(), 2u);
     EXPECT_EQ(a.vertex(a.pins[0].i, a.pins[0].j), 8);
-    EXPECT_TRUE(a.pins[0].at_rest);
-    EXPECT_FALSE(a.pins[1].at_rest);
-    EXPECT_EQ(a.pins[1].point, Vec3(1, 2, 3));
+    EXPECT_FALSE(a.pins[0].world.has_value());  // true: where the vertex starts
+    EXPECT_EQ(a.pins[1].world, std::optional<Vec3>(Vec3(1, 2, 3)));
     EXPECT_DOUBLE_EQ(s.cloths[1].desc.areal_density, 0.0);
     EXPECT_DOUBLE_EQ(s.cloths[1].desc.density, 1000.0);
     // Weak yarns: the vertex resolved like an attachment's, the kind and strength as given.

@@ -43,7 +43,7 @@ enum class Held { Corners, TwoEdges };
 PaperDesc heldSheet(int resolution, Held held, double tolerance) {
     PaperDesc d;
     d.name = "sheet";
-    d.origin = Vec3(0, 1, 0);
+    d.center = Vec3(0, 1, 0);
     d.size[0] = kSide;
     d.size[1] = kSide;
     d.resolution[0] = resolution;
@@ -98,7 +98,7 @@ TEST(PaperConverge, SheetHeldAtTwoEdgesSagsAsAnElasticCableAtEveryResolution) {
     const double k = d.stiffness, b = d.bending;
     const double A = k * (1.0 + 4.0 * b), B = 0.5 * k * (1.0 + b);
     const double plane_strain = A + B, plane_stress = A + B - B * B / (A + B);
-    const double q = d.density * 9.81, a = kSide;
+    const double q = d.areal_density * 9.81, a = kSide;
     const double stiff = std::cbrt(3.0 * q * std::pow(a, 4) / (64.0 * plane_strain));
     const double soft = std::cbrt(3.0 * q * std::pow(a, 4) / (64.0 * plane_stress));
     const Sag coarse = settledSag(11, Held::TwoEdges, 1e-6);

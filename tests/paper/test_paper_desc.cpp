@@ -28,15 +28,17 @@ TEST(PaperDesc, BadInputRefusedWithTheFieldNamed) {
         std::function<void(PaperDesc&)> spoil;
     };
     const std::vector<Case> cases = {
-        {"origin", [&](PaperDesc& d) { d.origin.x() = nan; }},
+        {"center", [&](PaperDesc& d) { d.center = Vec3(nan, 0, 0); }},
+        {"corner", [&](PaperDesc& d) { d.corner = Vec3(0, nan, 0); }},
+        {"corner", [&](PaperDesc& d) { d.corner = Vec3(0, 1, 0); d.center = Vec3(0, 1, 0); }},
         {"orientation", [&](PaperDesc& d) { d.orientation = Quat(0, 0, 0, 0); }},
         {"orientation", [&](PaperDesc& d) { d.orientation.w() = inf; }},
         {"size", [&](PaperDesc& d) { d.size[0] = 0.0; }},
         {"size", [&](PaperDesc& d) { d.size[1] = nan; }},
         {"resolution", [&](PaperDesc& d) { d.resolution[0] = 1; }},
         {"resolution", [&](PaperDesc& d) { d.resolution[1] = 5000; }},
-        {"density", [&](PaperDesc& d) { d.density = 0.0; }},
-        {"density", [&](PaperDesc& d) { d.density = nan; }},
+        {"areal_density", [&](PaperDesc& d) { d.areal_density = 0.0; }},
+        {"areal_density", [&](PaperDesc& d) { d.areal_density = nan; }},
         {"stiffness", [&](PaperDesc& d) { d.stiffness = -1.0; }},
         {"stiffness", [&](PaperDesc& d) { d.stiffness = inf; }},
         {"bending", [&](PaperDesc& d) { d.bending = 2.0; }},
@@ -106,13 +108,13 @@ TEST(PaperDesc, BadInputRefusedWithTheFieldNamed) {
 TEST(PaperDesc, RectangleHasTheAreaMassAndSpringsItDescribes) {
     PaperDesc d = small();
     d.orientation = Quat(Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()));
-    d.origin = Vec3(0.3, 2.0, -1.0);
+    d.center = Vec3(0.3, 2.0, -1.0);
     World world;
     const PaperId id = world.addPaper(d);
     const PaperView v = world.viewPaper(id);
     ASSERT_EQ(v.vertexCount(), 12u);
     EXPECT_EQ(v.triangles->size(), 2u * 3 * 2);
-    EXPECT_NEAR(testing::totalMass(v), d.density * d.size[0] * d.size[1], 1e-12);
+    EXPECT_NEAR(testing::totalMass(v), d.areal_density * d.size[0] * d.size[1], 1e-12);
     // Structural springs: one per edge (3x3 grid of cells: 3*3 + 4*2 + 6 diagonals).
     int structural = 0, bending = 0;
     for (const PaperSpring& sp : *v.springs) {
@@ -180,7 +182,7 @@ TEST_P(PaperDescSolver, NonFiniteRefusedAndABlownUpSheetIsFrozen) {
     d.resolution[0] = 4;
     d.resolution[1] = 4;
     const PaperId bad = world.addPaper(d);
-    d.origin = Vec3(1, 1, 0);
+    d.center = Vec3(1, 1, 0);
     const PaperId good = world.addPaper(d);
     EXPECT_THROW(world.applyPaperForce(bad, 0, Vec3(NAN, 0, 0)), InvalidInput);
     EXPECT_THROW(world.attachPaperToPoint(bad, 0, Vec3(INFINITY, 0, 0)), InvalidInput);
@@ -218,10 +220,10 @@ TEST(PaperDesc, AnyTriangleMeshSimulates) {
     World world;
     const PaperId id = world.addPaper(d);
     const double area = 6.0 * 0.5 * 0.05 * 0.05 * std::sin(M_PI / 3);
-    EXPECT_NEAR(testing::totalMass(world.viewPaper(id)), d.density * area, 1e-12);
+    EXPECT_NEAR(testing::totalMass(world.viewPaper(id)), d.areal_density * area, 1e-12);
     for (int step = 0; step < 120; ++step) {
         world.step(1.0 / 60.0);
-        ASSERT_EQ(detail::checkMesh(world.viewPaper(id), d.density * area), "") << "step " << step;
+        ASSERT_EQ(detail::checkMesh(world.viewPaper(id), d.areal_density * area), "") << "step " << step;
     }
     const PaperView v = world.viewPaper(id);
     EXPECT_TRUE(testing::allFinite(v));

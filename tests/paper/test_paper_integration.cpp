@@ -20,7 +20,7 @@ constexpr double kH = 1.0 / 60.0;
 PaperDesc hangingSheet(PaperIntegrator integrator) {
     PaperDesc d;
     d.name = "sheet";
-    d.origin = Vec3(0, 1, 0);
+    d.center = Vec3(0, 1, 0);
     d.size[0] = 0.2;
     d.size[1] = 0.2;
     d.resolution[0] = 11;

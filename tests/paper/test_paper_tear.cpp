@@ -195,7 +195,7 @@ TEST(PaperTear, AnOverstretchedInnerEdgeStartsASlitThere) {
     EXPECT_EQ(after.triangles->size(), triangles);
     EXPECT_EQ(boundaryEdges(after), boundary + 4);
     EXPECT_EQ(pieces(after), 1);
-    EXPECT_EQ(detail::checkMesh(after, d.density * 0.2 * 0.2), "");
+    EXPECT_EQ(detail::checkMesh(after, d.areal_density * 0.2 * 0.2), "");
     std::printf("inner slit after %d steps at vertex %d\n", step, split);
 }
 

@@ -16,7 +16,7 @@ constexpr double kRho = 1.2, kCd = 1.2;  // the scene format's air and plate
 PaperDesc freeSheet(int resolution) {
     PaperDesc d;
     d.name = "sheet";
-    d.origin = Vec3(0, 1, 0);
+    d.center = Vec3(0, 1, 0);
     d.size[0] = 0.2;
     d.size[1] = 0.3;
     d.resolution[0] = resolution;

@@ -24,7 +24,7 @@ ClothDesc trampoline() {
     d.name = "cloth";
     d.resolution = {9, 9};
     d.size = {0.6, 0.6};
-    d.origin = Vec3(-0.3, 1.0, -0.3);
+    d.corner = Vec3(-0.3, 1.0, -0.3);
     d.areal_density = 0.2;
     d.yarn_radius = 5e-4;
     d.material.variation = 0.0;
@@ -34,8 +34,7 @@ ClothDesc trampoline() {
             tearables::ClothPin pin;
             pin.i = i;
             pin.j = j;
-            pin.at_rest = false;
-            pin.point = Vec3(i == 0 ? -0.27 : 0.27, 1.0, j == 0 ? -0.27 : 0.27);
+            pin.world = Vec3(i == 0 ? -0.27 : 0.27, 1.0, j == 0 ? -0.27 : 0.27);
             d.pins.push_back(pin);
         }
     return d;

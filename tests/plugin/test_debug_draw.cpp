@@ -152,7 +152,7 @@ TEST(DebugDraw, PaperEdgesOnceAndCreasesInTheirColour) {
     Physics phys(0.0);
     BulletWorld paper(*phys.world);
     PaperDesc d;
-    d.origin = Vec3(0, 1, 0);
+    d.center = Vec3(0, 1, 0);
     d.size[0] = 0.1;
     d.size[1] = 0.1;
     d.resolution[0] = 11;
@@ -197,7 +197,7 @@ TEST(DebugDraw, ClothYarnsColouredByLoad) {
     Physics phys;
     BulletWorld ropes(*phys.world);
     ClothDesc d;
-    d.origin = Vec3(0, 2, 0);
+    d.corner = Vec3(0, 2, 0);
     d.size = {0.2, 0.2};
     d.resolution = {5, 4};
     const ClothId id = ropes.addCloth(d);

@@ -90,7 +90,7 @@ TEST(Lifetimes, BulletWorldDestroyedFirstThenCoreSteps) {
     ropes->attach(hanging, -1, crate, btVector3(0, 0.1f, 0));
     const StringId lying = ropes->addString(rope({-0.5, 0.52, 0.5}, {0.5, 0.52, 0.5}, 10));  // touches the ground
     PaperDesc sheet;
-    sheet.origin = Vec3(0.3, 0.9, 0);
+    sheet.center = Vec3(0.3, 0.9, 0);
     sheet.size[0] = sheet.size[1] = 0.1;
     sheet.resolution[0] = sheet.resolution[1] = 4;
     const PaperId paper = ropes->addPaper(sheet);
@@ -99,7 +99,7 @@ TEST(Lifetimes, BulletWorldDestroyedFirstThenCoreSteps) {
     cloth.name = "cloth";
     cloth.resolution = {4, 4};
     cloth.size = {0.1, 0.1};
-    cloth.origin = Vec3(-0.4, 0.9, 0);
+    cloth.corner = Vec3(-0.4, 0.9, 0);
     const ClothId patch = ropes->addCloth(cloth);
     ropes->attachCloth(patch, 0, crate, btVector3(-0.1f, 0, 0));
     phys.step(5);

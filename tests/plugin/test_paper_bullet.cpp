@@ -19,7 +19,7 @@ constexpr double kH = 1.0 / 60.0;
 /// A 20 cm sheet at y = 1, held at its four corners.
 PaperDesc cornerSheet(bool breakable) {
     PaperDesc d;
-    d.origin = Vec3(0, 1, 0);
+    d.center = Vec3(0, 1, 0);
     d.size[0] = 0.2;
     d.size[1] = 0.2;
     d.resolution[0] = 21;
@@ -91,7 +91,7 @@ TEST(PaperBullet, SmallBallIsCaughtBetweenTheVertices) {
     Physics p;
     BulletWorld paper(*p.world);
     PaperDesc d;
-    d.origin = Vec3(0, 1, 0);
+    d.center = Vec3(0, 1, 0);
     d.size[0] = 0.3;
     d.size[1] = 0.3;
     d.resolution[0] = 4;  // 10 cm cells
@@ -169,7 +169,7 @@ TEST(PaperBullet, GluedVerticesHoldABody) {
     Physics p;
     BulletWorld paper(*p.world);
     PaperDesc d;
-    d.origin = Vec3(0, 1, 0);
+    d.center = Vec3(0, 1, 0);
     d.orientation = Quat(Eigen::AngleAxisd(0.5 * M_PI, Vec3::UnitX()));  // hanging: row 0 on top
     d.size[0] = 0.1;
     d.size[1] = 0.1;

@@ -151,10 +151,10 @@ TEST(BulletFilter, SheetsAndClothsHaveTheirOwnFilter) {
         tearables::ClothDesc c;
         c.resolution = {9, 9};
         c.size = {0.4, 0.4};
-        c.origin = Vec3(-1.2, y0, -0.2);
+        c.corner = Vec3(-1.2, y0, -0.2);
         c.areal_density = 0.2;
         tearables::PaperDesc p;
-        p.origin = Vec3(1.0, y0, 0);
+        p.center = Vec3(1.0, y0, 0);
         p.size[0] = p.size[1] = 0.4;
         p.resolution[0] = p.resolution[1] = 9;
         const tearables::ClothId cloth = cloth_passes ? ropes.addCloth(c, 1, ~4) : ropes.addCloth(c);

@@ -88,7 +88,7 @@ TEST(BulletSubsteps, PerFrameForceOnClothAndPaperGivesItsFullImpulse) {
     c.size = {0.4, 0.4};
     c.areal_density = 0.2;
     tearables::PaperDesc p;
-    p.origin = Vec3(2, 1, 0);
+    p.center = Vec3(2, 1, 0);
     p.size[0] = p.size[1] = 0.4;
     p.resolution[0] = p.resolution[1] = 5;
     const tearables::ClothId cloth = ropes.addCloth(c);

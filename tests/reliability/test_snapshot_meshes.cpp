@@ -159,7 +159,7 @@ struct ClothScene {
         world.setContactProvider(&contacts);
         contacts.spheres.push_back({RigidId{0}, 0.025});
         desc.name = "weave";
-        desc.origin = {0.0, 1.0, 0.0};
+        desc.corner = {0.0, 1.0, 0.0};
         desc.resolution = {9, 7};
         desc.size = {0.08, 0.06};
         desc.damping = 1.0;
@@ -262,7 +262,7 @@ struct PaperScene {
         world.setContactProvider(&contacts);
         contacts.spheres.push_back({RigidId{0}, 0.04});
         desc.name = "sheet";
-        desc.origin = {0.0, 1.0, 0.0};
+        desc.center = {0.0, 1.0, 0.0};
         desc.size[0] = 0.2;
         desc.size[1] = 0.1;
         desc.resolution[0] = 21;
@@ -437,7 +437,7 @@ TEST(SnapshotMeshes, WorldWithOtherClothsOrSheetsRefusesAndChangesNothing) {
         ClothScene other;
         ClothDesc extra = other.desc;
         extra.name = "extra";
-        extra.origin = {1, 1, 0};
+        extra.corner = {1, 1, 0};
         other.world.addCloth(extra);
         expectRefused(other.world, [&] { other.step(); }, bytes, "snapshot.CLTH", "the world has cloth 1 (\"extra\"), which the snapshot does not have",
                       "a cloth more");
@@ -565,7 +565,7 @@ struct BulletMeshScene {
                            btVector3(static_cast<btScalar>(c.x()), static_cast<btScalar>(c.y() - 0.005), static_cast<btScalar>(c.z())));
         meshes->attachCloth(cloth, cd.vertex(6, 1), *weight, btVector3(0, 0.005f, 0));
         PaperDesc pd = paper_spec.desc;
-        pd.origin = {1.0, 1.0, 0.0};
+        pd.center = {1.0, 1.0, 0.0};
         sheet = meshes->addPaper(pd);
         const auto& x = *meshes->core().viewPaper(sheet).positions;
         left0 = x[paper_spec.left];

@@ -219,7 +219,7 @@ TEST(DemoScenes, PaperVertexDrivers) {
     fs::create_directories(dir);
     const fs::path file = dir / "scene.json";
     std::ofstream(file) << R"({"dt": 0.01, "steps": 100,
-      "papers": [{"name": "s", "origin": [0, 1, 0], "size": [0.1, 0.1], "resolution": [5, 5], "breakable": false}],
+      "papers": [{"name": "s", "center": [0, 1, 0], "size": [0.1, 0.1], "resolution": [5, 5], "breakable": false}],
       "drivers": [{"type": "move", "target": "s", "vertex": [0, 0], "velocity": [0, 0.5, 0]},
                   {"type": "force", "target": "s", "vertex": [-1, -1], "value": [0, 0.01, 0]}]})";
     const fs::path out = dir / "out";

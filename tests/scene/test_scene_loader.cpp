@@ -148,7 +148,7 @@ TEST(SceneLoader, FullSceneParsesEveryField) {
     ASSERT_EQ(at.size(), 2u);
     EXPECT_EQ(at[0].particle, 0);
     EXPECT_EQ(at[0].body, std::optional<std::string>("beam"));
-    EXPECT_EQ(at[0].local, Vec3(0, -0.1, 0));
+    EXPECT_EQ(at[0].local, std::optional<Vec3>(Vec3(0, -0.1, 0)));
     EXPECT_FALSE(at[0].world.has_value());
     EXPECT_EQ(at[1].particle, 4);  // -1 resolved
     EXPECT_FALSE(at[1].body.has_value());
@@ -210,15 +210,15 @@ TEST(SceneLoader, PapersParseEveryField) {
     const Scene scene = parseScene(R"({
       "bodies": [{"name": "clip", "shape": {"box": [0.05, 0.05, 0.05]}, "mass": 1}],
       "papers": [
-        { "name": "sheet", "origin": [0, 1, 0], "size": [0.21, 0.297], "resolution": [22, 30],
+        { "name": "sheet", "center": [0, 1, 0], "size": [0.21, 0.297], "resolution": [22, 30],
           "orientation": [0, 0, 0, 1],
-          "density": 0.08,
+          "areal_density": 0.08,
           "stiffness": 5e3, "damping": 0.01, "jacobi_iterations": 8,
           "phi": 1.0, "psi": 0.5, "hinge_threshold": 0.5,
           "breakable": true, "tearable": false, "rupture_stretch": 0.02,
           "attachments": [ {"vertex": [0, 0], "world": true} ] },
-        { "name": "card", "origin": [1, 2, 3], "size": [0.1, 0.2], "resolution": [3, 4],
-          "orientation": [0, 0.7071068, 0, 0.7071068], "density": 0.3, "stiffness": 2e4, "bending": 0.2, "damping": 0.05,
+        { "name": "card", "center": [1, 2, 3], "size": [0.1, 0.2], "resolution": [3, 4],
+          "orientation": [0, 0.7071068, 0, 0.7071068], "areal_density": 0.3, "stiffness": 2e4, "bending": 0.2, "damping": 0.05,
           "solver": "conjugate_gradient", "tolerance": 1e-4, "jacobi_iterations": 12, "integrator": "explicit", "phi": 3, "psi": 1.5, "hinge_threshold": 0.25,
           "breakable": false, "tearable": true, "rupture_stretch": 0.05, "tension": "momentum", "thickness": 0.002, "friction": 0.8, "seed": 42,
           "attachments": [ {"vertex": [-1, -1], "world": [5, 6, 7]}, {"vertex": 1, "body": "clip", "local": [0.1, 0, 0]},
@@ -232,12 +232,13 @@ TEST(SceneLoader, PapersParseEveryField) {
     ASSERT_EQ(scene.papers.size(), 3u);
     const PaperDesc& a = scene.papers[0].desc;
     EXPECT_EQ(a.name, "sheet");
-    EXPECT_EQ(a.origin, Vec3(0, 1, 0));
+    EXPECT_EQ(a.center, std::optional<Vec3>(Vec3(0, 1, 0)));
+    EXPECT_FALSE(a.corner.has_value());
     EXPECT_DOUBLE_EQ(a.size[0], 0.21);
     EXPECT_DOUBLE_EQ(a.size[1], 0.297);
     EXPECT_EQ(a.resolution[0], 22);
     EXPECT_EQ(a.resolution[1], 30);
-    EXPECT_DOUBLE_EQ(a.density, 0.08);
+    EXPECT_DOUBLE_EQ(a.areal_density, 0.08);
     EXPECT_DOUBLE_EQ(a.stiffness, 5e3);
     EXPECT_DOUBLE_EQ(a.damping, 0.01);
     EXPECT_EQ(a.jacobi_iterations, 8);
@@ -439,7 +440,7 @@ const ErrorCase kErrorCases[] = {
     {"ClothAttachUnknownBody", R"({"cloths": [{"name": "c", "attachments": [{"vertex": [0, 0], "body": "b"}]}]})",
      "cloths[0].attachments[0].body", "no body named \"b\""},
     {"ClothWorldFalse", R"({"cloths": [{"name": "c", "attachments": [{"vertex": [0, 0], "world": false}]}]})",
-     "cloths[0].attachments[0].world", "must be true"},
+     "cloths[0].attachments[0].world", "false attaches nothing"},
     {"ClothNameTaken", R"({"strings": [{"name": "c", "from": [0, 1, 0], "to": [0, 0, 0]}], "cloths": [{"name": "c"}]})",
      "cloths[0].name", "duplicate"},
     {"ClothWeakYarnNotArray", R"({"cloths": [{"name": "c", "weak_yarns": {"vertex": [0, 0]}}]})", "cloths[0].weak_yarns",
@@ -470,13 +471,36 @@ const ErrorCase kErrorCases[] = {
      "drivers[0].particle", "vertex: [i, j]"},
     {"DriverClothVertexMissing", R"({"cloths": [{"name": "c"}], "drivers": [{"type": "force", "target": "c", "value": [0, 1, 0]}]})",
      "drivers[0].vertex", "missing required field"},
+    // --- the words of docs/SCENE_FORMAT.md, "Words": an old meaning is refused with what to write now
+    {"PaperOrigin", R"({"papers": [{"name": "s", "origin": [0, 1, 0]}]})", "papers[0].origin",
+     "a paper's origin was its centre; write \"center\": [0,1,0]"},
+    {"ClothOrigin", R"({"cloths": [{"name": "c", "origin": [0, 1, 0]}]})", "cloths[0].origin",
+     "a cloth's origin was its corner, vertex [0, 0]; write \"corner\": [0,1,0]"},
+    {"PaperDensityIsAreal", R"({"papers": [{"name": "s", "density": 0.08}]})", "papers[0].density",
+     "a sheet's mass per area is areal_density, kg/m^2: write \"areal_density\": 0.08"},
+    {"PaperCenterAndCorner", R"({"papers": [{"name": "s", "center": [0, 1, 0], "corner": [0, 1, 0]}]})", "papers[0].corner",
+     "give center or corner, not both"},
+    {"ClothCenterAndCorner", R"({"cloths": [{"name": "c", "center": [0, 1, 0], "corner": [0, 1, 0]}]})", "cloths[0].corner",
+     "give center or corner, not both"},
+    {"PaperMeshWithCenter", R"({"papers": [{"name": "s", "center": [0, 1, 0], "vertices": [[0,0,0],[1,0,0],[0,0,1]], "triangles": [[0,2,1]]}]})",
+     "papers[0].center", "belongs to a rectangle"},
+    {"ClothCornerPastBound", R"({"cloths": [{"name": "c", "corner": [999999, 0, 0], "size": [1, 1]}]})", "cloths[0].size",
+     "the largest coordinate of its corner plus the farthest a vertex lies from it"},
+    {"ClothFlatVertexOutOfRange", R"({"cloths": [{"name": "c", "resolution": [3, 3], "attachments": [{"vertex": 9, "world": true}]}]})",
+     "cloths[0].attachments[0].vertex", "vertex index out of range (got 9; the cloth has 9 vertices: 0..8, or -9..-1 from the end)"},
+    {"ClothBadEdge", R"({"cloths": [{"name": "c", "attachments": [{"edge": "y+", "world": true}]}]})",
+     "cloths[0].attachments[0].edge", "must be \"x-\""},
+    {"ClothEdgeWithLocal", R"({"bodies": [{"name": "b", "shape": {"sphere": 1}}], "cloths": [{"name": "c", "attachments": [{"edge": "x-", "body": "b", "local": [0, 0, 0]}]}]})",
+     "cloths[0].attachments[0].local", "an edge is glued where it is"},
+    {"StringWorldFalse", R"({"strings": [{"name": "r", "from": [0, 1, 0], "to": [0, 0, 0], "attachments": [{"particle": 0, "world": false}]}]})",
+     "strings[0].attachments[0].world", "false attaches nothing"},
     // --- papers
     {"PaperMissingName", R"({"papers": [{}]})", "papers[0].name", "missing required field"},
     {"PaperDuplicateName", R"({"papers": [{"name": "s"}, {"name": "s"}]})", "papers[1].name", "duplicate paper name"},
     {"PaperUnknownField", R"({"papers": [{"name": "s", "colour": 1}]})", "papers[0].colour", "unknown field"},
     {"PaperSizeZero", R"({"papers": [{"name": "s", "size": [0.2, 0]}]})", "papers[0].size[1]", "must be in (0, 2000000]"},
     {"PaperResolutionOne", R"({"papers": [{"name": "s", "resolution": [1, 4]}]})", "papers[0].resolution[0]", "in [2, 1024]"},
-    {"PaperDensity", R"({"papers": [{"name": "s", "density": -1}]})", "papers[0].density", "greater than 0"},
+    {"PaperDensity", R"({"papers": [{"name": "s", "areal_density": -1}]})", "papers[0].areal_density", "in [1e-09, 1000000]"},
     {"PaperStiffness", R"({"papers": [{"name": "s", "stiffness": 0}]})", "papers[0].stiffness", "greater than 0"},
     {"PaperDamping", R"({"papers": [{"name": "s", "damping": 2}]})", "papers[0].damping", "in [0, 1]"},
     {"PaperSolver", R"({"papers": [{"name": "s", "solver": "multigrid"}]})", "papers[0].solver", "\"conjugate_gradient\" or \"paper\""},
@@ -497,9 +521,9 @@ const ErrorCase kErrorCases[] = {
     {"PaperMeshDegenerate", R"({"papers": [{"name": "s", "vertices": [[0,0,0],[1,0,0],[2,0,0]], "triangles": [[0,2,1]]}]})",
      "papers[0].triangles[0]", "degenerate"},
     {"PaperAttachmentVertexRange", R"({"papers": [{"name": "s", "resolution": [3, 3], "attachments": [{"vertex": [3, 0], "world": true}]}]})",
-     "papers[0].attachments[0].vertex[0]", "in [-3, 2]"},
+     "papers[0].attachments[0].vertex[0]", "vertex index out of range (got 3; the sheet has 3 vertices along this axis)"},
     {"PaperAttachmentIndexRange", R"({"papers": [{"name": "s", "resolution": [3, 3], "attachments": [{"vertex": 9, "world": true}]}]})",
-     "papers[0].attachments[0].vertex", "in [-9, 8]"},
+     "papers[0].attachments[0].vertex", "vertex index out of range (got 9; the sheet has 9 vertices: 0..8, or -9..-1 from the end)"},
     {"PaperAttachmentTwice", R"({"papers": [{"name": "s", "resolution": [3, 3], "attachments": [{"vertex": 0, "world": true}, {"vertex": [0, 0], "world": true}]}]})",
      "papers[0].attachments[1].vertex", "already has an attachment (papers[0].attachments[0])"},
     {"PaperAttachmentNoBody", R"({"papers": [{"name": "s", "attachments": [{"vertex": 0, "body": "nope"}]}]})",
@@ -850,10 +874,10 @@ TEST(SceneRun, ForceAndMoveDriversOnSheetVertices) {
     for (const char* solver : {"paper", "conjugate_gradient"}) {
         SCOPED_TRACE(solver);
         const Scene scene = parseScene(std::string(R"({"dt": 0.01, "steps": 40, "gravity": [0, 0, 0],
-          "papers": [{"name": "sheet", "origin": [0, 1, 0], "size": [0.2, 0.3], "resolution": [7, 9], "breakable": false,
+          "papers": [{"name": "sheet", "center": [0, 1, 0], "size": [0.2, 0.3], "resolution": [7, 9], "breakable": false,
                       "solver": ")") + solver + R"(", "tolerance": 1e-12},
-                     {"name": "led", "origin": [1, 1, 0], "size": [0.2, 0.2], "resolution": [5, 5], "breakable": false}],
-          "cloths": [{"name": "cloth", "origin": [0, 1, 1], "size": [0.2, 0.2], "resolution": [6, 6]}],
+                     {"name": "led", "center": [1, 1, 0], "size": [0.2, 0.2], "resolution": [5, 5], "breakable": false}],
+          "cloths": [{"name": "cloth", "corner": [0, 1, 1], "size": [0.2, 0.2], "resolution": [6, 6]}],
           "drivers": [{"type": "force", "target": "sheet", "vertex": [0, 0], "value": [0.02, 0.01, -0.015], "from": 0.1, "until": 0.3},
                       {"type": "force", "target": "cloth", "vertex": [5, 0], "value": [0.002, 0.003, 0.001], "from": 0.1, "until": 0.3},
                       {"type": "move", "target": "led", "vertex": [4, 4], "velocity": [0.1, 0.2, -0.05], "from": 0.1, "until": 0.3}]})");

@@ -84,7 +84,7 @@ int main(int argc, char** argv) {
     for (const Perturbation& p : perturbations()) {
         ts::Scene scene = base;
         if (without_perforation) scene.cloths[0].desc.weak_yarns.clear();
-        if (p.axis >= 0) scene.cloths[0].desc.origin[p.axis] += p.shift;
+        if (p.axis >= 0) (*scene.cloths[0].desc.corner)[p.axis] += p.shift;
         for (ts::Driver& d : scene.drivers)
             if (d.type == ts::Driver::Type::Move) d.velocity *= p.speed;
         const std::vector<int> broken = brokenAtTheEnd(scene);

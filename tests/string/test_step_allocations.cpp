@@ -322,6 +322,7 @@ TEST(StepAllocations, SwingingClothStepsWithoutAllocating) {
     if (IsSkipped()) return;
     World world;
     tearables::ClothDesc d;
+    d.corner = tearables::Vec3(0.0, 1.0, 0.0);
     d.resolution = {12, 12};
     d.size = {0.11, 0.11};
     d.pins = {{0, 0}, {-1, 0}};
