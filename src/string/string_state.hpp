@@ -83,6 +83,10 @@ struct StringScratch {
     /// made its first Newton iteration yet.
     bool strain_warm_start = false;
     std::vector<double> geometric_tension;  ///< per segment: the tension estimate of the chain Hessian's geometric term, N
+    /// This step's strain solve of the string converged (false where its own solve stopped
+    /// at the iteration cap): the return mapping of yield_in_solve trusts only a converged
+    /// solve's forces (fracture.cpp).
+    bool strain_converged = true;
     std::vector<Mat3> row_projector;      ///< per particle: I, or I minus the normals of the bodies pressing it
     bool rows_pressed = false;            ///< whether any row_projector may differ from I (none does where false)
 

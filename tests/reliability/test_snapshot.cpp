@@ -60,6 +60,7 @@ struct CoreScene {
         w.material.variation = 1e-2;
         w.seed = 11;
         w.integrator = tearables::StringIntegrator::BDF2;  // its history (v_{n-1}) is kept too
+        w.yield_in_solve = true;  // its flow solved with the strain limit (the flag is kept)
         weak = world.addString(w);
         world.attachToPoint(weak, 0, {0, 1, 0});
 
@@ -248,20 +249,22 @@ TEST(Snapshot, OtherVersionsTruncatedAndCorruptFilesAreRefusedAndChangeNothing) 
     expectRefused("", "snapshot", "not a tearables snapshot", "empty");
     expectRefused("{\"format\": \"tearables-scene/1\"}", "snapshot", "not a tearables snapshot", "a scene file");
     std::string version = good;
-    version[8] = 8;
-    expectRefused(version, "snapshot.version", "version 8 (this build reads version 7)", "version 8");
+    version[8] = 9;
+    expectRefused(version, "snapshot.version", "version 9 (this build reads version 8)", "version 9");
+    version[8] = 7;  // the format before a string's yield_in_solve
+    expectRefused(version, "snapshot.version", "version 7 (this build reads version 8)", "version 7");
     version[8] = 6;  // the format before each slot's generation (stale ids)
-    expectRefused(version, "snapshot.version", "version 6 (this build reads version 7)", "version 6");
+    expectRefused(version, "snapshot.version", "version 6 (this build reads version 8)", "version 6");
     version[8] = 5;  // the format before a sheet's solver, tolerance and warm start
-    expectRefused(version, "snapshot.version", "version 5 (this build reads version 7)", "version 5");
+    expectRefused(version, "snapshot.version", "version 5 (this build reads version 8)", "version 5");
     version[8] = 4;  // the format before a string's integrator and its BDF2 history
-    expectRefused(version, "snapshot.version", "version 4 (this build reads version 7)", "version 4");
+    expectRefused(version, "snapshot.version", "version 4 (this build reads version 8)", "version 4");
     version[8] = 3;  // the format with two per-segment string arrays the solver never read
-    expectRefused(version, "snapshot.version", "version 3 (this build reads version 7)", "version 3");
+    expectRefused(version, "snapshot.version", "version 3 (this build reads version 8)", "version 3");
     version[8] = 2;  // the format before a cloth's weak yarns
-    expectRefused(version, "snapshot.version", "version 2 (this build reads version 7)", "version 2");
+    expectRefused(version, "snapshot.version", "version 2 (this build reads version 8)", "version 2");
     version[8] = 1;  // the format before cloths and sheets
-    expectRefused(version, "snapshot.version", "version 1 (this build reads version 7)", "version 1");
+    expectRefused(version, "snapshot.version", "version 1 (this build reads version 8)", "version 1");
     version[8] = 0;
     expectRefused(version, "snapshot.version", "version 0", "version 0");
     for (std::size_t keep : {std::size_t{8}, std::size_t{20}, good.size() / 3, good.size() / 2, good.size() - 9, good.size() - 1})
