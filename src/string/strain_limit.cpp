@@ -26,6 +26,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 namespace tearables::detail {
 
@@ -52,6 +53,9 @@ constexpr int kLineSearchHalvings = 30;
 /// Times per Newton iteration that contacts the step would run into are added and the
 /// step solved again.
 constexpr int kPredictRounds = 3;
+/// The relative rounding of a string's step energy (a sum over its particles and
+/// segments) that a line search of a string yielding in the solve does not count as a rise.
+constexpr double kEnergyRounding = 1e-12;
 /// Friction's passes end when no weight changed by more than this fraction.
 constexpr double kFrictionSettled = 1e-2;
 
@@ -1078,7 +1082,7 @@ private:
     /// convergence).
     double lineSearch(bool& stalled, bool& cut) {
         double alpha = 1.0;
-        if (!s.contacts.empty() || s.desc.yield_in_solve) {
+        if (!s.contacts.empty()) {
             const double e0 = stepEnergy(s, rigids, ctx, 0.0);
             int halving = 0;
             for (; halving < kLineSearchHalvings && stepEnergy(s, rigids, ctx, alpha) > e0; ++halving) alpha *= 0.5;
@@ -1086,6 +1090,26 @@ private:
                 alpha = 0.0;
                 stalled = true;
             }
+        } else if (s.desc.yield_in_solve) {
+            // The same search; without contacts the energy where the last one stopped is the
+            // energy here (nothing else moves the chain), so each step evaluates it once.
+            // Near the solution a step changes the energy by less than its sum's rounding
+            // (kEnergyRounding of it): such a step is taken, not halved 30 times.
+            const double e0 = std::isnan(energy_now) ? stepEnergy(s, rigids, ctx, 0.0) : energy_now;
+            const double within = e0 + kEnergyRounding * std::abs(e0);
+            double e = stepEnergy(s, rigids, ctx, alpha);
+            int halving = 0;
+            while (e > within) {
+                if (++halving == kLineSearchHalvings) break;
+                alpha *= 0.5;
+                e = stepEnergy(s, rigids, ctx, alpha);
+            }
+            if (halving == kLineSearchHalvings) {
+                alpha = 0.0;
+                stalled = true;
+                e = e0;
+            }
+            energy_now = e;
         }
         cut = s.desc.yield_in_solve && !stalled && alpha < 1.0;
         return alpha;
@@ -1142,6 +1166,9 @@ private:
     /// store of pivot inverses (null: none).
     bool plain_chain = false;
     bool parallel_chain = false;
+    /// A contact-free string that yields in the solve: the step energy at the current state
+    /// (lineSearch), NaN until a search has found it.
+    double energy_now = std::numeric_limits<double>::quiet_NaN();
     double* inverses = nullptr;
     bool warm_start = false;
 };
