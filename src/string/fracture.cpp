@@ -85,7 +85,7 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
             // An unconverged solve's forces are not a state of the material (a segment the
             // last iteration left on the wrong branch reads far past its knee): its flow
             // waits for the next step's solve, which starts from the peak kept here.
-            const double flowing = s.desc.yield_in_solve ? (s.scratch.strain_converged ? solved : 0.0) : stress;
+            const double flowing = s.scratch.plastic_in_solve ? (s.scratch.strain_converged ? solved : 0.0) : stress;
             if (flowing > mat.yield) {
                 if (!s.yielded[j]) {
                     s.yielded[j] = 1;

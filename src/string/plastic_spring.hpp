@@ -61,9 +61,10 @@ inline PlasticKnee plasticKnee(const StringState& s, std::size_t j, double yield
     return knee;
 }
 
-/// Segment j's spring at effective stretch c >= 0 (elastic where yield_in_solve is off).
+/// Segment j's spring at effective stretch c >= 0 (elastic unless this step's solve takes
+/// the plastic branch, StringScratch::plastic_in_solve).
 [[gnu::always_inline]] inline SpringBranch springBranch(const StringState& s, std::size_t j, double c) {
-    if (!s.desc.yield_in_solve) return {c, 1.0, 1};
+    if (!s.scratch.plastic_in_solve) return {c, 1.0, 1};
     const double cy = yieldStretch(s, j);
     if (!(c > cy)) return {c, 1.0, 1};
     const PlasticKnee knee = plasticKnee(s, j, cy);
@@ -75,7 +76,7 @@ inline PlasticKnee plasticKnee(const StringState& s, std::size_t j, double yield
 
 /// psi(c) / k: segment j's spring energy over its stiffness at effective stretch c >= 0.
 inline double springEnergyOverStiffness(const StringState& s, std::size_t j, double c) {
-    if (!s.desc.yield_in_solve) return 0.5 * c * c;
+    if (!s.scratch.plastic_in_solve) return 0.5 * c * c;
     const double cy = yieldStretch(s, j);
     if (!(c > cy)) return 0.5 * c * c;
     const PlasticKnee knee = plasticKnee(s, j, cy);

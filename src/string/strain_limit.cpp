@@ -625,7 +625,7 @@ WarmSums warmSums(const StringState& s, double rate_gain, std::size_t j0, std::s
         }
         const double k = 1.0 / s.compliance[j];
         const double c_cold = std::max(0.0, effective_cold), c_warm = std::max(0.0, effective_warm);
-        if (s.desc.yield_in_solve) {  // twice the energy over k on the spring's branches
+        if (s.scratch.plastic_in_solve) {  // twice the energy over k on the spring's branches
             sum.cold += k * (2.0 * springEnergyOverStiffness(s, j, c_cold));
             sum.warm += k * (2.0 * springEnergyOverStiffness(s, j, c_warm));
             continue;
@@ -750,6 +750,7 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
     // A string of an island (glued to a movable body) is warm-started with its island, its
     // bodies and the other strings at once (IslandSolver): its correction stays in blk_rhs.
     s.scratch.strain_converged = true;  // until a solve of this string stops at its iteration cap
+    s.scratch.plastic_in_solve = false;  // until StrainSolve takes the string (yield_in_solve)
     s.scratch.strain_warm_start = s.contacts.empty() && s.body_nodes.empty() && !(glued && ctx.islands) &&
                                   !ctx.cold_strain_starts && warmStart(s, ctx);
 }
@@ -901,8 +902,9 @@ public:
             return hold.kind == ParticleHold::Kind::Glue;
         });
         // Not where the string yields in the solve: its steps take the line search (lineSearch).
+        s.scratch.plastic_in_solve = s.desc.yield_in_solve;
         parallel_chain = plain_chain && !glued && n >= kParallelChainParticles && ctx.pool && ctx.pool->parallel() &&
-                         !s.desc.yield_in_solve;
+                         !s.scratch.plastic_in_solve;
         // Chord iterations (the last Newton factorisation reused, products only): only after
         // the first Newton iteration from a warm start, whose geometric term took the last
         // step's converged tension (a cold first-order estimate is too far off for a linear
@@ -951,7 +953,7 @@ public:
                 // branch than the one its last Newton system took (a kink of the force:
                 // slack, elastic, plastic; plastic_spring.hpp): the next move is not the
                 // quadratic one then.
-                const bool next_within = plain_chain && quadratic && (!s.desc.yield_in_solve || sameBranches()) &&
+                const bool next_within = plain_chain && quadratic && (!s.scratch.plastic_in_solve || sameBranches()) &&
                                          (chord ? 2.0 * margin < tol * s.shortest_rest * last_move
                                                 : margin * worst < tol * s.shortest_rest * last_move * last_move);
                 // A chord iteration follows the first Newton iteration of a warm start, or a
@@ -1090,7 +1092,7 @@ private:
                 alpha = 0.0;
                 stalled = true;
             }
-        } else if (s.desc.yield_in_solve) {
+        } else if (s.scratch.plastic_in_solve) {
             // The same search; without contacts the energy where the last one stopped is the
             // energy here (nothing else moves the chain), so each step evaluates it once.
             // Near the solution a step changes the energy by less than its sum's rounding
@@ -1111,7 +1113,7 @@ private:
             }
             energy_now = e;
         }
-        cut = s.desc.yield_in_solve && !stalled && alpha < 1.0;
+        cut = s.scratch.plastic_in_solve && !stalled && alpha < 1.0;
         return alpha;
     }
 

@@ -82,7 +82,7 @@ double addMaterialEnergy(const StringState& s, const StepContext& ctx, double al
         const double effective = std::max(0.0, stretch + rate_gain * (stretch - s.prev_stretch[j]));
         // psi(c) / (1 + tau/h): its derivative in the length is the force f(c) (c grows by
         // 1 + tau/h per metre); psi = k c^2 / 2 on the elastic branch (plastic_spring.hpp).
-        if (s.desc.yield_in_solve) {
+        if (s.scratch.plastic_in_solve) {
             e += springEnergyOverStiffness(s, j, effective) / (s.compliance[j] * (1.0 + rate_gain));
             continue;
         }
