@@ -804,7 +804,8 @@ void parseFilter(const Node& n, Object& object) {
 String parseString(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     n.checkNoUnknownFields({"name", "points", "from", "to", "segments", "radius", "density", "particle_masses",
                             "material", "csm_half_width", "twist_half_width", "tension", "integrator", "tearable",
-                            "damping", "axial_damping", "bending", "attachments", "collision_group", "collision_mask"});
+                            "yield_in_solve", "damping", "axial_damping", "bending", "attachments", "collision_group",
+                            "collision_mask"});
     String s;
     StringDesc& d = s.desc;
     d.name = requiredName(n);
@@ -820,6 +821,7 @@ String parseString(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     if (const auto t = n.field("tension")) d.tension = parseTension(*t);
     if (const auto t = n.field("integrator")) d.integrator = parseIntegrator(*t);
     d.tearable = n.boolean("tearable", d.tearable);
+    d.yield_in_solve = n.boolean("yield_in_solve", d.yield_in_solve);
     d.damping = n.number("damping", d.damping, Range::atLeast(0.0));
     d.axial_damping = n.number("axial_damping", d.axial_damping, Range::closed(0.0, 1.0));
     d.bending = n.number("bending", d.bending, Range::closed(0.0, 1.0));

@@ -52,6 +52,12 @@ struct StringDesc {
     TensionEstimator tension = TensionEstimator::Momentum;  ///< tension estimator (one of the enum's values)
     StringIntegrator integrator = StringIntegrator::BackwardEuler;  ///< time integrator (one of the enum's values)
     bool tearable = true;          ///< segments break where their stress passes rupture
+    /// Plastic flow solved inside the strain-limit solve: a segment past its yield force is
+    /// a spring of the plastic slope there, and its rest length follows the force the solve
+    /// ends with (a return mapping), so that a rising load neither overshoots the curve nor
+    /// leaves segments slack (docs/yield.md). False: the rest length grows after the step
+    /// from the estimated tension (the default).
+    bool yield_in_solve = false;
     double damping = 0.0;          ///< linear velocity damping, 1/s, [0, 1000] (air drag stand-in)
     /// Retardation time of the material's stretch (Kelvin-Voigt), s, [0, 1]: damps the
     /// axial vibration of a loaded rope; 0 = undamped.

@@ -9,6 +9,10 @@
 //    the compliance L_rest / (E A) (strain_limit.cpp); L_max is kept for the trace.
 //  - Past yield the peak stress sets a permanent strain eps_perm = eps_curve(peak) - peak/E
 //    (unloading parallel to the elastic line); rest length L0 (1 + eps_perm) (Yarn Sec. 3.4).
+//  - With StringDesc::yield_in_solve the flow is solved with the strain limit
+//    (plastic_spring.hpp) and this is its return mapping: the peak stress is the force the
+//    solve ended with, f / A0, not the tension estimate (which a heavy load's oscillation
+//    in the estimate would overshoot); tears still read the tension.
 //  - The radius keeps the segment's volume: r = r0 sqrt(L0 / L_max).
 //  - A segment at its rupture stress breaks (if the string is tearable): removed, its
 //    particles stay, a Tear event. Only the most overloaded segment of a string breaks per
@@ -68,7 +72,7 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
         std::vector<Event>& range_events = part == 0 ? events : part_events[part];
         // Segment j at engineering stress `stress`: a tear candidate (false: its geometry
         // stays), or its yield and hardening; true where its geometry follows the stress.
-        const auto yieldAt = [&](std::size_t j, double stress) {
+        const auto yieldAt = [&](std::size_t j, double stress, double solved) {
             if (s.broken[j]) return false;
             const SegmentMaterial& mat = s.material[j];
             if (s.desc.tearable && stress >= mat.rupture) {
@@ -77,14 +81,19 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
                 worst.offer(static_cast<int>(j), stress / mat.rupture, stress, EventCause::Tension);
                 return false;
             }
-            if (stress > mat.yield) {
+            // The stress the segment flows by: the solve's (its return mapping) or the estimate.
+            // An unconverged solve's forces are not a state of the material (a segment the
+            // last iteration left on the wrong branch reads far past its knee): its flow
+            // waits for the next step's solve, which starts from the peak kept here.
+            const double flowing = s.scratch.plastic_in_solve ? (s.scratch.strain_converged ? solved : 0.0) : stress;
+            if (flowing > mat.yield) {
                 if (!s.yielded[j]) {
                     s.yielded[j] = 1;
-                    range_events.push_back(makeEvent(s, id, EventType::Yield, EventCause::Tension, static_cast<int>(j), stress, ctx));
+                    range_events.push_back(makeEvent(s, id, EventType::Yield, EventCause::Tension, static_cast<int>(j), flowing, ctx));
                 }
                 // A string that cannot tear stops flowing at its rupture stress (otherwise
                 // the thinning of a yielding segment would run away).
-                const double flow = std::min(stress, mat.rupture);
+                const double flow = std::min(flowing, mat.rupture);
                 if (flow > s.peak_stress[j]) {
                     s.peak_stress[j] = flow;
                     const double permanent = strainOnCurve(mat, flow) - flow / mat.young;
@@ -99,7 +108,8 @@ void respondMaterial(StringState& s, StringId id, const StepContext& ctx, std::v
         for (std::size_t j = j0; j < j1; j += 2) {
             const std::size_t k = j + 1 < j1 ? j + 1 : j;  // an odd count: the last one twice
             const Lanes2 stress = Lanes2{std::max(0.0, s.tension[j]), std::max(0.0, s.tension[k])} / area0;
-            const bool follow[2] = {yieldAt(j, stress[0]), k != j && yieldAt(k, stress[1])};
+            const Lanes2 solved = Lanes2{s.spring_force[j], s.spring_force[k]} / area0;
+            const bool follow[2] = {yieldAt(j, stress[0], solved[0]), k != j && yieldAt(k, stress[1], solved[1])};
             if (!follow[0] && !follow[1]) continue;
             const Lanes2 rest{s.rest_length[j], s.rest_length[k]};
             const Lanes2 young{s.material[j].young, s.material[k].young};

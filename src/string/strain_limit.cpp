@@ -18,6 +18,7 @@
 // contact_rows.cpp; strings touching each other: cluster_solve.cpp.
 #include "base/lanes.hpp"
 #include "base/thread_pool.hpp"
+#include "string/plastic_spring.hpp"
 #include "string/strain_limit_internal.hpp"
 
 #include <Eigen/Cholesky>
@@ -25,6 +26,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 namespace tearables::detail {
 
@@ -51,6 +53,9 @@ constexpr int kLineSearchHalvings = 30;
 /// Times per Newton iteration that contacts the step would run into are added and the
 /// step solved again.
 constexpr int kPredictRounds = 3;
+/// The relative rounding of a string's step energy (a sum over its particles and
+/// segments) that a line search of a string yielding in the solve does not count as a rise.
+constexpr double kEnergyRounding = 1e-12;
 /// Friction's passes end when no weight changed by more than this fraction.
 constexpr double kFrictionSettled = 1e-2;
 
@@ -211,10 +216,12 @@ void assembleInertia(StringState& s, RigidTable& rigids, const StepContext& ctx,
 /// springTerm's part after the segment's length, direction and stiffness (`len`, `e`
 /// candidate for dir, `k` = 1 / compliance): everything but the Hessian's one division.
 /// Returns whether the term needs its Hessian (not where the segment is broken or slack,
-/// nor without kHessian), with the stretch its geometric part takes in `geometric`.
+/// nor without kHessian), with the stretch its geometric part takes in `geometric` and the
+/// axial tangent over k in `axial` (1 on the elastic branch).
 template <bool kHessian>
 [[gnu::always_inline]] inline bool springForce(StringState& s, const StepContext& ctx, std::size_t j, double* tension_estimate,
-                                               double len, const Vec3& e_new, double k, SpringTerm& term, double& geometric) {
+                                               double len, const Vec3& e_new, double k, SpringTerm& term, double& geometric,
+                                               double& axial) {
     s.scratch.active[j] = 0;
     s.spring_force[j] = 0.0;
     if (kHessian) s.scratch.blk_off[j].setZero();
@@ -231,8 +238,13 @@ template <bool kHessian>
     // Newton step sees the whole taut chain a correction would stretch; a
     // segment the step compresses leaves again at the next iteration.
     if (slackSegment(s, j, stretch, effective)) return false;
-    const double c = std::max(effective, 0.0);
-    s.scratch.active[j] = 1;
+    // Past yield (yield_in_solve) the force follows the plastic branch (plastic_spring.hpp):
+    // c here is the equivalent elastic stretch f / k, `slope` the tangent over k. The
+    // branch is the segment's active mark, so a chord iteration whose segment changed
+    // branch is refused as one whose segment went slack.
+    const SpringBranch branch = springBranch(s, j, std::max(effective, 0.0));
+    const double c = branch.stretch;
+    s.scratch.active[j] = branch.branch;
     s.spring_force[j] = k * c;
     term.force = k * c * s.scratch.dir[j];
     term.to_a = !fixedRow(s, j);
@@ -241,6 +253,7 @@ template <bool kHessian>
         if (tension_estimate) tension_estimate[j] = effective;
         return false;
     }
+    axial = branch.slope;
     geometric = c;
     if (tension_estimate) {
         // From a warm start, whose stretch is the last step's final one to within the
@@ -254,12 +267,13 @@ template <bool kHessian>
     return true;
 }
 
-/// springTerm's Hessian, q = geometric / len given: k ((1 + tau/h) e e^T + q (I - e e^T)),
+/// springTerm's Hessian, q = geometric / len given: k (a (1 + tau/h) e e^T + q (I - e e^T)),
+/// a the axial tangent over k (plastic_spring.hpp; 1 on the elastic branch),
 /// entry by entry with the same operations as the matrix expression (so the same bits),
 /// the six distinct ones only (e_i e_j = e_j e_i exactly); and blk_off.
 [[gnu::always_inline]] inline void springHessian(StringState& s, const StepContext& ctx, std::size_t j, double k, double q,
-                                                 SpringTerm& term) {
-    const double g = 1.0 + s.desc.axial_damping * ctx.inv_h;
+                                                 double axial, SpringTerm& term) {
+    const double g = axial * (1.0 + s.desc.axial_damping * ctx.inv_h);  // times 1 exactly where elastic
     const Vec3& e = s.scratch.dir[j];
     const double e00 = e.x() * e.x(), e11 = e.y() * e.y(), e22 = e.z() * e.z();
     const double e10 = e.y() * e.x(), e20 = e.z() * e.x(), e21 = e.z() * e.y();
@@ -286,9 +300,9 @@ template <bool kHessian = true>
     const Vec3 d = s.x[j + 1] - s.x[j];
     const double len = d.norm();
     const double k = 1.0 / s.compliance[j];
-    double geometric = 0.0;
-    if (springForce<kHessian>(s, ctx, j, tension_estimate, len, Vec3(d / len), k, term, geometric))
-        springHessian(s, ctx, j, k, geometric / len, term);
+    double geometric = 0.0, axial = 1.0;
+    if (springForce<kHessian>(s, ctx, j, tension_estimate, len, Vec3(d / len), k, term, geometric, axial))
+        springHessian(s, ctx, j, k, geometric / len, axial, term);
     return term;
 }
 
@@ -300,13 +314,13 @@ template <bool kHessian = true>
     const UnitPair d = unitPair(s.x[j + 1] - s.x[j], s.x[j + 2] - s.x[j + 1]);
     const Lanes2 len = d.length;
     const Lanes2 k = 1.0 / Lanes2{s.compliance[j], s.compliance[j + 1]};
-    double g0 = 0.0, g1 = 0.0;
-    const bool h0 = springForce<kHessian>(s, ctx, j, tension_estimate, len[0], d.unit[0], k[0], term[0], g0);
-    const bool h1 = springForce<kHessian>(s, ctx, j + 1, tension_estimate, len[1], d.unit[1], k[1], term[1], g1);
+    double g0 = 0.0, g1 = 0.0, a0 = 1.0, a1 = 1.0;
+    const bool h0 = springForce<kHessian>(s, ctx, j, tension_estimate, len[0], d.unit[0], k[0], term[0], g0, a0);
+    const bool h1 = springForce<kHessian>(s, ctx, j + 1, tension_estimate, len[1], d.unit[1], k[1], term[1], g1, a1);
     if (!h0 && !h1) return;
     const Lanes2 q = Lanes2{g0, g1} / len;
-    if (h0) springHessian(s, ctx, j, k[0], q[0], term[0]);
-    if (h1) springHessian(s, ctx, j + 1, k[1], q[1], term[1]);
+    if (h0) springHessian(s, ctx, j, k[0], q[0], a0, term[0]);
+    if (h1) springHessian(s, ctx, j + 1, k[1], q[1], a1, term[1]);
 }
 
 /// The springs of segments [j0, j1) (springTerm) added to blk_diag and blk_rhs.
@@ -386,7 +400,8 @@ bool acceptChord(StringState& s, double last_move) {
 }
 
 /// The tension of each segment after the Newton step held in blk_rhs, to first order:
-/// k max(0, C + (1 + tau/h) e . (dx_{j+1} - dx_j)), into geometric_tension (0 for the
+/// k f(max(0, C + (1 + tau/h) e . (dx_{j+1} - dx_j))), f the spring's branch
+/// (plastic_spring.hpp; the identity where elastic), into geometric_tension (0 for the
 /// segments that took no part in the step). C, the effective stretch before the step, is
 /// what assembleChain left there.
 void linearisedTension(StringState& s, const StepContext& ctx, std::size_t j0, std::size_t j1) {
@@ -402,15 +417,17 @@ void linearisedTension(StringState& s, const StepContext& ctx, std::size_t j0, s
         da = db;
         return effective;
     };
+    // Past yield (yield_in_solve) the force of the spring's branch there.
+    auto force = [&](std::size_t j, double effective) { return springBranch(s, j, std::max(0.0, effective)).stretch; };
     // The divisions two segments at a time, in lanes.
     std::size_t j = j0;
     for (; j + 1 < j1; j += 2) {
         const double e0 = stretch(j), e1 = stretch(j + 1);
-        const Lanes2 t = Lanes2{std::max(0.0, e0), std::max(0.0, e1)} / Lanes2{s.compliance[j], s.compliance[j + 1]};
+        const Lanes2 t = Lanes2{force(j, e0), force(j + 1, e1)} / Lanes2{s.compliance[j], s.compliance[j + 1]};
         s.scratch.geometric_tension[j] = t[0];
         s.scratch.geometric_tension[j + 1] = t[1];
     }
-    if (j < j1) s.scratch.geometric_tension[j] = std::max(0.0, stretch(j)) / s.compliance[j];
+    if (j < j1) s.scratch.geometric_tension[j] = force(j, stretch(j)) / s.compliance[j];
 }
 
 /// solveChain's sweep from the top alone, over particles [0, mid), assembling the springs
@@ -535,7 +552,9 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
     // The springs' forces in the final state (the tension where bodies press the string).
     const double rate_gain = s.desc.axial_damping * ctx.inv_h;
     // Two segments at a time, their roots and divisions in lanes (the same bits).
-    auto force = [&](std::size_t j, double length) { return std::max(0.0, effectiveStretch(s, j, length - s.rest_length[j], rate_gain)); };
+    auto force = [&](std::size_t j, double length) {
+        return springBranch(s, j, std::max(0.0, effectiveStretch(s, j, length - s.rest_length[j], rate_gain))).stretch;
+    };
     // A long string's on the pool (forRanges: each segment's force is its own).
     forRanges(ctx.pool, m, kParallelItems, [&](std::size_t j0, std::size_t j1, std::size_t) {
         std::size_t k = j0;
@@ -607,6 +626,11 @@ WarmSums warmSums(const StringState& s, double rate_gain, std::size_t j0, std::s
         }
         const double k = 1.0 / s.compliance[j];
         const double c_cold = std::max(0.0, effective_cold), c_warm = std::max(0.0, effective_warm);
+        if (s.scratch.plastic_in_solve) {  // twice the energy over k on the spring's branches
+            sum.cold += k * (2.0 * springEnergyOverStiffness(s, j, c_cold));
+            sum.warm += k * (2.0 * springEnergyOverStiffness(s, j, c_warm));
+            continue;
+        }
         sum.cold += k * c_cold * c_cold;
         sum.warm += k * c_warm * c_warm;
     }
@@ -726,6 +750,8 @@ void prepareStrainLimit(StringState& s, RigidTable& rigids, const StepContext& c
     s.diagnostics.strain_chord_iterations = 0;
     // A string of an island (glued to a movable body) is warm-started with its island, its
     // bodies and the other strings at once (IslandSolver): its correction stays in blk_rhs.
+    s.scratch.strain_converged = true;  // until a solve of this string stops at its iteration cap
+    s.scratch.plastic_in_solve = false;  // until StrainSolve takes the string (yield_in_solve)
     s.scratch.strain_warm_start = s.contacts.empty() && s.body_nodes.empty() && !(glued && ctx.islands) &&
                                   !ctx.cold_strain_starts && warmStart(s, ctx);
 }
@@ -876,7 +902,10 @@ public:
         const bool glued = plain_chain && std::any_of(s.hold.begin(), s.hold.end(), [](const ParticleHold& hold) {
             return hold.kind == ParticleHold::Kind::Glue;
         });
-        parallel_chain = plain_chain && !glued && n >= kParallelChainParticles && ctx.pool && ctx.pool->parallel();
+        // Not where the string yields in the solve: its steps take the line search (lineSearch).
+        s.scratch.plastic_in_solve = s.desc.yield_in_solve;
+        parallel_chain = plain_chain && !glued && n >= kParallelChainParticles && ctx.pool && ctx.pool->parallel() &&
+                         !s.scratch.plastic_in_solve;
         // Chord iterations (the last Newton factorisation reused, products only): only after
         // the first Newton iteration from a warm start, whose geometric term took the last
         // step's converged tension (a cold first-order estimate is too far off for a linear
@@ -904,10 +933,11 @@ public:
                 double worst = 0.0;
                 bool stalled = false;
                 bool chord = false;  // this iteration is one
+                bool cut = false;    // its step was shortened by the line search
                 if (parallel_chain)
                     worst = parallelChainStep(s, rigids, ctx, *ctx.pool);
                 else
-                    worst = iterate(chord_next, last_move, chord, stalled);
+                    worst = iterate(chord_next, last_move, chord, stalled, cut);
                 if (first_move < 0.0) first_move = worst;
                 ++s.diagnostics.strain_newton_iterations;
                 s.diagnostics.strain_chord_iterations += chord;
@@ -920,18 +950,24 @@ public:
                 // where the move fell that fast too.
                 const bool quadratic = last_move > 0.0 && worst < kQuadraticRegime * last_move;
                 const double margin = kPredictionMargin * worst * worst;
-                const bool next_within = plain_chain && quadratic &&
+                // Where the string yields in the solve, not where a segment is now on another
+                // branch than the one its last Newton system took (a kink of the force:
+                // slack, elastic, plastic; plastic_spring.hpp): the next move is not the
+                // quadratic one then.
+                const bool next_within = plain_chain && quadratic && (!s.scratch.plastic_in_solve || sameBranches()) &&
                                          (chord ? 2.0 * margin < tol * s.shortest_rest * last_move
                                                 : margin * worst < tol * s.shortest_rest * last_move * last_move);
                 // A chord iteration follows the first Newton iteration of a warm start, or a
                 // chord iteration whose move fell by kQuadraticRegime or more.
                 chord_next = inverses && (iter == 0 ? warm_start : chord && quadratic);
                 last_move = worst;
-                if (stalled || (worst < tol * s.shortest_rest && (!chord || quadratic)) || next_within) {
+                // A step the line search shortened is no sign of convergence.
+                if (!cut && (stalled || (worst < tol * s.shortest_rest && (!chord || quadratic)) || next_within)) {
                     converged = true;
                     break;
                 }
             }
+            s.scratch.strain_converged = converged;
             if (!frictional) break;
             const double change = weighRigidFriction(s);
             if (converged && change < kFrictionSettled) break;
@@ -942,6 +978,20 @@ public:
     }
 
 private:
+    /// Whether every segment is on the branch of its spring (slack 0, else springBranch's)
+    /// that the last assembly found (the active marks).
+    bool sameBranches() const {
+        const double rate_gain = s.desc.axial_damping * ctx.inv_h;
+        for (std::size_t j = 0; j < s.segments(); ++j) {
+            if (s.broken[j]) continue;
+            const double stretch = (s.x[j + 1] - s.x[j]).norm() - s.rest_length[j];
+            const double effective = effectiveStretch(s, j, stretch, rate_gain);
+            const std::uint8_t branch =
+                slackSegment(s, j, stretch, effective) ? 0 : springBranch(s, j, std::max(effective, 0.0)).branch;
+            if (branch != s.scratch.active[j]) return false;
+        }
+        return true;
+    }
     double gapNow(const RigidSegmentContact& c) const {
         const std::size_t j = c.segment;
         return rigidGap(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]);
@@ -958,7 +1008,7 @@ private:
     /// allows it and acceptChord takes it (`chord`), else a Newton step; then the contacts
     /// it would run into, the line search (`stalled` where it found no lower energy) and
     /// the move. Returns the largest move.
-    double iterate(bool chord_next, double last_move, bool& chord, bool& stalled) {
+    double iterate(bool chord_next, double last_move, bool& chord, bool& stalled, bool& cut) {
         for (RigidSegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
         if (chord_next && assembleChainGradient(s, ctx)) {
             chordSolveChain(n, s.scratch.blk_off.data(), s.scratch.blk_rhs.data(), s.scratch.blk_factor_gain.data(),
@@ -967,7 +1017,7 @@ private:
         }
         if (!chord) solveStep();
         addPredictedContacts();
-        return applyStep(lineSearch(stalled));
+        return applyStep(lineSearch(stalled, cut));
     }
 
     /// Assembles the Newton system (the chain's, plus the contacts in the Hessian: those
@@ -1028,7 +1078,12 @@ private:
     /// centimetres) and the penalties switch on along it: backtrack until the (convex)
     /// energy decreases. Where no fraction of the step lowers it, the state is the
     /// minimum to rounding: stop there, rather than take a step that raises the energy.
-    double lineSearch(bool& stalled) {
+    /// A string that yields in the solve takes it too, contacts or not: its springs soften
+    /// past yield (plastic_spring.hpp), and a Newton step from a segment on the soft branch
+    /// overshoots onto the stiff one and back, a cycle that only the energy's descent
+    /// breaks. `cut` says that the step was shortened (a short move is then no sign of
+    /// convergence).
+    double lineSearch(bool& stalled, bool& cut) {
         double alpha = 1.0;
         if (!s.contacts.empty()) {
             const double e0 = stepEnergy(s, rigids, ctx, 0.0);
@@ -1038,7 +1093,28 @@ private:
                 alpha = 0.0;
                 stalled = true;
             }
+        } else if (s.scratch.plastic_in_solve) {
+            // The same search; without contacts the energy where the last one stopped is the
+            // energy here (nothing else moves the chain), so each step evaluates it once.
+            // Near the solution a step changes the energy by less than its sum's rounding
+            // (kEnergyRounding of it): such a step is taken, not halved 30 times.
+            const double e0 = std::isnan(energy_now) ? stepEnergy(s, rigids, ctx, 0.0) : energy_now;
+            const double within = e0 + kEnergyRounding * std::abs(e0);
+            double e = stepEnergy(s, rigids, ctx, alpha);
+            int halving = 0;
+            while (e > within) {
+                if (++halving == kLineSearchHalvings) break;
+                alpha *= 0.5;
+                e = stepEnergy(s, rigids, ctx, alpha);
+            }
+            if (halving == kLineSearchHalvings) {
+                alpha = 0.0;
+                stalled = true;
+                e = e0;
+            }
+            energy_now = e;
         }
+        cut = s.scratch.plastic_in_solve && !stalled && alpha < 1.0;
         return alpha;
     }
 
@@ -1093,6 +1169,9 @@ private:
     /// store of pivot inverses (null: none).
     bool plain_chain = false;
     bool parallel_chain = false;
+    /// A contact-free string that yields in the solve: the step energy at the current state
+    /// (lineSearch), NaN until a search has found it.
+    double energy_now = std::numeric_limits<double>::quiet_NaN();
     double* inverses = nullptr;
     bool warm_start = false;
 };

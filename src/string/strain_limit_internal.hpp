@@ -5,6 +5,7 @@
 
 #include "linalg/block_tridiagonal.hpp"
 #include "sim/body_motion.hpp"
+#include "string/plastic_spring.hpp"
 #include "string/string_state.hpp"
 
 #include <Eigen/Core>
@@ -79,6 +80,12 @@ double addMaterialEnergy(const StringState& s, const StepContext& ctx, double al
         if (s.broken[j]) continue;
         const double stretch = (trial(j + 1) - trial(j)).norm() - s.rest_length[j];
         const double effective = std::max(0.0, stretch + rate_gain * (stretch - s.prev_stretch[j]));
+        // psi(c) / (1 + tau/h): its derivative in the length is the force f(c) (c grows by
+        // 1 + tau/h per metre); psi = k c^2 / 2 on the elastic branch (plastic_spring.hpp).
+        if (s.scratch.plastic_in_solve) {
+            e += springEnergyOverStiffness(s, j, effective) / (s.compliance[j] * (1.0 + rate_gain));
+            continue;
+        }
         e += 0.5 / (s.compliance[j] * (1.0 + rate_gain)) * effective * effective;
     }
     for (const RigidSegmentContact& c : s.contacts) {

@@ -86,6 +86,15 @@ struct StringScratch {
     /// first iterations (StringIslandMember::condense).
     bool exact_slack = false;
     std::vector<double> geometric_tension;  ///< per segment: the tension estimate of the chain Hessian's geometric term, N
+    /// This step's strain solve of the string converged (false where its own solve stopped
+    /// at the iteration cap): the return mapping of yield_in_solve trusts only a converged
+    /// solve's forces (fracture.cpp).
+    bool strain_converged = true;
+    /// This step's strain solve takes the string's plastic branch (plastic_spring.hpp): a
+    /// string with yield_in_solve that StrainSolve solves (strain_limit.cpp). Strings solved
+    /// in islands or clusters, whose solves have no line search, keep the elastic spring and
+    /// flow after the step from the tension estimate, as without the option.
+    bool plastic_in_solve = false;
     std::vector<Mat3> row_projector;      ///< per particle: I, or I minus the normals of the bodies pressing it
     bool rows_pressed = false;            ///< whether any row_projector may differ from I (none does where false)
 

@@ -253,6 +253,7 @@ void io(A& a, StringDesc& d) {
     ioEnum(a, d.tension, 1, "tension estimator");
     ioEnum(a, d.integrator, 1, "string integrator");
     io(a, d.tearable);
+    io(a, d.yield_in_solve);
     io(a, d.damping);
     io(a, d.axial_damping);
     io(a, d.seed);

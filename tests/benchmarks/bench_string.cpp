@@ -11,7 +11,8 @@
 // (100 segments each, side by side, not touching), on 1 and 2 threads
 // (WorldSettings::threads). And the shape matching kernel alone (BM_CsmKernel).
 // And the step in which a long rope tears (BM_LongRopeTear).
-// And Table 1's 746-segment rope stepped by BDF2 (BM_Table1RopeBdf2).
+// And Table 1's 746-segment rope stepped by BDF2 (BM_Table1RopeBdf2), and with its plastic
+// flow solved in the strain limit (BM_Table1RopeYield).
 // Run: build/tests/benchmarks/tearables_bench --benchmark_filter='Table1|Segments|CsmKernel|LongRopeTear'
 #include "world/world_access.hpp"
 #include "long_rope.hpp"
@@ -100,6 +101,42 @@ void BM_Table1RopeBdf2(benchmark::State& state) {
     state.SetItemsProcessed(state.iterations() * segments);
 }
 BENCHMARK(BM_Table1RopeBdf2)->Arg(746)->Iterations(300)->Unit(benchmark::kMicrosecond);
+
+/// BM_Table1Rope's rope with its plastic flow solved in the strain limit
+/// (StringDesc::yield_in_solve = range(1)): the option's cost. range(2) = 0: the default
+/// nylon, which this swing never takes past yield (the cost of the check alone); 1: a
+/// material that yields at 0.5 MPa (39 N on the 5 mm radius, below the tip's weight), not
+/// tearable, so that every segment flows on the plastic branch during the timed steps.
+void BM_Table1RopeYield(benchmark::State& state) {
+    const int segments = static_cast<int>(state.range(0));
+    tearables::World world;
+    tearables::StringDesc desc = rope({0, 0, 0}, segments, 10.0);
+    desc.yield_in_solve = state.range(1) != 0;
+    if (state.range(2) != 0) {
+        desc.material.tensile.yield = 5e5;
+        desc.material.tensile.rupture = 1e9;
+        desc.tearable = false;
+    }
+    const auto id = world.addString(desc);
+    world.attachToPoint(id, 0, {0, 0, 0});
+    for (int i = 0; i < 200; ++i) world.step(0.01);
+    StageCounters stages;
+    for (auto _ : state) {
+        world.step(0.01);
+        stages.add(world);
+        benchmark::DoNotOptimize(world.view(id).tension->data());
+    }
+    stages.report(state);
+    state.SetItemsProcessed(state.iterations() * segments);
+}
+BENCHMARK(BM_Table1RopeYield)
+    ->ArgNames({"segments", "in_solve", "soft"})
+    ->Args({746, 0, 0})
+    ->Args({746, 1, 0})
+    ->Args({746, 0, 1})
+    ->Args({746, 1, 1})
+    ->Iterations(300)
+    ->Unit(benchmark::kMicrosecond);
 
 /// The chain shape matching kernel alone on one piece of 747 particles (BM_Table1Rope/746's
 /// rope, w = 2) bent into a swinging curve: range(0) = 0, a straight rest shape (every region

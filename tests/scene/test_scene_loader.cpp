@@ -59,7 +59,7 @@ TEST(SceneLoader, FullSceneParsesEveryField) {
                       "torsion": {"modulus": 2e9, "yield": 0.02, "plastic_modulus": 2e8, "rupture": 0.2},
                       "variation": 0.01},
          "csm_half_width": 3, "twist_half_width": [1, 2, 3, 4], "tension": "local", "integrator": "bdf2",
-         "tearable": false, "damping": 0.5,
+         "tearable": false, "yield_in_solve": true, "damping": 0.5,
          "attachments": [{"particle": 0, "body": "beam", "local": [0, -0.1, 0]},
                          {"particle": -1, "world": [0, 1, 0]}]},
         {"name": "thread", "points": [[0, 0, 0], [1, 0, 0], [1, 1, 0]], "twist_half_width": 5}
@@ -140,6 +140,7 @@ TEST(SceneLoader, FullSceneParsesEveryField) {
     EXPECT_EQ(rope.tension, TensionEstimator::Local);
     EXPECT_EQ(rope.integrator, tearables::StringIntegrator::BDF2);
     EXPECT_FALSE(rope.tearable);
+    EXPECT_TRUE(rope.yield_in_solve);
     EXPECT_DOUBLE_EQ(rope.damping, 0.5);
     EXPECT_EQ(rope.seed, 42u);  // scene seed + string index
     EXPECT_EQ(s.strings[1].desc.seed, 43u);
@@ -159,6 +160,7 @@ TEST(SceneLoader, FullSceneParsesEveryField) {
     EXPECT_EQ(thread.points[2], Vec3(1, 1, 0));
     EXPECT_EQ(thread.twist_half_width, std::vector<int>{5});
     EXPECT_EQ(thread.integrator, tearables::StringIntegrator::BackwardEuler);
+    EXPECT_FALSE(thread.yield_in_solve);
 
     ASSERT_EQ(s.drivers.size(), 7u);
     const Driver& force = s.drivers[0];
@@ -629,6 +631,7 @@ const ErrorCase kErrorCases[] = {
     {"IntegratorUnknown", ropeScene(R"(, "integrator": "rk4")"), "strings[0].integrator",
      "must be \"backward_euler\" or \"bdf2\" (got \"rk4\")"},
     {"TearableNotBool", ropeScene(R"(, "tearable": 1)"), "strings[0].tearable", "expected a boolean"},
+    {"YieldInSolveNotBool", ropeScene(R"(, "yield_in_solve": "yes")"), "strings[0].yield_in_solve", "expected a boolean"},
     {"DampingNegative", ropeScene(R"(, "damping": -0.1)"), "strings[0].damping", "must be at least 0"},
     {"DampingTooLargeForValidate", ropeScene(R"(, "damping": 1e4)"), "strings[0].damping", "must be in [0, 1000]"},
     {"ParticleMassOutOfRange", ropeScene(R"(, "particle_masses": {"-12": 1})"), "strings[0].particle_masses[\"-12\"]",
