@@ -303,6 +303,7 @@ json eventJson(const Event& e) {
     // Paper: a crease's compression 1 - l/l0, a hinge's folded ratio l/l0 (dimensionless).
     if (e.type == EventType::Crease) j["compression"] = e.stress;
     if (e.type == EventType::Hinge) j["ratio"] = e.stress;
+    if (e.type == EventType::Overlap) j["depth"] = e.depth;
     return j;
 }
 
@@ -396,6 +397,7 @@ struct SceneRun::Impl {
 
     Impl(const Scene& scene_in, const RunOptions& options_in);
     void advance();
+    std::string overlapBodyName(const Event& e) const;
     RunResult finish();
 };
 
@@ -666,13 +668,26 @@ void SceneRun::Impl::advance() {
     last_events = ropes->core().events();  // one internal step a frame: that step's, one per segment
     for (const Event& e : last_events) {
         ++counts[toString(e.type)];
-        if (write) events << eventJson(e).dump() << '\n';
+        if (!write) continue;
+        json j = eventJson(e);
+        if (e.type == EventType::Overlap) j["body"] = overlapBodyName(e);
+        events << j.dump() << '\n';
     }
     ropes->clearEvents();
     const bool frame_step = step % every == 0 || step == steps;
     if (write && frame_step)
         trace << traceFrame(step, static_cast<double>(step) * dt, scene, ids, cloth_ids, paper_ids, ropes->core(), bs).dump() << '\n';
     if (options.on_frame && frame_step) options.on_frame(frameState(step, static_cast<double>(step) * dt, scene, ids, cloth_ids, paper_ids, ropes->core(), bs));
+}
+
+/// The scene's name of the body an overlap event names (the plugin's event carries the
+/// btRigidBody*).
+std::string SceneRun::Impl::overlapBodyName(const Event& e) const {
+    for (const BulletEvent& b : ropes->events())
+        if (b.type == EventType::Overlap && b.string == e.string && b.rigid == e.rigid)
+            for (const auto& [name, body] : bs.by_name)
+                if (body == b.body) return name;
+    return "";
 }
 
 RunResult SceneRun::Impl::finish() {

@@ -135,6 +135,7 @@ void BulletWorld::describe(BulletEvent& e) const {
     } else if (e.particle >= 0 && static_cast<std::size_t>(e.particle) < v.particleCount()) {
         e.position = tearables::toBullet(x[e.particle]);
     }
+    if (e.type == EventType::Overlap) e.body = bodyOf(e.rigid);
     if (e.type != EventType::Tear || e.segment < 0) return;
     double pressed = 0.0;
     for (const ContactForce& c : contact_forces_)

@@ -95,7 +95,8 @@ struct BulletEvent : Event {
     double force = 0.0;
     /// A string's tear: the body the torn segment touched in that internal step (the one
     /// it pressed hardest), else the body its piece hung from (the glued particle nearest
-    /// the segment, along the intact segments on either side); else null.
+    /// the segment, along the intact segments on either side). An overlap: the body the
+    /// string was made inside. Else null.
     btRigidBody* body = nullptr;
     /// A yield: how many segments of the string first yielded in that internal step. They
     /// are one event; its segment, stress, position and force are the worst one's.

@@ -15,6 +15,7 @@ enum class EventType {
     Freeze,    ///< an object reached a non-finite state and was frozen; the rest goes on
     Crease,    ///< (paper) a spring broke under compression
     Hinge,     ///< (paper) a hinge spring was inserted
+    Overlap,   ///< a string made overlapping a body is being pushed out of it (once per string and body)
 };
 
 /// Why it happened.
@@ -39,9 +40,11 @@ struct Event {
     double stress = 0.0;    ///< Pa (tension) or torsional strain (torsion), where it applies
     double time = 0.0;      ///< simulated time at the end of the step, s
     std::int64_t step = 0;  ///< step number (1 = the first step)
+    RigidId rigid;          ///< Overlap: the body the string was made inside (its core id); else invalid
+    double depth = 0.0;     ///< Overlap: the deepest overlap at the step's start, m; else 0
 };
 
-/// "tear", "yield", "release", "freeze", "crease", "hinge".
+/// "tear", "yield", "release", "freeze", "crease", "hinge", "overlap".
 const char* toString(EventType type);
 /// "none", "tension", "torsion", "compression", "request", "body_removed", "non_finite".
 const char* toString(EventCause cause);

@@ -10,6 +10,7 @@ const char* toString(EventType type) {
         case EventType::Freeze: return "freeze";
         case EventType::Crease: return "crease";
         case EventType::Hinge: return "hinge";
+        case EventType::Overlap: return "overlap";
     }
     return "unknown";
 }

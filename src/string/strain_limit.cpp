@@ -96,7 +96,8 @@ inline double effectiveStretch(const StringState& s, std::size_t j, double stret
 /// than kTautSlack of its rest length and not stretching. A slack segment carries nothing
 /// and takes no part in the solve (springTerm).
 inline bool slackSegment(const StringState& s, std::size_t j, double stretch, double effective) {
-    return stretch <= -kTautSlack * s.rest_length[j] && effective <= 0.0;
+    const double band = s.scratch.exact_slack ? 0.0 : kTautSlack;
+    return stretch <= -band * s.rest_length[j] && effective <= 0.0;
 }
 
 /// solveFactored of the string's factorised system (factorChain) for `rhs` (n) in place.

@@ -21,6 +21,14 @@ namespace tearables::detail {
 
 namespace {
 
+/// Newton iterations of a pass that count a segment within kTautSlack of its rest length
+/// as taut (its stiffness in the Hessian, no force), after which a segment is slack below
+/// its rest length exactly. The band lets the first steps see the whole chain a correction
+/// would stretch (a chain at its rest length otherwise takes up its load one segment an
+/// iteration); kept for the whole solve, it puts a stiffness in the model that the energy
+/// lacks, and a piece lying at zero stretch cycles at flat energy instead of converging.
+constexpr int kTautBandIterations = 2;
+
 /// d x_p / d(u, theta) of a point at arm r from its body's centre.
 Mat36 pointJacobian(const Vec3& r) {
     Mat36 j;
@@ -91,7 +99,10 @@ void StringIslandMember::warmStep(const std::vector<int>& slot, const Eigen::Vec
     for (std::size_t b = 0; b < s.body_nodes.size(); ++b) s.scratch.node_step[b] = du.segment<6>(6 * slot[b]);
 }
 
-void StringIslandMember::beginPass() { linearisePlanes(*string_, *rigids_); }
+void StringIslandMember::beginPass() {
+    linearisePlanes(*string_, *rigids_);
+    iteration_ = 0;
+}
 
 void StringIslandMember::assembleGlue() {
     StringScratch::NodeScratch& ns = string_->scratch.node_scratch;
@@ -161,6 +172,7 @@ void StringIslandMember::addTurningStiffness() {
 
 void StringIslandMember::condense(bool fresh) {
     StringState& s = *string_;
+    if (fresh) s.scratch.exact_slack = iteration_++ >= kTautBandIterations;
     if (fresh)
         for (RigidSegmentContact& c : s.contacts) {
             const std::size_t j = c.segment;
@@ -377,6 +389,7 @@ void StringIslandMember::finish(int iterations) {
     s.body_nodes.resize(contact_nodes_);
     s.scratch.node_step.resize(contact_nodes_);
     s.island_glue = false;
+    s.scratch.exact_slack = false;
     s.diagnostics.strain_newton_iterations += iterations;
 }
 

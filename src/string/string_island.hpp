@@ -60,6 +60,7 @@ private:
     std::vector<int> glued_index_;              ///< per particle: index into glued_, or -1
     std::vector<std::size_t> glue_segments_;    ///< the segments of glued particles, ascending
     std::size_t contact_nodes_ = 0;             ///< body_nodes from contacts (the rest from glue)
+    int iteration_ = 0;                         ///< Newton iterations of this pass so far
     /// Node-node blocks (both glued ends of one segment): (a, b, block of a's rows, b's columns).
     struct Cross {
         std::size_t a, b;

@@ -82,6 +82,9 @@ struct StringScratch {
     /// The strain solve started warm this step (strain_limit.cpp, warmStart) and has not
     /// made its first Newton iteration yet.
     bool strain_warm_start = false;
+    /// Slack exactly at the rest length (no taut band): set by the island solve after its
+    /// first iterations (StringIslandMember::condense).
+    bool exact_slack = false;
     std::vector<double> geometric_tension;  ///< per segment: the tension estimate of the chain Hessian's geometric term, N
     std::vector<Mat3> row_projector;      ///< per particle: I, or I minus the normals of the bodies pressing it
     bool rows_pressed = false;            ///< whether any row_projector may differ from I (none does where false)
@@ -179,9 +182,11 @@ struct StringState {
     /// (created through a block, or held inside one): cleared at the first step it is not,
     /// never set again. Such overlaps are pushed out gradually, or not at all next to a
     /// hold (StringSystem::collideBodies); any other overlap is the contacts' own give and
-    /// is pushed back at once (a fast body must not pass). Not in snapshots: a restored
-    /// string has none.
+    /// is pushed back at once (a fast body must not pass).
     std::vector<std::uint8_t> made_inside;
+    /// The bodies an Overlap event has named for this string: a start overlap is reported
+    /// once per body, at the first step it is pushed out.
+    std::vector<RigidId> overlap_reported;
 
     // --- chain shape matching (Strings Sec. 3) -----------------------------------------
     std::vector<Vec3> rest_direction;     ///< per segment, unit direction at creation

@@ -281,7 +281,7 @@ void StringSystem::step(RigidTable& rigids, const StepContext& ctx, const HostCo
     StageTimer timer;
     shapeMatch();                                     timer.lap(t.shape_matching);
     predict(rigids, ctx);                             timer.lap(t.predict);
-    collideBodies(rigids, host, ctx.h);               timer.lap(t.collision);
+    collideBodies(rigids, host, ctx, events);         timer.lap(t.collision);
     limitStrain(rigids, ctx);                         timer.lap(t.strain_limit);
     // The strings that touch are solved again, together, before the tension stage reads
     // their motion; what overlap that leaves is projected away after it (so it never
@@ -321,7 +321,9 @@ void StringSystem::predict(const RigidTable& rigids, const StepContext& ctx) {
 /// Collision with rigid bodies: the host's narrow phase on the predicted positions. Each
 /// string gets its own contacts, checked (a bad contact from the host is dropped, never
 /// trusted).
-void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host, double h) {
+void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host, const StepContext& ctx,
+                                 std::vector<Event>& events) {
+    const double h = ctx.h;
     pool_->forEach(strings_.size(), [this](std::size_t i) {
         StringState& s = strings_[i];
         s.contacts.clear();
@@ -413,6 +415,40 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host, d
             if (c.start_depth > kDeepOverlap * s.radius[c.segment]) deep[c.segment] = 1;
         for (std::size_t j = 0; j < inside.size(); ++j) inside[j] = inside[j] && (deep[j] || buried[j]);
     });
+    reportStartOverlaps(ctx, events);
+}
+
+/// One Overlap event per string and body, at the first step a start overlap with that
+/// body is pushed out (the contacts left after exemptBuriedEnds: a buried run next to a
+/// hold is meant to overlap and is not reported), naming its deepest segment.
+void StringSystem::reportStartOverlaps(const StepContext& ctx, std::vector<Event>& events) {
+    for (const std::uint32_t i : live_) {
+        StringState& s = strings_[i];
+        if (s.contacts.empty() || std::find(s.made_inside.begin(), s.made_inside.end(), 1) == s.made_inside.end()) continue;
+        const std::size_t first = events.size();
+        for (const RigidSegmentContact& c : s.contacts) {
+            if (!s.made_inside[c.segment] || !(c.start_depth > kDeepOverlap * s.radius[c.segment])) continue;
+            if (std::find(s.overlap_reported.begin(), s.overlap_reported.end(), c.body) != s.overlap_reported.end()) continue;
+            auto same = std::find_if(events.begin() + static_cast<std::ptrdiff_t>(first), events.end(),
+                                     [&](const Event& e) { return e.rigid == c.body; });
+            if (same == events.end()) {
+                Event e;
+                e.type = EventType::Overlap;
+                e.string = idAt(i);
+                e.object = s.desc.name;
+                e.rigid = c.body;
+                e.time = ctx.time;
+                e.step = ctx.step;
+                events.push_back(e);
+                same = events.end() - 1;
+            }
+            if (c.start_depth > same->depth) {
+                same->depth = c.start_depth;
+                same->segment = static_cast<int>(c.segment);
+            }
+        }
+        for (std::size_t k = first; k < events.size(); ++k) s.overlap_reported.push_back(events[k].rigid);
+    }
 }
 
 

@@ -62,7 +62,8 @@ private:
     void listLive();
     void shapeMatch();
     void predict(const RigidTable& rigids, const StepContext& ctx);
-    void collideBodies(RigidTable& rigids, const HostContacts& host, double h);
+    void collideBodies(RigidTable& rigids, const HostContacts& host, const StepContext& ctx, std::vector<Event>& events);
+    void reportStartOverlaps(const StepContext& ctx, std::vector<Event>& events);
     void limitStrain(RigidTable& rigids, const StepContext& ctx);
     void solveTwist(RigidTable& rigids, const StepContext& ctx);
     void estimateTension(const StepContext& ctx);

@@ -315,7 +315,7 @@ void io(A& a, RigidState& b) {
 }
 template <class A>
 void io(A& a, Event& e) {
-    ioEnum(a, e.type, static_cast<int>(EventType::Hinge), "event type");
+    ioEnum(a, e.type, static_cast<int>(EventType::Overlap), "event type");
     ioEnum(a, e.cause, static_cast<int>(EventCause::NonFinite), "event cause");
     io(a, e.string);
     io(a, e.object);
@@ -324,6 +324,8 @@ void io(A& a, Event& e) {
     io(a, e.stress);
     io(a, e.time);
     io(a, e.step);
+    io(a, e.rigid);
+    io(a, e.depth);
 }
 // Cloths (src/cloth/cloth_state.hpp).
 template <class A>
@@ -431,6 +433,8 @@ void io(A& a, detail::StringState& s) {
     io(a, s.spring_force);
     io(a, s.scratch.row_projector);
     io(a, s.colliding);
+    io(a, s.made_inside);
+    io(a, s.overlap_reported);
     io(a, s.prev_stretch);
     io(a, s.rest_direction);
     io(a, s.rest_shape);
@@ -627,6 +631,7 @@ void checkString(const detail::StringState& s, const detail::RigidTable& rigids,
         size(v->size(), m, "a per-segment array");
     size(s.broken.size(), m, "broken");
     size(s.yielded.size(), m, "yielded");
+    size(s.made_inside.size(), m, "made_inside");
     size(s.scratch.active.size(), m, "active");
     size(s.material.size(), m, "material");
     size(s.scratch.dir.size(), m, "dir");

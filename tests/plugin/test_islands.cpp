@@ -3,6 +3,7 @@
 // exactly its weight at its anchors, and every island's solve converges each step.
 #include "tearables/bullet.hpp"
 
+#include "benchmarks/island_scenes.hpp"
 #include "bullet_fixture.hpp"
 
 #include <btBulletDynamicsCommon.h>
@@ -236,4 +237,53 @@ TEST(Islands, HeavyCrateRestsOnALightRopedBoard) {
     double carried = 0.0;
     for (const tearables::BodyContact& c : ropes.core().lastBodyContacts()) carried += c.force * std::abs(c.normal.y());
     EXPECT_NEAR(carried, crate_mass * kG, 0.005 * crate_mass * kG);
+}
+
+// The bridge's statics (the `bridge` scene's bridge: 8 boards of 4 kg on 18 ropes, 746
+// segments), settled 1 s, then two 10 kg crates set down at rest on boards 3 and 4 and 3 s
+// more. Over the last 0.5 s the four pinned ends pull up the weight of every particle,
+// board and crate: each pinned particle's reaction is -T u_y + m g (T the end segment's
+// tension, u its direction away from the pin), and their sum equals the total weight
+// within 0.5% on average (issue 30's statics target), within 2% at every step while the
+// crates' landing still rings. No rope tears and no crate falls through.
+TEST(Islands, BridgeAnchorsCarryTheWholeWeightWithCratesOnIt) {
+    tearables::island::Rig rig;
+    const auto bridge = tearables::island::buildBridge(rig, {});
+    for (auto* b : bridge.boards) b->setActivationState(DISABLE_DEACTIVATION);
+    for (int i = 0; i < 100; ++i) rig.step();
+    double weight = kG * bridge.board_mass * static_cast<double>(bridge.boards.size());
+    for (StringId id : bridge.ropes) weight += kG * tearables::island::ropeMass(rig.ropes->core(), id);
+    std::vector<btRigidBody*> crates;
+    for (int board : {3, 4}) {
+        const btTransform at = bridge.boards[static_cast<std::size_t>(board)]->getWorldTransform();
+        btRigidBody& crate = rig.phys.box(btVector3(0.1f, 0.1f, 0.1f), 10.0,
+                                          at.getOrigin() + at.getBasis().getColumn(1) * (0.04f + 0.1f + 0.0005f));
+        crate.setWorldTransform(btTransform(at.getRotation(), crate.getWorldTransform().getOrigin()));
+        crate.setFriction(0.8f);
+        crate.setActivationState(DISABLE_DEACTIVATION);
+        crates.push_back(&crate);
+        weight += kG * 10.0;
+    }
+    const int steps = 300, window = 50;
+    double sum = 0.0, worst = 0.0;
+    for (int i = 1; i <= steps; ++i) {
+        rig.step();
+        if (i <= steps - window) continue;
+        double pull = 0.0;
+        for (const auto& [id, particle] : bridge.anchors) {
+            const auto v = rig.ropes->core().view(id);
+            const auto& x = *v.positions;
+            const std::size_t n = x.size();
+            if (particle == 0)
+                pull += -v.tension->front() * (x[1] - x[0]).normalized().y() + (*v.masses)[0] * kG;
+            else
+                pull += -v.tension->back() * (x[n - 2] - x[n - 1]).normalized().y() + (*v.masses)[n - 1] * kG;
+        }
+        sum += pull / weight;
+        worst = std::max(worst, std::abs(pull / weight - 1.0));
+    }
+    EXPECT_NEAR(sum / window, 1.0, 0.005);
+    EXPECT_LT(worst, 0.02);
+    for (const auto& e : rig.ropes->events()) EXPECT_NE(e.type, tearables::EventType::Tear);
+    for (const btRigidBody* c : crates) EXPECT_GT(c->getCenterOfMassPosition().y(), 1.5f);
 }
