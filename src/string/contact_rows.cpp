@@ -142,6 +142,7 @@ Vec3 solvedFrictionForce(const RigidSegmentContact& c, const Vec3& slip) {
 FrictionTerm rigidFrictionTerm(const RigidSegmentContact& c, const Vec3& slip) {
     FrictionTerm f;
     f.tangent = Mat3::Identity() - c.plane_normal * c.plane_normal.transpose();
+    f.slip = slip;
     f.gradient.setZero();
     f.hessian.setZero();
     if (!hasFriction(c)) return f;
@@ -208,6 +209,21 @@ FrictionTerm addFrictionRows(StringState& s, const RigidSegmentContact& c, bool 
     const std::size_t j = c.segment;
     const double wa = 1.0 - c.s, wb = c.s;
     const FrictionTerm f = rigidFrictionTerm(c, rigidSlip(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]));
+    if (c.lagged) {
+        // w/2 |u_t|^2: gradient w T rel, Hessian w T (the products in this order, as the
+        // island's solve has always taken them).
+        const double w = c.friction_weight;
+        if (fa) {
+            s.scratch.blk_diag[j] += (w * wa * wa) * f.tangent;
+            s.scratch.blk_rhs[j] -= (w * wa) * f.slip;
+        }
+        if (fb) {
+            s.scratch.blk_diag[j + 1] += (w * wb * wb) * f.tangent;
+            s.scratch.blk_rhs[j + 1] -= (w * wb) * f.slip;
+        }
+        if (fa && fb) s.scratch.blk_off[j] += (w * wa * wb) * f.tangent;
+        return f;
+    }
     if (fa) {
         s.scratch.blk_diag[j] += (wa * wa) * f.hessian;
         s.scratch.blk_rhs[j] -= wa * f.gradient;

@@ -561,7 +561,7 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
         // The contact's force is unknown along the normal and, where friction holds or
         // drags, along the slip.
         Vec3 dirs[2] = {c.plane_normal, Vec3::Zero()};
-        if (c.lagged ? c.solved_weight > 0.0 : c.friction > 0.0 && c.solved_normal > 0.0) {
+        if (c.lagged ? c.friction_weight > 0.0 : c.friction > 0.0 && c.solved_normal > 0.0) {
             const Vec3 slip = rigidSlip(s, c, xs);
             if (slip.norm() > 0.0) dirs[1] = slip.normalized();
         }
@@ -781,6 +781,14 @@ void assembleContactCoupling(StringState& s, StringScratch::NodeScratch& nodes) 
         const std::size_t b = static_cast<std::size_t>(c.node);
         const double wa = 1.0 - c.s, wb = c.s;
         const Mat36 jb = rigidSlipBodyJacobian(c, f.tangent);
+        if (c.lagged) {  // w (TJ)^T (TJ), w (TJ)^T T rel (T J = jb: T T = T)
+            const double w = c.friction_weight;
+            node_diag[b] += w * jb.transpose() * jb;
+            node_rhs[b] -= w * jb.transpose() * f.slip;
+            if (fa) coupling[b].emplace_back(j, (w * wa) * jb);
+            if (fb) coupling[b].emplace_back(j + 1, (w * wb) * jb);
+            continue;
+        }
         const Mat36 hj = f.hessian * jb;
         node_diag[b] += jb.transpose() * hj;
         node_rhs[b] -= jb.transpose() * f.gradient;

@@ -52,6 +52,7 @@ void addPenaltyRows(StringState& s, const RigidSegmentContact& c, double g, bool
 /// (positive semidefinite, on the tangent plane) in u_t.
 struct FrictionTerm {
     Mat3 tangent;
+    Vec3 slip;  ///< u_t
     Vec3 gradient;
     Mat3 hessian;
 };
