@@ -1,8 +1,8 @@
 // The rows of a string's contacts with rigid bodies in its Newton system: a stiff
 // one-sided penalty k_c min(0, g)^2 / 2 on the gap g to the body's surface plane,
-// linearised in the body's motion, and lagged Coulomb friction w/2 |u_t|^2 on the slip
-// (IPC, Li et al. 2020), with their gradients in the string's particles and in the body's
-// six unknowns.
+// linearised in the body's motion, and smoothed Coulomb friction mu N f0(|u_t|) on the
+// slip with the normal force N lagged (IPC, Li et al. 2020, Sec. 5), with their gradients
+// and Hessians in the string's particles and in the body's six unknowns.
 #include "string/strain_limit_internal.hpp"
 
 #include <algorithm>
@@ -79,15 +79,92 @@ Vec6 rigidGapBodyGradient(const RigidSegmentContact& c) {
     return a;
 }
 
-// Friction with rigid bodies is part of the solve (IPC's lagged Coulomb friction): with
-// u_t the tangential motion of the string's contact point relative to the body's over the
-// step and F the contact's normal force at the start of a pass, the pass adds w/2 |u_t|^2,
-// w = mu F / max(|u_t|, eps). At the fixed point of the passes that is mu F against
-// sliding, or a stiff spring below eps of slip (sticking).
+// Friction with rigid bodies is part of the solve: IPC's smoothed Coulomb friction (Li et
+// al. 2020, "Incremental Potential Contact", Sec. 5). With u_t the tangential motion of
+// the string's contact point relative to the body's over the step and N the contact's
+// normal force, lagged (the penalty force at the end of the last pass), the solve adds the
+// dissipative potential
+//     D(u_t) = mu N f0(|u_t|),   f0(y) = -y^3 / (3 eps^2) + y^2 / eps + eps / 3  (y < eps),
+//                                f0(y) = y                                      (y >= eps),
+// whose derivative f1 = f0' = 2 y / eps - y^2 / eps^2 below eps and 1 above is C1: its
+// force mu N f1(|u_t|) u_t / |u_t| is Coulomb's mu N against sliding, and below eps of
+// slip a step a stiff spring (2 mu N / eps at rest) that holds any load under mu N. D is
+// convex in u_t (f0 convex and increasing, composed with a norm), so for a fixed N the
+// step's energy stays convex and Newton decides stick and slip by minimising it; only N
+// moves between passes (weighRigidFriction), which repeat until it settles.
 
 /// Slip of the string on the body this step, per fraction eps of the contact's thickness,
-/// below which the contact sticks.
+/// below which the contact sticks (IPC's eps_v h).
 constexpr double kRigidSlip = 1e-3;
+
+namespace {
+
+/// The mollifier's parts at slip y >= 0 (eps > 0): f0(y), f1(y) / y, and f1'(y).
+struct Mollifier {
+    double f0 = 0.0, f1_over_y = 0.0, df1 = 0.0;
+};
+Mollifier mollify(double y, double eps) {
+    Mollifier m;
+    if (y >= eps) {
+        m.f0 = y;
+        m.f1_over_y = 1.0 / y;
+        m.df1 = 0.0;
+    } else {
+        const double inv = 1.0 / eps;
+        m.f0 = y * y * inv * (1.0 - y * inv / 3.0) + eps / 3.0;
+        m.f1_over_y = inv * (2.0 - y * inv);
+        m.df1 = 2.0 * inv * (1.0 - y * inv);
+    }
+    return m;
+}
+
+/// eps of contact c: kRigidSlip of its thickness (m).
+double slipSmoothing(const RigidSegmentContact& c) { return kRigidSlip * std::max(c.gap, 1e-9); }
+
+}  // namespace
+
+bool hasFriction(const RigidSegmentContact& c) {
+    return c.lagged ? c.friction_weight > 0.0 : c.friction > 0.0 && c.friction_normal > 0.0;
+}
+
+double rigidFrictionEnergy(const RigidSegmentContact& c, const Vec3& slip) {
+    if (!hasFriction(c)) return 0.0;
+    if (c.lagged) return 0.5 * c.friction_weight * slip.squaredNorm();
+    return c.friction * c.friction_normal * mollify(slip.norm(), slipSmoothing(c)).f0;
+}
+
+Vec3 solvedFrictionForce(const RigidSegmentContact& c, const Vec3& slip) {
+    if (c.lagged) return -c.solved_weight * slip;
+    if (!(c.friction > 0.0) || !(c.solved_normal > 0.0)) return Vec3::Zero();
+    return -(c.friction * c.solved_normal * mollify(slip.norm(), slipSmoothing(c)).f1_over_y) * slip;
+}
+
+FrictionTerm rigidFrictionTerm(const RigidSegmentContact& c, const Vec3& slip) {
+    FrictionTerm f;
+    f.tangent = Mat3::Identity() - c.plane_normal * c.plane_normal.transpose();
+    f.slip = slip;
+    f.gradient.setZero();
+    f.hessian.setZero();
+    if (!hasFriction(c)) return f;
+    if (c.lagged) {  // w/2 |u_t|^2: gradient w u_t, Hessian w T
+        f.gradient = c.friction_weight * slip;
+        f.hessian = c.friction_weight * f.tangent;
+        return f;
+    }
+    const double y = slip.norm();
+    const Mollifier m = mollify(y, slipSmoothing(c));
+    const double muN = c.friction * c.friction_normal;
+    f.gradient = (muN * m.f1_over_y) * slip;
+    // The Hessian of f0(|u|) on the tangent plane: f1'(y) along the slip, f1(y) / y across
+    // it; both >= 0, so it is positive semidefinite as it stands (IPC's projection to PSD
+    // has nothing to remove here). At rest (y = 0) both are 2 / eps.
+    f.hessian = (muN * m.f1_over_y) * f.tangent;
+    if (y > 0.0) {
+        const Vec3 along = slip / y;
+        f.hessian += (muN * (m.df1 - m.f1_over_y)) * (along * along.transpose());
+    }
+    return f;
+}
 
 Vec3 rigidSlip(const StringState& s, const RigidSegmentContact& c, const Vec3& xs, const Vec6* extra) {
     const std::size_t j = c.segment;
@@ -126,37 +203,74 @@ void addPenaltyRows(StringState& s, const RigidSegmentContact& c, double g, bool
     if (fa && fb) s.scratch.blk_off[j] += kc * wa * wb * nnt;
 }
 
-/// Gradient w T rel and Hessian w T.
+/// Gradient dD/dx = w_end grad and Hessian w_end^2 H (grad and H of rigidFrictionTerm,
+/// w_end the end's share 1 - s or s).
 FrictionTerm addFrictionRows(StringState& s, const RigidSegmentContact& c, bool fa, bool fb) {
     const std::size_t j = c.segment;
-    const double w = c.friction_weight, wa = 1.0 - c.s, wb = c.s;
-    const FrictionTerm f{Mat3::Identity() - c.plane_normal * c.plane_normal.transpose(),
-                         rigidSlip(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1])};
+    const double wa = 1.0 - c.s, wb = c.s;
+    const FrictionTerm f = rigidFrictionTerm(c, rigidSlip(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]));
+    if (c.lagged) {
+        // w/2 |u_t|^2: gradient w T rel, Hessian w T (the products in this order, as the
+        // island's solve has always taken them).
+        const double w = c.friction_weight;
+        if (fa) {
+            s.scratch.blk_diag[j] += (w * wa * wa) * f.tangent;
+            s.scratch.blk_rhs[j] -= (w * wa) * f.slip;
+        }
+        if (fb) {
+            s.scratch.blk_diag[j + 1] += (w * wb * wb) * f.tangent;
+            s.scratch.blk_rhs[j + 1] -= (w * wb) * f.slip;
+        }
+        if (fa && fb) s.scratch.blk_off[j] += (w * wa * wb) * f.tangent;
+        return f;
+    }
     if (fa) {
-        s.scratch.blk_diag[j] += (w * wa * wa) * f.tangent;
-        s.scratch.blk_rhs[j] -= (w * wa) * f.slip;
+        s.scratch.blk_diag[j] += (wa * wa) * f.hessian;
+        s.scratch.blk_rhs[j] -= wa * f.gradient;
     }
     if (fb) {
-        s.scratch.blk_diag[j + 1] += (w * wb * wb) * f.tangent;
-        s.scratch.blk_rhs[j + 1] -= (w * wb) * f.slip;
+        s.scratch.blk_diag[j + 1] += (wb * wb) * f.hessian;
+        s.scratch.blk_rhs[j + 1] -= wb * f.gradient;
     }
-    if (fa && fb) s.scratch.blk_off[j] += (w * wa * wb) * f.tangent;
+    if (fa && fb) s.scratch.blk_off[j] += (wa * wb) * f.hessian;
     return f;
 }
 
-double weighRigidFriction(StringState& s) {
-    double change = 0.0;
+/// A normal force below this fraction of the string's largest counts as settled when it
+/// moves by less than kFrictionSettled of that fraction (weighRigidFriction): a contact
+/// that barely touches does not keep the passes going.
+constexpr double kNegligibleNormal = 1e-3;
+
+double weighRigidFriction(StringState& s, bool lagged) {
+    double largest = 0.0;
     for (RigidSegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
-        double w = 0.0;
         const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
         c.force = s.broken[j] ? 0.0 : c.stiffness * std::max(0.0, -rigidGap(s, c, xs));
-        if (c.friction > 0.0 && c.force > 0.0)
-            w = c.friction * c.force / std::max(rigidSlip(s, c, xs).norm(), kRigidSlip * c.gap);
-        const double scale = std::max(w, c.friction_weight);
-        if (scale > 0.0) change = std::max(change, std::abs(w - c.friction_weight) / scale);
-        c.solved_weight = c.friction_weight;
-        c.friction_weight = w;
+        largest = std::max(largest, c.force);
+    }
+    double change = 0.0;
+    for (RigidSegmentContact& c : s.contacts) {
+        c.lagged = lagged;
+        const double normal = c.friction > 0.0 ? c.force : 0.0;
+        c.solved_normal = c.friction_normal;
+        c.friction_normal = normal;
+        if (lagged) {
+            // IPC's lagged weight: at the fixed point of the passes, mu F against sliding, or
+            // a stiff spring below eps of slip (sticking).
+            const std::size_t j = c.segment;
+            const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
+            double w = 0.0;
+            if (c.friction > 0.0 && c.force > 0.0)
+                w = c.friction * c.force / std::max(rigidSlip(s, c, xs).norm(), slipSmoothing(c));
+            const double scale = std::max(w, c.friction_weight);
+            if (scale > 0.0) change = std::max(change, std::abs(w - c.friction_weight) / scale);
+            c.solved_weight = c.friction_weight;
+            c.friction_weight = w;
+            continue;
+        }
+        const double scale = std::max({normal, c.solved_normal, kNegligibleNormal * largest});
+        if (scale > 0.0) change = std::max(change, std::abs(normal - c.solved_normal) / scale);
     }
     return change;
 }
@@ -175,10 +289,10 @@ void assembleRigidContacts(StringState& s) {
         c.active = !s.broken[j] && c.stiffness > 0.0 && g < 0.0;
         if (c.active) addPenaltyRows(s, c, g, freeParticle(s, j), freeParticle(s, j + 1));
     }
-    // Their friction, with the weights of the string's own solve (the bodies held).
+    // Their friction, with the normal forces of the string's own solve (the bodies held).
     for (const RigidSegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
-        if (!(c.friction_weight > 0.0) || s.broken[j]) continue;
+        if (!hasFriction(c) || s.broken[j]) continue;
         addFrictionRows(s, c, freeParticle(s, j), freeParticle(s, j + 1));
     }
 }

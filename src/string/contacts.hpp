@@ -38,10 +38,18 @@ struct RigidSegmentContact {
     Vec3 plane_turn = Vec3::Zero();
     Vec3 plane_arm = Vec3::Zero();    ///< plane_point minus the body's centre
     Vec3 start_point = Vec3::Zero();  ///< the body's contact point where the step started
-    double friction_weight = 0.0;     ///< friction's lagged weight mu F / max(slip, eps), N/m
-    /// The weight the last solve balanced (weighRigidFriction replaces friction_weight
-    /// after each solve): its friction force on the string is -solved_weight u_t.
-    double solved_weight = 0.0;
+    /// Friction's normal force N, lagged: the penalty force at the end of the last pass
+    /// (0 in a step's first pass), N. In a string's own solve friction is mu N f0(|u_t|)
+    /// (contact_rows.cpp).
+    double friction_normal = 0.0;
+    /// The N the last solve balanced (weighRigidFriction moves friction_normal on after
+    /// each solve).
+    double solved_normal = 0.0;
+    /// Friction as a lagged quadratic w/2 |u_t|^2 (an island's members) rather than
+    /// mu N f0(|u_t|) (a string's own solve): set by weighRigidFriction.
+    bool lagged = false;
+    double friction_weight = 0.0;     ///< the lagged form's weight mu F / max(slip, eps), N/m
+    double solved_weight = 0.0;       ///< the weight the last solve balanced, N/m
 };
 
 /// One pair of segments, named from one side: segment `segment` of string `string` against

@@ -52,7 +52,7 @@ constexpr std::size_t kParallelChainParticles = kParallelItems;
 constexpr int kLineSearchHalvings = 30;
 /// Times per Newton iteration that contacts the step would run into are added and the
 /// step solved again.
-constexpr int kPredictRounds = 3;
+constexpr int kPredictRounds = 4;
 /// The relative rounding of a string's step energy (a sum over its particles and
 /// segments) that a line search of a string yielding in the solve does not count as a rise.
 constexpr double kEnergyRounding = 1e-12;
@@ -580,7 +580,7 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
         // The contact's force is unknown along the normal and, where friction holds or
         // drags, along the slip.
         Vec3 dirs[2] = {c.plane_normal, Vec3::Zero()};
-        if (c.friction_weight > 0.0) {
+        if (c.lagged ? c.friction_weight > 0.0 : c.friction > 0.0 && c.solved_normal > 0.0) {
             const Vec3 slip = rigidSlip(s, c, xs);
             if (slip.norm() > 0.0) dirs[1] = slip.normalized();
         }
@@ -795,23 +795,31 @@ void assembleContactCoupling(StringState& s, StringScratch::NodeScratch& nodes) 
         if (fa) coupling[b].emplace_back(j, kc * wa * nrm * au.transpose());
         if (fb) coupling[b].emplace_back(j + 1, kc * wb * nrm * au.transpose());
     }
-    // Friction: w/2 |T rel|^2 (T the tangent projector, rel the motion relative to the
-    // body): gradient w T rel, Hessian w T on the string's side, w (TJ)^T (TJ) on the
-    // body's (J = d rel / d(u, theta)).
+    // Friction: D(u_t) (rigidFrictionTerm: gradient g, Hessian H in u_t = T rel, T the
+    // tangent projector, rel the motion relative to the body): on the string's side
+    // addFrictionRows, on the body's J^T g and J^T H J with J = d u_t / d(u, theta).
     for (const RigidSegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
-        if (!(c.friction_weight > 0.0) || s.broken[j]) continue;
+        if (!hasFriction(c) || s.broken[j]) continue;
         const bool fa = !fixedRow(s, j), fb = !fixedRow(s, j + 1);
         const FrictionTerm f = addFrictionRows(s, c, fa, fb);
         if (c.node < 0) continue;
         const std::size_t b = static_cast<std::size_t>(c.node);
-        const double w = c.friction_weight, wa = 1.0 - c.s, wb = c.s;
-        const Vec3& slip = f.slip;
+        const double wa = 1.0 - c.s, wb = c.s;
         const Mat36 jb = rigidSlipBodyJacobian(c, f.tangent);
-        node_diag[b] += w * jb.transpose() * jb;
-        node_rhs[b] -= w * jb.transpose() * slip;
-        if (fa) coupling[b].emplace_back(j, (w * wa) * jb);
-        if (fb) coupling[b].emplace_back(j + 1, (w * wb) * jb);
+        if (c.lagged) {  // w (TJ)^T (TJ), w (TJ)^T T rel (T J = jb: T T = T)
+            const double w = c.friction_weight;
+            node_diag[b] += w * jb.transpose() * jb;
+            node_rhs[b] -= w * jb.transpose() * f.slip;
+            if (fa) coupling[b].emplace_back(j, (w * wa) * jb);
+            if (fb) coupling[b].emplace_back(j + 1, (w * wb) * jb);
+            continue;
+        }
+        const Mat36 hj = f.hessian * jb;
+        node_diag[b] += jb.transpose() * hj;
+        node_rhs[b] -= jb.transpose() * f.gradient;
+        if (fa) coupling[b].emplace_back(j, wa * hj);
+        if (fb) coupling[b].emplace_back(j + 1, wb * hj);
     }
 }
 
@@ -925,7 +933,7 @@ public:
         const int iterations = ctx.settings->strain_iterations * (s.contacts.empty() ? kChainIterationFactor : kContactIterationFactor);
         bool frictional = false;
         for (const RigidSegmentContact& c : s.contacts) frictional = frictional || c.friction > 0.0;
-        for (int pass = 0; pass < (frictional ? kContactPasses : 1); ++pass) {
+        for (int pass = 0; pass < (frictional ? kRigidFrictionPasses : 1); ++pass) {
             bool converged = false;
             double last_move = -1.0;
             bool chord_next = false;  // the next iteration may be a chord iteration
@@ -969,10 +977,13 @@ public:
             }
             s.scratch.strain_converged = converged;
             if (!frictional) break;
-            const double change = weighRigidFriction(s);
+            const double change = weighRigidFriction(s, false);
             if (converged && change < kFrictionSettled) break;
         }
-        for (RigidSegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
+        for (RigidSegmentContact& c : s.contacts) {
+            c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
+            c.predicted = false;
+        }
         finishChain(s, rigids, ctx);
         return std::max(first_move, 0.0);
     }
@@ -1009,7 +1020,10 @@ private:
     /// it would run into, the line search (`stalled` where it found no lower energy) and
     /// the move. Returns the largest move.
     double iterate(bool chord_next, double last_move, bool& chord, bool& stalled, bool& cut) {
-        for (RigidSegmentContact& c : s.contacts) c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
+        for (RigidSegmentContact& c : s.contacts) {
+            c.active = !s.broken[c.segment] && gapNow(c) < 0.0;
+            c.predicted = false;
+        }
         if (chord_next && assembleChainGradient(s, ctx)) {
             chordSolveChain(n, s.scratch.blk_off.data(), s.scratch.blk_rhs.data(), s.scratch.blk_factor_gain.data(),
                             s.scratch.chain_coupled.data(), inverses);
@@ -1062,14 +1076,26 @@ private:
         backSubstituteNodes(s, scratch.du);
     }
 
-    /// A separated contact that the full Newton step would run into joins the Hessian (not
-    /// the gradient) and the step is solved again.
+    /// A separated contact that the full Newton step would run into is held, with its gap
+    /// in the model (k_c (g + a . dx)^2 / 2, g > 0 now: the step stops on the plane), and
+    /// the step is solved again; one held so that, held, the step no longer runs into it
+    /// is let go (the active set of a semismooth Newton step, as an island's member does,
+    /// string_island.cpp). Held with its gap taken as 0 instead, the contact is a stiff
+    /// spring where the string is now: the step toward the body shrinks by k_c over the
+    /// other stiffnesses (kContactStiffnessFactor) and a rope pulled onto a drum hovers
+    /// off it for the whole solve, pressing nothing (no normal force, so no friction).
     void addPredictedContacts() {
         for (int round = 0; round < kPredictRounds; ++round) {
-            bool added = false;
-            for (RigidSegmentContact& c : s.contacts)
-                if (!c.active && !s.broken[c.segment] && gapAfterStep(c) < 0.0) c.active = added = true;
-            if (!added) break;
+            bool changed = false;
+            for (RigidSegmentContact& c : s.contacts) {
+                if ((c.active && !c.predicted) || s.broken[c.segment]) continue;
+                const bool runs_into = gapAfterStep(c) < 0.0;
+                if (runs_into != c.active) {
+                    c.active = c.predicted = runs_into;
+                    changed = true;
+                }
+            }
+            if (!changed) break;
             solveStep();
         }
     }

@@ -19,6 +19,11 @@ namespace tearables::detail {
 /// closest points and friction), and the iteration budget of a pass with contacts
 /// relative to WorldSettings::strain_iterations.
 constexpr int kContactPasses = 4;
+/// Passes of a string's own solve with friction on rigid bodies: the first without
+/// friction (no normal force known yet), each next one with the normal forces of the last,
+/// until they settle (weighRigidFriction). A rope wrapped a full turn round a drum settles
+/// in 5-8 (the capstan test, tests/string/test_capstan.cpp; 4 held it at 1.05 e^(mu theta)).
+constexpr int kRigidFrictionPasses = 8;
 constexpr int kContactIterationFactor = 4;
 /// A segment within this fraction of its radius of a body (or of the contact's thickness)
 /// counts as touching it.
@@ -43,16 +48,33 @@ Mat36 rigidSlipBodyJacobian(const RigidSegmentContact& c, const Mat3& tangent);
 /// Rigid contact c's penalty k_c g^2 / 2 on the string's own rows (g: its gap, or 0 where
 /// it only joins the Hessian) at the segment's ends that move (`fa`, `fb`).
 void addPenaltyRows(StringState& s, const RigidSegmentContact& c, double g, bool fa, bool fb);
-/// Rigid contact c's friction w/2 |T rel|^2 on the string's own rows, at the segment's ends
-/// that move (`fa`, `fb`). Returns T and T rel.
+/// Rigid contact c's friction D = mu N f0(|u_t|) (contact_rows.cpp; N its lagged
+/// friction_normal) at slip u_t: T the tangent projector, and D's gradient and Hessian
+/// (positive semidefinite, on the tangent plane) in u_t.
 struct FrictionTerm {
     Mat3 tangent;
-    Vec3 slip;
+    Vec3 slip;  ///< u_t
+    Vec3 gradient;
+    Mat3 hessian;
 };
+FrictionTerm rigidFrictionTerm(const RigidSegmentContact& c, const Vec3& slip);
+/// Whether contact c has friction in the current pass (a normal force, or a lagged weight).
+bool hasFriction(const RigidSegmentContact& c);
+/// D = mu N f0(|u_t|) of contact c at slip u_t (0 without friction or normal force), or
+/// the lagged form's w/2 |u_t|^2 (RigidSegmentContact::lagged), J.
+double rigidFrictionEnergy(const RigidSegmentContact& c, const Vec3& slip);
+/// The friction force on the string that the last solve balanced, -dD/du_t at slip u_t
+/// with its normal force (or weight), N.
+Vec3 solvedFrictionForce(const RigidSegmentContact& c, const Vec3& slip);
+/// Rigid contact c's friction on the string's own rows, at the segment's ends that move
+/// (`fa`, `fb`). Returns its rigidFrictionTerm.
 FrictionTerm addFrictionRows(StringState& s, const RigidSegmentContact& c, bool fa, bool fb);
-/// The friction weights of a pass, from each contact's penalty force and slip now.
-/// Returns the largest relative change of a weight.
-double weighRigidFriction(StringState& s);
+/// Friction's normal forces for the next pass: each contact's penalty force now. Returns
+/// the largest relative change of one (relative to it, or to kNegligibleNormal of the
+/// string's largest where that is more). `lagged` (an island's members): friction is the
+/// lagged quadratic w/2 |u_t|^2 with w = mu N / max(|u_t|, eps) from the slip now, and the
+/// change is the weights'.
+double weighRigidFriction(StringState& s, bool lagged);
 /// The penalty and friction rows of the string's rigid contacts that penetrate now, without
 /// body unknowns (the bodies stay where they are), with the string's own solve's stiffness
 /// and friction weights.
@@ -96,7 +118,7 @@ double addMaterialEnergy(const StringState& s, const StepContext& ctx, double al
         if (c.node >= 0) extra = alpha * s.scratch.node_step[static_cast<std::size_t>(c.node)];
         const double g = std::min(0.0, rigidGap(s, c, xs, &extra));
         e += 0.5 * c.stiffness * g * g;
-        if (c.friction_weight > 0.0) e += 0.5 * c.friction_weight * rigidSlip(s, c, xs, &extra).squaredNorm();
+        if (hasFriction(c)) e += rigidFrictionEnergy(c, rigidSlip(s, c, xs, &extra));
     }
     return e;
 }

@@ -366,7 +366,7 @@ bool StringIslandMember::frictional() const {
     return std::any_of(string_->contacts.begin(), string_->contacts.end(), [](const RigidSegmentContact& c) { return c.friction > 0.0; });
 }
 
-double StringIslandMember::reweigh() { return weighRigidFriction(*string_); }
+double StringIslandMember::reweigh() { return weighRigidFriction(*string_, true); }
 
 void StringIslandMember::finish(int iterations) {
     StringState& s = *string_;

@@ -36,7 +36,7 @@ void lastContactForces(const World& world, std::vector<ContactForce>& out) {
             f.normal = c.plane_normal;
             f.point = xs - c.gap * c.plane_normal;
             f.normal_force = force;
-            if (c.solved_weight > 0.0) f.friction_force = -c.solved_weight * detail::rigidSlip(s, c, xs);
+            f.friction_force = detail::solvedFrictionForce(c, detail::rigidSlip(s, c, xs));
             out.push_back(f);
         }
     }

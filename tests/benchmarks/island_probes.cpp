@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 
 namespace {
@@ -401,6 +402,13 @@ int main(int argc, char** argv) {
         capstan(kPi / 2, "capstan, quarter turn (end forces)", false);
         capstan(kPi, "capstan, half turn (end forces)", false);
         capstan(2 * kPi, "capstan, full turn (end forces)", false);
+    }
+    // `capstan-at THETA_OVER_PI MASS_OVER_E HANGING`: one capstan run, the light end's travel.
+    if (only == "capstan-at" && argc > 4) {
+        const double theta = std::atof(argv[2]) * kPi, m = std::atof(argv[3]) * std::exp(0.25 * theta);
+        std::printf("theta %.2f pi, M %.4f kg (%.3f e^(mu theta)), %s: light end travels %.2f mm in 2 s\n",
+                    std::atof(argv[2]), m, std::atof(argv[3]), std::atoi(argv[4]) ? "hanging" : "end forces",
+                    1e3 * capstanRun(theta, m, std::atoi(argv[4]) != 0).light_travel);
     }
     if (only == "momentum-trace") {
         for (double density : {1150.0, 20000.0}) {
