@@ -250,7 +250,7 @@ TEST(Snapshot, OtherVersionsTruncatedAndCorruptFilesAreRefusedAndChangeNothing) 
     // Every earlier format, and the next one, is refused by number.
     const std::uint32_t current = tearables::kSnapshotVersion;
     ASSERT_EQ(static_cast<unsigned char>(good[8]), current);
-    // 7: before a string's start overlaps; 6: before each slot's generation (stale ids);
+    // 8: before a string's twist-free frames; 7: before a string's start overlaps; 6: before each slot's generation (stale ids);
     // 5: before a sheet's solver, tolerance and warm start; 4: before a string's integrator
     // and its BDF2 history; 3: two per-segment string arrays the solver never read; 2:
     // before a cloth's weak yarns; 1: before cloths and sheets.
