@@ -153,6 +153,13 @@ json traceFrame(long long step, double t, const Scene& scene, const std::vector<
         s["twist"] = std::move(twist);
         s["rest_length"] = std::move(rest);
         s["broken"] = std::move(broken);
+        // Link (twist + writhe, turns) where the string is twisted: the writhe costs
+        // O(segments^2), and an untwisted string's twist is 0.
+        if (std::any_of(v.twist->begin(), v.twist->end(), [](double a) { return a != 0.0; })) {
+            const tearables::LinkMeasure link = tearables::linkMeasure(core, ids[i]);
+            s["total_twist"] = link.twist;
+            s["writhe"] = link.writhe;
+        }
         strings[scene.strings[i].desc.name] = std::move(s);
     }
     f["strings"] = std::move(strings);

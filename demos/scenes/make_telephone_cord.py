@@ -22,7 +22,10 @@ def cord(name, z0):
               for i in range(n + 1)]
     return {"name": name, "points": points, "radius": 0.002, "density": 1150, "damping": 3.0,
             "material": material,
-            "attachments": [{"particle": 0, "world": points[0]}, {"particle": -1, "world": points[-1]}]}
+            # Held as by two hands: the two end particles at each end pinned, so the end segments
+            # keep their direction and the cord its link (twist + writhe); held at one particle,
+            # an end swivels and lets the twist out.
+            "attachments": [{"particle": p, "world": points[p]} for p in (0, 1, -2, -1)]}
 
 
 scene = {
@@ -38,8 +41,8 @@ scene = {
          "from": 0, "until": twist_seconds},
         # Then both right ends move 0.8 m toward the left ends in 4 s and hold for 0.5 s (the
         # tightening coil touches itself more and more: string collisions cost 10 ms a step).
-        {"type": "move", "target": "cord", "particle": -1, "velocity": [-0.2, 0, 0], "from": 3, "until": 7},
-        {"type": "move", "target": "plain", "particle": -1, "velocity": [-0.2, 0, 0], "from": 3, "until": 7},
+        *[{"type": "move", "target": name, "particle": p, "velocity": [-0.2, 0, 0], "from": 3, "until": 7}
+          for name in ("cord", "plain") for p in (-2, -1)],
     ],
     "camera": {"eye": [-0.3, 1.16, 0.45], "target": [-0.3, 1.0, -0.3], "fov": 45},
     "output": {"every": 10},

@@ -51,4 +51,20 @@ void lastContactForces(const World& world, std::vector<ContactForce>& out);
 /// id when it is free or pinned to a world point. Throws InvalidInput ("string", "particle").
 RigidId gluedBody(const World& world, StringId id, int particle);
 
+/// A string's twist and writhe, in turns (link = twist + writhe is what a rod whose end
+/// tangents are held keeps as it coils; tearables/queries.hpp, src/string/link.cpp).
+struct LinkMeasure {
+    double twist = 0.0;   ///< sum over intact joints of the material frame's turn (theta_{k+1} - theta_k) / 2 pi
+    double writhe = 0.0;  ///< the Gauss double integral of the centreline over pairs of intact segments / 4 pi
+};
+/// Twist and writhe of a string as it is now: the writhe summed exactly over pairs of
+/// non-adjacent intact segments (Klenin and Langowski 2000, method 1a; O(segments^2)), of
+/// the open centreline (no closure: an open curve's writhe is not an integer). Throws
+/// InvalidInput ("string") for an unknown id.
+LinkMeasure linkMeasure(const World& world, StringId id);
+/// The writhe of the polyline through `points` (turns), by the same sum over pairs of
+/// non-adjacent segments: for a rod measured with straight tails added along its held
+/// ends, whose writhe with the twist makes its link.
+double polylineWrithe(const std::vector<Vec3>& points);
+
 }  // namespace tearables

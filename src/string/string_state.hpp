@@ -214,6 +214,10 @@ struct StringState {
     std::vector<std::uint8_t> torsion_yielded;  ///< per joint
     std::vector<Vec3> twist_force;        ///< per particle, N (Eq. 6), applied next step
     double end_twist[2] = {0.0, 0.0};     ///< held angle of clamped ends (first, last segment), rad
+    /// Per segment: the director of its twist-free (Bishop) frame where the last twist solve
+    /// left it, unit and normal to the segment (twist.cpp, followFrames); empty while the
+    /// string is untwisted (the twist solve skipped).
+    std::vector<Vec3> twist_frame;
     double twist_glued_pred[2] = {0.0, 0.0};
     double twist_glued_axis_inertia[2] = {0.0, 0.0};
     double shortest_rest = 0.0;           ///< m, for the convergence tolerance

@@ -52,6 +52,93 @@ bool untwisted(const StringState& s) {
     return positiveZeros(s.twist) && positiveZeros(s.twist_velocity) && positiveZeros(s.rest_twist);
 }
 
+/// v carried from unit direction a to unit direction b by the rotation about a x b that
+/// takes a to b (parallel transport; Rodrigues' formula with cos = a.b, sin = |a x b|).
+/// Opposite directions: the half turn about a normal of a.
+Vec3 transport(const Vec3& v, const Vec3& a, const Vec3& b) {
+    const Vec3 axis = a.cross(b);
+    const double sine = axis.norm(), cosine = a.dot(b);
+    if (!(sine > 1e-14)) {
+        if (cosine > 0.0) return v;
+        Eigen::Index i = 0;
+        a.cwiseAbs().minCoeff(&i);
+        const Vec3 k = (Vec3::Unit(i) - a[i] * a).normalized();
+        return 2.0 * k.dot(v) * k - v;
+    }
+    const Vec3 k = axis / sine;
+    return cosine * v + sine * k.cross(v) + (1.0 - cosine) * k.dot(v) * k;
+}
+
+/// Unit vector normal to unit t: the coordinate axis least aligned with it, made normal.
+Vec3 normalTo(const Vec3& t) {
+    Eigen::Index i = 0;
+    t.cwiseAbs().minCoeff(&i);
+    return (Vec3::Unit(i) - t[i] * t).normalized();
+}
+
+/// u made unit and normal to unit t (a fresh normal where u lies along t).
+Vec3 normalPart(const Vec3& u, const Vec3& t) {
+    const Vec3 n = u - u.dot(t) * t;
+    const double len = n.norm();
+    return len > 1e-9 ? Vec3(n / len) : normalTo(t);
+}
+
+/// Segment j's unit direction between particles a and b, or `fallback` where it has none.
+Vec3 direction(const Vec3& a, const Vec3& b, const Vec3& fallback) {
+    const Vec3 d = b - a;
+    const double len = d.norm();
+    return len > 0.0 && std::isfinite(len) ? Vec3(d / len) : fallback;
+}
+
+/// The twist-free frames follow the centreline in time (Bergou, Audoly, Vouga, Wardetzky,
+/// Grinspun, "Discrete Viscous Threads", SIGGRAPH 2010, Sec. 4.2: the time-parallel
+/// reference frame). theta_j is the angle of segment j's material frame from its Bishop
+/// frame: the frame carried from the first segment along the string without turning about
+/// any segment (space-parallel). Over a step each segment's frames are carried in time
+/// from its old direction to its new one without turning about it (only the twist solve
+/// turns the material); the Bishop frame of the new centreline then differs from the
+/// carried one by the holonomy of the move, the writhe it made between the first segment
+/// and segment j (Fuller), and theta_j takes that up:
+///   theta_j += angle from the new Bishop director to the carried one, about t_j.
+/// The first segment's Bishop frame is its carried frame (no change); a clamped last
+/// segment holds its material frame against its own carried frame, so its held angle
+/// takes the same change. Without this, theta kept its value in a frame rebuilt each step,
+/// and a clamped rod that coils kept all its twist while it gained writhe: link
+/// (twist + writhe) was not conserved. First call (or after the string was untwisted, or
+/// its segments changed): the frames of the current centreline, theta unchanged.
+void followFrames(StringState& s) {
+    const std::size_t m = s.segments();
+    const std::size_t n = s.particles();
+    if (s.twist_frame.size() != m) {
+        s.twist_frame.resize(m);
+        Vec3 prev = direction(s.x[0], s.x[1], Vec3::UnitX());
+        Vec3 u = normalTo(prev);
+        for (std::size_t j = 0; j < m; ++j) {
+            const Vec3 t = direction(s.x[j], s.x[j + 1], prev);
+            u = normalPart(transport(u, prev, t), t);
+            s.twist_frame[j] = u;
+            prev = t;
+        }
+        return;
+    }
+    Vec3 prev = Vec3::Zero(), bishop = Vec3::Zero();
+    double last_turn = 0.0;
+    for (std::size_t j = 0; j < m; ++j) {
+        const Vec3 t_old = direction(s.x_prev[j], s.x_prev[j + 1], j == 0 ? Vec3::UnitX() : prev);
+        const Vec3 t = direction(s.x[j], s.x[j + 1], t_old);
+        const Vec3 carried = normalPart(transport(normalPart(s.twist_frame[j], t_old), t_old, t), t);
+        bishop = j == 0 ? carried : normalPart(transport(bishop, prev, t), t);
+        const double turn = std::atan2(bishop.cross(carried).dot(t), bishop.dot(carried));
+        if (std::isfinite(turn)) {
+            s.twist[j] += turn;
+            last_turn = turn;
+        }
+        s.twist_frame[j] = bishop;
+        prev = t;
+    }
+    if (clamped(s, n - 1)) s.end_twist[1] += last_turn;
+}
+
 }  // namespace
 
 void updateTwistStiffness(StringState& s) {
@@ -87,8 +174,10 @@ void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx) {
     if (s.scratch.twist_skipped) {
         std::copy(s.twist.begin(), s.twist.end(), s.twist_old.begin());
         s.twist_glued_axis_inertia[0] = s.twist_glued_axis_inertia[1] = 0.0;
+        s.twist_frame.clear();
         return;
     }
+    followFrames(s);
     updateTwistStiffness(s);
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
     // Rows: inertia about the axis (or fixed for a clamped end), springs between joints.
@@ -171,10 +260,15 @@ void solveTwist(StringState& s, RigidTable& rigids, const StepContext& ctx) {
 }
 
 // The twist force (Strings Eq. 6): the gradient of the same energy with respect to the
-// positions, in the general form of Bergou et al. 2008: with m_p = theta_p - theta_{p-1} and
-// M_p = k (m_p - tau0) at interior particle p, dm_p/dx_{p-1} = kb_p / (2|e_{p-1}|),
-// dm_p/dx_{p+1} = -kb_p / (2|e_p|), dm_p/dx_p = -(the sum), kb_p = 2 e_{p-1} x e_p /
-// (|e_{p-1}||e_p| + e_{p-1}.e_p) (Eq. 7). It acts in the next step's prediction.
+// positions, in the general form of Bergou et al. 2008, with m_p = theta_p - theta_{p-1}
+// and M_p = k (m_p - tau0) at interior particle p, and kb_p = 2 e_{p-1} x e_p /
+// (|e_{p-1}||e_p| + e_{p-1}.e_p) (Eq. 7). The joint's twist changes with the centreline
+// by the holonomy followFrames applies: dm_p/dx_{p-1} = -kb_p / (2|e_{p-1}|),
+// dm_p/dx_{p+1} = kb_p / (2|e_p|), dm_p/dx_p = -(the sum) (checked against followFrames'
+// increments by finite differences; the signs are those of the reference implementations'
+// gradTwist, opposite to how the 2008 paper's text prints them). The force, -M_p dm_p/dx,
+// is then the exact gradient, and a rod's link (twist + writhe) is kept. It acts in the
+// next step's prediction.
 void computeTwistForces(StringState& s) {
     const std::size_t n = s.particles();
     // After a skipped twist solve every moment is zero: the forces are zero, and already
@@ -199,8 +293,8 @@ void computeTwistForces(StringState& s) {
         const double denom = la * lb + ea.dot(eb);
         if (!(denom > 1e-12 * la * lb)) continue;  // folded back on itself: undefined
         const Vec3 kb = 2.0 * ea.cross(eb) / denom;
-        const Vec3 d_prev = kb / (2.0 * la);
-        const Vec3 d_next = -kb / (2.0 * lb);
+        const Vec3 d_prev = -kb / (2.0 * la);
+        const Vec3 d_next = kb / (2.0 * lb);
         s.twist_force[p - 1] -= moment * d_prev;
         s.twist_force[p + 1] -= moment * d_next;
         s.twist_force[p] += moment * (d_prev + d_next);

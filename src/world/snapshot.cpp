@@ -451,6 +451,7 @@ void io(A& a, detail::StringState& s) {
     io(a, s.torsion_yielded);
     io(a, s.twist_force);
     for (double& v : s.end_twist) io(a, v);
+    io(a, s.twist_frame);
     for (double& v : s.twist_glued_pred) io(a, v);
     for (double& v : s.twist_glued_axis_inertia) io(a, v);
     io(a, s.shortest_rest);
@@ -641,6 +642,7 @@ void checkString(const detail::StringState& s, const detail::RigidTable& rigids,
     for (const auto* v : {&s.rest_twist, &s.joint_stiffness, &s.torsion_peak, &s.joint_strain})
         size(v->size(), joints, "a per-joint array");
     size(s.torsion_yielded.size(), joints, "torsion_yielded");
+    if (!s.twist_frame.empty()) size(s.twist_frame.size(), m, "twist_frame");
     for (std::size_t p = 0; p < n; ++p) {
         const detail::ParticleHold& h = s.hold[p];
         if (h.kind == detail::ParticleHold::Kind::Glue &&

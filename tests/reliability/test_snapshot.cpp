@@ -251,9 +251,9 @@ TEST(Snapshot, OtherVersionsTruncatedAndCorruptFilesAreRefusedAndChangeNothing) 
     // Every earlier format, and the next one, is refused by number.
     const std::uint32_t current = tearables::kSnapshotVersion;
     ASSERT_EQ(static_cast<unsigned char>(good[8]), current);
-    // 8 and 9: development formats with some of what 10 adds (a sheet's center or corner,
-    // a string's start overlaps and yield_in_solve); 7: before all three; 6: before each
-    // slot's generation (stale ids);
+    // 10: before a string's twist-free frames; 8 and 9: development formats with some of
+    // what 10 adds (a sheet's center or corner, a string's start overlaps and
+    // yield_in_solve); 7: before all three; 6: before each slot's generation (stale ids);
     // 5: before a sheet's solver, tolerance and warm start; 4: before a string's integrator
     // and its BDF2 history; 3: two per-segment string arrays the solver never read; 2:
     // before a cloth's weak yarns; 1: before cloths and sheets.

@@ -1,10 +1,13 @@
 // Twist (Strings Sec. 4): propagation along a clamped string, non-uniform rigidity,
 // torsional plasticity and tearing by torsion.
+#include "tearables/queries.hpp"
 #include "tearables/world.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 namespace {
 
@@ -204,4 +207,118 @@ TEST(Twist, TwistedSlackStringBucklesOutOfItsLine) {
     };
     EXPECT_LT(deviation(0.0), 1e-6);
     EXPECT_GT(deviation(12.0), 0.03);
+}
+
+namespace {
+
+/// The rod with straight tails 1 km long along its held ends (the closure along the end
+/// tangents under which Tw + Wr is the link), as a polyline.
+std::vector<Vec3> withTails(const std::vector<Vec3>& x) {
+    std::vector<Vec3> out = x;
+    out.insert(out.begin(), x.front() - 1000.0 * (x[1] - x[0]).normalized());
+    out.push_back(x.back() + 1000.0 * (x.back() - x[x.size() - 2]).normalized());
+    return out;
+}
+
+}  // namespace
+
+// Link conservation (Calugareanu-White-Fuller), kinematic: a rod held straight along x and
+// twisted one turn, every particle pinned, is carried by its pins into n = 3 turns of a
+// helix of tangent angle alpha = 40 degrees between straight axial ends. Fuller's closed
+// form gives the writhe of the helix with its axial tails, n (1 - cos alpha) = 0.7019
+// turns, negative for this left-handed helix (the polyline's writhe differs from the
+// smooth helix's by its discretisation: 40 points a turn, chords, asserted within 2%); the
+// end segments never turn, so the link is still 1 and the twist must change by minus the
+// writhe: Tw + Wr = 1 within 1% of the writhe.
+TEST(Twist, RodCarriedIntoAHelixTradesTwistForWritheAsFullerSays) {
+    tearables::WorldSettings ws;
+    ws.gravity = Vec3::Zero();
+    ws.string_collisions = false;
+    World world(ws);
+    const int turns_of_helix = 3, per_turn = 40, tail = 10;
+    const double alpha = 40.0 * kPi / 180.0, radius = 0.05;
+    const double pitch_angle_step = 2 * kPi / per_turn;
+    // The helix: arc length per point ds = radius * step / sin(alpha); axial advance ds cos(alpha).
+    const double ds = radius * pitch_angle_step / std::sin(alpha);
+    const int helix_points = turns_of_helix * per_turn;
+    std::vector<Vec3> target;
+    for (int i = 0; i <= tail; ++i) target.emplace_back(i * ds, 0, 0);
+    for (int k = 1; k <= helix_points; ++k) {
+        const double phi = k * pitch_angle_step;
+        target.emplace_back(tail * ds + k * ds * std::cos(alpha), radius * (1.0 - std::cos(phi)), radius * std::sin(phi));
+    }
+    const Vec3 end = target.back();
+    for (int i = 1; i <= tail; ++i) target.push_back(end + Vec3(i * ds, 0, 0));
+    // The straight rod these points come from: the same axial positions, on the axis.
+    StringDesc d;
+    for (const Vec3& p : target) d.points.emplace_back(p.x(), 0, 0);
+    d.radius = 0.001;
+    d.tearable = false;
+    d.material.variation = 0.0;
+    d.material.torsion.yield = 500.0;
+    d.material.torsion.rupture = 1000.0;
+    const StringId id = world.addString(d);
+    const int n = static_cast<int>(d.points.size());
+    for (int p = 0; p < n; ++p) world.attachToPoint(id, p, d.points[static_cast<std::size_t>(p)]);
+    const int twisting = 50, carrying = 200, holding = 50;
+    for (int i = 0; i < twisting; ++i) {
+        world.turnEnd(id, -1, 2 * kPi / twisting);
+        world.step(0.01);
+    }
+    for (int i = 1; i <= carrying + holding; ++i) {
+        const double s = std::min(1.0, static_cast<double>(i) / carrying);
+        for (int p = 0; p < n; ++p) {
+            const Vec3& a = d.points[static_cast<std::size_t>(p)];
+            const Vec3& b = target[static_cast<std::size_t>(p)];
+            world.movePin(id, p, a + s * (b - a));
+        }
+        world.step(0.01);
+    }
+    const double writhe = tearables::polylineWrithe(withTails(*world.view(id).positions));
+    // Left-handed: seen from +x it turns clockwise.
+    const double fuller = -turns_of_helix * (1.0 - std::cos(alpha));
+    EXPECT_NEAR(writhe, fuller, 0.02 * std::abs(fuller));
+    const double twist = tearables::linkMeasure(world, id).twist;
+    EXPECT_NEAR(twist + writhe, 1.0, 0.01 * std::abs(fuller));
+}
+
+// Link conservation, dynamic: a rod of 1 m held by its two end segments (two pinned
+// particles at each end), twisted N = 4 turns at one end, then its ends brought 0.5 m
+// together over 5 s: it coils into a plectoneme, trading its twist for writhe (all of it,
+// measured: Wr = 3.95-4.03 turns at the end), and Tw + Wr stays N within 5% at every step.
+// (A rod that passed through itself would change its link by whole turns.)
+TEST(Twist, ClampedRodThatCoilsKeepsItsLink) {
+    tearables::WorldSettings ws;
+    ws.gravity = Vec3::Zero();
+    World world(ws);
+    const int segments = 100;
+    StringDesc d = StringDesc::straight({0, 0, 0}, {1, 0, 0}, segments);
+    d.radius = 0.003;
+    d.material.variation = 0.0;
+    d.material.torsion.yield = 10.0;
+    d.material.torsion.rupture = 20.0;
+    d.damping = 3.0;
+    for (std::size_t i = 1; i + 1 < d.points.size(); ++i) d.points[i].y() = 1e-4 * std::sin(3.1 * i);
+    const StringId id = world.addString(d);
+    const double step = 1.0 / segments;
+    for (int p : {0, 1}) world.attachToPoint(id, p, {p * step, 0, 0});
+    for (int p : {-2, -1}) world.attachToPoint(id, p, {1.0 + (p + 1) * step, 0, 0});
+    const double turns = 4.0, h = 0.01;
+    const int twisting = 100, closing = 500, settling = 100;
+    double worst = 0.0, writhe = 0.0;
+    for (int i = 0; i < twisting + closing + settling; ++i) {
+        if (i < twisting) world.turnEnd(id, -1, turns * 2 * kPi / twisting);
+        if (i >= twisting && i < twisting + closing) {
+            const double shift = 0.5 * (i - twisting + 1) / closing;
+            world.movePin(id, -2, {1.0 - step - shift, 0, 0});
+            world.movePin(id, -1, {1.0 - shift, 0, 0});
+        }
+        world.step(h);
+        if (i >= twisting && i % 5 == 0) {
+            writhe = tearables::polylineWrithe(withTails(*world.view(id).positions));
+            worst = std::max(worst, std::abs(tearables::linkMeasure(world, id).twist + writhe - turns));
+        }
+    }
+    EXPECT_LT(worst, 0.05 * turns);
+    EXPECT_GT(writhe, 0.5 * turns);
 }
