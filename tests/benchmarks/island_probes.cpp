@@ -115,16 +115,7 @@ void bridgeStatics(int crates) {
     for (int i = 1; i <= steps; ++i) {
         rig.step();
         if (i <= steps - window) continue;
-        double pull = 0;
-        for (const auto& [id, particle] : bridge.anchors) {
-            const auto v = rig.ropes->core().view(id);
-            const auto& x = *v.positions;
-            const std::size_t n = x.size();
-            if (particle == 0)
-                pull += -v.tension->front() * (x[1] - x[0]).normalized().y() + (*v.masses)[0] * kG;
-            else
-                pull += -v.tension->back() * (x[n - 2] - x[n - 1]).normalized().y() + (*v.masses)[n - 1] * kG;
-        }
+        const double pull = tearables::island::anchorPull(rig.ropes->core(), bridge, kG);
         const double ratio = pull / weight;
         sum += ratio;
         lo = std::min(lo, ratio);

@@ -142,6 +142,24 @@ inline Bridge buildBridge(Rig& rig, const BridgeDesc& b) {
     return out;
 }
 
+/// The bridge's pinned ends' upward pull, N, for gravity g (m/s^2, downward): at each the
+/// end segment pulls its pinned particle toward the next with T u, u = (x_next - x_pin) /
+/// |...|, and the pin holds that and the particle's weight, an upward reaction -T u_y + m g
+/// (T the library's momentum-balance tension: the API gives no pin reaction force).
+inline double anchorPull(const World& w, const Bridge& bridge, double g) {
+    double pull = 0.0;
+    for (const auto& [id, particle] : bridge.anchors) {
+        const auto v = w.view(id);
+        const auto& x = *v.positions;
+        const std::size_t n = x.size();
+        if (particle == 0)
+            pull += -v.tension->front() * (x[1] - x[0]).normalized().y() + (*v.masses)[0] * g;
+        else
+            pull += -v.tension->back() * (x[n - 2] - x[n - 1]).normalized().y() + (*v.masses)[n - 1] * g;
+    }
+    return pull;
+}
+
 /// A 64-segment rope, 1 m long, radius 6 mm (nylon), lying straight along x on a static
 /// ground plane y = 0 (its axis at y = radius + 1 mm).
 inline StringId buildFloorRope(Rig& rig, int segments = 64) {
