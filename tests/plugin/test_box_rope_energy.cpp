@@ -21,9 +21,12 @@
 namespace tearables {
 namespace {
 
-TEST(RigidCollision, FreeBoxThrownAtAFreeRopeNeverGainsEnergy) {
-    for (double speed : {2.0, 4.0, 8.0})
-        for (double offset : {0.0, 0.03, 0.07, 0.11}) {
+/// A 1 kg box (0.2 m cube) thrown at `speed` down onto a free rope of radius `radius`
+/// lying 0.5 m below it, `offset` off the rope's middle, in zero gravity; 100 steps. The
+/// momentum's drift is asserted where `self_contacts` is off or `check_momentum` is set.
+void throwBoxAtRope(double speed, double offset, double radius, bool self_contacts = true, bool check_momentum = true) {
+    {
+        {
             testing::Physics phys(0.0);
             btRigidBody& box = phys.add(std::make_unique<btBoxShape>(btVector3(0.1f, 0.1f, 0.1f)), 1.0,
                                         btVector3(static_cast<btScalar>(offset), 0.5f, 0));
@@ -31,10 +34,11 @@ TEST(RigidCollision, FreeBoxThrownAtAFreeRopeNeverGainsEnergy) {
             box.setActivationState(DISABLE_DEACTIVATION);
             WorldSettings settings;
             settings.rigid_contacts = true;
+            settings.string_collisions = self_contacts;
             BulletWorld ropes(*phys.world, settings);
             StringDesc d = StringDesc::straight({-0.5, 0, 0}, {0.5, 0, 0}, 40);
             d.material.variation = 0.0;
-            d.radius = 0.005;
+            d.radius = radius;
             d.bending = 0.0;
             d.tearable = false;
             const StringId id = ropes.addString(d);
@@ -67,9 +71,28 @@ TEST(RigidCollision, FreeBoxThrownAtAFreeRopeNeverGainsEnergy) {
             // conserves it to rounding), except what the joint solve of the rope's
             // contacts with itself withholds from the box, which holds the box still
             // (cluster_solve.cpp): up to 1.2% in these cases (docs/island-plan.md).
-            EXPECT_LT(drift, 0.015) << "speed " << speed << " m/s, offset " << offset << " m";
+            if (check_momentum) EXPECT_LT(drift, 0.015) << "speed " << speed << " m/s, offset " << offset << " m";
             // The impact took energy: the box drags the rope along.
             EXPECT_LT(testing::kineticEnergy(box), 0.99 * start) << "speed " << speed << " m/s, offset " << offset << " m";
+        }
+    }
+}
+
+TEST(RigidCollision, FreeBoxThrownAtAFreeRopeNeverGainsEnergy) {
+    for (double speed : {2.0, 4.0, 8.0})
+        for (double offset : {0.0, 0.03, 0.07, 0.11}) throwBoxAtRope(speed, offset, 0.005);  // rope 0.09 kg
+}
+
+// The same with a rope heavier than the box (radius 2 cm: 1.43 kg against 1 kg). The rope
+// wraps the box and touches itself; the joint solve of a string's contacts with itself holds
+// the bodies still (string contacts are not in islands yet), and withholds 3.4-6.5% of the
+// momentum in these cases (measured), so the momentum is asserted with self contacts off:
+// the island's exchange between box and heavy rope. Energy never rises either way.
+TEST(RigidCollision, FreeBoxThrownAtAHeavierFreeRopeNeverGainsEnergy) {
+    for (double speed : {4.0, 8.0})
+        for (double offset : {0.0, 0.07}) {
+            throwBoxAtRope(speed, offset, 0.02, true, false);
+            throwBoxAtRope(speed, offset, 0.02, false, true);
         }
 }
 
