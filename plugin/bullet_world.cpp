@@ -938,15 +938,15 @@ PaperId BulletWorld::addPaper(const PaperDesc& desc, int group, int mask) {
     return id;
 }
 
-void BulletWorld::attachPaper(PaperId id, std::uint32_t vertex, const btVector3& world_point) {
+void BulletWorld::attachPaper(PaperId id, int vertex, const btVector3& world_point) {
     core_->attachPaperToPoint(id, vertex, toCore(world_point));
 }
 
-void BulletWorld::attachPaper(PaperId id, std::uint32_t vertex, btRigidBody& body, const btVector3& local_point) {
+void BulletWorld::attachPaper(PaperId id, int vertex, btRigidBody& body, const btVector3& local_point) {
     if (!body.getBroadphaseHandle()) throw InvalidInput("body", "is not in the Bullet world");
     requireLive(*core_, id);
-    if (vertex >= core_->viewPaper(id).vertexCount()) throw InvalidInput("vertex", "out of range");
-    core_->attachPaperToRigid(id, vertex, proxyFor(body), toCore(local_point));
+    const std::uint32_t v = core_->paperVertex(id, vertex);
+    core_->attachPaperToRigid(id, static_cast<int>(v), proxyFor(body), toCore(local_point));
 }
 
 void BulletWorld::forgetBody(const btRigidBody& body) {
@@ -1105,9 +1105,10 @@ void BulletWorld::applyClothForce(ClothId id, int vertex, const btVector3& force
     it->second += f;
 }
 
-void BulletWorld::applyPaperForce(PaperId id, std::uint32_t vertex, const btVector3& force) {
+void BulletWorld::applyPaperForce(PaperId id, int index, const btVector3& force) {
     const Vec3 f = tearables::toCore(force);
-    core_->applyPaperForce(id, vertex, Vec3::Zero());
+    core_->applyPaperForce(id, index, Vec3::Zero());
+    const std::uint32_t vertex = core_->paperVertex(id, index);
     if (!f.allFinite()) throw InvalidInput("force", "must be finite");
     auto [it, fresh] = paper_forces_.try_emplace({id, vertex}, Vec3::Zero());
     it->second += f;

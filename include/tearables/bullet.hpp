@@ -185,11 +185,11 @@ public:
     PaperId addPaper(const PaperDesc& desc, int group, int mask);
     /// Removes a sheet; its id becomes stale.
     void removePaper(PaperId id);
-    /// Pins a vertex of a sheet to a world point.
-    void attachPaper(PaperId id, std::uint32_t vertex, const btVector3& world_point);
+    /// Pins a vertex of a sheet (flat index, negative counts from the end) to a world point.
+    void attachPaper(PaperId id, int vertex, const btVector3& world_point);
     /// Glues a vertex of a sheet to a rigid body at a point in the body's frame (relative
     /// to its centre of mass); the body must be in this Bullet world. Two-way.
-    void attachPaper(PaperId id, std::uint32_t vertex, btRigidBody& body, const btVector3& local_point);
+    void attachPaper(PaperId id, int vertex, btRigidBody& body, const btVector3& local_point);
 
     /// Adds a force (N) on a particle for every internal step of the next stepSimulation
     /// that steps, then clears it, as btRigidBody::applyCentralForce and clearForces do: a
@@ -197,10 +197,10 @@ public:
     /// (A stepSimulation that takes no internal step keeps it for the next.) Throws
     /// InvalidInput ("string", "particle", "force") and changes nothing on bad input.
     void applyForce(StringId id, int particle, const btVector3& force);
-    /// As applyForce, on a cloth vertex (flat index, negative counts from the end) or on a
-    /// sheet's vertex. Throws InvalidInput ("cloth"/"paper", "vertex", "force").
+    /// As applyForce, on a cloth's or a sheet's vertex (flat index, negative counts from the
+    /// end). Throws InvalidInput ("cloth"/"paper", "vertex", "force").
     void applyClothForce(ClothId id, int vertex, const btVector3& force);
-    void applyPaperForce(PaperId id, std::uint32_t vertex, const btVector3& force);
+    void applyPaperForce(PaperId id, int vertex, const btVector3& force);
     /// Moves a particle's world pin to `point`, reached at the end of the next stepSimulation
     /// and followed linearly over its internal steps. Throws InvalidInput ("string",
     /// "particle": not pinned to a world point, "point") and changes nothing on bad input.

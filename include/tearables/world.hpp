@@ -347,16 +347,19 @@ public:
     PaperView viewPaper(PaperId id) const;
     /// The descriptor a sheet was created from.
     const PaperDesc& paperDesc(PaperId id) const;
-    /// Pins a vertex to a world point (m).
-    void attachPaperToPoint(PaperId id, std::uint32_t vertex, const Vec3& point);
+    /// Pins a vertex (flat index, negative counts from the end, as a cloth's) to a world point (m).
+    void attachPaperToPoint(PaperId id, int vertex, const Vec3& point);
     /// Glues a vertex to a rigid body at a point in the body's frame (m); two-way.
-    void attachPaperToRigid(PaperId id, std::uint32_t vertex, RigidId body, const Vec3& local_point);
+    void attachPaperToRigid(PaperId id, int vertex, RigidId body, const Vec3& local_point);
     /// Moves a vertex's world pin (kinematic driving); throws if it is not pinned.
-    void movePaperPin(PaperId id, std::uint32_t vertex, const Vec3& point);
+    void movePaperPin(PaperId id, int vertex, const Vec3& point);
     /// Frees a vertex (a Release event is emitted); no-op when free.
-    void detachPaper(PaperId id, std::uint32_t vertex);
+    void detachPaper(PaperId id, int vertex);
     /// Adds a force (N) on a vertex for the next step only.
-    void applyPaperForce(PaperId id, std::uint32_t vertex, const Vec3& force);
+    void applyPaperForce(PaperId id, int vertex, const Vec3& force);
+    /// A sheet's vertex index, negative counting from the end, as an index in [0, count).
+    /// Throws InvalidInput ("paper", "vertex").
+    std::uint32_t paperVertex(PaperId id, int vertex) const;
     /// Wall time of the sheets' stages in the last step.
     const PaperTimes& lastPaperTimes() const;
 

@@ -395,15 +395,26 @@ std::vector<PaperId> World::papers() const { return impl_->papers.ids(); }
 bool World::contains(PaperId id) const { return impl_->papers.contains(id); }
 PaperView World::viewPaper(PaperId id) const { return impl_->papers.view(id); }
 const PaperDesc& World::paperDesc(PaperId id) const { return impl_->papers.get(id).desc; }
-void World::attachPaperToPoint(PaperId id, std::uint32_t vertex, const Vec3& point) { impl_->papers.attachToPoint(id, vertex, point); }
-void World::attachPaperToRigid(PaperId id, std::uint32_t vertex, RigidId body, const Vec3& local_point) {
-    impl_->papers.attachToRigid(id, vertex, body, local_point, impl_->rigids);
+std::uint32_t World::paperVertex(PaperId id, int vertex) const {
+    const int n = static_cast<int>(impl_->papers.get(id).vertices());
+    if (vertex < -n || vertex >= n)
+        throw InvalidInput("vertex", "vertex index " + std::to_string(vertex) + " out of range (the sheet has " +
+                                         std::to_string(n) + " vertices)");
+    return static_cast<std::uint32_t>(vertex < 0 ? vertex + n : vertex);
 }
-void World::movePaperPin(PaperId id, std::uint32_t vertex, const Vec3& point) { impl_->papers.movePin(id, vertex, point); }
-void World::detachPaper(PaperId id, std::uint32_t vertex) {
-    impl_->papers.release(id, vertex, EventCause::Request, impl_->time, impl_->steps, impl_->pending);
+void World::attachPaperToPoint(PaperId id, int vertex, const Vec3& point) {
+    impl_->papers.attachToPoint(id, paperVertex(id, vertex), point);
 }
-void World::applyPaperForce(PaperId id, std::uint32_t vertex, const Vec3& force) { impl_->papers.applyForce(id, vertex, force); }
+void World::attachPaperToRigid(PaperId id, int vertex, RigidId body, const Vec3& local_point) {
+    impl_->papers.attachToRigid(id, paperVertex(id, vertex), body, local_point, impl_->rigids);
+}
+void World::movePaperPin(PaperId id, int vertex, const Vec3& point) { impl_->papers.movePin(id, paperVertex(id, vertex), point); }
+void World::detachPaper(PaperId id, int vertex) {
+    impl_->papers.release(id, paperVertex(id, vertex), EventCause::Request, impl_->time, impl_->steps, impl_->pending);
+}
+void World::applyPaperForce(PaperId id, int vertex, const Vec3& force) {
+    impl_->papers.applyForce(id, paperVertex(id, vertex), force);
+}
 const PaperTimes& World::lastPaperTimes() const { return impl_->papers.lastTimes(); }
 void World::setContactProvider(ContactProvider* provider) { impl_->contact_provider = provider; }
 const std::vector<RigidContact>& World::lastContacts() const { return impl_->strings.lastContacts(); }

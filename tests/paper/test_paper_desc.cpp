@@ -163,6 +163,30 @@ TEST(PaperDesc, AttachmentsHoldVerticesToPointsAndBodies) {
     EXPECT_THROW(world.viewPaper(id), InvalidInput);
 }
 
+// A sheet's vertex is numbered as a cloth's: a flat index, negative counting from the end
+// (-1 the last vertex); out of range is refused naming "vertex", and nothing changes.
+TEST(PaperDesc, NegativeVertexIndicesCountFromTheEnd) {
+    World world;
+    const PaperId id = world.addPaper(small());
+    const int n = static_cast<int>(world.viewPaper(id).vertexCount());
+    EXPECT_EQ(world.paperVertex(id, -1), static_cast<std::uint32_t>(n - 1));
+    EXPECT_EQ(world.paperVertex(id, -n), 0u);
+    world.attachPaperToPoint(id, -1, Vec3(0, 2, 0));
+    world.step(0.01);
+    EXPECT_EQ((*world.viewPaper(id).positions)[static_cast<std::size_t>(n - 1)], Vec3(0, 2, 0));
+    for (const int bad : {n, -n - 1}) {
+        try {
+            world.attachPaperToPoint(id, bad, Vec3::Zero());
+            ADD_FAILURE() << bad << " accepted";
+        } catch (const InvalidInput& e) {
+            EXPECT_EQ(e.field(), "vertex");
+        }
+    }
+    world.movePaperPin(id, n - 1, Vec3(0, 2.5, 0));
+    world.step(0.01);
+    EXPECT_EQ((*world.viewPaper(id).positions)[static_cast<std::size_t>(n - 1)], Vec3(0, 2.5, 0));
+}
+
 }  // namespace
 }  // namespace tearables
 
