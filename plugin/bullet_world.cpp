@@ -945,8 +945,8 @@ void BulletWorld::attachPaper(PaperId id, int vertex, const btVector3& world_poi
 void BulletWorld::attachPaper(PaperId id, int vertex, btRigidBody& body, const btVector3& local_point) {
     if (!body.getBroadphaseHandle()) throw InvalidInput("body", "is not in the Bullet world");
     requireLive(*core_, id);
-    const std::uint32_t v = core_->paperVertex(id, vertex);
-    core_->attachPaperToRigid(id, static_cast<int>(v), proxyFor(body), toCore(local_point));
+    core_->paperVertex(id, vertex);  // refused before a proxy is made for the body
+    core_->attachPaperToRigid(id, vertex, proxyFor(body), toCore(local_point));
 }
 
 void BulletWorld::forgetBody(const btRigidBody& body) {
@@ -1107,7 +1107,6 @@ void BulletWorld::applyClothForce(ClothId id, int vertex, const btVector3& force
 
 void BulletWorld::applyPaperForce(PaperId id, int index, const btVector3& force) {
     const Vec3 f = tearables::toCore(force);
-    core_->applyPaperForce(id, index, Vec3::Zero());
     const std::uint32_t vertex = core_->paperVertex(id, index);
     if (!f.allFinite()) throw InvalidInput("force", "must be finite");
     auto [it, fresh] = paper_forces_.try_emplace({id, vertex}, Vec3::Zero());

@@ -22,6 +22,18 @@ inline std::string num(double v) {
     return s.str();
 }
 
+/// An index into `count` items, negative counting from the end (-1 the last), as an index
+/// in [0, count). Throws InvalidInput(field, "<kind> index i out of range (the <owner> has
+/// n <plural>)").
+inline std::size_t resolveSignedIndex(int index, std::size_t count, std::string_view field, const char* kind,
+                                      const char* owner, const char* plural) {
+    const int n = static_cast<int>(count);
+    if (index < -n || index >= n)
+        throw InvalidInput(std::string(field), std::string(kind) + " index " + std::to_string(index) + " out of range (the " +
+                                                   owner + " has " + std::to_string(n) + " " + plural + ")");
+    return static_cast<std::size_t>(index < 0 ? index + n : index);
+}
+
 /// Whether every coordinate of `v` is finite.
 inline bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
 

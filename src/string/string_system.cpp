@@ -91,11 +91,7 @@ void exemptBuriedEnds(StringState& s, std::vector<std::uint8_t>& buried) {
 }  // namespace
 
 int resolveIndex(int particle, std::size_t count, const char* field) {
-    const int n = static_cast<int>(count);
-    if (particle < -n || particle >= n)
-        throw InvalidInput(field, "particle index " + std::to_string(particle) + " out of range (the string has " +
-                                      std::to_string(n) + " particles)");
-    return particle < 0 ? particle + n : particle;
+    return static_cast<int>(resolveSignedIndex(particle, count, field, "particle", "string", "particles"));
 }
 
 StringId StringSystem::add(const StringDesc& desc) {

@@ -396,11 +396,8 @@ bool World::contains(PaperId id) const { return impl_->papers.contains(id); }
 PaperView World::viewPaper(PaperId id) const { return impl_->papers.view(id); }
 const PaperDesc& World::paperDesc(PaperId id) const { return impl_->papers.get(id).desc; }
 std::uint32_t World::paperVertex(PaperId id, int vertex) const {
-    const int n = static_cast<int>(impl_->papers.get(id).vertices());
-    if (vertex < -n || vertex >= n)
-        throw InvalidInput("vertex", "vertex index " + std::to_string(vertex) + " out of range (the sheet has " +
-                                         std::to_string(n) + " vertices)");
-    return static_cast<std::uint32_t>(vertex < 0 ? vertex + n : vertex);
+    return static_cast<std::uint32_t>(
+        detail::resolveSignedIndex(vertex, impl_->papers.get(id).vertices(), "vertex", "vertex", "sheet", "vertices"));
 }
 void World::attachPaperToPoint(PaperId id, int vertex, const Vec3& point) {
     impl_->papers.attachToPoint(id, paperVertex(id, vertex), point);

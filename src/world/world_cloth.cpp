@@ -11,11 +11,7 @@ namespace tearables {
 namespace {
 
 std::size_t resolveVertex(const detail::ClothState& c, int vertex) {
-    const int n = static_cast<int>(c.vertices());
-    if (vertex < -n || vertex >= n)
-        throw InvalidInput("vertex", "vertex index " + std::to_string(vertex) + " out of range (the cloth has " +
-                                         std::to_string(n) + " vertices)");
-    return static_cast<std::size_t>(vertex < 0 ? vertex + n : vertex);
+    return detail::resolveSignedIndex(vertex, c.vertices(), "vertex", "vertex", "cloth", "vertices");
 }
 
 }  // namespace
