@@ -172,13 +172,14 @@ void StringIslandMember::addTurningStiffness() {
 
 void StringIslandMember::condense(bool fresh) {
     StringState& s = *string_;
-    if (fresh) s.scratch.exact_slack = iteration_++ >= kTautBandIterations;
-    if (fresh)
+    if (fresh) {
+        s.scratch.exact_slack = iteration_++ >= kTautBandIterations;
         for (RigidSegmentContact& c : s.contacts) {
             const std::size_t j = c.segment;
             c.active = !s.broken[j] && rigidGap(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]) < 0.0;
             c.predicted = false;
         }
+    }
     assembleChain(s, *rigids_, *ctx_, nullptr);
     StringScratch::NodeScratch& ns = s.scratch.node_scratch;
     const std::size_t nodes = s.body_nodes.size();

@@ -52,6 +52,13 @@ bool untwisted(const StringState& s) {
     return positiveZeros(s.twist) && positiveZeros(s.twist_velocity) && positiveZeros(s.rest_twist);
 }
 
+/// Unit vector normal to unit t: the coordinate axis least aligned with it, made normal.
+Vec3 normalTo(const Vec3& t) {
+    Eigen::Index i = 0;
+    t.cwiseAbs().minCoeff(&i);
+    return (Vec3::Unit(i) - t[i] * t).normalized();
+}
+
 /// v carried from unit direction a to unit direction b by the rotation about a x b that
 /// takes a to b (parallel transport; Rodrigues' formula with cos = a.b, sin = |a x b|).
 /// Opposite directions: the half turn about a normal of a.
@@ -60,20 +67,11 @@ Vec3 transport(const Vec3& v, const Vec3& a, const Vec3& b) {
     const double sine = axis.norm(), cosine = a.dot(b);
     if (!(sine > 1e-14)) {
         if (cosine > 0.0) return v;
-        Eigen::Index i = 0;
-        a.cwiseAbs().minCoeff(&i);
-        const Vec3 k = (Vec3::Unit(i) - a[i] * a).normalized();
+        const Vec3 k = normalTo(a);
         return 2.0 * k.dot(v) * k - v;
     }
     const Vec3 k = axis / sine;
     return cosine * v + sine * k.cross(v) + (1.0 - cosine) * k.dot(v) * k;
-}
-
-/// Unit vector normal to unit t: the coordinate axis least aligned with it, made normal.
-Vec3 normalTo(const Vec3& t) {
-    Eigen::Index i = 0;
-    t.cwiseAbs().minCoeff(&i);
-    return (Vec3::Unit(i) - t[i] * t).normalized();
 }
 
 /// u made unit and normal to unit t (a fresh normal where u lies along t).
