@@ -241,6 +241,22 @@ FrictionTerm addFrictionRows(StringState& s, const RigidSegmentContact& c, bool 
 /// that barely touches does not keep the passes going.
 constexpr double kNegligibleNormal = 1e-3;
 
+bool predictContacts(StringState& s) {
+    bool changed = false;
+    auto moved = [&](std::size_t p) { return fixedRow(s, p) ? s.x[p] : Vec3(s.x[p] + s.scratch.blk_rhs[p]); };
+    for (RigidSegmentContact& c : s.contacts) {
+        const std::size_t j = c.segment;
+        if ((c.active && !c.predicted) || s.broken[j]) continue;
+        const Vec6 step = c.node >= 0 ? s.scratch.node_step[static_cast<std::size_t>(c.node)] : Vec6::Zero();
+        const bool runs_into = rigidGap(s, c, (1.0 - c.s) * moved(j) + c.s * moved(j + 1), &step) < 0.0;
+        if (runs_into != c.active) {
+            c.active = c.predicted = runs_into;
+            changed = true;
+        }
+    }
+    return changed;
+}
+
 double weighRigidFriction(StringState& s, bool lagged) {
     double largest = 0.0;
     for (RigidSegmentContact& c : s.contacts) {

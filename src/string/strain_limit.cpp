@@ -1008,13 +1008,6 @@ private:
         return rigidGap(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]);
     }
     /// The gap after the full step held in blk_rhs and node_step.
-    double gapAfterStep(const RigidSegmentContact& c) const {
-        const std::size_t j = c.segment;
-        auto moved = [&](std::size_t p) { return fixedRow(s, p) ? s.x[p] : Vec3(s.x[p] + s.scratch.blk_rhs[p]); };
-        const Vec6 step = c.node >= 0 ? s.scratch.node_step[static_cast<std::size_t>(c.node)] : Vec6::Zero();
-        return rigidGap(s, c, (1.0 - c.s) * moved(j) + c.s * moved(j + 1), &step);
-    }
-
     /// One iteration other than parallelChainStep's: a chord step where `chord_next`
     /// allows it and acceptChord takes it (`chord`), else a Newton step; then the contacts
     /// it would run into, the line search (`stalled` where it found no lower energy) and
@@ -1085,19 +1078,7 @@ private:
     /// other stiffnesses (kContactStiffnessFactor) and a rope pulled onto a drum hovers
     /// off it for the whole solve, pressing nothing (no normal force, so no friction).
     void addPredictedContacts() {
-        for (int round = 0; round < kPredictRounds; ++round) {
-            bool changed = false;
-            for (RigidSegmentContact& c : s.contacts) {
-                if ((c.active && !c.predicted) || s.broken[c.segment]) continue;
-                const bool runs_into = gapAfterStep(c) < 0.0;
-                if (runs_into != c.active) {
-                    c.active = c.predicted = runs_into;
-                    changed = true;
-                }
-            }
-            if (!changed) break;
-            solveStep();
-        }
+        for (int round = 0; round < kPredictRounds && predictContacts(s); ++round) solveStep();
     }
 
     /// The springs' curvature changes along a long step (a rope deflected by

@@ -130,6 +130,11 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
 /// to dominate the rope's springs, the particles' and the body's inertia, fixed for the
 /// step so that a line search sees one energy.
 void setContactStiffness(StringState& s, const RigidTable& rigids, double inv_h2);
+/// One round of the predicted contacts' active set, for the Newton step in blk_rhs (and
+/// the bodies' in node_step): a separated contact the step runs into is held (active,
+/// predicted: its gap carried in the model), one held before that the step no longer runs
+/// into is let go. Returns whether any changed (the step is then solved again).
+bool predictContacts(StringState& s);
 /// The body nodes' rows of the active contacts' penalties and of all contacts' friction:
 /// added to `nodes` (diag, rhs, coupling; the caller zeroes or seeds them) and, on the
 /// string's side, to blk_diag and blk_rhs.

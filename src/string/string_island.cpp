@@ -293,22 +293,7 @@ bool StringIslandMember::condenseRows() {
 /// where, held, it no longer does (their model, carrying the gap, would pull the string
 /// onto the plane): the active set of a semismooth Newton step on the penalties. Those
 /// that penetrate now stay: their model is the energy's own.
-bool StringIslandMember::addPredictedContacts() {
-    StringState& s = *string_;
-    bool changed = false;
-    auto moved = [&](std::size_t p) { return fixedRow(s, p) ? s.x[p] : Vec3(s.x[p] + s.scratch.blk_rhs[p]); };
-    for (RigidSegmentContact& c : s.contacts) {
-        const std::size_t j = c.segment;
-        if ((c.active && !c.predicted) || s.broken[j]) continue;
-        const Vec6 step = c.node >= 0 ? s.scratch.node_step[static_cast<std::size_t>(c.node)] : Vec6::Zero();
-        const bool runs_into = rigidGap(s, c, (1.0 - c.s) * moved(j) + c.s * moved(j + 1), &step) < 0.0;
-        if (runs_into != c.active) {
-            c.active = c.predicted = runs_into;
-            changed = true;
-        }
-    }
-    return changed;
-}
+bool StringIslandMember::addPredictedContacts() { return predictContacts(*string_); }
 
 Vec3 StringIslandMember::trialGlue(const Glued& g, double alpha) const {
     const BodyNode& node = string_->body_nodes[g.node];
