@@ -1,6 +1,6 @@
 // Runs a loaded scene: builds the Bullet world, its bodies and the strings, applies the
 // drivers every step, and writes trace.jsonl, events.jsonl and summary.json.
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 #include "tearables/queries.hpp"
 #include "tearables/scene.hpp"
 

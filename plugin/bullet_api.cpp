@@ -2,7 +2,7 @@
 // object, and the contacts and events of each internal step as a Bullet user reads them
 // (bodies as btRigidBody*, positions, forces). They convert and look up; the physics, and
 // the contact forces, are the core's.
-#include "tearables/bullet.hpp"
+#include "bullet_world_impl.hpp"
 
 #include <btBulletDynamicsCommon.h>
 
@@ -33,39 +33,39 @@ void* user(const std::map<Id, void*>& users, Id id) {
 
 }  // namespace
 
-void BulletWorld::setUserPointer(StringId id, void* user) {
+void BulletWorld::Impl::setUserPointer(StringId id, void* user) {
     (void)core_->desc(id);
     setUser(string_users_, id, user);
 }
-void BulletWorld::setUserPointer(ClothId id, void* user) {
+void BulletWorld::Impl::setUserPointer(ClothId id, void* user) {
     (void)core_->clothDesc(id);
     setUser(cloth_users_, id, user);
 }
-void BulletWorld::setUserPointer(PaperId id, void* user) {
+void BulletWorld::Impl::setUserPointer(PaperId id, void* user) {
     (void)core_->paperDesc(id);
     setUser(paper_users_, id, user);
 }
-void* BulletWorld::userPointer(StringId id) const {
+void* BulletWorld::Impl::userPointer(StringId id) const {
     (void)core_->desc(id);
     return user(string_users_, id);
 }
-void* BulletWorld::userPointer(ClothId id) const {
+void* BulletWorld::Impl::userPointer(ClothId id) const {
     (void)core_->clothDesc(id);
     return user(cloth_users_, id);
 }
-void* BulletWorld::userPointer(PaperId id) const {
+void* BulletWorld::Impl::userPointer(PaperId id) const {
     (void)core_->paperDesc(id);
     return user(paper_users_, id);
 }
 
-void BulletWorld::setVelocities(StringId id, const std::vector<btVector3>& velocities) {
+void BulletWorld::Impl::setVelocities(StringId id, const std::vector<btVector3>& velocities) {
     std::vector<Vec3> v;
     v.reserve(velocities.size());
     for (const btVector3& b : velocities) v.push_back(tearables::toCore(b));
     tearables::setVelocities(*core_, id, v);
 }
 
-void BulletWorld::reel(StringId id, int end, double speed, RestMass mode) {
+void BulletWorld::Impl::reel(StringId id, int end, double speed, RestMass mode) {
     if (!std::isfinite(speed) || std::abs(speed) > 1000.0) throw InvalidInput("speed", "must be finite, at most 1000 m/s either way");
     tearables::reel(*core_, id, end, 0.0, mode);  // checks the string, the end and the mode; changes nothing
     if (speed == 0.0)
@@ -74,8 +74,16 @@ void BulletWorld::reel(StringId id, int end, double speed, RestMass mode) {
         winches_[{id, end}] = Winch{speed, mode};
 }
 
+// The core checks the string, the end (0 or -1, pinned to a world point) with a zero turn,
+// which changes nothing; the angle waits for the next stepSimulation (drive, bullet_world.cpp).
+void BulletWorld::Impl::turnEnd(StringId id, int end, double angle) {
+    core_->turnEnd(id, end, 0.0);
+    if (!std::isfinite(angle)) throw InvalidInput("angle", "must be finite");
+    turns_[{id, end}].angle += angle;
+}
+
 // Winches of strings since removed, or whose end was unpinned, stop.
-void BulletWorld::turnWinches(double h) {
+void BulletWorld::Impl::turnWinches(double h) {
     for (auto it = winches_.begin(); it != winches_.end();) {
         const auto [id, end] = it->first;
         if (!core_->contains(id) || !core_->pinTarget(id, end, nullptr)) {
@@ -89,13 +97,13 @@ void BulletWorld::turnWinches(double h) {
 
 // --- contacts and events as a Bullet user reads them --------------------------------------
 
-const std::vector<BulletContact>& BulletWorld::contacts() const { return contact_list_; }
-void BulletWorld::setTearCallback(std::function<void(const BulletEvent&)> callback) { on_tear_ = std::move(callback); }
-void BulletWorld::setContactCallback(std::function<void(const BulletContact&)> callback) {
+const std::vector<BulletContact>& BulletWorld::Impl::contacts() const { return contact_list_; }
+void BulletWorld::Impl::setTearCallback(std::function<void(const BulletEvent&)> callback) { on_tear_ = std::move(callback); }
+void BulletWorld::Impl::setContactCallback(std::function<void(const BulletContact&)> callback) {
     on_contact_ = std::move(callback);
 }
 
-btRigidBody* BulletWorld::bodyOf(RigidId id) const {
+btRigidBody* BulletWorld::Impl::bodyOf(RigidId id) const {
     const auto it = std::lower_bound(body_of_.begin(), body_of_.end(), std::make_pair(id.index, static_cast<btRigidBody*>(nullptr)));
     return it != body_of_.end() && it->first == id.index ? it->second : nullptr;
 }
@@ -103,7 +111,7 @@ btRigidBody* BulletWorld::bodyOf(RigidId id) const {
 // The body a string's segment j hung from: the glued particle nearest to it along the
 // piece it belongs to (the intact segments on either side; the nearer one, the lower index
 // of equals).
-btRigidBody* BulletWorld::hangingBody(StringId id, int j) const {
+btRigidBody* BulletWorld::Impl::hangingBody(StringId id, int j) const {
     const StringView v = core_->view(id);
     const int n = static_cast<int>(v.particleCount());
     const auto& broken = *v.broken;
@@ -122,7 +130,7 @@ btRigidBody* BulletWorld::hangingBody(StringId id, int j) const {
 }
 
 // Where and on what an event of the last internal step happened.
-void BulletWorld::describe(BulletEvent& e) const {
+void BulletWorld::Impl::describe(BulletEvent& e) const {
     if (!e.string.valid() || !core_->contains(e.string)) return;
     const StringView v = core_->view(e.string);
     const auto& x = *v.positions;
@@ -150,7 +158,7 @@ void BulletWorld::describe(BulletEvent& e) const {
 
 // After each internal step: its contacts with the forces, its events (a string's yields
 // merged), then the callbacks.
-void BulletWorld::reportStep(double h) {
+void BulletWorld::Impl::reportStep(double h) {
     body_of_.clear();
     for (const auto& [body, id] : proxies_) body_of_.emplace_back(id.index, const_cast<btRigidBody*>(body));
     std::sort(body_of_.begin(), body_of_.end());

@@ -1,7 +1,7 @@
 // BulletWorld snapshots: the core's snapshot plus a "BULT" section that maps every rigid
 // proxy to the index of its Bullet body in the list the user passes (bodies have no
 // identity that survives a process: the order the user gives them is it).
-#include "tearables/bullet.hpp"
+#include "bullet_world_impl.hpp"
 #include "tearables/snapshot.hpp"
 
 #include <btBulletDynamicsCommon.h>
@@ -30,7 +30,7 @@ std::uint64_t getWord(const std::string& in, std::size_t& at) {
 
 }  // namespace
 
-void BulletWorld::saveSnapshot(std::ostream& out, const std::vector<const btRigidBody*>& bodies) const {
+void BulletWorld::Impl::saveSnapshot(std::ostream& out, const std::vector<const btRigidBody*>& bodies) const {
     std::string map;
     putWord(map, proxies_.size());
     for (const auto& [body, id] : proxies_) {
@@ -44,7 +44,7 @@ void BulletWorld::saveSnapshot(std::ostream& out, const std::vector<const btRigi
     tearables::saveSnapshot(*core_, out, {{kTag, map}});
 }
 
-void BulletWorld::loadSnapshot(std::istream& in, const std::vector<btRigidBody*>& bodies) {
+void BulletWorld::Impl::loadSnapshot(std::istream& in, const std::vector<btRigidBody*>& bodies) {
     const Snapshot snapshot = Snapshot::read(in);
     const std::string where = std::string("snapshot.") + kTag;
     const SnapshotSection* map = nullptr;
@@ -83,6 +83,7 @@ void BulletWorld::loadSnapshot(std::istream& in, const std::vector<btRigidBody*>
     events_.clear();
     forces_.clear();  // what was given for the next stepSimulation belonged to the state replaced
     pins_.clear();
+    turns_.clear();
     cloth_forces_.clear();
     paper_forces_.clear();
     peaks_.clear();

@@ -2,7 +2,7 @@
 // internal step, after it has integrated the rigid bodies; we copy the bodies that strings
 // hold into the core's proxies, step the core, and write the bodies' corrected poses and
 // velocities back.
-#include "tearables/bullet.hpp"
+#include "bullet_world_impl.hpp"
 
 #include "tearables/colormap.hpp"
 
@@ -68,9 +68,9 @@ void requireLive(const World& core, PaperId id) { (void)core.paperDesc(id); }
 // R_interp = R. The sentinel is a kinematic body turned by 1 rad at the first step of each
 // frame: at the next frame's first step R == R_interp again, and n = 1 rad / (|w| h). It
 // turns about its own origin, so its bounds (an empty shape's: the origin) never move.
-class BulletWorld::Action : public btActionInterface {
+class BulletWorld::Impl::Action : public btActionInterface {
 public:
-    explicit Action(BulletWorld& owner)
+    explicit Action(Impl& owner)
         : owner_(owner), shape_(), sentinel_(btRigidBody::btRigidBodyConstructionInfo(0, nullptr, &shape_)) {
         sentinel_.setCollisionFlags(btCollisionObject::CF_KINEMATIC_OBJECT | btCollisionObject::CF_NO_CONTACT_RESPONSE);
         sentinel_.setActivationState(DISABLE_DEACTIVATION);
@@ -102,7 +102,7 @@ private:
         sentinel_.setWorldTransform(btTransform(btQuaternion(btVector3(1, 0, 0), 1), btVector3(0, 0, 0)));
     }
 
-    BulletWorld& owner_;
+    Impl& owner_;
     btEmptyShape shape_;
     btRigidBody sentinel_;
     int tick_ = 0, ticks_ = 1;
@@ -119,9 +119,9 @@ constexpr double kRefineKeepPoint = 1e-6;
 // Contacts between string segments and rigid bodies, with Bullet's own narrow phase: each
 // segment is a capsule, tested against the bodies the broadphase found near its string
 // (BulletWorld::findCandidates) by btCollisionWorld::contactPairTest.
-class BulletWorld::Contacts : public ContactProvider {
+class BulletWorld::Impl::Contacts : public ContactProvider {
 public:
-    explicit Contacts(BulletWorld& owner) : owner_(owner) {}
+    explicit Contacts(Impl& owner) : owner_(owner) {}
 
     /// Proxies of the bodies some contact named this step, sorted; of those a string's.
     std::vector<std::uint32_t> touched, string_touched;
@@ -662,10 +662,10 @@ private:
         out.push_back(c);
     }
 
-    BulletWorld& owner_;
+    Impl& owner_;
 };
 
-BulletWorld::BulletWorld(btDiscreteDynamicsWorld& world, const WorldSettings& settings)
+BulletWorld::Impl::Impl(btDiscreteDynamicsWorld& world, const WorldSettings& settings)
     : world_(&world), core_(std::make_unique<World>(settings)), action_(std::make_unique<Action>(*this)),
       contacts_(std::make_unique<Contacts>(*this)) {
     core_->setContactProvider(contacts_.get());
@@ -682,7 +682,7 @@ BulletWorld::BulletWorld(btDiscreteDynamicsWorld& world, const WorldSettings& se
 
 // The broadphase finds the rigid bodies near each string (its bounds grown by how far
 // its particles may travel this step); they become proxies for the step.
-void BulletWorld::findCandidates(double h) {
+void BulletWorld::Impl::findCandidates(double h) {
     candidates_.clear();
     for (StringId id : core_->strings()) {
         const StringView v = core_->view(id);
@@ -721,7 +721,7 @@ void BulletWorld::findCandidates(double h) {
     mesh_candidates_.erase(std::unique(mesh_candidates_.begin(), mesh_candidates_.end()), mesh_candidates_.end());
 }
 
-std::vector<btRigidBody*> BulletWorld::bodiesIn(const Vec3& lo, const Vec3& hi) const {
+std::vector<btRigidBody*> BulletWorld::Impl::bodiesIn(const Vec3& lo, const Vec3& hi) const {
     struct Collect : btBroadphaseAabbCallback {
         const btCollisionObject* sentinel = nullptr;
         std::vector<btRigidBody*> found;
@@ -741,7 +741,7 @@ std::vector<btRigidBody*> BulletWorld::bodiesIn(const Vec3& lo, const Vec3& hi) 
     return collect.found;
 }
 
-BulletWorld::~BulletWorld() {
+BulletWorld::Impl::~Impl() {
     if (attachedToBullet()) {
         world_->removeAction(action_.get());
         world_->removeCollisionObject(&action_->sentinel());
@@ -750,8 +750,8 @@ BulletWorld::~BulletWorld() {
     }
 }
 
-bool BulletWorld::attachedToBullet() const { return action_->inWorld(); }
-World& BulletWorld::core() {
+bool BulletWorld::Impl::attachedToBullet() const { return action_->inWorld(); }
+World& BulletWorld::Impl::core() {
     dropBodiesIfDetached();
     return *core_;
 }
@@ -759,37 +759,38 @@ World& BulletWorld::core() {
 // Once the Bullet world is gone its bodies may be too: their proxies leave the core (the
 // strings holding them report Release events, cause body_removed, at their next step) and
 // no pointer to them is kept.
-void BulletWorld::dropBodiesIfDetached() {
+void BulletWorld::Impl::dropBodiesIfDetached() {
     if (attachedToBullet()) return;
     for (const auto& [body, id] : proxies_) core_->removeRigid(id);
     proxies_.clear();
     candidates_.clear();
     mesh_candidates_.clear();
 }
-const World& BulletWorld::core() const { return *core_; }
-StringId BulletWorld::addString(const StringDesc& desc) {
+const World& BulletWorld::Impl::core() const { return *core_; }
+StringId BulletWorld::Impl::addString(const StringDesc& desc) {
     const StringId id = core_->addString(desc);
     string_filters_.erase(id.index);
     return id;
 }
-StringId BulletWorld::addString(const StringDesc& desc, int group, int mask) {
+StringId BulletWorld::Impl::addString(const StringDesc& desc, int group, int mask) {
     const StringId id = core_->addString(desc);
     string_filters_[id.index] = Filter{group, mask};
     return id;
 }
 // A removed string's slot may hold the next string added (with the next generation):
 // nothing of it is kept.
-void BulletWorld::removeString(StringId id) {
+void BulletWorld::Impl::removeString(StringId id) {
     core_->removeString(id);
     string_filters_.erase(id.index);
     peaks_.erase(id);
     string_users_.erase(id);
     forces_.erase(forces_.lower_bound({id, INT_MIN}), forces_.upper_bound({id, INT_MAX}));
     pins_.erase(pins_.lower_bound({id, INT_MIN}), pins_.upper_bound({id, INT_MAX}));
+    turns_.erase(turns_.lower_bound({id, INT_MIN}), turns_.upper_bound({id, INT_MAX}));
 }
 
 // Bullet's rule (btOverlappingPairCache's needsBroadphaseCollision), both ways.
-bool BulletWorld::Filter::passes(const btRigidBody& body) const {
+bool BulletWorld::Impl::Filter::passes(const btRigidBody& body) const {
     const btBroadphaseProxy* proxy = body.getBroadphaseHandle();
     if (!proxy) return false;
     return (group & proxy->m_collisionFilterMask) != 0 && (proxy->m_collisionFilterGroup & mask) != 0;
@@ -797,7 +798,7 @@ bool BulletWorld::Filter::passes(const btRigidBody& body) const {
 
 // A sheet's query object is its vertex array (PaperView::positions); a cloth's query lists
 // the live cloths in slot order (ClothSystem::collideBodies).
-BulletWorld::Filter BulletWorld::meshFilter(const PointQuery& query, std::size_t i) const {
+BulletWorld::Impl::Filter BulletWorld::Impl::meshFilter(const PointQuery& query, std::size_t i) const {
     if (cloth_filters_.empty() && paper_filters_.empty()) return Filter{};
     for (const PaperId id : core_->papers()) {
         if (core_->viewPaper(id).positions != query.start[i]) continue;
@@ -813,12 +814,12 @@ BulletWorld::Filter BulletWorld::meshFilter(const PointQuery& query, std::size_t
     }
     return Filter{};
 }
-const std::vector<BulletEvent>& BulletWorld::events() const { return events_; }
-void BulletWorld::clearEvents() { events_.clear(); }
-const StageTimes& BulletWorld::totalStageTimes() const { return total_; }
-const std::string& BulletWorld::lastError() const { return last_error_; }
+const std::vector<BulletEvent>& BulletWorld::Impl::events() const { return events_; }
+void BulletWorld::Impl::clearEvents() { events_.clear(); }
+const StageTimes& BulletWorld::Impl::totalStageTimes() const { return total_; }
+const std::string& BulletWorld::Impl::lastError() const { return last_error_; }
 
-void BulletWorld::debugDraw(btIDebugDraw& drawer) const {
+void BulletWorld::Impl::debugDraw(btIDebugDraw& drawer) const {
     // Colours by load fraction T / (rupture stress * pi r^2), clamped to [0, 1], as MuJoCo's
     // cable colours by stress up to a vmax; the rupture stress is the material's nominal one
     // (the per-segment variation is a fraction of a percent).
@@ -867,11 +868,11 @@ void BulletWorld::debugDraw(btIDebugDraw& drawer) const {
     }
 }
 
-void BulletWorld::attach(StringId id, int particle, const btVector3& world_point) {
+void BulletWorld::Impl::attach(StringId id, int particle, const btVector3& world_point) {
     core_->attachToPoint(id, particle, toCore(world_point));
 }
 
-RigidId BulletWorld::proxyFor(btRigidBody& body) {
+RigidId BulletWorld::Impl::proxyFor(btRigidBody& body) {
     auto it = proxies_.find(&body);
     if (it != proxies_.end()) return it->second;
     RigidState state;
@@ -882,44 +883,44 @@ RigidId BulletWorld::proxyFor(btRigidBody& body) {
     return id;
 }
 
-void BulletWorld::attach(StringId id, int particle, btRigidBody& body, const btVector3& local_point) {
+void BulletWorld::Impl::attach(StringId id, int particle, btRigidBody& body, const btVector3& local_point) {
     if (!body.getBroadphaseHandle()) throw InvalidInput("body", "is not in the Bullet world");
     requireLive(*core_, id);
     core_->resolveParticle(id, particle);  // validates before anything is created
     core_->attachToRigid(id, particle, proxyFor(body), toCore(local_point));
 }
 
-void BulletWorld::detach(StringId id, int particle) { core_->detach(id, particle); }
+void BulletWorld::Impl::detach(StringId id, int particle) { core_->detach(id, particle); }
 
-ClothId BulletWorld::addCloth(const ClothDesc& desc) {
+ClothId BulletWorld::Impl::addCloth(const ClothDesc& desc) {
     const ClothId id = core_->addCloth(desc);
     cloth_filters_.erase(id.index);
     return id;
 }
-ClothId BulletWorld::addCloth(const ClothDesc& desc, int group, int mask) {
+ClothId BulletWorld::Impl::addCloth(const ClothDesc& desc, int group, int mask) {
     const ClothId id = core_->addCloth(desc);
     cloth_filters_[id.index] = Filter{group, mask};
     return id;
 }
-void BulletWorld::removeCloth(ClothId id) {
+void BulletWorld::Impl::removeCloth(ClothId id) {
     core_->removeCloth(id);
     cloth_filters_.erase(id.index);
     cloth_users_.erase(id);
     cloth_forces_.erase(cloth_forces_.lower_bound({id, INT_MIN}), cloth_forces_.upper_bound({id, INT_MAX}));
 }
 
-void BulletWorld::removePaper(PaperId id) {
+void BulletWorld::Impl::removePaper(PaperId id) {
     core_->removePaper(id);
     paper_filters_.erase(id.index);
     paper_users_.erase(id);
     paper_forces_.erase(paper_forces_.lower_bound({id, 0u}), paper_forces_.upper_bound({id, UINT32_MAX}));
 }
 
-void BulletWorld::attachCloth(ClothId id, int vertex, const btVector3& world_point) {
+void BulletWorld::Impl::attachCloth(ClothId id, int vertex, const btVector3& world_point) {
     core_->attachClothToPoint(id, vertex, toCore(world_point));
 }
 
-void BulletWorld::attachCloth(ClothId id, int vertex, btRigidBody& body, const btVector3& local_point) {
+void BulletWorld::Impl::attachCloth(ClothId id, int vertex, btRigidBody& body, const btVector3& local_point) {
     if (!body.getBroadphaseHandle()) throw InvalidInput("body", "is not in the Bullet world");
     requireLive(*core_, id);
     const int n = core_->clothDesc(id).vertexCount();
@@ -927,36 +928,36 @@ void BulletWorld::attachCloth(ClothId id, int vertex, btRigidBody& body, const b
     core_->attachClothToRigid(id, vertex, proxyFor(body), toCore(local_point));
 }
 
-PaperId BulletWorld::addPaper(const PaperDesc& desc) {
+PaperId BulletWorld::Impl::addPaper(const PaperDesc& desc) {
     const PaperId id = core_->addPaper(desc);
     paper_filters_.erase(id.index);
     return id;
 }
-PaperId BulletWorld::addPaper(const PaperDesc& desc, int group, int mask) {
+PaperId BulletWorld::Impl::addPaper(const PaperDesc& desc, int group, int mask) {
     const PaperId id = core_->addPaper(desc);
     paper_filters_[id.index] = Filter{group, mask};
     return id;
 }
 
-void BulletWorld::attachPaper(PaperId id, int vertex, const btVector3& world_point) {
+void BulletWorld::Impl::attachPaper(PaperId id, int vertex, const btVector3& world_point) {
     core_->attachPaperToPoint(id, vertex, toCore(world_point));
 }
 
-void BulletWorld::attachPaper(PaperId id, int vertex, btRigidBody& body, const btVector3& local_point) {
+void BulletWorld::Impl::attachPaper(PaperId id, int vertex, btRigidBody& body, const btVector3& local_point) {
     if (!body.getBroadphaseHandle()) throw InvalidInput("body", "is not in the Bullet world");
     requireLive(*core_, id);
     core_->paperVertex(id, vertex);  // refused before a proxy is made for the body
     core_->attachPaperToRigid(id, vertex, proxyFor(body), toCore(local_point));
 }
 
-void BulletWorld::forgetBody(const btRigidBody& body) {
+void BulletWorld::Impl::forgetBody(const btRigidBody& body) {
     auto it = proxies_.find(&body);
     if (it == proxies_.end()) return;
     core_->removeRigid(it->second);
     proxies_.erase(it);
 }
 
-bool BulletWorld::isCandidate(const btRigidBody* body) const {
+bool BulletWorld::Impl::isCandidate(const btRigidBody* body) const {
     if (std::binary_search(mesh_candidates_.begin(), mesh_candidates_.end(), body)) return true;
     for (const auto& [string, bodies] : candidates_)
         if (std::find(bodies.begin(), bodies.end(), body) != bodies.end()) return true;
@@ -967,7 +968,7 @@ bool BulletWorld::isCandidate(const btRigidBody* body) const {
 // only when a string, sheet or cloth holds it, pushed it (an impulse this step), or, asleep
 // and so immovable this step, touched it: one that is merely near is left to Bullet's
 // sleeping (btRigidBody::updateDeactivation), as Bullet's own contacts do.
-void BulletWorld::writeBodies() {
+void BulletWorld::Impl::writeBodies() {
     for (const auto& [key, id] : proxies_) {
         btRigidBody* body = const_cast<btRigidBody*>(key);
         const RigidState& s = core_->rigid(id);
@@ -1001,7 +1002,7 @@ void BulletWorld::writeBodies() {
 // (btSequentialImpulseConstraintSolver::initSolverBody and convertBodies): the step's
 // forces and gravity, h F / m and h I^-1 T, and the implicit gyroscopic term; then the
 // core's island solve keeps them apart and holds them on their ropes.
-void BulletWorld::startClaimedBodies(double h) {
+void BulletWorld::Impl::startClaimedBodies(double h) {
     claimed_.clear();
     if (!claim_) return;
     const btScalar step = static_cast<btScalar>(h);
@@ -1026,7 +1027,7 @@ void BulletWorld::startClaimedBodies(double h) {
 // The bodies a string holds or touched this step are taken from Bullet's solver at the
 // next, with every body of their Bullet islands (a crate resting on a roped board comes
 // with the board), unless a joint is in the island.
-void BulletWorld::claimIslandBodies() {
+void BulletWorld::Impl::claimIslandBodies() {
     if (!claim_) return;
     claim_->releaseAll();
     for (const auto& [key, id] : proxies_) {
@@ -1040,7 +1041,7 @@ void BulletWorld::claimIslandBodies() {
 // What the user gave for the next stepSimulation, spread over its internal steps: forces
 // on every step, pins followed linearly to their target at the last one; both are done
 // with at the frame's last step.
-void BulletWorld::drive(int tick, int ticks) {
+void BulletWorld::Impl::drive(int tick, int ticks) {
     for (auto it = forces_.begin(); it != forces_.end(); ++it) {
         const StringId id = it->first.first;
         if (core_->contains(id)) core_->applyForce(id, it->first.second, it->second);
@@ -1056,11 +1057,21 @@ void BulletWorld::drive(int tick, int ticks) {
         const double f = static_cast<double>(tick) / static_cast<double>(ticks);
         core_->movePin(id, it->first.second, tick == ticks ? it->second.to : it->second.from + f * (it->second.to - it->second.from));
     }
+    // Turns: the share k / n of the whole angle reached at internal step k of n, all of it
+    // at the last; an end unpinned since turns no further.
+    for (auto& [key, turn] : turns_) {
+        const auto [id, end] = key;
+        if (!core_->contains(id) || !core_->pinTarget(id, end, nullptr)) continue;
+        const double reached = tick == ticks ? turn.angle : turn.angle * tick / ticks;
+        core_->turnEnd(id, end, reached - turn.done);
+        turn.done = reached;
+    }
     if (tick == ticks) {
         forces_.clear();
         cloth_forces_.clear();
         paper_forces_.clear();
         pins_.clear();
+        turns_.clear();
     }
 }
 
@@ -1068,7 +1079,7 @@ void BulletWorld::drive(int tick, int ticks) {
 // tension, and for a segment that tore by tension this step the one it tore at (the Tear
 // event's engineering stress on the original section, fracture.cpp, as the solved value is
 // zeroed when it breaks).
-void BulletWorld::recordPeaks() {
+void BulletWorld::Impl::recordPeaks() {
     const std::vector<StringId> live = core_->strings();
     for (auto it = peaks_.begin(); it != peaks_.end();)
         it = core_->contains(it->first) ? std::next(it) : peaks_.erase(it);
@@ -1087,7 +1098,7 @@ void BulletWorld::recordPeaks() {
     }
 }
 
-void BulletWorld::applyForce(StringId id, int particle, const btVector3& force) {
+void BulletWorld::Impl::applyForce(StringId id, int particle, const btVector3& force) {
     requireLive(*core_, id);
     const int p = core_->resolveParticle(id, particle);
     const Vec3 f = tearables::toCore(force);
@@ -1097,7 +1108,7 @@ void BulletWorld::applyForce(StringId id, int particle, const btVector3& force) 
 }
 
 // The core checks the object and the vertex (a zero force changes nothing).
-void BulletWorld::applyClothForce(ClothId id, int vertex, const btVector3& force) {
+void BulletWorld::Impl::applyClothForce(ClothId id, int vertex, const btVector3& force) {
     const Vec3 f = tearables::toCore(force);
     core_->applyClothForce(id, vertex, Vec3::Zero());
     if (!f.allFinite()) throw InvalidInput("force", "must be finite");
@@ -1105,7 +1116,7 @@ void BulletWorld::applyClothForce(ClothId id, int vertex, const btVector3& force
     it->second += f;
 }
 
-void BulletWorld::applyPaperForce(PaperId id, int index, const btVector3& force) {
+void BulletWorld::Impl::applyPaperForce(PaperId id, int index, const btVector3& force) {
     const Vec3 f = tearables::toCore(force);
     const std::uint32_t vertex = core_->paperVertex(id, index);
     if (!f.allFinite()) throw InvalidInput("force", "must be finite");
@@ -1113,7 +1124,7 @@ void BulletWorld::applyPaperForce(PaperId id, int index, const btVector3& force)
     it->second += f;
 }
 
-void BulletWorld::movePin(StringId id, int particle, const btVector3& point) {
+void BulletWorld::Impl::movePin(StringId id, int particle, const btVector3& point) {
     requireLive(*core_, id);
     const int p = core_->resolveParticle(id, particle);
     Vec3 now;
@@ -1124,19 +1135,19 @@ void BulletWorld::movePin(StringId id, int particle, const btVector3& point) {
     it->second.to = to;  // a second move before the step keeps the first start
 }
 
-std::vector<double> BulletWorld::peakTension(StringId id) const {
+std::vector<double> BulletWorld::Impl::peakTension(StringId id) const {
     requireLive(*core_, id);
     const auto it = peaks_.find(id);
     if (it != peaks_.end()) return it->second;
     return std::vector<double>(core_->view(id).segmentCount(), 0.0);
 }
 
-void BulletWorld::clearPeakTension(StringId id) {
+void BulletWorld::Impl::clearPeakTension(StringId id) {
     requireLive(*core_, id);
     peaks_.erase(id);
 }
 
-void BulletWorld::substep(double h, int tick, int ticks) {
+void BulletWorld::Impl::substep(double h, int tick, int ticks) {
     try {
         core_->settings().gravity = toCore(world_->getGravity());
         step_ = h;

@@ -15,7 +15,7 @@
 #include "render/overlay.hpp"
 #include "render/renderer.hpp"
 #include "render/scene_painter.hpp"
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 #include "tearables/colormap.hpp"
 #include "tearables/queries.hpp"
 #include "viewer/recording.hpp"

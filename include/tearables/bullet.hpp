@@ -4,11 +4,18 @@
 //
 //   btDiscreteDynamicsWorld world(...);
 //   tearables::BulletWorld ropes(world);
-//   auto rope = ropes.addString(tearables::StringDesc::straight({0, 2, 0}, {0, 1, 0}, 50));
+//   // 1.2 m of nylon rope hanging between two points 1 m apart (the catenary, at rest)
+//   auto rope = ropes.addRope(btVector3(0, 2, 0), btVector3(1, 2, 0), 1.2, 40, "nylon_rope");
 //   ropes.attach(rope, 0, btVector3(0, 2, 0));          // pinned in the world
 //   ropes.attach(rope, -1, *crate, btVector3(0, 0.2f, 0)); // glued to a body, two-way
 //   world.stepSimulation(1.0f / 60.0f);
-//   double t = ropes.core().view(rope).tension->front();   // newtons
+//   double top = ropes.tensions(rope).front();           // newtons
+//   std::vector<btVector3> x = ropes.positions(rope);     // m
+//
+// This header includes no Eigen and none of the core's headers: the descriptors
+// (StringDesc, ClothDesc, PaperDesc) and the core World are declared only. A program that
+// fills a descriptor includes its header (tearables/string.hpp, cloth.hpp, paper.hpp); one
+// that works on the core (ropes.core(), Eigen vectors) includes tearables/bullet_core.hpp.
 //
 // Sub-steps: stepSimulation(dt, maxSubSteps, fixedTimeStep) takes n internal steps. As with
 // Bullet's own bodies, applyForce() acts on every one of them (then is cleared), movePin()
@@ -28,28 +35,21 @@
 // *delete* such a body, remove it from the world and step, or call forgetBody().
 #pragma once
 
-#include "tearables/controls.hpp"
 #include "tearables/events.hpp"
-#include "tearables/paper.hpp"
-#include "tearables/presets.hpp"
-#include "tearables/queries.hpp"
-#include "tearables/string.hpp"
-#include "tearables/world.hpp"
+#include "tearables/ids.hpp"
 
 #include "tearables/bullet_precision.hpp"
 
 #include <LinearMath/btScalar.h>
 #include <LinearMath/btVector3.h>
 
-#include <cstdint>
+#include <cstddef>
 #include <functional>
 #include <iosfwd>
-#include <map>
 #include <memory>
 #include <string>
 #include <vector>
 
-class btCollisionObject;
 class btDiscreteDynamicsWorld;
 class btIDebugDraw;
 class btRigidBody;
@@ -62,13 +62,14 @@ static_assert(sizeof(btScalar) == (TEARABLES_BULLET_DOUBLE ? sizeof(double) : si
 
 namespace tearables {
 
-class IslandClaimSolver;
-
-/// Converts between Bullet and the core (the only place that does).
-inline Vec3 toCore(const btVector3& v) { return Vec3(v.x(), v.y(), v.z()); }
-inline btVector3 toBullet(const Vec3& v) {
-    return btVector3(static_cast<btScalar>(v.x()), static_cast<btScalar>(v.y()), static_cast<btScalar>(v.z()));
-}
+// Declared here, defined in the core's headers: include tearables/string.hpp (cloth.hpp,
+// paper.hpp) to fill a descriptor, tearables/bullet_core.hpp to use the core World.
+struct StringDesc;
+struct ClothDesc;
+struct PaperDesc;
+struct WorldSettings;
+struct StageTimes;
+class World;
 
 /// A string's contact with a Bullet body in the last internal step (what a btManifoldPoint
 /// gives for two bodies), with the force the step's solve put through it.
@@ -106,18 +107,40 @@ struct BulletEvent : Event {
 /// A tearables world living inside a Bullet dynamics world.
 class BulletWorld {
 public:
-    /// Attaches to `world`; strings use the world's gravity at every step.
-    explicit BulletWorld(btDiscreteDynamicsWorld& world, const WorldSettings& settings = {});
+    /// Attaches to `world` with the default WorldSettings; strings use the world's gravity
+    /// at every step.
+    explicit BulletWorld(btDiscreteDynamicsWorld& world);
+    /// The same with the core's settings (tearables/world.hpp: iterations, tolerances,
+    /// threads; its gravity is replaced by the Bullet world's at every step).
+    BulletWorld(btDiscreteDynamicsWorld& world, const WorldSettings& settings);
     /// Detaches from Bullet (if the Bullet world still exists).
     ~BulletWorld();
     BulletWorld(const BulletWorld&) = delete;
     BulletWorld& operator=(const BulletWorld&) = delete;
 
-    /// The core world: views, events, settings, forces. After the Bullet world was
-    /// destroyed, the first call drops every body the plugin knew (their attachments are
-    /// released at the core's next step); stepping the core then touches nothing of Bullet.
+    /// The core world, for power users (include tearables/bullet_core.hpp): its views
+    /// (Eigen vectors), settings, cloths' and sheets' state, islands, raw contacts. The
+    /// everyday calls below cover strings without it. After the Bullet world was destroyed,
+    /// the first call drops every body the plugin knew (their attachments are released at
+    /// the core's next step); stepping the core then touches nothing of Bullet.
     World& core();
     const World& core() const;
+
+    // --- building ropes -----------------------------------------------------------------
+    /// A string of `length` (m) from `a` to `b` in `segments` segments, hanging as a uniform
+    /// rope does under gravity along -y (StringDesc::between: the catenary through a and b,
+    /// particles at equal arc lengths; straight when `length` is |b - a|). The descriptor's
+    /// other fields are its defaults: set them before addString (needs tearables/string.hpp).
+    /// Throws InvalidInput ("a", "b", "length", "segments") as StringDesc::between.
+    static StringDesc ropeBetween(const btVector3& a, const btVector3& b, double length, int segments);
+    /// Creates ropeBetween(a, b, length, segments) made of the material preset `preset`
+    /// (presets.hpp: "thread", "rubber_cord", "nylon_rope", "braided_rope", "spaghetti",
+    /// "steel_wire", "fishing_line") at the preset's radius and density, with Bullet's default
+    /// collision filter. Its ends are free: pin or glue them with attach(). Throws
+    /// InvalidInput ("a", "b", "length", "segments"; "preset": unknown name) and creates
+    /// nothing then.
+    StringId addRope(const btVector3& a, const btVector3& b, double length, int segments,
+                     const std::string& preset = "nylon_rope");
 
     /// Validates and creates a string (throws InvalidInput naming the field), with Bullet's
     /// default collision filter (group btBroadphaseProxy::DefaultFilter, mask AllFilter).
@@ -205,6 +228,55 @@ public:
     /// and followed linearly over its internal steps. Throws InvalidInput ("string",
     /// "particle": not pinned to a world point, "point") and changes nothing on bad input.
     void movePin(StringId id, int particle, const btVector3& point);
+    /// Cuts a segment (negative counts from the end) as a tear would: broken from now on, a
+    /// Tear event (cause request) with the next internal step. False, and nothing changed,
+    /// when it is already broken. Throws InvalidInput ("string", "segment").
+    bool cut(StringId id, int segment);
+    /// Turns a pinned end (0 = first particle, -1 = last) about its segment's axis by
+    /// `angle` (rad, right-handed about the direction from the rope's inside to the end),
+    /// spread evenly over the internal steps of the next stepSimulation that steps (as
+    /// movePin); the end then holds the angle reached (endTwist). Throws InvalidInput
+    /// ("string"; "end": not 0 or -1, or not pinned to a world point; "angle": not finite)
+    /// and changes nothing then.
+    void turnEnd(StringId id, int end, double angle);
+    /// The angle a pinned end holds, rad: every turnEnd reached so far (a turn given for the
+    /// next stepSimulation is not in it yet). Throws InvalidInput ("string", "end").
+    double endTwist(StringId id, int end) const;
+
+    // --- reading a string (the state after the last internal step) -----------------------
+    /// Particles and segments (a segment joins particles j and j + 1; a tear breaks a
+    /// segment and keeps every particle). Throws InvalidInput("string") for an unknown or
+    /// stale id, as every read below.
+    std::size_t particleCount(StringId id) const;
+    std::size_t segmentCount(StringId id) const;
+    /// Every particle's position, m.
+    std::vector<btVector3> positions(StringId id) const;
+    /// One particle's position, m (negative counts from the end; InvalidInput("particle")).
+    btVector3 position(StringId id, int particle) const;
+    /// Every particle's velocity, m/s.
+    std::vector<btVector3> velocities(StringId id) const;
+    /// Per segment, the tension of the last internal step, N (0 where broken or slack).
+    /// (peakTension() keeps the largest of every internal step.)
+    std::vector<double> tensions(StringId id) const;
+    /// Per segment, true where it is torn.
+    std::vector<bool> brokenSegments(StringId id) const;
+    /// A piece of a string: particles first..last joined by intact segments.
+    struct Piece {
+        int first = 0;  ///< its first particle
+        int last = 0;   ///< its last particle (== first for a lone particle between two tears)
+    };
+    /// The pieces in particle order: one for an intact string, one more for each tear.
+    std::vector<Piece> pieces(StringId id) const;
+    /// The length of the centreline now, m: the distances between neighbouring particles
+    /// summed over the intact segments (a torn rope's pieces together).
+    double length(StringId id) const;
+    /// The sum of the intact segments' rest lengths, m (changed by reel and yielding).
+    double restLength(StringId id) const;
+    /// The mass of every particle together, kg (a torn rope's pieces keep theirs).
+    double mass(StringId id) const;
+    /// True when the particle is pinned or glued (negative counts from the end).
+    bool isAttached(StringId id, int particle) const;
+
     /// Per segment, the largest tension (N) any internal step reached since the string was
     /// added or clearPeakTension() was called, including the tension a segment tore at.
     /// Throws InvalidInput("string") for an unknown string.
@@ -264,86 +336,10 @@ public:
     void loadSnapshot(std::istream& in, const std::vector<btRigidBody*>& bodies);
 
 private:
-    class Action;
-    class Contacts;
-    void dropBodiesIfDetached();
-    /// Internal step `tick` (1-based) of the `ticks` that the current stepSimulation takes.
-    void substep(double h, int tick, int ticks);
-    void drive(int tick, int ticks);
-    void recordPeaks();
-    /// The winches' rope for an internal step of h (bullet_api.cpp).
-    void turnWinches(double h);
-    /// The last internal step's contacts and events as Bullet users read them, then the
-    /// callbacks (bullet_api.cpp).
-    void reportStep(double h);
-    void describe(BulletEvent& e) const;
-    btRigidBody* bodyOf(RigidId id) const;
-    btRigidBody* hangingBody(StringId id, int segment) const;
-    /// Bodies out: the core's corrections written back; only bodies that a string, sheet or
-    /// cloth holds or touched are woken.
-    void writeBodies();
-    struct Filter {
-        int group = 1, mask = -1;  // btBroadphaseProxy::DefaultFilter, AllFilter
-        bool passes(const btRigidBody& body) const;
-    };
-    /// The filter of the i-th object of a mesh PointQuery (a sheet's or a cloth's).
-    Filter meshFilter(const PointQuery& query, std::size_t i) const;
-    RigidId proxyFor(btRigidBody& body);
-    void findCandidates(double h);
-    bool isCandidate(const btRigidBody* body) const;
-    /// Rigid bodies (with contact response) whose broadphase bounds overlap [lo, hi],
-    /// in a deterministic order.
-    std::vector<btRigidBody*> bodiesIn(const Vec3& lo, const Vec3& hi) const;
-
-    /// Bodies that ropes hold or touch are taken from Bullet's solver with their Bullet
-    /// islands (plugin/island_claim.hpp) and solved in the core's islands, contacts and
-    /// all. `claim_` is null where the world's solver cannot be wrapped (multibody).
-    void startClaimedBodies(double h);
-    void claimIslandBodies();
-
-    btDiscreteDynamicsWorld* world_;
-    std::unique_ptr<IslandClaimSolver> claim_;
-    std::vector<const btRigidBody*> claimed_;  // this step's claimed bodies, sorted
-    std::unique_ptr<World> core_;
-    std::unique_ptr<Action> action_;
-    std::unique_ptr<Contacts> contacts_;
-    std::map<const btRigidBody*, RigidId> proxies_;  // ordered: deterministic iteration
-    std::map<std::uint32_t, std::vector<btRigidBody*>> candidates_;  // per string: bodies near it this step
-    std::vector<btRigidBody*> mesh_candidates_;  // bodies near some mesh object this step (sorted)
-    std::vector<std::pair<const btRigidBody*, RigidId>> proxy_order_;  // scratch
-    std::vector<const btCollisionObject*> in_world_;  // scratch: the Bullet world's objects, sorted
-    std::vector<BulletEvent> events_;
-    std::vector<BulletContact> contact_list_;
-    std::vector<ContactForce> contact_forces_;                     // scratch: the core's
-    std::vector<std::pair<std::uint32_t, btRigidBody*>> body_of_;  // scratch: proxy -> body, sorted
-    std::function<void(const BulletEvent&)> on_tear_;
-    std::function<void(const BulletContact&)> on_contact_;
-    StageTimes total_;
-    std::string last_error_;
-    double step_ = 0.0;  // the internal step Bullet is taking
-    int tick_ = 1, ticks_ = 1;  // which of how many internal steps of the current stepSimulation
-    struct PendingPin {
-        Vec3 from, to;  // m
-    };
-    // Keyed by (object, particle or vertex): deterministic order.
-    std::map<std::pair<StringId, int>, Vec3> forces_;     // N, until the end of the next stepSimulation
-    std::map<std::pair<ClothId, int>, Vec3> cloth_forces_;
-    std::map<std::pair<PaperId, std::uint32_t>, Vec3> paper_forces_;
-    std::map<std::pair<StringId, int>, PendingPin> pins_;
-    std::map<StringId, std::vector<double>> peaks_;       // per string, per segment, N
-    struct Winch {
-        double speed = 0.0;  // m/s, > 0 pays out
-        RestMass mode = RestMass::Conserve;
-    };
-    std::map<std::pair<StringId, int>, Winch> winches_;  // by (string, end)
-    // setUserPointer's, per object.
-    std::map<StringId, void*> string_users_;
-    std::map<ClothId, void*> cloth_users_;
-    std::map<PaperId, void*> paper_users_;
-    // Collision filters other than Bullet's default, per slot.
-    std::map<std::uint32_t, Filter> string_filters_, cloth_filters_, paper_filters_;
-
-    friend class Action;
+    /// Everything else: the core world, the proxies of Bullet bodies, what the user gave for
+    /// the next stepSimulation (plugin/bullet_world_impl.hpp).
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
 };
 
 }  // namespace tearables

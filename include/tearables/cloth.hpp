@@ -21,22 +21,6 @@
 
 namespace tearables {
 
-/// Identifies a cloth in a World; stays valid until the cloth is removed.
-struct ClothId {
-    std::uint32_t index = UINT32_MAX;  ///< slot in the world; UINT32_MAX = none
-    /// Which object that slot held: a slot's generation grows by one when its cloth is
-    /// removed, so an id kept after the removal is refused (InvalidInput naming the
-    /// argument) instead of naming the next cloth put in the slot.
-    std::uint32_t generation = 0;
-    bool valid() const { return index != UINT32_MAX; }
-    friend bool operator==(ClothId a, ClothId b) { return a.index == b.index && a.generation == b.generation; }
-    friend bool operator!=(ClothId a, ClothId b) { return !(a == b); }
-    /// By slot, then generation (for ordered containers).
-    friend bool operator<(ClothId a, ClothId b) {
-        return a.index != b.index ? a.index < b.index : a.generation < b.generation;
-    }
-};
-
 /// A vertex of the weave pinned to a world point at creation (the words of a paper sheet's
 /// PaperAttachment without a body).
 struct ClothPin {

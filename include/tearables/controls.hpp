@@ -3,6 +3,7 @@
 // shape between two points: StringDesc::between; materials by name: presets.hpp.)
 #pragma once
 
+#include "tearables/ids.hpp"
 #include "tearables/string.hpp"
 #include "tearables/world.hpp"
 
@@ -26,12 +27,6 @@ int insertParticle(StringDesc& desc, double s);
 /// what holds them and keep theirs. Throws InvalidInput ("string"; "velocities": wrong
 /// count; "velocities[i]": not finite or too fast) and changes nothing then.
 void setVelocities(World& world, StringId id, const std::vector<Vec3>& velocities);
-
-/// What a change of rest length does to a string's mass.
-enum class RestMass {
-    Conserve,  ///< the particles keep their masses: the string's mass stays, its mass per length changes
-    Add,       ///< mass density * pi r^2 * (change) is added (removed), half to each end of the segment
-};
 
 /// Sets segment `segment`'s rest length (negative counts from the end), m, in
 /// [1e-6, 1e6]: its strain limit and plastic state scale with it. Throws InvalidInput

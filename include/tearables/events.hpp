@@ -1,8 +1,9 @@
 // tearables: events, read after a step (never callbacks from inside it).
 #pragma once
 
-#include "tearables/types.hpp"
+#include "tearables/ids.hpp"
 
+#include <cstdint>
 #include <string>
 
 namespace tearables {

@@ -15,22 +15,6 @@
 
 namespace tearables {
 
-/// Identifies a paper sheet in a World; stays valid until the sheet is removed.
-struct PaperId {
-    std::uint32_t index = UINT32_MAX;  ///< slot in the world; UINT32_MAX = none
-    /// Which object that slot held: a slot's generation grows by one when its paper sheet is
-    /// removed, so an id kept after the removal is refused (InvalidInput naming the
-    /// argument) instead of naming the next paper sheet put in the slot.
-    std::uint32_t generation = 0;
-    bool valid() const { return index != UINT32_MAX; }
-    friend bool operator==(PaperId a, PaperId b) { return a.index == b.index && a.generation == b.generation; }
-    friend bool operator!=(PaperId a, PaperId b) { return !(a == b); }
-    /// By slot, then generation (for ordered containers).
-    friend bool operator<(PaperId a, PaperId b) {
-        return a.index != b.index ? a.index < b.index : a.generation < b.generation;
-    }
-};
-
 /// What holds a vertex of a sheet at creation.
 struct PaperAttachment {
     std::uint32_t vertex = 0;          ///< vertex index, < vertex count

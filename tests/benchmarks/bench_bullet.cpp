@@ -12,7 +12,7 @@
 // holds the same 1% (BM_Rope746_TearablesAt1Percent).
 // Run: build/tests/benchmarks/tearables_bench --benchmark_filter=Rope746
 #include "bench_rope.hpp"
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 
 #include <BulletSoftBody/btSoftBodyHelpers.h>
 #include <BulletSoftBody/btSoftRigidDynamicsWorld.h>

@@ -3,7 +3,7 @@
 // tip of 10x the rope's mass, dt = 0.01 s, laid out horizontally and swinging down.
 #pragma once
 
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 
 #include <btBulletDynamicsCommon.h>
 #include <benchmark/benchmark.h>

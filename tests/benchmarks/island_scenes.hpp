@@ -4,7 +4,7 @@
 #pragma once
 
 #include "plugin/bullet_fixture.hpp"
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 
 #include <btBulletDynamicsCommon.h>
 

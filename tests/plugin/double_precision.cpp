@@ -1,7 +1,7 @@
 // The Bullet plugin built against Bullet in double precision (bullet-float64.pc,
 // BT_USE_DOUBLE_PRECISION): a 2 kg crate hanging on a rope reads m g at the top (plus the
 // rope's weight), and a force given once a frame over four sub-steps gives the impulse F dt.
-#include <tearables/bullet.hpp>
+#include <tearables/bullet_core.hpp>
 
 #include <btBulletDynamicsCommon.h>
 

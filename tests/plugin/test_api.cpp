@@ -1,6 +1,6 @@
 // The Bullet-facing API (issue 31): identity (generation-checked ids, user pointers),
 // contacts and events a Bullet user can use, and the everyday controls.
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 #include "tearables/presets.hpp"
 #include "tearables/snapshot.hpp"
 

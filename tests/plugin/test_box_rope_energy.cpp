@@ -5,7 +5,7 @@
 // from the solve's total turn (rotations do not commute), and friction is part of the
 // solve, not applied after it contact by contact (src/string/strain_limit.cpp).
 #include "bullet_fixture.hpp"
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 
 #include <btBulletDynamicsCommon.h>
 #include <gtest/gtest.h>

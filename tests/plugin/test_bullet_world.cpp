@@ -1,6 +1,6 @@
 // The Bullet plugin: two-way coupling with rigid bodies, stepping inside stepSimulation,
 // lifetimes.
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 
 #include "bullet_fixture.hpp"
 

@@ -1,6 +1,6 @@
 // Cloth against Bullet rigid bodies, two ways (issue 6): a light box dropped on a cloth
 // pinned at its corners is held; a heavy ball tears through it.
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 
 #include "bullet_fixture.hpp"
 

@@ -1,5 +1,5 @@
 // Debug drawing through btIDebugDraw: a recording drawer checks what the plugin draws.
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 #include "tearables/colormap.hpp"
 
 #include "bullet_fixture.hpp"

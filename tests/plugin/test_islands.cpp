@@ -1,7 +1,7 @@
 // Islands: strings coupled through the movable bodies they hold are solved as one system
 // with those bodies (src/island/). Checked against statics: a structure at rest carries
 // exactly its weight at its anchors, and every island's solve converges each step.
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 
 #include "benchmarks/island_scenes.hpp"
 #include "bullet_fixture.hpp"

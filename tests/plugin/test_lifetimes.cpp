@@ -3,7 +3,7 @@
 // held body and deleting it after a step or after forgetBody(); deleting a body that a
 // rope only touched once it has left the world. CTest also runs this file built with
 // AddressSanitizer (tearables_lifetime_asan), where a read of freed Bullet memory fails.
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 
 #include "bullet_fixture.hpp"
 

@@ -3,7 +3,7 @@
 #include "bullet_fixture.hpp"
 #include "paper/sheet.hpp"
 #include "../paper/paper_helpers.hpp"
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 
 #include <gtest/gtest.h>
 

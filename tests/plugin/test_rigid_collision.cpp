@@ -1,7 +1,7 @@
 // Strings against Bullet rigid bodies, two ways (issue 4): Bullet's narrow phase finds
 // capsule contacts, the string's Newton solve resolves them together with its tension,
 // and the bodies feel the reaction.
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 
 #include "bullet_fixture.hpp"
 #include "collision/capsule.hpp"

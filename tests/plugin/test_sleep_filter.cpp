@@ -1,7 +1,7 @@
 // Sleeping and collision filtering with Bullet: only bodies that a string holds or pushes
 // are woken, and each string, sheet and cloth has Bullet's collision group and mask,
 // checked both ways against each body's broadphase proxy (as addSoftBody(body, group, mask)).
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 #include "tearables/scene.hpp"
 
 #include "bullet_fixture.hpp"

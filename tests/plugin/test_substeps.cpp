@@ -2,7 +2,7 @@
 // internal steps a frame. Forces given through the plugin act on all of them (impulse
 // F dt_frame), pin moves and kinematic bodies are followed step by step (a crate lifted
 // at constant speed weighs m g), and the peak tension of every step stays visible.
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 
 #include "bullet_fixture.hpp"
 

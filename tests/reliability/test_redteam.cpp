@@ -7,7 +7,7 @@
 //                             shot says so in its event
 // Plus the API probes of the same report: --steps out of range, lastError() after a
 // failed then a successful step.
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 #include "tearables/scene.hpp"
 #include "tearables/world.hpp"
 

@@ -1,7 +1,7 @@
 // Issue 8, runtime faults: what a host can do to the strings while they run must never
 // crash, never leave NaN anywhere but in the object that caused it (which is frozen with
 // an event that says why), and never corrupt the rigid world the strings share.
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 #include "tearables/world.hpp"
 
 #include "../plugin/bullet_fixture.hpp"

@@ -2,7 +2,7 @@
 // bit-identically to the uninterrupted run (tearing, twist, rigid collision, a glued
 // body, random material variation); other versions, truncated and corrupt files are
 // refused with a clear error and leave the world as it was.
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 #include "tearables/snapshot.hpp"
 #include "sphere_contacts.hpp"
 #include "tearables/world.hpp"

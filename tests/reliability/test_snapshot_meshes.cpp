@@ -6,7 +6,7 @@
 // whose cloths or sheets are not the snapshot's refuses it, naming the difference, and
 // is left as it was.
 #include "world/world_access.hpp"
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 #include "tearables/snapshot.hpp"
 #include "tearables/world.hpp"
 

@@ -1,7 +1,7 @@
 // One meaning per word across strings, papers and cloths (docs/SCENE_FORMAT.md, "Words"):
 // a paper and a cloth written with the same words weigh the same and lie in the same place,
 // in a scene and in C++; a word used the old way is refused with what to write now.
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 #include "tearables/scene.hpp"
 #include "tearables/world.hpp"
 

@@ -3,7 +3,7 @@
 // below the ground. Checks, each a failure with a message: no NaN or frozen rope and no
 // error caught in a step; the kinetic energy stays bounded (by what the falling crates bring
 // in); once every rope is torn, the resident memory (/proc/self/statm) does not grow.
-#include "tearables/bullet.hpp"
+#include "tearables/bullet_core.hpp"
 
 #include <btBulletDynamicsCommon.h>
 
