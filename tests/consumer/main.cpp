@@ -1,5 +1,7 @@
-// A Bullet user's program: a rope holding a crate, through the installed package.
+// A Bullet user's program: a rope holding a crate, through the installed package. It fills
+// a descriptor itself, so it includes the descriptor's header beside the plugin's.
 #include <tearables/bullet.hpp>
+#include <tearables/string.hpp>
 
 #include <btBulletDynamicsCommon.h>
 
@@ -27,7 +29,7 @@ int main() {
     ropes.attach(rope, -1, crate, btVector3(0, 0.1f, 0));
     for (int i = 0; i < 120; ++i) world.stepSimulation(1.0f / 60.0f, 1, 1.0f / 60.0f);
 
-    const double top = ropes.core().view(rope).tension->front();
+    const double top = ropes.tensions(rope).front();
     std::printf("top tension %.3f N (crate weight %.3f N)\n", top, 2.0 * 9.81);
     world.removeRigidBody(&crate);
     return std::abs(top - 2.0 * 9.81) < 0.1 * 2.0 * 9.81 ? 0 : 1;
