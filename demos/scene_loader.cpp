@@ -1054,8 +1054,9 @@ Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     if (const auto solver = n.field("solver")) {
         const std::string v = solver->asString();
         if (v == "conjugate_gradient") d.solver = PaperSolver::ConjugateGradient;
+        else if (v == "multigrid") d.solver = PaperSolver::Multigrid;
         else if (v == "paper") d.solver = PaperSolver::Paper;
-        else solver->fail("must be \"conjugate_gradient\" or \"paper\" (got " + jsonQuoted(v) + ")");
+        else solver->fail("must be \"conjugate_gradient\", \"multigrid\" or \"paper\" (got " + jsonQuoted(v) + ")");
     }
     d.tolerance = n.number("tolerance", d.tolerance, Range::closed(1e-12, 1e-1));
     d.jacobi_iterations = static_cast<int>(n.integer("jacobi_iterations", d.jacobi_iterations, 1, 256));

@@ -39,6 +39,9 @@ enum class PaperSolver {
                         ///< warm-started from the last step's dv: the answer does not depend on an iteration
                         ///< count, but a stiff sheet's system is ill-conditioned and takes hundreds of
                         ///< iterations a step (BENCHMARKS.md, BM_PaperStepSolver)
+    Multigrid,          ///< the same conjugate gradients to `tolerance`, preconditioned by a smoothed-aggregation
+                        ///< multigrid V-cycle on the springs' graph (docs/paper-solver.md): tens of iterations
+                        ///< where block-Jacobi takes hundreds; the aggregates follow creases and tears
 };
 
 /// How a sheet's edge tensions (the stress that tears it) are estimated.
@@ -72,7 +75,7 @@ struct PaperDesc {
     double bending = 0.05;               ///< bending springs' stiffness as a fraction of `stiffness`, [0, 1]
     double damping = 0.01;               ///< s, stiffness-proportional (Rayleigh) damping: c = damping * k per spring, [0, 1]
     PaperSolver solver = PaperSolver::Paper;  ///< how the implicit step's system is solved
-    double tolerance = 1e-6;             ///< ConjugateGradient: stop when |b - W dv| <= tolerance |b|, [1e-12, 1e-1]
+    double tolerance = 1e-6;             ///< ConjugateGradient and Multigrid: stop when |b - W dv| <= tolerance |b|, [1e-12, 1e-1]
     int jacobi_iterations = 8;           ///< Paper: Jacobi iterations of the implicit solve (Paper Eq. 6), 1..256
     PaperIntegrator integrator = PaperIntegrator::Implicit;
     // --- breakable hinge springs (Paper Sec. III.B-C) ---

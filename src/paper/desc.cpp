@@ -64,8 +64,8 @@ void validate(const PaperDesc& d) {
     if (!std::isfinite(d.stiffness) || !(d.stiffness > 0.0) || d.stiffness > 1e12) throw InvalidInput("stiffness", "must be in (0, 1e12] N/m");
     requireRange(d.bending, 0.0, 1.0, "bending", "[0, 1] (fraction of stiffness)");
     requireRange(d.damping, 0.0, 1.0, "damping", "[0, 1] s");
-    if (d.solver != PaperSolver::ConjugateGradient && d.solver != PaperSolver::Paper)
-        throw InvalidInput("solver", "must be Paper or ConjugateGradient");
+    if (d.solver != PaperSolver::ConjugateGradient && d.solver != PaperSolver::Paper && d.solver != PaperSolver::Multigrid)
+        throw InvalidInput("solver", "must be Paper, ConjugateGradient or Multigrid");
     if (!std::isfinite(d.tolerance) || d.tolerance < 1e-12 || d.tolerance > 1e-1) throw InvalidInput("tolerance", "must be in [1e-12, 1e-1]");
     if (d.jacobi_iterations < 1 || d.jacobi_iterations > 256) throw InvalidInput("jacobi_iterations", "must be 1..256");
     if (!std::isfinite(d.phi) || !(d.phi > 0.0) || d.phi > 1e3) throw InvalidInput("phi", "must be in (0, 1000]");

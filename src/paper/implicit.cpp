@@ -114,6 +114,7 @@ void buildRows(PaperSheet& s) {
     s.row_reach = 1;
     for (const auto& [a, b] : s.link_ends) s.row_reach = std::max<std::size_t>(s.row_reach, a > b ? a - b : b - a);
     s.row_vertices = n;
+    ++s.rows_version;
 }
 
 /// Writes a coupling into row entry `slot`.
@@ -258,6 +259,8 @@ void jacobiSweeps(PaperSheet& s) {
     if (s.desc.jacobi_iterations & 1) s.dv.swap(s.dv_next);  // the last iterate into s.dv
 }
 
+}  // namespace
+
 /// y = W x on the free rows (y_i = 0 on a held row), with W_ij = -(iso I + along d d^T)
 /// from the row entries (a pad couples with zero) and W_ii from s.diag.
 void applySystem(const PaperSheet& s, const std::vector<Vec3>& x, std::vector<Vec3>& y) {
@@ -280,6 +283,8 @@ void applySystem(const PaperSheet& s, const std::vector<Vec3>& x, std::vector<Ve
         y[i] = sum;
     }
 }
+
+namespace {
 
 /// A sheet none of whose vertices is held: a spring adds B at (a, a) and (b, b) and -B at
 /// (a, b) and (b, a), so its blocks cancel column by column and the rows of W dv sum to
@@ -320,8 +325,16 @@ void poisonSolve(PaperSheet& s) {
     s.cg_residual = nan;
 }
 
-/// W dv = rhs by conjugate gradients with the block-Jacobi preconditioner W_ii^-1
-/// (s.diag_inv), the held rows' dv prescribed (already in s.dv).
+/// z = M^-1 r (s.cg_z from s.cg_r; zero on the held rows): the block-Jacobi preconditioner
+/// W_ii^-1 (s.diag_inv), or for PaperSolver::Multigrid one V-cycle (multigrid.cpp). Both
+/// are symmetric positive definite, as conjugate gradients need.
+void precondition(PaperSheet& s) {
+    if (s.desc.solver == PaperSolver::Multigrid) return multigridPrecondition(s, s.cg_r, s.cg_z);
+    for (std::size_t i = 0; i < s.vertices(); ++i) s.cg_z[i] = s.fixed[i] ? Vec3::Zero() : Vec3(s.diag_inv[i] * s.cg_r[i]);
+}
+
+/// W dv = rhs by preconditioned conjugate gradients (precondition), the held rows' dv
+/// prescribed (already in s.dv).
 ///
 /// W is symmetric positive definite as built: every live spring adds
 /// [B -B; -B B] (x) with B = h c d d^T + h^2 k (t (I - d d^T) + (1 - t) d d^T) = iso I + along d d^T,
@@ -366,9 +379,9 @@ void conjugateGradient(PaperSheet& s) {
     // start: the free rows' dv go non-finite instead, so that the sheet is frozen by the
     // finite check after the step, as the Jacobi sweeps' overflow freezes it.
     if (!std::isfinite(b_norm2) || !std::isfinite(r2)) return poisonSolve(s);
+    precondition(s);
     double rz = 0.0;
     for (std::size_t i = 0; i < n; ++i) {
-        s.cg_z[i] = s.fixed[i] ? Vec3::Zero() : Vec3(s.diag_inv[i] * s.cg_r[i]);
         s.cg_p[i] = s.cg_z[i];
         rz += s.cg_r[i].dot(s.cg_z[i]);
     }
@@ -390,11 +403,9 @@ void conjugateGradient(PaperSheet& s) {
         ++it;
         if (!std::isfinite(r2)) return poisonSolve(s);
         if (r2 <= stop2) break;
+        precondition(s);
         double rz_next = 0.0;
-        for (std::size_t i = 0; i < n; ++i) {
-            s.cg_z[i] = s.fixed[i] ? Vec3::Zero() : Vec3(s.diag_inv[i] * s.cg_r[i]);
-            rz_next += s.cg_r[i].dot(s.cg_z[i]);
-        }
+        for (std::size_t i = 0; i < n; ++i) rz_next += s.cg_r[i].dot(s.cg_z[i]);
         const double beta = rz_next / rz;
         rz = rz_next;
         for (std::size_t i = 0; i < n; ++i) s.cg_p[i] = s.cg_z[i] + beta * s.cg_p[i];
@@ -411,7 +422,7 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
     const double h = ctx.h, h2 = h * h;
     const double damping = s.desc.damping;
     const bool implicit = s.desc.integrator == PaperIntegrator::Implicit;
-    const bool cg = implicit && s.desc.solver == PaperSolver::ConjugateGradient;
+    const bool cg = implicit && (s.desc.solver == PaperSolver::ConjugateGradient || s.desc.solver == PaperSolver::Multigrid);
     if (cg) s.diag.resize(n);
     s.rhs.resize(n);
     s.dv.resize(n);
@@ -538,8 +549,10 @@ void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& c
             s.diag_inv[i] = s.diag_inv[i].inverse().eval();
             s.dv[i] = JacobiEntry(s.diag_inv[i] * s.rhs[i]);  // Eq. 6, k = 0
         }
-        if (cg)
+        if (cg) {
+            if (s.desc.solver == PaperSolver::Multigrid) multigridSetup(s);
             conjugateGradient(s);
+        }
         else {
             jacobiSweeps(s);  // Eq. 6, weighted, jacobi_iterations times
             keepMomentum(s);

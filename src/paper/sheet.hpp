@@ -53,6 +53,48 @@ struct alignas(32) JacobiEntry {
     Vec3 vec() const { return Vec3(v[0], v[1], v[2]); }
 };
 
+/// One coarse level of the paper's multigrid (multigrid.cpp): nodes of 3 unknowns each.
+struct PaperMultigridLevel {
+    /// Galerkin operator P^T A P of the level above, 3 N x 3 N, row-major; its pattern is
+    /// built with the aggregates, its values every step. The three scalar rows of a node
+    /// have the same columns, so block (I, J) starts at `base` and its row r at base + r stride.
+    Eigen::SparseMatrix<double, Eigen::RowMajor> A;
+    std::vector<std::uint32_t> diag_at;  ///< per node: value index of its diagonal block's (0, 0)
+    std::vector<Mat3> diag_inv;          ///< per node: inverse of its diagonal block (block Gauss-Seidel)
+    Eigen::VectorXd r, e, t;             ///< right-hand side, correction, scratch (3 N)
+};
+
+/// A term of a Galerkin product: coef times a source 3x3 block added into a target block
+/// (value index of its (0, 0) entry and its row stride).
+struct PaperGalerkinTerm {
+    std::uint32_t target = 0, target_stride = 0;
+    std::uint32_t source = 0, source_stride = 0;  ///< coarse levels only: the source block
+    double coef = 0.0;
+};
+
+/// Smoothed aggregation multigrid for the implicit solve (multigrid.cpp): the aggregates
+/// and prolongators depend on the live springs and held vertices only and are rebuilt when
+/// they change; the coarse operators are recomputed every step.
+struct PaperMultigrid {
+    bool built = false;
+    std::uint64_t rows_version = 0;      ///< PaperSheet::rows_version it was built for
+    std::vector<std::uint8_t> fixed;     ///< the held flags it was built for
+    /// prolong[l]: level l's nodes (rows; level 0 = vertices) from level l + 1's (columns),
+    /// scalar weights (each weight times the 3x3 identity); a held vertex's row is empty.
+    std::vector<Eigen::SparseMatrix<double, Eigen::RowMajor>> prolong;
+    std::vector<PaperMultigridLevel> levels;  ///< levels[0] is unused (the fine level is matrix-free)
+    /// Level 0 -> 1: per live spring (link order) + 1, its first term in spring_terms;
+    /// per vertex + 1, its first term in mass_terms.
+    std::vector<std::uint32_t> spring_term_start, mass_term_start;
+    std::vector<PaperGalerkinTerm> spring_terms, mass_terms;
+    std::vector<std::vector<PaperGalerkinTerm>> coarse_terms;  ///< [l]: level l -> l + 1, l >= 1
+    Eigen::MatrixXd dense;               ///< the coarsest operator
+    Eigen::LLT<Eigen::MatrixXd> dense_llt;
+    bool dense_ok = false;               ///< its Cholesky succeeded this step (else it is smoothed only)
+    std::vector<Vec3> t;                 ///< fine-level scratch (per vertex)
+    int coarsest_sweeps = 0;             ///< > 0: the coarsest level is too large for a dense factor and is smoothed
+};
+
 /// One sheet. Vertices are structure of arrays; springs and triangles are appended only.
 struct PaperSheet {
     PaperDesc desc;
@@ -95,6 +137,7 @@ struct PaperSheet {
     std::vector<Vec3> cg_r, cg_z, cg_p, cg_q, cg_warm;
     int cg_iterations = 0;        ///< iterations of the last solve
     double cg_residual = 0.0;     ///< its relative residual |b - W dv| / |b|
+    PaperMultigrid mg;            ///< PaperSolver::Multigrid's hierarchy (multigrid.cpp)
     // rows of the Jacobi gather (implicit.cpp, buildRows), rebuilt when the live springs change
     std::vector<std::array<std::uint32_t, 2>> link_ends;  ///< per live spring, in order: its vertices
     std::vector<std::array<std::uint32_t, 2>> link_slot;  ///< per live spring: its entries in the rows of a and b
@@ -104,6 +147,7 @@ struct PaperSheet {
     std::vector<double> link_length;               ///< per spring, its length at the step's start if live, m (the tension reuses it)
     std::size_t row_vertices = 0;                  ///< vertex count the rows were built for
     std::size_t row_reach = 0;                     ///< largest |other - this| over the row entries (the sweeps' pipeline lag)
+    std::uint64_t rows_version = 0;                ///< grows by one each time the rows are rebuilt
     std::vector<std::uint8_t> fixed;  ///< per vertex, its velocity is prescribed (pinned, glued)
     std::vector<Vec3> added_force;    ///< per vertex, the weight of the mass lent to it, N
     std::vector<Mat3> added_mass;     ///< per vertex, movable bodies' mass lent to it this step (contact normal, glue), kg
@@ -163,6 +207,17 @@ void restMesh(const PaperDesc& desc, std::vector<Vec3>& x, std::vector<std::arra
 void solveVelocities(PaperSheet& s, const RigidTable& rigids, const PaperStep& ctx);
 /// Spring force on vertex a of a spring (b gets the opposite), N, damping included.
 Vec3 springForce(const PaperSpring& sp, const Vec3& xa, const Vec3& xb, const Vec3& va, const Vec3& vb, double damping);
+
+// --- multigrid.cpp ---
+/// PaperSolver::Multigrid: (re)builds the aggregates when the rows or the held vertices
+/// changed, then the coarse operators of this step's system. Needs the rows, s.diag,
+/// s.diag_inv (inverted), s.mass, s.added_mass and s.fixed of the step.
+void multigridSetup(PaperSheet& s);
+/// z = V(r): one symmetric V-cycle on W z = r (held rows: r and z zero), the conjugate
+/// gradient's preconditioner.
+void multigridPrecondition(PaperSheet& s, const std::vector<Vec3>& r, std::vector<Vec3>& z);
+/// y = W x on the free rows (y = 0 on a held row).
+void applySystem(const PaperSheet& s, const std::vector<Vec3>& x, std::vector<Vec3>& y);
 
 // --- contact.cpp ---
 /// A vertex solved together with a share of a movable body's mass: along the contact

@@ -539,7 +539,7 @@ void io(A& a, PaperDesc& d) {
     io(a, d.stiffness);
     io(a, d.bending);
     io(a, d.damping);
-    ioEnum(a, d.solver, static_cast<int>(PaperSolver::ConjugateGradient), "solver");
+    ioEnum(a, d.solver, static_cast<int>(PaperSolver::Multigrid), "solver");
     io(a, d.tolerance);
     io(a, d.jacobi_iterations);
     ioEnum(a, d.integrator, static_cast<int>(PaperIntegrator::Explicit), "integrator");

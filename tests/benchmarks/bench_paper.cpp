@@ -8,7 +8,8 @@
 // several times, whose first runs left the heap grown for the measured one (which then
 // never met a growing allocation, as an application's one sheet does).
 // BM_PaperStepSolver/n/d: the hanging sheet's solve by the sweeps (d = 0) or by
-// conjugate gradients to a relative residual of 10^-d, with its iterations a step.
+// conjugate gradients to a relative residual of 10^-d, with its iterations a step;
+// BM_PaperStepMultigrid/n/d: the same with the multigrid preconditioner.
 // Run: build/tests/benchmarks/tearables_bench --benchmark_filter=Paper
 #include "world/world_access.hpp"
 #include "tearables/world.hpp"
@@ -71,6 +72,12 @@ void BM_PaperStepSolver(benchmark::State& state) {
               digits == 0 ? tearables::PaperDesc{}.tolerance : std::pow(10.0, -digits));
 }
 BENCHMARK(BM_PaperStepSolver)->ArgsProduct({{32, 64}, {0, 2, 3, 4, 6}})->Unit(benchmark::kMillisecond);
+/// The same conjugate gradients preconditioned by the smoothed aggregation multigrid
+/// (PaperSolver::Multigrid) to a relative residual of 10^-range(1).
+void BM_PaperStepMultigrid(benchmark::State& state) {
+    paperStep(state, false, tearables::PaperTension::Stretch, tearables::PaperSolver::Multigrid, std::pow(10.0, -static_cast<int>(state.range(1))));
+}
+BENCHMARK(BM_PaperStepMultigrid)->ArgsProduct({{32, 64}, {2, 4, 6, 7}})->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_PaperStepMomentumTension)->Arg(32)->Arg(64)->Arg(128)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_PaperStep)->Arg(32)->Arg(64)->Arg(128)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_PaperStepBreakable)->Arg(32)->Arg(64)->Arg(128)->Iterations(100)->Unit(benchmark::kMillisecond);

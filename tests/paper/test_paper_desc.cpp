@@ -223,7 +223,7 @@ TEST_P(PaperDescSolver, NonFiniteRefusedAndABlownUpSheetIsFrozen) {
     EXPECT_FALSE(world.viewPaper(good).frozen);
     EXPECT_LT((*world.viewPaper(good).positions)[0].y(), 1.0);  // it falls on
 }
-INSTANTIATE_TEST_SUITE_P(BothSolvers, PaperDescSolver, ::testing::Values(PaperSolver::Paper, PaperSolver::ConjugateGradient));
+INSTANTIATE_TEST_SUITE_P(BothSolvers, PaperDescSolver, ::testing::Values(PaperSolver::Paper, PaperSolver::ConjugateGradient, PaperSolver::Multigrid));
 
 }  // namespace
 }  // namespace tearables

@@ -155,7 +155,7 @@ TEST_P(PaperDriversSolver, VertexForceMovesCentreOfMassAsFOverM) {
     const double travel = (expected - x0).norm();
     EXPECT_LT((got - expected).norm(), 1e-6 * travel) << got.transpose() << " vs " << expected.transpose();
 }
-INSTANTIATE_TEST_SUITE_P(BothSolvers, PaperDriversSolver, ::testing::Values(PaperSolver::Paper, PaperSolver::ConjugateGradient));
+INSTANTIATE_TEST_SUITE_P(BothSolvers, PaperDriversSolver, ::testing::Values(PaperSolver::Paper, PaperSolver::ConjugateGradient, PaperSolver::Multigrid));
 
 /// Cloth faces: every intact cell is two triangles with +y normals on a flat cloth.
 TEST(ClothWind, FacesOfAFlatClothAndTheirDrag) {

@@ -505,7 +505,7 @@ const ErrorCase kErrorCases[] = {
     {"PaperDensity", R"({"papers": [{"name": "s", "areal_density": -1}]})", "papers[0].areal_density", "in [1e-09, 1000000]"},
     {"PaperStiffness", R"({"papers": [{"name": "s", "stiffness": 0}]})", "papers[0].stiffness", "greater than 0"},
     {"PaperDamping", R"({"papers": [{"name": "s", "damping": 2}]})", "papers[0].damping", "in [0, 1]"},
-    {"PaperSolver", R"({"papers": [{"name": "s", "solver": "multigrid"}]})", "papers[0].solver", "\"conjugate_gradient\" or \"paper\""},
+    {"PaperSolver", R"({"papers": [{"name": "s", "solver": "amg"}]})", "papers[0].solver", "\"conjugate_gradient\", \"multigrid\" or \"paper\" (got \"amg\")"},
     {"PaperTolerance", R"({"papers": [{"name": "s", "tolerance": 0}]})", "papers[0].tolerance", "in [1e-12, 0.1]"},
     {"PaperJacobi", R"({"papers": [{"name": "s", "jacobi_iterations": 0}]})", "papers[0].jacobi_iterations", "in [1, 256]"},
     {"PaperPhi", R"({"papers": [{"name": "s", "phi": 0}]})", "papers[0].phi", "in (0, 1000]"},
@@ -874,7 +874,7 @@ TEST(SceneRun, ForceAndRampActOnlyBetweenFromAndUntil) {
 // rounded by at most 2^-24 of itself: the impulse holds to that, relative.
 TEST(SceneRun, ForceAndMoveDriversOnSheetVertices) {
     const double kFloat = std::ldexp(1.0, -24);
-    for (const char* solver : {"paper", "conjugate_gradient"}) {
+    for (const char* solver : {"paper", "conjugate_gradient", "multigrid"}) {
         SCOPED_TRACE(solver);
         const Scene scene = parseScene(std::string(R"({"dt": 0.01, "steps": 40, "gravity": [0, 0, 0],
           "papers": [{"name": "sheet", "center": [0, 1, 0], "size": [0.2, 0.3], "resolution": [7, 9], "breakable": false,
