@@ -1,4 +1,4 @@
-// Shots at ropes, sheets and cloths held at their ends or edges (issue 35, item 4): a body
+// Shots at ropes, sheets and cloths held at their ends or edges: a body
 // fired straight down at the middle of the target, without gravity, at a fixed step. Shared
 // by the probe that prints the table (tests/benchmarks/tunnel_probe.cpp) and the tests that
 // hold its cases (tests/plugin/test_tunnelling.cpp).
@@ -10,7 +10,9 @@
 #include <btBulletDynamicsCommon.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -58,8 +60,10 @@ struct Outcome {
 
 inline double halfSize(Shape s) { return s == Shape::Sphere ? 0.01 : 0.05; }
 
-/// Runs `shot` and classifies where the body ended.
-inline Outcome fire(const Shot& shot) {
+/// Runs `shot` and classifies where the body ended. With `trace`, one line a step: the
+/// body's centre height and speed along -y, the target's height under it, the lowest
+/// point of the target and its fastest point's speed.
+inline Outcome fire(const Shot& shot, std::FILE* trace = nullptr) {
     testing::Physics phys(0.0);
     const double half = halfSize(shot.shape);
     const btVector3 start(0, static_cast<btScalar>(0.25 + half), 0);
@@ -113,12 +117,13 @@ inline Outcome fire(const Shot& shot) {
         cloth = world.addCloth(d);
     }
     // The target's surface under the body's centre: a rope's axis at the body's x
-    // (interpolated between particles), a sheet's or cloth's nearest vertex in x-z.
+    // (interpolated between particles), a sheet's or cloth's lowest layer there.
     struct Under {
         bool inside = false;  ///< the body's centre is within the target's outline
         double y = 0.0;       ///< the target's height there, m
     };
     const double rope_radius = 0.003;
+    std::vector<std::array<std::uint32_t, 3>> triangles;  // a cloth's: two a cell of its 21 x 21 grid
     auto under = [&](const btVector3& c) {
         Under u;
         const std::vector<Vec3>* x = nullptr;
@@ -135,16 +140,35 @@ inline Outcome fire(const Shot& shot) {
             }
             return u;
         }
+        // A sheet or cloth: its lowest layer at the body's x-z, over the triangles whose
+        // projection on the x-z plane holds the body's centre (a sheet drawn into a cone
+        // or wrapped round the body has several layers there; the body is past the sheet
+        // only when it is past all of them). Outside every triangle the body is outside
+        // the outline.
         x = shot.target == Target::Paper ? world.core().viewPaper(paper).positions : world.core().viewCloth(cloth).positions;
-        double best = 1e300;
-        for (const Vec3& p : *x) {
-            const double d = std::hypot(p.x() - c.x(), p.z() - c.z());
-            if (d < best) {
-                best = d;
-                u.y = p.y();
-            }
+        if (shot.target == Target::Cloth) {
+            triangles.clear();
+            for (int j = 0; j + 1 < 21; ++j)
+                for (int i = 0; i + 1 < 21; ++i) {
+                    const std::uint32_t a = static_cast<std::uint32_t>(j * 21 + i);
+                    triangles.push_back({a, a + 1, a + 22});
+                    triangles.push_back({a, a + 22, a + 21});
+                }
         }
-        u.inside = std::abs(c.x()) < 0.2 && std::abs(c.z()) < 0.2;
+        const auto& tris = shot.target == Target::Paper ? *world.core().viewPaper(paper).triangles : triangles;
+        u.y = 1e300;
+        for (const auto& t : tris) {
+            const Vec3 &p0 = (*x)[t[0]], &p1 = (*x)[t[1]], &p2 = (*x)[t[2]];
+            // Barycentric coordinates of (c.x, c.z) in the triangle's x-z projection.
+            const double d = (p1.x() - p0.x()) * (p2.z() - p0.z()) - (p2.x() - p0.x()) * (p1.z() - p0.z());
+            if (std::abs(d) < 1e-18) continue;
+            const double b1 = ((c.x() - p0.x()) * (p2.z() - p0.z()) - (p2.x() - p0.x()) * (c.z() - p0.z())) / d;
+            const double b2 = ((p1.x() - p0.x()) * (c.z() - p0.z()) - (c.x() - p0.x()) * (p1.z() - p0.z())) / d;
+            if (b1 < 0.0 || b2 < 0.0 || b1 + b2 > 1.0) continue;
+            u.inside = true;
+            u.y = std::min(u.y, p0.y() + b1 * (p1.y() - p0.y()) + b2 * (p2.y() - p0.y()));
+        }
+        if (!u.inside) u.y = 0.0;
         return u;
     };
     for (int i = 0; i < shot.steps; ++i) {
@@ -157,6 +181,20 @@ inline Outcome fire(const Shot& shot) {
         const Under u = under(c);
         // Through: wholly past the intact target's surface, within its outline.
         if (!torn && u.inside && c.y() + half < u.y) out.through = true;
+        if (trace) {
+            const std::vector<Vec3>* x = is_rope ? world.core().view(rope).positions
+                                         : shot.target == Target::Paper ? world.core().viewPaper(paper).positions
+                                                                        : world.core().viewCloth(cloth).positions;
+            const std::vector<Vec3>* v = is_rope ? world.core().view(rope).velocities
+                                         : shot.target == Target::Paper ? world.core().viewPaper(paper).velocities
+                                                                        : world.core().viewCloth(cloth).velocities;
+            double lowest = 1e300, fastest = 0.0;
+            for (const Vec3& p : *x) lowest = std::min(lowest, p.y());
+            for (const Vec3& w : *v) fastest = std::max(fastest, w.norm());
+            std::fprintf(trace, "step %2d  body y %9.4f  v %9.3f  under %9.4f%s  lowest %9.4f  fastest %8.3f%s\n", i + 1, c.y(),
+                         -body.getLinearVelocity().y(), u.y, u.inside ? "" : " (outside)", lowest, fastest,
+                         torn ? "  tore" : "");
+        }
     }
     for (const Event& e : world.events())
         if (e.type == EventType::Tear) out.tore = true;

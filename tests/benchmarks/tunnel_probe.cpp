@@ -1,16 +1,35 @@
 // tearables_tunnel_probe: does a fast body pass through a rope, sheet or cloth held at its
-// ends or edges (issue 35, item 4)? Prints one row per shot of tests/tunnel_scenes.hpp:
+// ends or edges? Prints one row per shot of tests/tunnel_scenes.hpp:
 // the outcome (stopped, tore, through) and the body's speed and height at the end. Not a
 // test: docs/tunnelling.md keeps its table; tests/plugin/test_tunnelling.cpp holds the cases.
 // Run: build/tests/benchmarks/tearables_tunnel_probe [dt]
+// One shot traced step by step: tearables_tunnel_probe dt TARGET SHAPE MASS SPEED, with
+// TARGET rope, tearable, paper or cloth and SHAPE sphere or box.
 #include "tunnel_scenes.hpp"
 
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 
 int main(int argc, char** argv) {
     using namespace tearables::tunnel;
     const double dt = argc > 1 ? std::atof(argv[1]) : 0.01;
+    if (argc == 6) {
+        Shot shot;
+        shot.dt = dt;
+        const char* t = argv[2];
+        shot.target = !std::strcmp(t, "paper")      ? Target::Paper
+                      : !std::strcmp(t, "cloth")    ? Target::Cloth
+                      : !std::strcmp(t, "tearable") ? Target::TearableRope
+                                                    : Target::Rope;
+        shot.shape = !std::strcmp(argv[3], "box") ? Shape::Box : Shape::Sphere;
+        shot.mass = std::atof(argv[4]);
+        shot.speed = std::atof(argv[5]);
+        const Outcome o = fire(shot, stdout);
+        std::printf("%s%s%s\n", o.through ? "THROUGH" : o.tore ? "tore" : "not through", o.error.empty() ? "" : "; error: ",
+                    o.error.c_str());
+        return 0;
+    }
     std::printf("| target | body | mass kg | speed m/s | outcome | end speed m/s | end y m | peak T / rupture load |\n");
     std::printf("|---|---|---|---|---|---|---|---|\n");
     for (Target target : {Target::Rope, Target::TearableRope, Target::Paper, Target::Cloth})

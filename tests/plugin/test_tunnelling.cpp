@@ -1,4 +1,4 @@
-// Fast bodies and particles against ropes and cloths (issue 35, item 4; the shots of
+// Fast bodies and particles against ropes and cloths (the shots of
 // tests/tunnel_scenes.hpp, whose whole table is docs/tunnelling.md). Contacts are
 // speculative: found between the start-of-step poses within the distance both can travel,
 // so a body crossing a rope's or a cloth's whole thickness in a step still meets it. The
