@@ -198,6 +198,9 @@ struct StringView {
     const std::vector<std::uint8_t>* broken = nullptr;///< per segment, 1 = torn
     double radius = 0.0;                              ///< m
     bool frozen = false;                              ///< stopped after a non-finite state
+    /// Newton iterations of the last step's strain-limit solve (its own or its island's),
+    /// all friction passes: what the step cost it.
+    int newton_iterations = 0;
     std::size_t particleCount() const { return positions->size(); }
     std::size_t segmentCount() const { return rest_length->size(); }
 };

@@ -118,10 +118,9 @@ Mollifier mollify(double y, double eps) {
     return m;
 }
 
-/// eps of contact c: kRigidSlip of its thickness (m).
-double slipSmoothing(const RigidSegmentContact& c) { return kRigidSlip * std::max(c.gap, 1e-9); }
-
 }  // namespace
+
+double slipSmoothing(const RigidSegmentContact& c) { return kRigidSlip * std::max(c.gap, 1e-9); }
 
 bool hasFriction(const RigidSegmentContact& c) {
     return c.lagged ? c.friction_weight > 0.0 : c.friction > 0.0 && c.friction_normal > 0.0;
@@ -236,10 +235,11 @@ FrictionTerm addFrictionRows(StringState& s, const RigidSegmentContact& c, bool 
     return f;
 }
 
-/// A normal force below this fraction of the string's largest counts as settled when it
-/// moves by less than kFrictionSettled of that fraction (weighRigidFriction): a contact
-/// that barely touches does not keep the passes going.
-constexpr double kNegligibleNormal = 1e-3;
+/// A contact's friction misses Coulomb's law by a fraction of its own bound mu N, or of
+/// this fraction of the string's largest mu N where that is more (weighRigidFriction): a
+/// contact that barely touches, or has just let go and still drags by a lagged weight's
+/// millinewtons, does not keep the passes going.
+constexpr double kNegligibleFriction = 0.1;
 
 bool predictContacts(StringState& s) {
     bool changed = false;
@@ -258,35 +258,43 @@ bool predictContacts(StringState& s) {
 }
 
 double weighRigidFriction(StringState& s, bool lagged) {
-    double largest = 0.0;
+    double largest_bound = 0.0;
     for (RigidSegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
         c.force = s.broken[j] ? 0.0 : c.stiffness * std::max(0.0, -rigidGap(s, c, xs));
-        largest = std::max(largest, c.force);
+        largest_bound = std::max(largest_bound, c.friction * c.force);
     }
     double change = 0.0;
     for (RigidSegmentContact& c : s.contacts) {
         c.lagged = lagged;
         const double normal = c.friction > 0.0 ? c.force : 0.0;
+        const std::size_t j = c.segment;
+        const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
+        const double slip = c.friction > 0.0 ? rigidSlip(s, c, xs).norm() : 0.0;
+        const double eps = slipSmoothing(c);
+        // The friction force the pass applied, against Coulomb's law with the normal force
+        // it found: a sliding contact must carry mu N, a sticking one at most mu N. Where
+        // every contact does (to kFrictionSettled of mu N, or of kNegligibleFriction of the
+        // string's largest mu N), the state is a Coulomb solution and the passes end: a load
+        // shared among contacts in a way the stiff penalties decide to the micron (a crate
+        // on a rope on the floor) may move between them, as long as each stays in its cone.
+        const double applied = lagged ? c.friction_weight * slip
+                                      : c.friction * c.friction_normal * mollify(slip, eps).f1_over_y * slip;
+        const double bound = c.friction * normal;
+        const double miss = slip >= eps ? std::abs(applied - bound) : std::max(0.0, applied - bound);
+        const double scale = std::max(bound, kNegligibleFriction * largest_bound);
+        if (scale > 0.0) change = std::max(change, miss / scale);
         c.solved_normal = c.friction_normal;
         c.friction_normal = normal;
         if (lagged) {
             // IPC's lagged weight: at the fixed point of the passes, mu F against sliding, or
             // a stiff spring below eps of slip (sticking).
-            const std::size_t j = c.segment;
-            const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
             double w = 0.0;
-            if (c.friction > 0.0 && c.force > 0.0)
-                w = c.friction * c.force / std::max(rigidSlip(s, c, xs).norm(), slipSmoothing(c));
-            const double scale = std::max(w, c.friction_weight);
-            if (scale > 0.0) change = std::max(change, std::abs(w - c.friction_weight) / scale);
+            if (c.friction > 0.0 && c.force > 0.0) w = c.friction * c.force / std::max(slip, eps);
             c.solved_weight = c.friction_weight;
             c.friction_weight = w;
-            continue;
         }
-        const double scale = std::max({normal, c.solved_normal, kNegligibleNormal * largest});
-        if (scale > 0.0) change = std::max(change, std::abs(normal - c.solved_normal) / scale);
     }
     return change;
 }

@@ -50,6 +50,33 @@ struct RigidSegmentContact {
     bool lagged = false;
     double friction_weight = 0.0;     ///< the lagged form's weight mu F / max(slip, eps), N/m
     double solved_weight = 0.0;       ///< the weight the last solve balanced, N/m
+    /// The segment touched this body, facing the same way, at the end of the last step:
+    /// friction starts from that step's normal force (ContactMemory) in the first pass.
+    bool remembered = false;
+};
+
+/// A string's contact with a body at the end of a step, for the next step's contact of
+/// the same segment with the same body facing the same way (StringSystem::collideBodies):
+/// friction's first pass takes the normal force N from the end of the last step, as IPC
+/// lags it (Li et al. 2020, Sec. 5.2: lambda^n and T^n from the previous time step), so a
+/// resting or sliding contact has Coulomb's friction from the step's first pass, and where
+/// N has not changed the passes end after one.
+struct ContactMemory {
+    std::uint32_t segment = 0;
+    double s = 0.0;               ///< where along the segment (0, 1: at its particles)
+    RigidId body;
+    Vec3 normal = Vec3::UnitY();  ///< the contact's normal in the body's frame
+    double force = 0.0;           ///< its normal force at the end of the step, N
+
+    /// Ordered by (segment, body): the entries of one segment and body are adjacent.
+    friend bool operator<(const ContactMemory& a, const ContactMemory& b) {
+        return std::tie(a.segment, a.body.index) < std::tie(b.segment, b.body.index);
+    }
+    /// A total order (ties of (segment, body) by normal): the same order from any sort.
+    static bool before(const ContactMemory& a, const ContactMemory& b) {
+        return std::make_tuple(a.segment, a.body.index, a.normal.x(), a.normal.y(), a.normal.z()) <
+               std::make_tuple(b.segment, b.body.index, b.normal.x(), b.normal.y(), b.normal.z());
+    }
 };
 
 /// One pair of segments, named from one side: segment `segment` of string `string` against

@@ -572,6 +572,13 @@ void finishChain(StringState& s, const RigidTable& rigids, const StepContext& ct
     if (s.scratch.rows_pressed)
         for (std::size_t p = 0; p < n; ++p) s.scratch.row_projector[p].setIdentity();
     s.scratch.rows_pressed = false;
+    // The normal forces friction starts from next step (ContactMemory): the last
+    // weighing's (weighRigidFriction), of every contact with friction, zero included.
+    s.contact_memory.clear();
+    for (const RigidSegmentContact& c : s.contacts)
+        if (c.friction > 0.0 && !s.broken[c.segment])
+            s.contact_memory.push_back({c.segment, c.s, c.body, c.local_normal, c.friction_normal});
+    std::sort(s.contact_memory.begin(), s.contact_memory.end(), ContactMemory::before);  // in place: no allocation
     for (const RigidSegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         if (s.broken[j]) continue;
@@ -933,6 +940,7 @@ public:
         const int iterations = ctx.settings->strain_iterations * (s.contacts.empty() ? kChainIterationFactor : kContactIterationFactor);
         bool frictional = false;
         for (const RigidSegmentContact& c : s.contacts) frictional = frictional || c.friction > 0.0;
+        if (!s.contacts.empty()) warmStartOnBodies();
         for (int pass = 0; pass < (frictional ? kRigidFrictionPasses : 1); ++pass) {
             bool converged = false;
             double last_move = -1.0;
@@ -1002,6 +1010,25 @@ private:
             if (branch != s.scratch.active[j]) return false;
         }
         return true;
+    }
+    /// A string lying on bodies that do not move with it (no body unknowns) starts where
+    /// the last step's correction takes its prediction (prepareStrainLimit left it in
+    /// blk_rhs), as a contact-free chain does (warmStart), where that lowers the step's
+    /// energy, contacts and friction included: a rope at rest on the ground starts at rest,
+    /// with its contacts pressed as they were. Only where no particle moves by more than
+    /// its segments' radius: a body the host did not report as a contact is farther than
+    /// that from the swept segment, so the start jumps no contact the solve has not got.
+    void warmStartOnBodies() {
+        if (nodes > 0 || ctx.cold_strain_starts || std::any_of(s.glue_movable.begin(), s.glue_movable.end(), [](std::uint8_t g) { return g != 0; }))
+            return;
+        for (std::size_t p = 0; p < n; ++p) {
+            const double reach = std::min(s.radius[std::min(p, s.segments() - 1)], s.radius[p > 0 ? p - 1 : 0]);
+            if (!(s.scratch.blk_rhs[p].squaredNorm() <= reach * reach)) return;
+        }
+        linearisePlanes(s, rigids);
+        if (!(stepEnergy(s, rigids, ctx, 1.0) < stepEnergy(s, rigids, ctx, 0.0))) return;
+        for (std::size_t p = 0; p < n; ++p)
+            if (!fixedRow(s, p)) s.x[p] += s.scratch.blk_rhs[p];
     }
     double gapNow(const RigidSegmentContact& c) const {
         const std::size_t j = c.segment;

@@ -19,10 +19,13 @@ namespace tearables::detail {
 /// closest points and friction), and the iteration budget of a pass with contacts
 /// relative to WorldSettings::strain_iterations.
 constexpr int kContactPasses = 4;
-/// Passes of a string's own solve with friction on rigid bodies: the first without
-/// friction (no normal force known yet), each next one with the normal forces of the last,
-/// until they settle (weighRigidFriction). A rope wrapped a full turn round a drum settles
-/// in 5-8 (the capstan test, tests/string/test_capstan.cpp; 4 held it at 1.05 e^(mu theta)).
+/// Passes of a string's own solve with friction on rigid bodies: a contact new this step
+/// has no friction in the first (no normal force known yet), one the last step had takes
+/// that step's force (ContactMemory); each next pass the normal forces of the last, until
+/// the friction found obeys Coulomb's law with the normal forces found (weighRigidFriction).
+/// A rope laid a full turn round a drum at once settles in 5-8 (the capstan test,
+/// tests/string/test_capstan.cpp; 4 held it at 1.05 e^(mu theta)); a rope resting on the
+/// ground, in one.
 constexpr int kRigidFrictionPasses = 8;
 constexpr int kContactIterationFactor = 4;
 /// A segment within this fraction of its radius of a body (or of the contact's thickness)
@@ -43,6 +46,9 @@ Vec6 rigidGapBodyGradient(const RigidSegmentContact& c);
 /// The tangential motion u_t of contact c over the step (relative to the body), with the
 /// string's contact point at xs and the body moved by `extra` beyond its displacement.
 Vec3 rigidSlip(const StringState& s, const RigidSegmentContact& c, const Vec3& xs, const Vec6* extra = nullptr);
+/// Friction's eps of contact c (the slip a step below which it sticks): kRigidSlip of its
+/// thickness, m.
+double slipSmoothing(const RigidSegmentContact& c);
 /// d(u_t)/d(body displacement): T [-I, [arm]x], T the tangent projector.
 Mat36 rigidSlipBodyJacobian(const RigidSegmentContact& c, const Mat3& tangent);
 /// Rigid contact c's penalty k_c g^2 / 2 on the string's own rows (g: its gap, or 0 where
@@ -70,10 +76,11 @@ Vec3 solvedFrictionForce(const RigidSegmentContact& c, const Vec3& slip);
 /// (`fa`, `fb`). Returns its rigidFrictionTerm.
 FrictionTerm addFrictionRows(StringState& s, const RigidSegmentContact& c, bool fa, bool fb);
 /// Friction's normal forces for the next pass: each contact's penalty force now. Returns
-/// the largest relative change of one (relative to it, or to kNegligibleNormal of the
-/// string's largest where that is more). `lagged` (an island's members): friction is the
-/// lagged quadratic w/2 |u_t|^2 with w = mu N / max(|u_t|, eps) from the slip now, and the
-/// change is the weights'.
+/// how far the pass's friction missed Coulomb's law with these forces: the largest miss of
+/// a contact (a sliding one's |f - mu N|, a sticking one's excess over mu N) relative to
+/// its mu N, or to kNegligibleFriction of the string's largest where that is more.
+/// `lagged` (an island's members): friction is the lagged quadratic w/2 |u_t|^2 with
+/// w = mu N / max(|u_t|, eps) from the slip now.
 double weighRigidFriction(StringState& s, bool lagged);
 /// The penalty and friction rows of the string's rigid contacts that penetrate now, without
 /// body unknowns (the bodies stay where they are), with the string's own solve's stiffness

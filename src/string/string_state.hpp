@@ -66,6 +66,9 @@ struct StringScratch {
     std::vector<double> diag, off, rhs;
     std::vector<double> segment_work; ///< solveSymmetricTridiagonal's gains; the strain solve's active stretches
     std::vector<std::uint8_t> active;
+    /// Per particle: the first contact with a body at it (at an end of a segment), -1 if
+    /// none (StringSystem::collideBodies merges repeats).
+    std::vector<std::int32_t> end_contact;
 
     // --- the strain solve: block-tridiagonal Newton system (particles) ----------------------
     std::vector<Mat3> blk_diag, blk_off;
@@ -185,6 +188,9 @@ struct StringState {
 
     // --- rigid contacts (collision stage) -------------------------------------------------
     std::vector<RigidSegmentContact> contacts;
+    /// The contacts with friction at the end of the last step, sorted (finishChain; read
+    /// and cleared by StringSystem::collideBodies).
+    std::vector<ContactMemory> contact_memory;
     std::vector<BodyNode> body_nodes;
     std::vector<std::uint8_t> colliding;  ///< per particle: in a string-string contact last step (3x heavier in CSM)
     /// Per segment: may still be inside a body it overlapped when the string was made

@@ -88,6 +88,56 @@ void exemptBuriedEnds(StringState& s, std::vector<std::uint8_t>& buried) {
     s.contacts.resize(kept);
 }
 
+/// A remembered contact faces the same way as the new one when their normals (in the
+/// body's frame) are within about 25 degrees: the same face, edge or side of the body.
+constexpr double kSameFacing = 0.9;
+
+/// Normals within this angle's cosine (2.6 degrees) at one particle are one contact.
+constexpr double kSameNormal = 0.999;
+
+/// Whether contact c, at an end of its segment, repeats the first contact at that particle
+/// (the end of the segment before, or the start of the one after) with the same body and
+/// normal, as a host answers for two segments lying along one face; else, where it is the
+/// first, it is recorded as such (StringScratch::end_contact, reset by collideBodies). A
+/// second penalty there would double the contact's stiffness and split its force, and
+/// friction's weight, between the two at random from pass to pass.
+bool repeatsEndContact(StringState& s, const RigidSegmentContact& c) {
+    if (c.s != 0.0 && c.s != 1.0) return false;
+    const std::size_t p = c.s == 0.0 ? c.segment : c.segment + 1;
+    std::int32_t& first = s.scratch.end_contact[p];
+    if (first < 0) {
+        first = static_cast<std::int32_t>(s.contacts.size());
+        return false;
+    }
+    const RigidSegmentContact& other = s.contacts[static_cast<std::size_t>(first)];
+    return other.body == c.body && other.normal.dot(c.normal) > kSameNormal;
+}
+
+/// Friction from where the last step left it (ContactMemory): the normal force of the
+/// segment's contact with the same body facing the same way (the closest in direction);
+/// at a particle, also of the contact the neighbouring segment had there (which of two
+/// segments a host names for a particle on a face may change from step to step).
+void rememberFriction(const StringState& s, RigidSegmentContact& c) {
+    if (!(c.friction > 0.0)) return;
+    double best = kSameFacing;
+    auto look = [&](std::uint32_t segment, double only_s) {
+        ContactMemory key;
+        key.segment = segment;
+        key.body = c.body;
+        const auto range = std::equal_range(s.contact_memory.begin(), s.contact_memory.end(), key);
+        for (auto it = range.first; it != range.second; ++it) {
+            const double facing = it->normal.dot(c.local_normal);
+            if (facing < best || (only_s >= 0.0 && it->s != only_s)) continue;
+            best = facing;
+            c.friction_normal = it->force;
+            c.remembered = true;
+        }
+    };
+    look(c.segment, -1.0);
+    if (c.s == 0.0 && c.segment > 0) look(c.segment - 1, 1.0);
+    if (c.s == 1.0 && c.segment + 1 < s.segments()) look(c.segment + 1, 0.0);
+}
+
 }  // namespace
 
 int resolveIndex(int particle, std::size_t count, const char* field) {
@@ -260,6 +310,10 @@ void StringSystem::releaseBody(RigidId body, double time, std::int64_t step, std
         for (std::size_t p = 0; p < s.particles(); ++p)
             if (s.hold[p].gluedTo(body))
                 release(idAt(i), p, EventCause::BodyRemoved, time, step, pending);
+        // The slot may hold another body by the next step.
+        s.contact_memory.erase(std::remove_if(s.contact_memory.begin(), s.contact_memory.end(),
+                                              [&](const ContactMemory& c) { return c.body == body; }),
+                               s.contact_memory.end());
     }
 }
 
@@ -323,6 +377,7 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host, c
     pool_->forEach(strings_.size(), [this](std::size_t i) {
         StringState& s = strings_[i];
         s.contacts.clear();
+        s.scratch.end_contact.assign(s.particles(), -1);
         s.body_nodes.clear();
         if (s.scratch.rows_pressed)
             std::fill(s.scratch.row_projector.begin(), s.scratch.row_projector.end(), Mat3::Identity());
@@ -385,6 +440,8 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host, c
         // under load (F / k_c, micrometres), keep the exact constraint.
         if (c.segment < s.made_inside.size() && s.made_inside[c.segment] && sc.start_depth > kDeepOverlap * sc.gap)
             sc.gap -= (1.0 - kOverlapRecovery) * sc.start_depth;
+        if (repeatsEndContact(s, sc)) continue;
+        rememberFriction(s, sc);
         if (rigids.movable(c.body)) {
             int node = -1;
             for (std::size_t b = 0; b < s.body_nodes.size(); ++b)
@@ -398,6 +455,8 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host, c
         }
         s.contacts.push_back(sc);
     }
+    // The memory is this step's now (finishChain writes the next).
+    for (StringState& s : strings_) s.contact_memory.clear();
     eachLive([&](StringState& s) {
         std::vector<std::uint8_t>& inside = s.made_inside;
         if (inside.size() != s.segments()) inside.assign(s.segments(), 0);

@@ -303,6 +303,14 @@ void io(A& a, detail::StringPairContact& c) {
     io(a, c.force);
 }
 template <class A>
+void io(A& a, detail::ContactMemory& c) {
+    io(a, c.segment);
+    io(a, c.s);
+    io(a, c.body);
+    io(a, c.normal);
+    io(a, c.force);
+}
+template <class A>
 void io(A& a, RigidState& b) {
     io(a, b.position);
     io(a, b.orientation);
@@ -435,6 +443,7 @@ void io(A& a, detail::StringState& s) {
     io(a, s.colliding);
     io(a, s.made_inside);
     io(a, s.overlap_reported);
+    io(a, s.contact_memory);
     io(a, s.prev_stretch);
     io(a, s.rest_direction);
     io(a, s.rest_shape);
@@ -654,6 +663,12 @@ void checkString(const detail::StringState& s, const detail::RigidTable& rigids,
     for (std::size_t j = 0; j < m; ++j)
         if (!(s.rest_length[j] > 0.0) || !(s.material[j].young > 0.0))
             fail("segment " + std::to_string(j) + " has no valid rest length or material");
+    // The contact memory is looked up by (segment, body) with a binary search.
+    for (const detail::ContactMemory& c : s.contact_memory)
+        if (c.segment >= m || !(c.s >= 0.0 && c.s <= 1.0) || c.body.index >= rigids.bodies.size() || !rigids.used[c.body.index] ||
+            !c.normal.allFinite() || std::abs(c.normal.norm() - 1.0) > 1e-6 || !std::isfinite(c.force) || c.force < 0.0)
+            fail("contact_memory names a segment, point or body that does not exist, or has no valid normal or force");
+    if (!std::is_sorted(s.contact_memory.begin(), s.contact_memory.end())) fail("contact_memory is not sorted");
 }
 
 /// A glue names a rigid slot that exists.

@@ -382,6 +382,7 @@ StringView World::view(StringId id) const {
     v.broken = &s.broken;
     v.radius = s.desc.radius;
     v.frozen = s.frozen;
+    v.newton_iterations = s.diagnostics.strain_newton_iterations;
     return v;
 }
 
