@@ -1,0 +1,342 @@
+// Ropes in Bullet's own queries: each string is one btCollisionObject in the Bullet world,
+// a btCompoundShape of one capsule per intact segment (radius the string's, from particle j
+// to particle j + 1), moved to the particles after every tearables step. Bullet's
+// btCollisionWorld::rayTest then meets ropes as it meets crates; for a compound it reports
+// the child it hit in LocalShapeInfo::m_triangleIndex (btCollisionWorld::rayTestSingleInternal),
+// and each object keeps which segment each child is.
+//
+// A child is a SegmentShape, not a btCapsuleShape: Bullet casts a ray at a convex shape
+// iteratively (btSubsimplexConvexCast, stopping once within sqrt(1e-4) m in single
+// precision), which on a 1 cm rope reports hits up to 0.5 cm outside it and places them up
+// to half a radius off (docs/facade.md). A concave shape gets the ray itself instead
+// (processAllTriangles with a btTriangleRaycastCallback), so the capsule is hit exactly
+// (rayCapsule, the core's ray test); other queries (convexSweepTest, contactTest) get the
+// triangles of a prism around the capsule.
+//
+// The object takes no part in the simulation:
+//  - it is static (CF_STATIC_OBJECT): no simulation island, not in the solver's bodies,
+//    never put to sleep (Bullet's activation pass reads rigid bodies only);
+//  - checkCollideWithOverride answers false to every object (m_checkCollideWith = 1), so
+//    btCollisionDispatcher::needsCollision refuses each broadphase pair it is in: no
+//    collision algorithm, manifold or contact is ever made for it;
+//  - CF_NO_CONTACT_RESPONSE: the plugin's own broadphase search (bodiesIn) and Bullet's
+//    character controller skip it; it is not a btRigidBody, so nothing that upcasts the
+//    world's objects (island_claim.cpp, the contact provider) sees it either;
+//  - CF_DISABLE_VISUALIZE_OBJECT: debugDraw() draws ropes already.
+// Its broadphase filter is the string's (addString(desc, group, mask)), so a ray's own
+// group and mask select ropes as they select bodies.
+#include "bullet_world_impl.hpp"
+
+#include "tearables/queries.hpp"
+
+#include <BulletCollision/CollisionShapes/btConcaveShape.h>
+#include <BulletCollision/CollisionShapes/btTriangleCallback.h>
+#include <BulletCollision/NarrowPhaseCollision/btRaycastCallback.h>
+#include <btBulletDynamicsCommon.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace tearables {
+
+namespace {
+
+/// How far a segment's box in the compound's tree reaches past the segment's capsule, m: a
+/// segment that moves less than this between steps costs no update of the tree (btDbvt's
+/// update with a margin, as Bullet's broadphase keeps its proxies); a ray passing that
+/// close to a rope tests a few more capsules.
+constexpr btScalar kLeafMargin = btScalar(0.02);
+
+/// Sides of the prism that stands for a capsule in queries other than ray tests.
+constexpr int kPrismSides = 8;
+
+/// One segment: the capsule of radius r around its local y axis from -h to h.
+class SegmentShape final : public btConcaveShape {
+public:
+    explicit SegmentShape(int child) : child_(child) { m_shapeType = FAST_CONCAVE_MESH_PROXYTYPE; }
+    void set(btScalar radius, btScalar half_length) {
+        radius_ = radius;
+        half_ = half_length;
+    }
+
+    void getAabb(const btTransform& t, btVector3& lo, btVector3& hi) const override {
+        const btVector3 axis = t.getBasis().getColumn(1) * half_;
+        const btVector3 extent(std::fabs(axis.x()) + radius_, std::fabs(axis.y()) + radius_, std::fabs(axis.z()) + radius_);
+        lo = t.getOrigin() - extent;
+        hi = t.getOrigin() + extent;
+    }
+
+    // A ray (btCollisionWorld::rayTestSingleInternal's bridge, in this shape's frame): the
+    // exact entry into the capsule, reported as Bullet's triangle ray casts report theirs,
+    // with the child index as the triangle. Anything else: the prism's triangles.
+    void processAllTriangles(btTriangleCallback* callback, const btVector3& lo, const btVector3& hi) const override {
+        if (auto* ray = dynamic_cast<btTriangleRaycastCallback*>(callback)) {
+            castRay(*ray);
+            return;
+        }
+        btVector3 box_lo, box_hi;
+        getAabb(btTransform::getIdentity(), box_lo, box_hi);
+        if (box_lo.x() > hi.x() || box_lo.y() > hi.y() || box_lo.z() > hi.z() || box_hi.x() < lo.x() ||
+            box_hi.y() < lo.y() || box_hi.z() < lo.z())
+            return;
+        emitPrism(*callback);
+    }
+
+    void setLocalScaling(const btVector3&) override {}  // a rope is not scaled
+    const btVector3& getLocalScaling() const override { return unit_scale_; }
+    void calculateLocalInertia(btScalar, btVector3& inertia) const override { inertia.setValue(0, 0, 0); }
+    const char* getName() const override { return "tearables rope segment"; }
+
+private:
+    void castRay(btTriangleRaycastCallback& ray) const {
+        const Vec3 from = toCore(ray.m_from), to = toCore(ray.m_to);
+        const Vec3 a(0, -half_, 0), b(0, half_, 0);
+        const auto hit = rayCapsule(from, to, a, b, static_cast<double>(radius_));
+        if (!hit || !(hit->first < static_cast<double>(ray.m_hitFraction))) return;
+        const Vec3 point = from + hit->first * (to - from);
+        const Vec3 out = point - (a + hit->second * (b - a));
+        const Vec3 normal = out.norm() > 0.0 ? Vec3(out.normalized()) : Vec3(-(to - from).normalized());
+        ray.m_hitFraction = ray.reportHit(toBullet(normal), static_cast<btScalar>(hit->first), -1, child_);
+    }
+
+    // A right prism of kPrismSides sides around the axis, circumscribing the capsule: its
+    // side faces at the radius (corners at r / cos(pi / n)), its ends r past the segment's.
+    void emitPrism(btTriangleCallback& callback) const {
+        constexpr double kPi = 3.14159265358979323846;
+        const double corner = static_cast<double>(radius_) / std::cos(kPi / kPrismSides);
+        const btScalar top = half_ + radius_;
+        btVector3 ring[kPrismSides];
+        for (int k = 0; k < kPrismSides; ++k) {
+            const double angle = 2.0 * kPi * k / kPrismSides;
+            ring[k].setValue(static_cast<btScalar>(corner * std::cos(angle)), 0, static_cast<btScalar>(corner * std::sin(angle)));
+        }
+        const btVector3 up(0, top, 0);
+        btVector3 tri[3];
+        for (int k = 0; k < kPrismSides; ++k) {
+            const btVector3 &p = ring[k], &q = ring[(k + 1) % kPrismSides];
+            tri[0] = p - up, tri[1] = q - up, tri[2] = q + up;
+            callback.processTriangle(tri, 0, child_);
+            tri[0] = p - up, tri[1] = q + up, tri[2] = p + up;
+            callback.processTriangle(tri, 0, child_);
+        }
+        for (int k = 1; k + 1 < kPrismSides; ++k) {
+            tri[0] = ring[0] + up, tri[1] = ring[k + 1] + up, tri[2] = ring[k] + up;
+            callback.processTriangle(tri, 0, child_);
+            tri[0] = ring[0] - up, tri[1] = ring[k] - up, tri[2] = ring[k + 1] - up;
+            callback.processTriangle(tri, 0, child_);
+        }
+    }
+
+    int child_;
+    btScalar radius_ = 0, half_ = 0;
+    btVector3 unit_scale_{1, 1, 1};
+};
+
+/// A compound whose children are moved in place: each child's transform, then its leaf in
+/// the tree only when its capsule left the leaf's grown box (updateChildTransform
+/// re-inserts the leaf whenever the child moves at all), then the bounds of the whole from
+/// the capsules' boxes.
+class RopeCompound final : public btCompoundShape {
+public:
+    explicit RopeCompound(int children) : btCompoundShape(true, children) {}
+    void moveChild(int k, const btTransform& transform, const btVector3& lo, const btVector3& hi) {
+        m_children[k].m_transform = transform;
+        btDbvtVolume box = btDbvtVolume::FromMM(lo, hi);
+        if (m_dynamicAabbTree && m_children[k].m_node) m_dynamicAabbTree->update(m_children[k].m_node, box, kLeafMargin);
+    }
+    void setLocalBounds(const btVector3& lo, const btVector3& hi) {
+        m_localAabbMin = lo;
+        m_localAabbMax = hi;
+    }
+};
+
+}  // namespace
+
+class BulletWorld::Impl::RopeObject final : public btCollisionObject {
+public:
+    RopeObject(const Impl& owner, StringId id) : owner_(owner), id_(id) {
+        m_checkCollideWith = 1;  // ask checkCollideWithOverride about every pair
+        setCollisionFlags(CF_STATIC_OBJECT | CF_NO_CONTACT_RESPONSE | CF_DISABLE_VISUALIZE_OBJECT);
+        setUserIndex(static_cast<int>(id.index));
+        setUserIndex2(static_cast<int>(id.generation));
+        compound_ = std::make_unique<RopeCompound>(0);
+        setCollisionShape(compound_.get());
+    }
+    bool checkCollideWithOverride(const btCollisionObject*) const override { return false; }
+
+    const Impl& owner() const { return owner_; }
+    StringId id() const { return id_; }
+    /// The segment of each compound child, ascending.
+    const std::vector<int>& segments() const { return segments_; }
+
+    /// Puts one capsule per intact segment of `v` where its particles are. The children are
+    /// rebuilt when the intact segments changed (a tear, a cut, reeling); otherwise moved
+    /// in place.
+    void follow(const StringView& v) {
+        const auto& x = *v.positions;
+        const auto& broken = *v.broken;
+        bool usable = !v.frozen && std::isfinite(v.radius) && v.radius > 0.0;
+        for (std::size_t p = 0; usable && p < x.size(); ++p) usable = x[p].allFinite();
+        intact_.clear();
+        if (usable)
+            for (std::size_t j = 0; j < broken.size(); ++j)
+                if (!broken[j]) intact_.push_back(static_cast<int>(j));
+        radius_ = static_cast<btScalar>(v.radius);
+        if (intact_ != segments_) rebuild();
+        const btVector3 reach(radius_, radius_, radius_);
+        btVector3 lo(BT_LARGE_FLOAT, BT_LARGE_FLOAT, BT_LARGE_FLOAT), hi = -lo;
+        for (std::size_t k = 0; k < segments_.size(); ++k) {
+            const btVector3 a = toBullet(x[segments_[k]]), b = toBullet(x[segments_[k] + 1]);
+            const btVector3 axis = b - a;
+            const btScalar length = axis.length();
+            // The capsule's axis is its local y (SegmentShape): a basis whose second column
+            // is the segment's direction, completed by btPlaneSpace1 (q = y x p, so that the
+            // columns (q, y, p) are right-handed).
+            btMatrix3x3 basis = btMatrix3x3::getIdentity();
+            if (length > btScalar(0)) {
+                const btVector3 y = axis / length;
+                btVector3 p, q;
+                btPlaneSpace1(y, p, q);
+                basis.setValue(q.x(), y.x(), p.x(), q.y(), y.y(), p.y(), q.z(), y.z(), p.z());
+            }
+            capsules_[k]->set(radius_, length * btScalar(0.5));
+            // The capsule's exact box: the segment's, grown by the radius.
+            btVector3 box_lo = a, box_hi = a;
+            box_lo.setMin(b);
+            box_hi.setMax(b);
+            box_lo -= reach;
+            box_hi += reach;
+            compound_->moveChild(static_cast<int>(k), btTransform(basis, (a + b) * btScalar(0.5)), box_lo, box_hi);
+            lo.setMin(box_lo);
+            hi.setMax(box_hi);
+        }
+        if (segments_.empty()) lo = hi = btVector3(0, 0, 0);
+        compound_->setLocalBounds(lo, hi);
+    }
+
+private:
+    void rebuild() {
+        segments_ = intact_;
+        while (capsules_.size() < segments_.size())
+            capsules_.push_back(std::make_unique<SegmentShape>(static_cast<int>(capsules_.size())));
+        // A fresh compound: its children and their tree made in segment order.
+        auto fresh = std::make_unique<RopeCompound>(static_cast<int>(segments_.size()));
+        for (std::size_t k = 0; k < segments_.size(); ++k) fresh->addChildShape(btTransform::getIdentity(), capsules_[k].get());
+        setCollisionShape(fresh.get());
+        compound_ = std::move(fresh);
+    }
+
+    const Impl& owner_;
+    StringId id_;
+    btScalar radius_ = 0;
+    std::vector<int> segments_, intact_;
+    std::unique_ptr<RopeCompound> compound_;
+    std::vector<std::unique_ptr<SegmentShape>> capsules_;  // per child: child k is capsules_[k]
+};
+
+BulletWorld::Impl::RopeObjectSlot::RopeObjectSlot() = default;
+BulletWorld::Impl::RopeObjectSlot::RopeObjectSlot(RopeObjectSlot&&) noexcept = default;
+BulletWorld::Impl::RopeObjectSlot& BulletWorld::Impl::RopeObjectSlot::operator=(RopeObjectSlot&&) noexcept = default;
+BulletWorld::Impl::RopeObjectSlot::~RopeObjectSlot() = default;
+
+void BulletWorld::Impl::syncRopeObject(StringId id) {
+    if (!rope_objects_on_ || !attachedToBullet() || !core_->contains(id)) return;
+    RopeObjectSlot& slot = rope_objects_[id];
+    if (!slot.object) {
+        slot.object = std::make_unique<RopeObject>(*this, id);
+        const auto user = string_users_.find(id);
+        slot.object->setUserPointer(user == string_users_.end() ? nullptr : user->second);
+        const auto filter = string_filters_.find(id.index);
+        const Filter f = filter == string_filters_.end() ? Filter{} : filter->second;
+        slot.object->follow(core_->view(id));
+        world_->addCollisionObject(slot.object.get(), f.group, f.mask);
+        return;
+    }
+    slot.object->follow(core_->view(id));
+    // Its bounds in the broadphase now, for the ray tests the user makes before the next step.
+    if (slot.object->getBroadphaseHandle()) world_->updateSingleAabb(slot.object.get());
+}
+
+void BulletWorld::Impl::dropRopeObject(StringId id) {
+    const auto it = rope_objects_.find(id);
+    if (it == rope_objects_.end()) return;
+    // A handle means the object is in the Bullet world (~btCollisionWorld clears it).
+    if (it->second.object->getBroadphaseHandle()) world_->removeCollisionObject(it->second.object.get());
+    rope_objects_.erase(it);
+}
+
+// After a step, and after changes the core made on its own (strings removed through
+// core(), a snapshot loaded): objects of strings gone are dropped, the others follow.
+void BulletWorld::Impl::syncRopeObjects() {
+    if (!attachedToBullet()) return;  // ~btCollisionWorld has let go of every object
+    for (auto it = rope_objects_.begin(); it != rope_objects_.end();) {
+        const StringId id = it->first;
+        ++it;
+        if (!rope_objects_on_ || !core_->contains(id)) dropRopeObject(id);
+    }
+    if (!rope_objects_on_) return;
+    for (const StringId id : core_->strings()) syncRopeObject(id);
+}
+
+void BulletWorld::Impl::setRopesRayTestable(bool on) {
+    rope_objects_on_ = on;
+    syncRopeObjects();
+}
+
+void BulletWorld::Impl::userPointerChanged(StringId id) {
+    const auto it = rope_objects_.find(id);
+    if (it == rope_objects_.end()) return;
+    const auto user = string_users_.find(id);
+    it->second.object->setUserPointer(user == string_users_.end() ? nullptr : user->second);
+}
+
+void BulletWorld::Impl::removeRopeObjectsFromWorld() {
+    for (auto& [id, slot] : rope_objects_)
+        if (slot.object->getBroadphaseHandle()) world_->removeCollisionObject(slot.object.get());
+}
+
+const btCollisionObject* BulletWorld::Impl::rayObject(StringId id) const {
+    (void)core_->desc(id);  // InvalidInput("string") for an unknown or stale id
+    const auto it = rope_objects_.find(id);
+    return it == rope_objects_.end() ? nullptr : it->second.object.get();
+}
+
+// The object must be one of this plugin's, for a live string whose segment is still
+// intact (a change made through core() reaches the objects at the next step).
+std::optional<RopeHit> BulletWorld::Impl::ropeHit(const btCollisionObject* object, int child) const {
+    const auto* rope = dynamic_cast<const RopeObject*>(object);
+    if (!rope || &rope->owner() != this || !core_->contains(rope->id())) return std::nullopt;
+    const auto& segments = rope->segments();
+    if (child < 0 || static_cast<std::size_t>(child) >= segments.size()) return std::nullopt;
+    const int segment = segments[child];
+    const StringView v = core_->view(rope->id());
+    if (static_cast<std::size_t>(segment) >= v.segmentCount() || (*v.broken)[segment]) return std::nullopt;
+    return RopeHit{rope->id(), segment};
+}
+
+// The capsule whose surface is nearest the point: |distance to the axis - r| least.
+std::optional<RopeHit> BulletWorld::Impl::ropeHit(const btCollisionObject* object, const btVector3& point) const {
+    const auto* rope = dynamic_cast<const RopeObject*>(object);
+    if (!rope || &rope->owner() != this || !core_->contains(rope->id())) return std::nullopt;
+    const Vec3 at = toCore(point);
+    if (!at.allFinite()) throw InvalidInput("point", "must be finite");
+    const StringView v = core_->view(rope->id());
+    const auto& x = *v.positions;
+    std::optional<RopeHit> best;
+    double best_gap = std::numeric_limits<double>::infinity();
+    for (std::size_t j = 0; j < v.segmentCount(); ++j) {
+        if ((*v.broken)[j]) continue;
+        const Vec3 axis = x[j + 1] - x[j];
+        const double l2 = axis.squaredNorm();
+        const double s = l2 > 0.0 ? std::clamp((at - x[j]).dot(axis) / l2, 0.0, 1.0) : 0.0;
+        const double gap = std::fabs((at - (x[j] + s * axis)).norm() - v.radius);
+        if (gap < best_gap) {
+            best_gap = gap;
+            best = RopeHit{rope->id(), static_cast<int>(j)};
+        }
+    }
+    return best;
+}
+
+}  // namespace tearables
