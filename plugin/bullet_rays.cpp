@@ -44,27 +44,33 @@ namespace {
 
 /// How far a segment's box in the compound's tree reaches past the segment's capsule, m: a
 /// segment that moves less than this between steps costs no update of the tree (btDbvt's
-/// update with a margin, as Bullet's broadphase keeps its proxies); a ray passing that
-/// close to a rope tests a few more capsules.
-constexpr btScalar kLeafMargin = btScalar(0.02);
+/// update with a margin; Bullet's broadphase grows its proxies' boxes by the same 5 cm,
+/// DBVT_BP_MARGIN); a ray passing that close to a rope tests a few more capsules.
+constexpr btScalar kLeafMargin = btScalar(0.05);
 
 /// Sides of the prism that stands for a capsule in queries other than ray tests.
 constexpr int kPrismSides = 8;
 
-/// One segment: the capsule of radius r around its local y axis from -h to h.
+/// One segment: the capsule of radius r around the segment from a to b, in the compound's
+/// frame (the object's; it stays at the origin, so this is the world's): the child's own
+/// transform stays the identity, and moving a segment is setting its two points.
 class SegmentShape final : public btConcaveShape {
 public:
     explicit SegmentShape(int child) : child_(child) { m_shapeType = FAST_CONCAVE_MESH_PROXYTYPE; }
-    void set(btScalar radius, btScalar half_length) {
+    void set(const btVector3& a, const btVector3& b, btScalar radius) {
+        a_ = a;
+        b_ = b;
         radius_ = radius;
-        half_ = half_length;
     }
 
     void getAabb(const btTransform& t, btVector3& lo, btVector3& hi) const override {
-        const btVector3 axis = t.getBasis().getColumn(1) * half_;
-        const btVector3 extent(std::fabs(axis.x()) + radius_, std::fabs(axis.y()) + radius_, std::fabs(axis.z()) + radius_);
-        lo = t.getOrigin() - extent;
-        hi = t.getOrigin() + extent;
+        const btVector3 a = t * a_, b = t * b_, reach(radius_, radius_, radius_);
+        lo = a;
+        lo.setMin(b);
+        hi = a;
+        hi.setMax(b);
+        lo -= reach;
+        hi += reach;
     }
 
     // A ray (btCollisionWorld::rayTestSingleInternal's bridge, in this shape's frame): the
@@ -90,8 +96,7 @@ public:
 
 private:
     void castRay(btTriangleRaycastCallback& ray) const {
-        const Vec3 from = toCore(ray.m_from), to = toCore(ray.m_to);
-        const Vec3 a(0, -half_, 0), b(0, half_, 0);
+        const Vec3 from = toCore(ray.m_from), to = toCore(ray.m_to), a = toCore(a_), b = toCore(b_);
         const auto hit = rayCapsule(from, to, a, b, static_cast<double>(radius_));
         if (!hit || !(hit->first < static_cast<double>(ray.m_hitFraction))) return;
         const Vec3 point = from + hit->first * (to - from);
@@ -100,48 +105,53 @@ private:
         ray.m_hitFraction = ray.reportHit(toBullet(normal), static_cast<btScalar>(hit->first), -1, child_);
     }
 
-    // A right prism of kPrismSides sides around the axis, circumscribing the capsule: its
-    // side faces at the radius (corners at r / cos(pi / n)), its ends r past the segment's.
+    // A right prism of kPrismSides sides around the segment, circumscribing the capsule:
+    // its side faces at the radius (corners at r / cos(pi / n)), its ends r past the
+    // segment's. Its frame: the segment's direction and two normals (btPlaneSpace1).
     void emitPrism(btTriangleCallback& callback) const {
         constexpr double kPi = 3.14159265358979323846;
+        btVector3 axis = b_ - a_;
+        const btScalar length = axis.length();
+        axis = length > btScalar(0) ? axis / length : btVector3(0, 1, 0);
+        btVector3 u, w;
+        btPlaneSpace1(axis, u, w);
         const double corner = static_cast<double>(radius_) / std::cos(kPi / kPrismSides);
-        const btScalar top = half_ + radius_;
+        const btVector3 low = a_ - axis * radius_, high = b_ + axis * radius_;
         btVector3 ring[kPrismSides];
         for (int k = 0; k < kPrismSides; ++k) {
             const double angle = 2.0 * kPi * k / kPrismSides;
-            ring[k].setValue(static_cast<btScalar>(corner * std::cos(angle)), 0, static_cast<btScalar>(corner * std::sin(angle)));
+            ring[k] = u * static_cast<btScalar>(corner * std::cos(angle)) + w * static_cast<btScalar>(corner * std::sin(angle));
         }
-        const btVector3 up(0, top, 0);
         btVector3 tri[3];
         for (int k = 0; k < kPrismSides; ++k) {
             const btVector3 &p = ring[k], &q = ring[(k + 1) % kPrismSides];
-            tri[0] = p - up, tri[1] = q - up, tri[2] = q + up;
+            tri[0] = low + p, tri[1] = low + q, tri[2] = high + q;
             callback.processTriangle(tri, 0, child_);
-            tri[0] = p - up, tri[1] = q + up, tri[2] = p + up;
+            tri[0] = low + p, tri[1] = high + q, tri[2] = high + p;
             callback.processTriangle(tri, 0, child_);
         }
         for (int k = 1; k + 1 < kPrismSides; ++k) {
-            tri[0] = ring[0] + up, tri[1] = ring[k + 1] + up, tri[2] = ring[k] + up;
+            tri[0] = high + ring[0], tri[1] = high + ring[k + 1], tri[2] = high + ring[k];
             callback.processTriangle(tri, 0, child_);
-            tri[0] = ring[0] - up, tri[1] = ring[k] - up, tri[2] = ring[k + 1] - up;
+            tri[0] = low + ring[0], tri[1] = low + ring[k], tri[2] = low + ring[k + 1];
             callback.processTriangle(tri, 0, child_);
         }
     }
 
     int child_;
-    btScalar radius_ = 0, half_ = 0;
+    btVector3 a_{0, 0, 0}, b_{0, 0, 0};
+    btScalar radius_ = 0;
     btVector3 unit_scale_{1, 1, 1};
 };
 
-/// A compound whose children are moved in place: each child's transform, then its leaf in
-/// the tree only when its capsule left the leaf's grown box (updateChildTransform
-/// re-inserts the leaf whenever the child moves at all), then the bounds of the whole from
-/// the capsules' boxes.
+/// A compound whose children are moved in place: a child's leaf in the tree is moved only
+/// when its capsule left the leaf's grown box (updateChildTransform re-inserts the leaf
+/// whenever the child moves at all), and the bounds of the whole are set from the
+/// capsules' boxes.
 class RopeCompound final : public btCompoundShape {
 public:
     explicit RopeCompound(int children) : btCompoundShape(true, children) {}
-    void moveChild(int k, const btTransform& transform, const btVector3& lo, const btVector3& hi) {
-        m_children[k].m_transform = transform;
+    void moveChild(int k, const btVector3& lo, const btVector3& hi) {
         btDbvtVolume box = btDbvtVolume::FromMM(lo, hi);
         if (m_dynamicAabbTree && m_children[k].m_node) m_dynamicAabbTree->update(m_children[k].m_node, box, kLeafMargin);
     }
@@ -184,30 +194,13 @@ public:
                 if (!broken[j]) intact_.push_back(static_cast<int>(j));
         radius_ = static_cast<btScalar>(v.radius);
         if (intact_ != segments_) rebuild();
-        const btVector3 reach(radius_, radius_, radius_);
         btVector3 lo(BT_LARGE_FLOAT, BT_LARGE_FLOAT, BT_LARGE_FLOAT), hi = -lo;
         for (std::size_t k = 0; k < segments_.size(); ++k) {
-            const btVector3 a = toBullet(x[segments_[k]]), b = toBullet(x[segments_[k] + 1]);
-            const btVector3 axis = b - a;
-            const btScalar length = axis.length();
-            // The capsule's axis is its local y (SegmentShape): a basis whose second column
-            // is the segment's direction, completed by btPlaneSpace1 (q = y x p, so that the
-            // columns (q, y, p) are right-handed).
-            btMatrix3x3 basis = btMatrix3x3::getIdentity();
-            if (length > btScalar(0)) {
-                const btVector3 y = axis / length;
-                btVector3 p, q;
-                btPlaneSpace1(y, p, q);
-                basis.setValue(q.x(), y.x(), p.x(), q.y(), y.y(), p.y(), q.z(), y.z(), p.z());
-            }
-            capsules_[k]->set(radius_, length * btScalar(0.5));
-            // The capsule's exact box: the segment's, grown by the radius.
-            btVector3 box_lo = a, box_hi = a;
-            box_lo.setMin(b);
-            box_hi.setMax(b);
-            box_lo -= reach;
-            box_hi += reach;
-            compound_->moveChild(static_cast<int>(k), btTransform(basis, (a + b) * btScalar(0.5)), box_lo, box_hi);
+            SegmentShape& segment = *capsules_[k];
+            segment.set(toBullet(x[segments_[k]]), toBullet(x[segments_[k] + 1]), radius_);
+            btVector3 box_lo, box_hi;
+            segment.getAabb(btTransform::getIdentity(), box_lo, box_hi);
+            compound_->moveChild(static_cast<int>(k), box_lo, box_hi);
             lo.setMin(box_lo);
             hi.setMax(box_hi);
         }

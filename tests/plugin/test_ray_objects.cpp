@@ -339,6 +339,52 @@ TEST(RopeRays, TheOptionOffMeansNoHits) {
     EXPECT_NE(ropes.rayObject(other), nullptr);
 }
 
+// Bullet's other queries see the rope through a prism circumscribing each capsule (its
+// corners at r / cos(pi / 8), 8% past the radius): a ball swept across the rope stops
+// where its surface meets the rope's, within that 8% of r; a ball overlapping the rope is
+// reported by contactTest; one 2 r beside it is not.
+TEST(RopeRays, SweepsAndContactTestsSeeTheRope) {
+    Physics p;
+    BulletWorld ropes(*p.world);
+    const StringId rope = hangingRope(ropes);
+    p.step(5);
+    const btCollisionObject* object = ropes.rayObject(rope);
+    const double ball = 0.05;  // m
+    btSphereShape shape(static_cast<btScalar>(ball));
+    const btTransform from(btQuaternion::getIdentity(), btVector3(-1, 1.525f, 0)), to(btQuaternion::getIdentity(), btVector3(1, 1.525f, 0));
+    btCollisionWorld::ClosestConvexResultCallback sweep(from.getOrigin(), to.getOrigin());
+    p.world->convexSweepTest(&shape, from, to, sweep);
+    ASSERT_TRUE(sweep.hasHit());
+    EXPECT_EQ(sweep.m_hitCollisionObject, object);
+    const double centre = -1.0 + 2.0 * sweep.m_closestHitFraction;  // the ball's centre at the hit
+    const double rope_x = middle(ropes, rope, 9).x();
+    EXPECT_LE(centre, rope_x - (ball + kRadius) + 1e-4);
+    EXPECT_GE(centre, rope_x - (ball + kRadius / std::cos(3.14159265358979 / 8)) - 1e-4);
+
+    struct Touches : btCollisionWorld::ContactResultCallback {
+        const btCollisionObject* rope = nullptr;
+        bool found = false;
+        btScalar addSingleResult(btManifoldPoint&, const btCollisionObjectWrapper* a, int, int, const btCollisionObjectWrapper* b,
+                                 int, int) override {
+            found |= a->getCollisionObject() == rope || b->getCollisionObject() == rope;
+            return 0;
+        }
+    };
+    btCollisionObject probe;
+    probe.setCollisionShape(&shape);
+    const Vec3 on = middle(ropes, rope, 9);
+    probe.setWorldTransform(btTransform(btQuaternion::getIdentity(), tearables::toBullet(on + Vec3(ball, 0, 0))));
+    Touches touching;
+    touching.rope = object;
+    p.world->contactTest(&probe, touching);
+    EXPECT_TRUE(touching.found);
+    probe.setWorldTransform(btTransform(btQuaternion::getIdentity(), tearables::toBullet(on + Vec3(ball + 2 * kRadius, 0, 0))));
+    Touches apart;
+    apart.rope = object;
+    p.world->contactTest(&probe, apart);
+    EXPECT_FALSE(apart.found);
+}
+
 // A ray's collision filter selects ropes by the string's group, as it does bodies.
 TEST(RopeRays, ARaysFilterSelectsRopesByTheirGroup) {
     Physics p;
