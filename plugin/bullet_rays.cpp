@@ -16,9 +16,12 @@
 // The object takes no part in the simulation:
 //  - it is static (CF_STATIC_OBJECT): no simulation island, not in the solver's bodies,
 //    never put to sleep (Bullet's activation pass reads rigid bodies only);
+//  - the world's pair cache is given a filter (btOverlapFilterCallback, if it has none)
+//    that refuses every pair with a rope object: Bullet's pairs, and so the order of its
+//    narrow phase and solver, are those of the world without ropes' objects;
 //  - checkCollideWithOverride answers false to every object (m_checkCollideWith = 1), so
-//    btCollisionDispatcher::needsCollision refuses each broadphase pair it is in: no
-//    collision algorithm, manifold or contact is ever made for it;
+//    where a filter of the user's lets a pair through, btCollisionDispatcher::needsCollision
+//    still refuses it: no collision algorithm, manifold or contact is ever made for it;
 //  - CF_NO_CONTACT_RESPONSE: the plugin's own broadphase search (bodiesIn) and Bullet's
 //    character controller skip it; it is not a btRigidBody, so nothing that upcasts the
 //    world's objects (island_claim.cpp, the contact provider) sees it either;
@@ -227,6 +230,29 @@ private:
     std::unique_ptr<RopeCompound> compound_;
     std::vector<std::unique_ptr<SegmentShape>> capsules_;  // per child: child k is capsules_[k]
 };
+
+/// Refuses every broadphase pair with a rope object (of any BulletWorld), so that Bullet's
+/// pair cache, and the order in which it hands pairs to the narrow phase and the solver, is
+/// what it would be without them: the simulation is the same bit for bit. Other pairs get
+/// Bullet's own rule (btHashedOverlappingPairCache::needsBroadphaseCollision).
+struct BulletWorld::Impl::RopePairFilter final : btOverlapFilterCallback {
+    static bool isRope(const btBroadphaseProxy* proxy) {
+        return dynamic_cast<const RopeObject*>(static_cast<const btCollisionObject*>(proxy->m_clientObject)) != nullptr;
+    }
+    bool needBroadphaseCollision(btBroadphaseProxy* a, btBroadphaseProxy* b) const override {
+        if (isRope(a) || isRope(b)) return false;
+        return (a->m_collisionFilterGroup & b->m_collisionFilterMask) != 0 &&
+               (b->m_collisionFilterGroup & a->m_collisionFilterMask) != 0;
+    }
+};
+
+// One filter for every world, never freed (it has no state): a world may outlive the
+// plugin that installed it, and then keeps Bullet's rule through it.
+void BulletWorld::Impl::installPairFilter() {
+    static RopePairFilter filter;
+    btOverlappingPairCache* cache = world_->getPairCache();
+    if (cache && !cache->getOverlapFilterCallback()) cache->setOverlapFilterCallback(&filter);
+}
 
 BulletWorld::Impl::RopeObjectSlot::RopeObjectSlot() = default;
 BulletWorld::Impl::RopeObjectSlot::RopeObjectSlot(RopeObjectSlot&&) noexcept = default;

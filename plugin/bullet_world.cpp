@@ -677,6 +677,7 @@ BulletWorld::Impl::Impl(btDiscreteDynamicsWorld& world, const WorldSettings& set
     }
     // Group and mask 0: the sentinel never pairs with anything nor answers ray tests.
     world_->addCollisionObject(&action_->sentinel(), 0, 0);
+    installPairFilter();
     world_->addAction(action_.get());
 }
 

@@ -101,6 +101,9 @@ struct BulletWorld::Impl {
     void removeRopeObjectsFromWorld();
     /// The string's user pointer copied to its object.
     void userPointerChanged(StringId id);
+    /// Keeps rope objects out of the world's broadphase pairs (unless it has a filter).
+    struct RopePairFilter;
+    void installPairFilter();
 
     // --- the step's adapter ---------------------------------------------------------------
     class Action;

@@ -357,10 +357,15 @@ public:
     /// when a segment tears or is cut; added with the string (with its collision filter:
     /// group and mask of addString) and removed with it. So Bullet's own world.rayTest (and
     /// convexSweepTest, contactTest) meets ropes as it meets bodies, closest hit first, and a
-    /// ray's filter selects ropes by their group. The object takes no part in the
-    /// simulation: static and without contact response, it pairs with no body in Bullet's
-    /// narrow phase (no manifold, no contact), joins no island and never sleeps; tearables'
-    /// own collisions are unchanged. Its getUserPointer() is the string's setUserPointer()
+    /// ray's filter selects ropes by their group. Rays meet the capsules exactly (each
+    /// answers Bullet's ray with the ray-capsule entry, as tearables::rayTest does); sweeps
+    /// and contact tests meet an 8-sided prism around each. The object takes no part in the
+    /// simulation: static and without contact response, it pairs with no body (the
+    /// plugin sets a btOverlapFilterCallback on the world's pair cache that refuses rope
+    /// objects' pairs and applies Bullet's rule to the rest, unless the cache has one
+    /// already; it stays after the plugin), makes no manifold or contact, joins no island
+    /// and never sleeps: the simulation is the same bit for bit; tearables' own collisions
+    /// are unchanged. Its getUserPointer() is the string's setUserPointer()
     /// (null until set), getUserIndex() and getUserIndex2() the StringId's index and
     /// generation; do not change them, nor remove the object from the world yourself.
     /// Off: the objects leave the world (and come back, following the strings, when turned
