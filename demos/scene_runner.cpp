@@ -239,6 +239,17 @@ FrameState frameState(long long step, double t, const Scene& scene, const std::v
     return f;
 }
 
+/// Bullet's closest hit among rigid bodies only: the ropes' own collision objects
+/// (BulletWorld::setRopesRayTestable) are left to tearables::rayTest, which gives where
+/// along the segment the ray met it.
+struct ClosestBodyHit : btCollisionWorld::ClosestRayResultCallback {
+    using ClosestRayResultCallback::ClosestRayResultCallback;
+    bool needsCollision(btBroadphaseProxy* proxy) const override {
+        return btRigidBody::upcast(static_cast<const btCollisionObject*>(proxy->m_clientObject)) &&
+               ClosestRayResultCallback::needsCollision(proxy);
+    }
+};
+
 /// What a shot of a "shoot" driver met.
 struct Shot {
     bool hit = false;
@@ -256,7 +267,7 @@ struct Shot {
 Shot shoot(BulletScene& bs, World& core, const Scene& scene, const std::vector<StringId>& ids, const Driver& d, double dt) {
     const btVector3 from = toBullet(d.ray_from), to = toBullet(d.ray_to);
     bs.world.updateAabbs();
-    btCollisionWorld::ClosestRayResultCallback body_hit(from, to);
+    ClosestBodyHit body_hit(from, to);
     bs.world.rayTest(from, to, body_hit);
     const double body_fraction = body_hit.hasHit() ? static_cast<double>(body_hit.m_closestHitFraction) : 2.0;
     const std::optional<RayHit> string_hit = rayTest(core, d.ray_from, d.ray_to);

@@ -36,6 +36,7 @@ void* user(const std::map<Id, void*>& users, Id id) {
 void BulletWorld::Impl::setUserPointer(StringId id, void* user) {
     (void)core_->desc(id);
     setUser(string_users_, id, user);
+    userPointerChanged(id);
 }
 void BulletWorld::Impl::setUserPointer(ClothId id, void* user) {
     (void)core_->clothDesc(id);

@@ -84,7 +84,11 @@ void BulletWorld::applyForce(StringId id, int particle, const btVector3& force) 
 void BulletWorld::applyClothForce(ClothId id, int vertex, const btVector3& force) { impl_->applyClothForce(id, vertex, force); }
 void BulletWorld::applyPaperForce(PaperId id, int vertex, const btVector3& force) { impl_->applyPaperForce(id, vertex, force); }
 void BulletWorld::movePin(StringId id, int particle, const btVector3& point) { impl_->movePin(id, particle, point); }
-bool BulletWorld::cut(StringId id, int segment) { return impl_->core_->cutSegment(id, segment); }
+bool BulletWorld::cut(StringId id, int segment) {
+    const bool cut = impl_->core_->cutSegment(id, segment);
+    if (cut) impl_->syncRopeObject(id);  // the gap is open to ray tests at once
+    return cut;
+}
 void BulletWorld::turnEnd(StringId id, int end, double angle) { impl_->turnEnd(id, end, angle); }
 double BulletWorld::endTwist(StringId id, int end) const {
     (void)impl_->core_->desc(id);
@@ -107,6 +111,15 @@ void BulletWorld::saveSnapshot(std::ostream& out, const std::vector<const btRigi
     impl_->saveSnapshot(out, bodies);
 }
 void BulletWorld::loadSnapshot(std::istream& in, const std::vector<btRigidBody*>& bodies) { impl_->loadSnapshot(in, bodies); }
+void BulletWorld::setRopesRayTestable(bool on) { impl_->setRopesRayTestable(on); }
+bool BulletWorld::ropesRayTestable() const { return impl_->ropesRayTestable(); }
+const btCollisionObject* BulletWorld::rayObject(StringId id) const { return impl_->rayObject(id); }
+std::optional<RopeHit> BulletWorld::ropeHit(const btCollisionObject* object, int child) const {
+    return impl_->ropeHit(object, child);
+}
+std::optional<RopeHit> BulletWorld::ropeHit(const btCollisionObject* object, const btVector3& point) const {
+    return impl_->ropeHit(object, point);
+}
 
 // --- reading a string -------------------------------------------------------------------
 

@@ -87,6 +87,7 @@ void BulletWorld::Impl::loadSnapshot(std::istream& in, const std::vector<btRigid
     cloth_forces_.clear();
     paper_forces_.clear();
     peaks_.clear();
+    syncRopeObjects();
 }
 
 }  // namespace tearables

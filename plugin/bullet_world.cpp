@@ -724,6 +724,7 @@ BulletWorld::Impl::Impl(btDiscreteDynamicsWorld& world, const WorldSettings& set
     }
     // Group and mask 0: the sentinel never pairs with anything nor answers ray tests.
     world_->addCollisionObject(&action_->sentinel(), 0, 0);
+    installPairFilter();
     world_->addAction(action_.get());
 }
 
@@ -789,6 +790,7 @@ std::vector<btRigidBody*> BulletWorld::Impl::bodiesIn(const Vec3& lo, const Vec3
 }
 
 BulletWorld::Impl::~Impl() {
+    removeRopeObjectsFromWorld();
     if (attachedToBullet()) {
         world_->removeAction(action_.get());
         world_->removeCollisionObject(&action_->sentinel());
@@ -812,22 +814,27 @@ void BulletWorld::Impl::dropBodiesIfDetached() {
     proxies_.clear();
     candidates_.clear();
     mesh_candidates_.clear();
+    removeRopeObjectsFromWorld();  // those still in a world that lost only the sentinel
+    rope_objects_.clear();
 }
 const World& BulletWorld::Impl::core() const { return *core_; }
 StringId BulletWorld::Impl::addString(const StringDesc& desc) {
     const StringId id = core_->addString(desc);
     string_filters_.erase(id.index);
+    syncRopeObject(id);
     return id;
 }
 StringId BulletWorld::Impl::addString(const StringDesc& desc, int group, int mask) {
     const StringId id = core_->addString(desc);
     string_filters_[id.index] = Filter{group, mask};
+    syncRopeObject(id);
     return id;
 }
 // A removed string's slot may hold the next string added (with the next generation):
 // nothing of it is kept.
 void BulletWorld::Impl::removeString(StringId id) {
     core_->removeString(id);
+    dropRopeObject(id);
     string_filters_.erase(id.index);
     peaks_.erase(id);
     string_users_.erase(id);
@@ -1245,6 +1252,7 @@ void BulletWorld::Impl::substep(double h, int tick, int ticks) {
         contacts_->writeBodyImpulses(core_->lastBodyContacts());
         claimIslandBodies();
         recordPeaks();
+        syncRopeObjects();
         total_ += core_->lastStageTimes();
         last_error_.clear();  // this step succeeded
         reportStep(h);

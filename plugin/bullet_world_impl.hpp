@@ -14,6 +14,7 @@
 #include <iosfwd>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -74,6 +75,35 @@ struct BulletWorld::Impl {
     const std::string& lastError() const;
     void saveSnapshot(std::ostream& out, const std::vector<const btRigidBody*>& bodies) const;
     void loadSnapshot(std::istream& in, const std::vector<btRigidBody*>& bodies);
+    void setRopesRayTestable(bool on);
+    bool ropesRayTestable() const { return rope_objects_on_; }
+    const btCollisionObject* rayObject(StringId id) const;
+    std::optional<RopeHit> ropeHit(const btCollisionObject* object, int child) const;
+    std::optional<RopeHit> ropeHit(const btCollisionObject* object, const btVector3& point) const;
+
+    // --- ropes in Bullet's queries (bullet_rays.cpp) ----------------------------------------
+    /// A string's collision object: a compound of one capsule per intact segment.
+    class RopeObject;
+    struct RopeObjectSlot {
+        RopeObjectSlot();
+        RopeObjectSlot(RopeObjectSlot&&) noexcept;
+        RopeObjectSlot& operator=(RopeObjectSlot&&) noexcept;
+        ~RopeObjectSlot();
+        std::unique_ptr<RopeObject> object;
+    };
+    /// Creates (and adds to the Bullet world) or moves the object of string `id`.
+    void syncRopeObject(StringId id);
+    /// Removes the object of string `id` from the Bullet world and frees it.
+    void dropRopeObject(StringId id);
+    /// Every string's object made to follow it; those of strings that are gone dropped.
+    void syncRopeObjects();
+    /// ~Impl: takes every object out of the Bullet world, if it still exists.
+    void removeRopeObjectsFromWorld();
+    /// The string's user pointer copied to its object.
+    void userPointerChanged(StringId id);
+    /// Keeps rope objects out of the world's broadphase pairs (unless it has a filter).
+    struct RopePairFilter;
+    void installPairFilter();
 
     // --- the step's adapter ---------------------------------------------------------------
     class Action;
@@ -159,6 +189,8 @@ struct BulletWorld::Impl {
     std::map<PaperId, void*> paper_users_;
     // Collision filters other than Bullet's default, per slot.
     std::map<std::uint32_t, Filter> string_filters_, cloth_filters_, paper_filters_;
+    bool rope_objects_on_ = true;                    // setRopesRayTestable
+    std::map<StringId, RopeObjectSlot> rope_objects_;  // per string, while on
 };
 
 }  // namespace tearables

@@ -45,6 +45,17 @@ namespace {
 
 using render::View;
 
+/// Bullet's closest hit among rigid bodies only: ropes are picked through
+/// tearables::rayTest (their collision objects, BulletWorld::setRopesRayTestable, are
+/// skipped).
+struct ClosestBodyHit : btCollisionWorld::ClosestRayResultCallback {
+    using ClosestRayResultCallback::ClosestRayResultCallback;
+    bool needsCollision(btBroadphaseProxy* proxy) const override {
+        return btRigidBody::upcast(static_cast<const btCollisionObject*>(proxy->m_clientObject)) &&
+               ClosestRayResultCallback::needsCollision(proxy);
+    }
+};
+
 /// An orbiting camera: the eye on a sphere around `target`.
 struct OrbitCamera {
     Vec3 target = Vec3::Zero();
@@ -348,7 +359,7 @@ bool Viewer::startGrab(double x, double y) {
     for (std::size_t i = 0; i < scene_.papers.size(); ++i)
         offerVertices(*core.viewPaper(run_->paperId(i)).positions, Grab::Kind::Paper, i);
     // Rigid bodies (Bullet's ray test); a static one hides what is behind it.
-    btCollisionWorld::ClosestRayResultCallback body_hit(toBullet(from), toBullet(to));
+    ClosestBodyHit body_hit(toBullet(from), toBullet(to));
     run_->dynamicsWorld().rayTest(toBullet(from), toBullet(to), body_hit);
     if (body_hit.hasHit() && body_hit.m_closestHitFraction < best) {
         best = body_hit.m_closestHitFraction;

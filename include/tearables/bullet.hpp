@@ -28,11 +28,17 @@
 // uses inside, and the tear and contact callbacks run on the stepping thread. Separate
 // worlds may be stepped on separate threads.
 //
-// Lifetime: destroying the BulletWorld detaches it from Bullet; destroying the Bullet
-// world first is safe too (the plugin notices and never touches it again). A body that
-// strings are glued to may be removed from the Bullet world at any time: at the next
-// step its attachments are dropped with Release events (cause body_removed). Before you
-// *delete* such a body, remove it from the world and step, or call forgetBody().
+// Ray tests: every string is also a btCollisionObject of the Bullet world (a compound of
+// one capsule per intact segment, following the particles), so world.rayTest hits ropes as
+// it hits bodies; ropeHit() names the rope and segment hit. It makes no Bullet contact
+// (setRopesRayTestable turns it off).
+//
+// Lifetime: destroying the BulletWorld detaches it from Bullet (its collision objects
+// leave the world); destroying the Bullet world first is safe too (the plugin notices and
+// never touches it again). A body that strings are glued to may be removed from the Bullet
+// world at any time: at the next step its attachments are dropped with Release events
+// (cause body_removed). Before you *delete* such a body, remove it from the world and
+// step, or call forgetBody().
 #pragma once
 
 #include "tearables/events.hpp"
@@ -47,9 +53,11 @@
 #include <functional>
 #include <iosfwd>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
+class btCollisionObject;
 class btDiscreteDynamicsWorld;
 class btIDebugDraw;
 class btRigidBody;
@@ -102,6 +110,13 @@ struct BulletEvent : Event {
     /// A yield: how many segments of the string first yielded in that internal step. They
     /// are one event; its segment, stress, position and force are the worst one's.
     int count = 1;
+};
+
+/// What a Bullet query (world.rayTest, convexSweepTest, contactTest) met on a rope: the
+/// string and its segment (BulletWorld::ropeHit).
+struct RopeHit {
+    StringId string;   ///< the rope
+    int segment = -1;  ///< its segment: the capsule from particle `segment` to `segment` + 1
 };
 
 /// A tearables world living inside a Bullet dynamics world.
@@ -334,6 +349,44 @@ public:
     /// pin moves given for the next stepSimulation, events and peak tensions are dropped.
     /// Throws SnapshotError or InvalidInput("bodies[i]"); nothing changes then.
     void loadSnapshot(std::istream& in, const std::vector<btRigidBody*>& bodies);
+
+    // --- ropes in Bullet's queries ----------------------------------------------------------
+    /// On (the default): every string is also one btCollisionObject in the Bullet world, a
+    /// btCompoundShape of one capsule per intact segment (the string's radius, between the
+    /// segment's two particles), moved to the particles after every internal step, rebuilt
+    /// when a segment tears or is cut; added with the string (with its collision filter:
+    /// group and mask of addString) and removed with it. So Bullet's own world.rayTest (and
+    /// convexSweepTest, contactTest) meets ropes as it meets bodies, closest hit first, and a
+    /// ray's filter selects ropes by their group. Rays meet the capsules exactly (each
+    /// answers Bullet's ray with the ray-capsule entry, as tearables::rayTest does); sweeps
+    /// and contact tests meet an 8-sided prism around each. The object takes no part in the
+    /// simulation: static and without contact response, it pairs with no body (the
+    /// plugin sets a btOverlapFilterCallback on the world's pair cache that refuses rope
+    /// objects' pairs and applies Bullet's rule to the rest, unless the cache has one
+    /// already; it stays after the plugin), makes no manifold or contact, joins no island
+    /// and never sleeps: the simulation is the same bit for bit; tearables' own collisions
+    /// are unchanged. Its getUserPointer() is the string's setUserPointer()
+    /// (null until set), getUserIndex() and getUserIndex2() the StringId's index and
+    /// generation; do not change them, nor remove the object from the world yourself.
+    /// Off: the objects leave the world (and come back, following the strings, when turned
+    /// on). Changes made through core() (strings added, removed or cut there) reach the
+    /// objects at the next internal step.
+    void setRopesRayTestable(bool on);
+    bool ropesRayTestable() const;
+    /// The collision object of a string (null while ropesRayTestable() is off). Throws
+    /// InvalidInput("string") for an unknown or stale id.
+    const btCollisionObject* rayObject(StringId id) const;
+    /// The rope and segment of a hit on `object` at compound child `child`: for a ray test,
+    /// LocalRayResult::m_localShapeInfo->m_triangleIndex (Bullet's rayTest puts the child
+    /// index there for compounds; keep it in your RayResultCallback's addSingleResult).
+    /// Nothing when `object` is not one of this world's rope objects (a body: test it
+    /// first), the child is out of range, or its segment has torn since the last step.
+    std::optional<RopeHit> ropeHit(const btCollisionObject* object, int child) const;
+    /// The same from a hit point (world, m), for callbacks that keep only the point, as
+    /// btCollisionWorld::ClosestRayResultCallback does (m_hitPointWorld): the intact segment
+    /// whose capsule's surface is nearest `point`. Throws InvalidInput("point") if it is
+    /// not finite.
+    std::optional<RopeHit> ropeHit(const btCollisionObject* object, const btVector3& point) const;
 
 private:
     /// Everything else: the core world, the proxies of Bullet bodies, what the user gave for

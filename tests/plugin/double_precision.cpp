@@ -1,7 +1,10 @@
 // The Bullet plugin built against Bullet in double precision (bullet-float64.pc,
 // BT_USE_DOUBLE_PRECISION): a 2 kg crate hanging on a rope reads m g at the top (plus the
-// rope's weight), and a force given once a frame over four sub-steps gives the impulse F dt.
+// rope's weight), a ray across the rope through world.rayTest hits it where the core's ray
+// test does and names its segment, and a force given once a frame over four sub-steps gives
+// the impulse F dt.
 #include <tearables/bullet_core.hpp>
+#include <tearables/queries.hpp>
 
 #include <btBulletDynamicsCommon.h>
 
@@ -48,6 +51,27 @@ int main() {
     const double rope_mass = d.density * 3.14159265358979323846 * d.radius * d.radius * 1.0;
     const double weight = (2.0 + rope_mass) * 9.81;
     expectNear("top tension, N", ropes.core().view(rope).tension->front(), weight, 0.01 * weight);
+
+    // Bullet's ray test against the rope's object, in double: the core's exact hit.
+    {
+        const btVector3 from(-1, 1.52, 0.001), to(1, 1.52, 0.001);
+        struct Closest : btCollisionWorld::ClosestRayResultCallback {
+            using ClosestRayResultCallback::ClosestRayResultCallback;
+            int child = -1;
+            btScalar addSingleResult(btCollisionWorld::LocalRayResult& r, bool world_normal) override {
+                child = r.m_localShapeInfo ? r.m_localShapeInfo->m_triangleIndex : -1;
+                return ClosestRayResultCallback::addSingleResult(r, world_normal);
+            }
+        } cb(from, to);
+        world.rayTest(from, to, cb);
+        const auto exact = tearables::rayTest(ropes.core(), tearables::toCore(from), tearables::toCore(to));
+        const auto named = ropes.ropeHit(cb.m_collisionObject, cb.child);
+        expectNear("ray hits the rope", cb.hasHit() && cb.m_collisionObject == ropes.rayObject(rope) && exact, 1, 0);
+        if (exact) {
+            expectNear("ray hit point to the core's, m", (tearables::toCore(cb.m_hitPointWorld) - exact->point).norm(), 0, 1e-12);
+            expectNear("ray hit segment", named ? named->segment : -1, exact->segment, 0);
+        }
+    }
 
     // A free rope in zero gravity: one frame's force over four sub-steps, momentum F dt.
     btDefaultCollisionConfiguration config2;

@@ -58,19 +58,20 @@ bool allFinite(const std::vector<Vec3>& points) {
     return std::all_of(points.begin(), points.end(), [](const Vec3& p) { return p.allFinite(); });
 }
 
-// The plugin destroyed first: it leaves Bullet's world (one collision object fewer) and a
+// The plugin destroyed first: it leaves Bullet's world (its sentinel and each string's ray object) and a
 // crate it held falls freely.
 TEST(Lifetimes, PluginDestroyedFirst) {
     Physics phys;
     btRigidBody& crate = phys.box(btVector3(0.1f, 0.1f, 0.1f), 1.0, btVector3(0, 0.9f, 0));
+    const int objects = phys.world->getNumCollisionObjects();
     auto ropes = std::make_unique<BulletWorld>(*phys.world);
     const StringId id = ropes->addString(rope({0, 2, 0}, {0, 1, 0}, 10));
     ropes->attach(id, 0, btVector3(0, 2, 0));
     ropes->attach(id, -1, crate, btVector3(0, 0.1f, 0));
     phys.step(5);
-    const int objects = phys.world->getNumCollisionObjects();
+    EXPECT_EQ(phys.world->getNumCollisionObjects(), objects + 2);  // its sentinel and the rope's ray object
     ropes.reset();
-    EXPECT_EQ(phys.world->getNumCollisionObjects(), objects - 1);
+    EXPECT_EQ(phys.world->getNumCollisionObjects(), objects);
     const float y = crate.getCenterOfMassPosition().y();
     phys.step(20);  // free fall for 0.2 s: 0.2 m
     EXPECT_LT(crate.getCenterOfMassPosition().y(), y - 0.1f);
