@@ -364,8 +364,10 @@ public:
     /// plugin sets a btOverlapFilterCallback on the world's pair cache that refuses rope
     /// objects' pairs and applies Bullet's rule to the rest, unless the cache has one
     /// already; it stays after the plugin), makes no manifold or contact, joins no island
-    /// and never sleeps: the simulation is the same bit for bit; tearables' own collisions
-    /// are unchanged. Its getUserPointer() is the string's setUserPointer()
+    /// and never sleeps; tearables' own collisions are unchanged. (Bodies that touch each
+    /// other may meet in another order in Bullet's broadphase, whose tree holds the rope
+    /// objects too: the same physics, other rounding; turn the objects off where runs must
+    /// match earlier ones bit for bit.) Its getUserPointer() is the string's setUserPointer()
     /// (null until set), getUserIndex() and getUserIndex2() the StringId's index and
     /// generation; do not change them, nor remove the object from the world yourself.
     /// Off: the objects leave the world (and come back, following the strings, when turned

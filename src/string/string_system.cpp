@@ -98,19 +98,22 @@ constexpr double kSameNormal = 0.999;
 /// Whether contact c, at an end of its segment, repeats the first contact at that particle
 /// (the end of the segment before, or the start of the one after) with the same body and
 /// normal, as a host answers for two segments lying along one face; else, where it is the
-/// first, it is recorded as such (StringScratch::end_contact, reset by collideBodies). A
-/// second penalty there would double the contact's stiffness and split its force, and
-/// friction's weight, between the two at random from pass to pass.
+/// first with its body, it is recorded as such (StringScratch::end_contact, reset by
+/// collideBodies). Where the host gives each body's contacts together (the Bullet plugin
+/// does), a record of another body is of one done with, and what is merged does not
+/// depend on the order of the bodies. A second penalty there would double the contact's
+/// stiffness and split its force, and friction's weight, between the two at random from
+/// pass to pass.
 bool repeatsEndContact(StringState& s, const RigidSegmentContact& c) {
     if (c.s != 0.0 && c.s != 1.0) return false;
     const std::size_t p = c.s == 0.0 ? c.segment : c.segment + 1;
     std::int32_t& first = s.scratch.end_contact[p];
-    if (first < 0) {
-        first = static_cast<std::int32_t>(s.contacts.size());
-        return false;
+    if (first >= 0) {
+        const RigidSegmentContact& other = s.contacts[static_cast<std::size_t>(first)];
+        if (other.body == c.body) return other.normal.dot(c.normal) > kSameNormal;
     }
-    const RigidSegmentContact& other = s.contacts[static_cast<std::size_t>(first)];
-    return other.body == c.body && other.normal.dot(c.normal) > kSameNormal;
+    first = static_cast<std::int32_t>(s.contacts.size());
+    return false;
 }
 
 /// Friction from where the last step left it (ContactMemory): the normal force of the
