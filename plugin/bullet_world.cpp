@@ -1252,7 +1252,9 @@ void BulletWorld::Impl::substep(double h, int tick, int ticks) {
         contacts_->writeBodyImpulses(core_->lastBodyContacts());
         claimIslandBodies();
         recordPeaks();
-        syncRopeObjects();
+        // Rays are cast between frames: the rope objects follow at a frame's last step
+        // (within a frame they keep its start; a tear or cut in it is met at its end).
+        if (tick == ticks) syncRopeObjects();
         total_ += core_->lastStageTimes();
         last_error_.clear();  // this step succeeded
         reportStep(h);

@@ -353,8 +353,9 @@ public:
     // --- ropes in Bullet's queries ----------------------------------------------------------
     /// On (the default): every string is also one btCollisionObject in the Bullet world, a
     /// btCompoundShape of one capsule per intact segment (the string's radius, between the
-    /// segment's two particles), moved to the particles after every internal step, rebuilt
-    /// when a segment tears or is cut; added with the string (with its collision filter:
+    /// segment's two particles), moved to the particles at the end of each stepSimulation
+    /// (its last internal step: inside a frame, in an internal tick callback, they are where
+    /// the frame began), rebuilt when a segment tears or is cut; added with the string (with its collision filter:
     /// group and mask of addString) and removed with it. So Bullet's own world.rayTest (and
     /// convexSweepTest, contactTest) meets ropes as it meets bodies, closest hit first, and a
     /// ray's filter selects ropes by their group. Rays meet the capsules exactly (each
@@ -372,7 +373,7 @@ public:
     /// generation; do not change them, nor remove the object from the world yourself.
     /// Off: the objects leave the world (and come back, following the strings, when turned
     /// on). Changes made through core() (strings added, removed or cut there) reach the
-    /// objects at the next internal step.
+    /// objects at the end of the next stepSimulation.
     void setRopesRayTestable(bool on);
     bool ropesRayTestable() const;
     /// The collision object of a string (null while ropesRayTestable() is off). Throws

@@ -103,6 +103,29 @@ TEST(RopeRays, ARayAcrossAHangingRopeHitsItAtTheRightPoint) {
     }
 }
 
+// Stepped as games step Bullet (a 1/60 s frame of four 1/240 s steps), a swinging rope's
+// object is where the rope is at the end of each frame: a ray through a particle meets it
+// where the core's exact test does, to the same 1e-5 m.
+TEST(RopeRays, TheObjectFollowsTheRopeAtTheEndOfEachFrame) {
+    Physics p;
+    BulletWorld ropes(*p.world);
+    StringDesc d = tearables::testing::plainRope({0, 2, 0}, {1, 2, 0}, kSegments);  // released level: it swings
+    d.radius = kRadius;
+    const StringId rope = ropes.addString(d);
+    ropes.attach(rope, 0, btVector3(0, 2, 0));
+    for (int frame = 0; frame < 20; ++frame) {
+        p.world->stepSimulation(1.0f / 60.0f, 10, 1.0f / 240.0f);
+        ASSERT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+        const Vec3 at = (*ropes.core().view(rope).positions)[kSegments / 2];
+        const Vec3 from = at - Vec3(0, 0, 1), to = at + Vec3(0, 0, 1);
+        const auto expected = tearables::rayTest(ropes.core(), from, to);
+        ASSERT_TRUE(expected) << frame;
+        const auto shot = shoot(*p.world, from, to);
+        ASSERT_TRUE(shot) << frame;
+        EXPECT_LT((tearables::toCore(shot->point) - expected->point).norm(), kPointTolerance) << frame;
+    }
+}
+
 // A ray that passes 1.5 radii from the rope's axis misses it (and so does the core's).
 TEST(RopeRays, ARayBesideTheRopeMisses) {
     Physics p;
