@@ -438,6 +438,7 @@ private:
 
     std::map<std::uint32_t, std::unique_ptr<SegmentTree>> trees_;  // per string index
     std::vector<std::uint32_t> hits_;  ///< m: near contacts are kept, in case the solve closes them
+    std::vector<std::uint8_t> end_covered_;  ///< per particle, coverEnds' marks (all 0 between calls)
 
     /// A surface's triangles in a btDbvt of their swept bounds (where the corners were at
     /// the start of the step and where they are predicted to go, grown by the radius and the
@@ -637,19 +638,17 @@ private:
                    const std::vector<std::uint32_t>& hits, std::size_t first, btRigidBody& body,
                    const btTransform& before, double reach, RigidId proxy, std::vector<RigidContact>& out) {
         const std::size_t found = out.size();
-        auto covered = [&](std::uint32_t p) {
-            for (std::size_t k = first; k < found; ++k) {
-                const RigidContact& c = out[k];
-                if ((c.segment == p && c.s == 0.0) || (c.segment + 1 == p && c.s == 1.0)) return true;
-            }
-            return false;
-        };
+        // The particles the answers are at (marks cleared again below: the scratch stays
+        // all zero between calls, and a call costs its contacts, not the string's length).
+        if (end_covered_.size() < start.size()) end_covered_.resize(start.size(), 0);
+        for (std::size_t k = first; k < found; ++k)
+            if (out[k].s == 0.0 || out[k].s == 1.0) end_covered_[out[k].segment + (out[k].s == 1.0 ? 1 : 0)] = 1;
         auto hit = [&](std::uint32_t j) { return std::binary_search(hits.begin(), hits.end(), j); };
         for (std::size_t k = first; k < found; ++k) {
             const RigidContact& c = out[k];
             if (c.s != 0.0 && c.s != 1.0) continue;  // a point inside the segment: a true single support
             const std::uint32_t p = c.s == 0.0 ? c.segment + 1 : c.segment;  // the answer's other end
-            if (covered(p)) continue;
+            if (end_covered_[p]) continue;
             const std::uint32_t segment = hit(p) && p + 1 < start.size() ? p : p - 1;
             const std::size_t before_test = out.size();
             btSphereShape shape(static_cast<btScalar>(radius[segment]));
@@ -659,6 +658,8 @@ private:
             testShape(sphere, string, segment, start[p], Vec3::Zero(), radius[segment], body, before, reach, proxy, out);
             if (out.size() > before_test) out.back().s = segment == p ? 0.0 : 1.0;
         }
+        for (std::size_t k = first; k < found; ++k)
+            if (out[k].s == 0.0 || out[k].s == 1.0) end_covered_[out[k].segment + (out[k].s == 1.0 ? 1 : 0)] = 0;
     }
 
     /// A mesh vertex: a sphere of the radius at `centre`.

@@ -81,16 +81,21 @@ void StringIslandMember::start(StringState& s, RigidTable& rigids, const StepCon
         scratch.coupling.resize(nodes);
     }
     setContactStiffness(s, rigids, ctx.inv_h * ctx.inv_h);
-    // Remembered contacts (ContactMemory) that stick where the solve starts (slip below
-    // eps) start with friction: the lagged weight mu N / eps, the last step's N. A sliding
-    // one starts without, as a new contact does, and takes its weight after the first
-    // pass: seeded with mu N / |u_t| from the start's slip, a box resting on two ropes slid
-    // off them at 2 cm/s (a sliding fixed point of the lagged weights), and seeded with
-    // the last step's weight, an accelerating slide was dragged by more than mu N (the
-    // bridge benchmark's solves took 41 Newton iterations and 21% ended at their cap).
-    linearisePlanes(s, rigids);
+    for (RigidSegmentContact& c : s.contacts) c.lagged = true;
+    seed_friction_ = true;
+}
+
+/// Remembered contacts (ContactMemory) that stick where the solve starts (slip below eps)
+/// start with friction: the lagged weight mu N / eps, the last step's N. A sliding
+/// one starts without, as a new contact does, and takes its weight after the first pass:
+/// seeded with mu N / |u_t| from the start's slip, a box resting on two ropes slid off them
+/// at 2 cm/s (a sliding fixed point of the lagged weights), and seeded with the last step's
+/// weight, an accelerating slide was dragged by more than mu N (the bridge benchmark's
+/// solves took 41 Newton iterations and 21% ended at their cap). Needs the planes
+/// linearised where the solve starts (the step's first beginPass).
+void StringIslandMember::seedFriction() {
+    StringState& s = *string_;
     for (RigidSegmentContact& c : s.contacts) {
-        c.lagged = true;
         if (!c.remembered || !(c.friction_normal > 0.0)) continue;
         const std::size_t j = c.segment;
         const Vec3 slip = rigidSlip(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]);
@@ -117,6 +122,8 @@ void StringIslandMember::warmStep(const std::vector<int>& slot, const Eigen::Vec
 
 void StringIslandMember::beginPass() {
     linearisePlanes(*string_, *rigids_);
+    if (seed_friction_) seedFriction();
+    seed_friction_ = false;
     iteration_ = 0;
 }
 

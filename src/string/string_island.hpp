@@ -34,6 +34,7 @@ public:
     void finish(int iterations) override;
 
 private:
+    void seedFriction();
     /// A particle glued to a movable body: its node (body_nodes), its point in the body,
     /// and where its own velocity takes it (x_prev + h v): its inertia pulls its body there.
     /// (The host moved the body without the particle's mass: a point it turns carries its
@@ -61,6 +62,7 @@ private:
     std::vector<std::size_t> glue_segments_;    ///< the segments of glued particles, ascending
     std::size_t contact_nodes_ = 0;             ///< body_nodes from contacts (the rest from glue)
     int iteration_ = 0;                         ///< Newton iterations of this pass so far
+    bool seed_friction_ = false;                ///< the step's first pass is still to begin (seedFriction)
     /// Node-node blocks (both glued ends of one segment): (a, b, block of a's rows, b's columns).
     struct Cross {
         std::size_t a, b;
