@@ -271,7 +271,8 @@ double weighRigidFriction(StringState& s, bool lagged) {
         const double normal = c.friction > 0.0 ? c.force : 0.0;
         const std::size_t j = c.segment;
         const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
-        const double slip = c.friction > 0.0 ? rigidSlip(s, c, xs).norm() : 0.0;
+        const Vec3 slip_vector = c.friction > 0.0 ? rigidSlip(s, c, xs) : Vec3::Zero();
+        const double slip = slip_vector.norm();
         const double eps = slipSmoothing(c);
         // The friction force the pass applied, against Coulomb's law with the normal force
         // it found: a sliding contact must carry mu N, a sticking one at most mu N. Where
@@ -279,8 +280,7 @@ double weighRigidFriction(StringState& s, bool lagged) {
         // string's largest mu N), the state is a Coulomb solution and the passes end: a load
         // shared among contacts in a way the stiff penalties decide to the micron (a crate
         // on a rope on the floor) may move between them, as long as each stays in its cone.
-        const double applied = lagged ? c.friction_weight * slip
-                                      : c.friction * c.friction_normal * mollify(slip, eps).f1_over_y * slip;
+        const double applied = rigidFrictionTerm(c, slip_vector).gradient.norm();
         const double bound = c.friction * normal;
         const double miss = slip >= eps ? std::abs(applied - bound) : std::max(0.0, applied - bound);
         const double scale = std::max(bound, kNegligibleFriction * largest_bound);

@@ -600,6 +600,11 @@ void io(A& a, detail::PaperSheet& s) {
 
 // --- consistency of what was read ----------------------------------------------------------
 
+/// A glue (or a remembered contact) names a rigid slot that exists.
+bool bodyExists(const detail::RigidTable& rigids, RigidId body) {
+    return body.index < rigids.bodies.size() && rigids.used[body.index];
+}
+
 /// The arrays of a string agree with its particle count, its descriptor is valid and its
 /// attachments name rigid slots that exist: what the step assumes without checking.
 void checkString(const detail::StringState& s, const detail::RigidTable& rigids, const std::string& where) {
@@ -654,8 +659,7 @@ void checkString(const detail::StringState& s, const detail::RigidTable& rigids,
     if (!s.twist_frame.empty()) size(s.twist_frame.size(), m, "twist_frame");
     for (std::size_t p = 0; p < n; ++p) {
         const detail::ParticleHold& h = s.hold[p];
-        if (h.kind == detail::ParticleHold::Kind::Glue &&
-            (h.body.index >= rigids.bodies.size() || !rigids.used[h.body.index]))
+        if (h.kind == detail::ParticleHold::Kind::Glue && !bodyExists(rigids, h.body))
             fail("particle " + std::to_string(p) + " is glued to rigid slot " + std::to_string(h.body.index) +
                  ", which the snapshot does not have");
         if (!(s.mass[p] > 0.0) || !std::isfinite(s.inv_mass[p])) fail("particle " + std::to_string(p) + " has no valid mass");
@@ -665,15 +669,10 @@ void checkString(const detail::StringState& s, const detail::RigidTable& rigids,
             fail("segment " + std::to_string(j) + " has no valid rest length or material");
     // The contact memory is looked up by (segment, body) with a binary search.
     for (const detail::ContactMemory& c : s.contact_memory)
-        if (c.segment >= m || !(c.s >= 0.0 && c.s <= 1.0) || c.body.index >= rigids.bodies.size() || !rigids.used[c.body.index] ||
+        if (c.segment >= m || !(c.s >= 0.0 && c.s <= 1.0) || !bodyExists(rigids, c.body) ||
             !c.normal.allFinite() || std::abs(c.normal.norm() - 1.0) > 1e-6 || !std::isfinite(c.force) || c.force < 0.0)
             fail("contact_memory names a segment, point or body that does not exist, or has no valid normal or force");
     if (!std::is_sorted(s.contact_memory.begin(), s.contact_memory.end())) fail("contact_memory is not sorted");
-}
-
-/// A glue names a rigid slot that exists.
-bool bodyExists(const detail::RigidTable& rigids, RigidId body) {
-    return body.index < rigids.bodies.size() && rigids.used[body.index];
 }
 
 /// The arrays of a cloth agree with its weave (vertex and edge counts of its resolution),
