@@ -1,6 +1,6 @@
 // Ropes in Bullet's own queries: each string is one btCollisionObject in the Bullet world,
 // a btCompoundShape of one capsule per intact segment (radius the string's, from particle j
-// to particle j + 1), moved to the particles after every tearables step. Bullet's
+// to particle j + 1), moved to the particles at the end of each stepSimulation. Bullet's
 // btCollisionWorld::rayTest then meets ropes as it meets crates; for a compound it reports
 // the child it hit in LocalShapeInfo::m_triangleIndex (btCollisionWorld::rayTestSingleInternal),
 // and each object keeps which segment each child is.
@@ -17,8 +17,9 @@
 //  - it is static (CF_STATIC_OBJECT): no simulation island, not in the solver's bodies,
 //    never put to sleep (Bullet's activation pass reads rigid bodies only);
 //  - the world's pair cache is given a filter (btOverlapFilterCallback, if it has none)
-//    that refuses every pair with a rope object: Bullet's pairs, and so the order of its
-//    narrow phase and solver, are those of the world without ropes' objects;
+//    that refuses every pair with a rope object: Bullet's pairs are those of the world
+//    without ropes' objects (their order may still differ where bodies touch each other:
+//    the broadphase's tree holds the objects' leaves too; README, "Ray tests");
 //  - checkCollideWithOverride answers false to every object (m_checkCollideWith = 1), so
 //    where a filter of the user's lets a pair through, btCollisionDispatcher::needsCollision
 //    still refuses it: no collision algorithm, manifold or contact is ever made for it;
@@ -232,9 +233,9 @@ private:
 };
 
 /// Refuses every broadphase pair with a rope object (of any BulletWorld), so that Bullet's
-/// pair cache, and the order in which it hands pairs to the narrow phase and the solver, is
-/// what it would be without them: the simulation is the same bit for bit. Other pairs get
-/// Bullet's own rule (btHashedOverlappingPairCache::needsBroadphaseCollision).
+/// pair cache holds the pairs it would hold without them (a pair made and dropped again
+/// reorders the cache's others). Other pairs get Bullet's own rule
+/// (btHashedOverlappingPairCache::needsBroadphaseCollision).
 struct BulletWorld::Impl::RopePairFilter final : btOverlapFilterCallback {
     static bool isRope(const btBroadphaseProxy* proxy) {
         return dynamic_cast<const RopeObject*>(static_cast<const btCollisionObject*>(proxy->m_clientObject)) != nullptr;
