@@ -13,6 +13,8 @@
 #include "base/thread_pool.hpp"
 #include "base/union_find.hpp"
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -41,6 +43,9 @@ constexpr int kLineSearchHalvings = 30;
 /// the maximum of a window whose newest entry is below the previous maximum), so the pass
 /// still ends no higher than it began and the iteration still converges (ibid., Thm 1).
 constexpr std::size_t kEnergyMemory = 10;
+/// The share of a body's rotational inertia that the turning stiffness's negative part may
+/// not take away (addSoftening).
+constexpr double kInertiaKept = 0.5;
 /// Times per iteration that the contacts the step runs into are revised (addPredictedContacts)
 /// and the system solved again.
 constexpr int kPredictRounds = 3;
@@ -135,9 +140,33 @@ void IslandSolver::solveSystem(Island& island, bool fresh) {
     }
     forMembers(island, [&](std::size_t k) { island.members[k]->condense(fresh); });
     for (std::size_t k = 0; k < island.members.size(); ++k) island.members[k]->addTo(island.slots[k], system_, rhs_);
+    addSoftening(island);
     ldlt_.compute(system_);
     du_ = ldlt_.solve(rhs_);
     forMembers(island, [&](std::size_t k) { island.members[k]->backSubstitute(island.slots[k], du_); });
+}
+
+/// The turning stiffness's negative part (IslandMember::addTurningSoftening) joins each
+/// body's rotation block scaled by the largest t <= 1 with M + t S >= kInertiaKept M, M the
+/// block's inertia over h^2: t = (1 - kInertiaKept) / mu where mu, the largest generalised
+/// eigenvalue of (-S, M), is above 1 - kInertiaKept. Every other term of the system
+/// (inertia, springs taut or in the band, penalties, friction, the positive parts, and their
+/// Schur complements) is positive semidefinite, so the system stays positive definite.
+void IslandSolver::addSoftening(const Island& island) {
+    softening_.assign(island.bodies.size(), Mat3::Zero());
+    for (std::size_t k = 0; k < island.members.size(); ++k) island.members[k]->addTurningSoftening(island.slots[k], softening_);
+    for (std::size_t b = 0; b < island.bodies.size(); ++b) {
+        const Mat3& s = softening_[b];
+        if (s.isZero(0.0)) continue;
+        const Mat3 inertia = mass_[b].bottomRightCorner<3, 3>() * inv_h2_;
+        if (!inertia.allFinite() || !s.allFinite()) continue;
+        const Eigen::GeneralizedSelfAdjointEigenSolver<Mat3> eig(-s, inertia);
+        if (eig.info() != Eigen::Success) continue;
+        const double mu = eig.eigenvalues().maxCoeff();
+        const double t = mu > 1.0 - kInertiaKept ? (1.0 - kInertiaKept) / mu : 1.0;
+        const Eigen::Index r = static_cast<Eigen::Index>(6 * b + 3);
+        system_.block<3, 3>(r, r) += t * s;
+    }
 }
 
 double IslandSolver::energy(const Island& island, double alpha) {

@@ -41,6 +41,7 @@ private:
     IslandSummary solveIsland(Island& island, RigidTable& rigids, const StepContext& ctx);
     /// Assembles the island's Newton system (fresh: a new iteration) and solves it into du_.
     void solveSystem(Island& island, bool fresh);
+    void addSoftening(const Island& island);
     double energy(const Island& island, double alpha);
     /// fn(k) for each member k of the island, on the pool where the world has one.
     template <class Fn>
@@ -61,6 +62,7 @@ private:
     std::vector<int> hint_count_;  ///< per body: held points giving the warm start
     // One island's solve.
     std::vector<Mat6> mass_;          ///< per body: generalised mass
+    std::vector<Mat3> softening_;     ///< per body: the members' turning softening (addSoftening)
     Eigen::VectorXd displacement_;    ///< per body: (u, theta) from where the solve started
     Eigen::VectorXd pass_start_;      ///< displacement_ where the pass started
     Eigen::MatrixXd system_;

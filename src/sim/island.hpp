@@ -43,6 +43,11 @@ public:
     virtual void condense(bool fresh) = 0;
     /// Adds the condensed system to the island's `system` and `rhs`.
     virtual void addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const = 0;
+    /// Adds to `softening` (per island body, its rotation block) the negative part of the
+    /// turning stiffness of the points the member holds on its bodies, which condense()
+    /// left out of its system: the island adds it where the body's own inertia keeps the
+    /// system positive definite (IslandSolver::addSoftening).
+    virtual void addTurningSoftening(const std::vector<int>& /*slot*/, std::vector<Mat3>& /*softening*/) const {}
     /// The member's own step for the bodies' step `du`.
     virtual void backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) = 0;
     /// Holds the clear contacts the full step would run into and lets go of those held so

@@ -178,10 +178,14 @@ void StringIslandMember::assembleGlue() {
 }
 
 /// The pull F at arm r turns with the body: x_p = c + r + theta x r + theta x (theta x r) / 2
-/// to second order, so the energy's Hessian in theta gains (F . r) I - (F r^T + r F^T) / 2,
-/// kept where positive (its negative part would make the system indefinite).
+/// to second order, so the energy's Hessian in theta gains (F . r) I - (F r^T + r F^T) / 2.
+/// Its positive part joins the member's system; its negative part (softening_) is left to
+/// the island, which adds it where the body's inertia keeps the system positive definite:
+/// without it Newton converges only linearly where held points carry load
+/// (docs/island-baseline.md, "The turn's whole Hessian").
 void StringIslandMember::addTurningStiffness() {
     StringScratch::NodeScratch& ns = string_->scratch.node_scratch;
+    softening_.assign(string_->body_nodes.size(), Mat3::Zero());
     for (std::size_t k = 0; k < glued_.size(); ++k) {
         const Glued& g = glued_[k];
         const Vec3& f = pull_[k];
@@ -189,8 +193,14 @@ void StringIslandMember::addTurningStiffness() {
         const Mat3 geo = f.dot(r) * Mat3::Identity() - 0.5 * (f * r.transpose() + r * f.transpose());
         const Eigen::SelfAdjointEigenSolver<Mat3> eig(geo);
         const Vec3 kept = eig.eigenvalues().cwiseMax(0.0);
+        const Vec3 left = eig.eigenvalues().cwiseMin(0.0);
         ns.diag[g.node].bottomRightCorner<3, 3>() += eig.eigenvectors() * kept.asDiagonal() * eig.eigenvectors().transpose();
+        softening_[g.node] += eig.eigenvectors() * left.asDiagonal() * eig.eigenvectors().transpose();
     }
+}
+
+void StringIslandMember::addTurningSoftening(const std::vector<int>& slot, std::vector<Mat3>& softening) const {
+    for (std::size_t b = 0; b < softening_.size(); ++b) softening[static_cast<std::size_t>(slot[b])] += softening_[b];
 }
 
 void StringIslandMember::condense(bool fresh) {

@@ -25,6 +25,7 @@ public:
     void beginPass() override;
     void condense(bool fresh) override;
     void addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const override;
+    void addTurningSoftening(const std::vector<int>& slot, std::vector<Mat3>& softening) const override;
     void backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) override;
     bool addPredictedContacts() override;
     double energy(double alpha) const override;
@@ -70,6 +71,7 @@ private:
     };
     std::vector<Cross> cross_;
     mutable std::vector<Vec3> trial_;  ///< energy's trial positions
+    std::vector<Mat3> softening_;      ///< per body node: the turning stiffness's negative part
     std::vector<Vec3> pull_;           ///< per glued particle: its springs' pull on it
     // condenseRows: the coupled rows, each particle's row (-1: none), the couplings
     // stacked by row (3|R| x 6 nodes), A^-1 at the rows, and whether this system used them.

@@ -412,6 +412,21 @@ int main(int argc, char** argv) {
         momentum(false, 20000);
         momentum(true, 1150);
     }
+    // `rest`: the bridge at rest (BM_IslandRopesVsPinned/1's island), the Newton iterations
+    // and final residual of its solve in 10 steps after 100 of settling.
+    if (only == "rest") {
+        island::Rig rig;
+        const auto bridge = island::buildBridge(rig, {});
+        for (auto* b : bridge.boards) b->setActivationState(DISABLE_DEACTIVATION);
+        for (int i = 0; i < 100; ++i) rig.step();
+        for (int i = 0; i < 10; ++i) {
+            rig.step();
+            std::printf("step %d:", 100 + i);
+            for (const IslandSummary& s : rig.ropes->core().lastIslands())
+                std::printf(" [%zu strings, %zu bodies: %d iterations, residual %.3g]", s.strings, s.bodies, s.iterations, s.residual);
+            std::printf("\n");
+        }
+    }
     if (want("overlap")) {
         overlapStart(true);
         overlapStart(false);

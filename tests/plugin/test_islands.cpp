@@ -278,3 +278,25 @@ TEST(Islands, BridgeAnchorsCarryTheWholeWeightWithCratesOnIt) {
     for (const auto& e : rig.ropes->events()) EXPECT_NE(e.type, tearables::EventType::Tear);
     for (const btRigidBody* c : crates) EXPECT_GT(c->getCenterOfMassPosition().y(), 1.5f);
 }
+
+// Newton's convergence is quadratic in an island of boards hung on ropes: the Hessian
+// holds the whole second-order turn of every held point, (F . r) I - (F r^T + r F^T) / 2 of
+// its pull F at arm r, its negative part included where the body's inertia keeps the
+// system positive definite. A step of the bridge at rest starts (warm) ~1e4 tolerances
+// from its solution: quadratically that is 1e4, 1e2, 1, 1e-4, three or four iterations;
+// with the negative part left out the moves shrink by a constant ~15x an iteration
+// (measured), five iterations every step (1e4 / 15^4 > 1).
+TEST(Islands, BridgeAtRestConvergesQuadratically) {
+    tearables::island::Rig rig;
+    const auto bridge = tearables::island::buildBridge(rig, {});
+    for (auto* b : bridge.boards) b->setActivationState(DISABLE_DEACTIVATION);
+    for (int i = 0; i < 100; ++i) rig.step();
+    for (int i = 0; i < 20; ++i) {
+        rig.step();
+        const std::vector<IslandSummary>& islands = rig.ropes->core().lastIslands();
+        ASSERT_EQ(islands.size(), 1u);
+        EXPECT_EQ(islands[0].bodies, bridge.boards.size());
+        EXPECT_LT(islands[0].residual, 1.0) << "step " << i;
+        EXPECT_LE(islands[0].iterations, 4) << "step " << i;
+    }
+}
