@@ -46,6 +46,9 @@ constexpr std::size_t kEnergyMemory = 10;
 /// The share of a body's rotational inertia that the turning stiffness's negative part may
 /// not take away (addSoftening).
 constexpr double kInertiaKept = 0.5;
+/// A chord iteration follows an iteration whose move fell by this factor or more (the
+/// strings' own solve's kQuadraticRegime).
+constexpr double kQuadraticRegime = 0.1;
 /// Times per iteration that the contacts the step runs into are revised (addPredictedContacts)
 /// and the system solved again.
 constexpr int kPredictRounds = 3;
@@ -169,6 +172,29 @@ void IslandSolver::addSoftening(const Island& island) {
     }
 }
 
+/// A chord iteration (see IslandMember::condenseChord): every member's gradient against
+/// the Hessian the island factorised last, the same LDL^T. False, and nothing changed,
+/// where a member cannot take it.
+bool IslandSolver::solveChord(Island& island) {
+    forMembers(island, [&](std::size_t k) { member_value_[k] = island.members[k]->condenseChord() ? 1.0 : 0.0; });
+    const bool all = std::all_of(member_value_.begin(), member_value_.begin() + static_cast<std::ptrdiff_t>(island.members.size()),
+                                 [](double taken) { return taken > 0.0; });
+    if (!all) {
+        for (std::size_t k = 0; k < island.members.size(); ++k)
+            if (member_value_[k] > 0.0) island.members[k]->cancelChord();
+        return false;
+    }
+    rhs_.setZero(static_cast<Eigen::Index>(6 * island.bodies.size()));
+    for (std::size_t b = 0; b < island.bodies.size(); ++b) {
+        const Eigen::Index r = static_cast<Eigen::Index>(6 * b);
+        rhs_.segment<6>(r) -= mass_[b] * displacement_.segment<6>(r) * inv_h2_;
+    }
+    for (std::size_t k = 0; k < island.members.size(); ++k) island.members[k]->addRhsTo(island.slots[k], rhs_);
+    du_ = ldlt_.solve(rhs_);
+    forMembers(island, [&](std::size_t k) { island.members[k]->backSubstitute(island.slots[k], du_); });
+    return true;
+}
+
 double IslandSolver::energy(const Island& island, double alpha) {
     double e = 0.0;
     for (std::size_t b = 0; b < island.bodies.size(); ++b) {
@@ -238,13 +264,25 @@ IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, cons
         pass_start_ = displacement_;
         accepted_energy_.clear();
         bool converged = false;
+        // Chord iterations (the last Hessian kept, its factorisations and the island's
+        // LDL^T reused) where the island holds no contact, after an iteration whose move
+        // fell by kQuadraticRegime or more. A chord step from a Hessian factorised a move
+        // d away misses Newton's by ~C d |step| where Newton's own miss is C |step|^2 (C
+        // the Hessian's rate of change): as good where d is the last step, which the
+        // quadratic regime makes short; not after a long first step (a taut segment's
+        // axial stiffness, turned by d / L, swamps its transverse stiffness T / L).
+        bool chord_next = false;
+        double last_move = 0.0;
         for (int iter = 0; iter < iterations; ++iter) {
-            solveSystem(island, true);
-            for (int round = 0; round < kPredictRounds; ++round) {
-                bool changed = false;
-                for (IslandMember* m : island.members) changed = m->addPredictedContacts() || changed;
-                if (!changed) break;
-                solveSystem(island, false);
+            const bool chord = chord_next && solveChord(island);
+            if (!chord) {
+                solveSystem(island, true);
+                for (int round = 0; round < kPredictRounds; ++round) {
+                    bool changed = false;
+                    for (IslandMember* m : island.members) changed = m->addPredictedContacts() || changed;
+                    if (!changed) break;
+                    solveSystem(island, false);
+                }
             }
             // Backtrack until the (convex) energy is below the reference of the
             // non-monotone search; where no fraction of the step gets there, the state is
@@ -264,10 +302,16 @@ IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, cons
             for (std::size_t k = 0; k < island.members.size(); ++k) worst = std::max(worst, member_value_[k]);
             ++report.iterations;
             report.residual = worst;
-            if (stalled || worst < 1.0) {
+            // A chord step is the Newton step only to the change of the Hessian since it
+            // was factorised: a short one ends the solve only where it fell as fast as a
+            // Newton step would (and one the line search refused is retried as Newton's).
+            const bool fell = last_move > 0.0 && worst < kQuadraticRegime * last_move;
+            if (chord ? (!stalled && worst < 1.0 && fell) : (stalled || worst < 1.0)) {
                 converged = true;
                 break;
             }
+            chord_next = !stalled && fell;
+            last_move = worst;
         }
         if (!frictional) break;
         double change = 0.0;

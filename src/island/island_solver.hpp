@@ -42,6 +42,7 @@ private:
     /// Assembles the island's Newton system (fresh: a new iteration) and solves it into du_.
     void solveSystem(Island& island, bool fresh);
     void addSoftening(const Island& island);
+    bool solveChord(Island& island);
     double energy(const Island& island, double alpha);
     /// fn(k) for each member k of the island, on the pool where the world has one.
     template <class Fn>

@@ -41,6 +41,16 @@ public:
     /// first system of an iteration (contacts that touch now join it; later ones of the
     /// same iteration keep the set addPredictedContacts chose). Members condense in parallel.
     virtual void condense(bool fresh) = 0;
+    /// A chord iteration's condensed system: the gradient at the current state against the
+    /// Hessian of the last condense(), which the island keeps factorised. False where the
+    /// member cannot (it touches bodies, or its model changed branch): the island then
+    /// condenses every member afresh.
+    virtual bool condenseChord() { return false; }
+    /// Undoes a condenseChord that succeeded where another member's failed (the island
+    /// condenses afresh instead): the member counts the iteration once.
+    virtual void cancelChord() {}
+    /// Adds the condensed right-hand side alone (after condenseChord) to the island's `rhs`.
+    virtual void addRhsTo(const std::vector<int>& /*slot*/, Eigen::VectorXd& /*rhs*/) const {}
     /// Adds the condensed system to the island's `system` and `rhs`.
     virtual void addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const = 0;
     /// Adds to `softening` (per island body, its rotation block) the negative part of the

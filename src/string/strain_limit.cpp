@@ -348,11 +348,8 @@ void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx, d
     assembleSprings(s, ctx, 0, s.segments(), tension_estimate);
 }
 
-namespace {
-
-
 /// A chord iteration's right-hand side: assembleChain's gradient, without the Hessian,
-/// whose blocks stay those solveChain factorised. False where a segment went slack or taut
+/// whose blocks stay those solveChain (or an island member) factorised. False where a segment went slack or taut
 /// since. The effective stretches go into s.scratch.segment_work, not geometric_tension,
 /// which a Newton iteration replacing a refused chord iteration reads as it was (acceptChord).
 bool assembleChainGradient(StringState& s, const StepContext& ctx) {
@@ -381,6 +378,8 @@ bool assembleChainGradient(StringState& s, const StepContext& ctx) {
     }
     return same;
 }
+
+namespace {
 
 /// Whether the chord iteration's step in blk_rhs is taken: where it is below
 /// kQuadraticRegime times the last iteration's move (`last_move`), the effective

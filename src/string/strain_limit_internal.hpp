@@ -96,6 +96,10 @@ double stiffestTerm(const StringState& s, double inv_h2);
 /// into blk_diag, blk_off, blk_rhs. `tension_estimate` (per segment, may be null): the
 /// tension of the Hessian's geometric term (see limitStrain).
 void assembleChain(StringState& s, RigidTable& rigids, const StepContext& ctx, double* tension_estimate);
+/// A chord iteration's right-hand side: assembleChain's gradient into blk_rhs, its Hessian
+/// left as the last factorisation took it. False where a segment's branch (slack, elastic,
+/// plastic) changed since that assembly.
+bool assembleChainGradient(StringState& s, const StepContext& ctx);
 /// The energy the Newton iteration minimises at the current state moved by alpha times the
 /// step held in blk_rhs (particles) and node_step (bodies).
 double stepEnergy(const StringState& s, const RigidTable& rigids, const StepContext& ctx, double alpha);

@@ -127,10 +127,10 @@ void StringIslandMember::beginPass() {
     iteration_ = 0;
 }
 
-void StringIslandMember::assembleGlue() {
+void StringIslandMember::assembleGlue(bool hessian) {
     StringScratch::NodeScratch& ns = string_->scratch.node_scratch;
     const double inv_h2 = ctx_->inv_h * ctx_->inv_h;
-    cross_.clear();
+    if (hessian) cross_.clear();
     auto jacobian = [&](const Glued& g) {
         return pointJacobian(string_->x[g.particle] - rigids_->bodies[string_->body_nodes[g.node].body.index].position);
     };
@@ -138,7 +138,7 @@ void StringIslandMember::assembleGlue() {
     for (const Glued& g : glued_) {
         const Mat36 j = jacobian(g);
         const double w = string_->mass[g.particle] * inv_h2;
-        ns.diag[g.node] += w * j.transpose() * j;
+        if (hessian) ns.diag[g.node] += w * j.transpose() * j;
         ns.rhs[g.node] -= w * j.transpose() * (string_->x[g.particle] - g.inertial);
     }
     // The springs of glued particles: energy of x_{j+1} - x_j, force f on j toward j + 1.
@@ -152,20 +152,24 @@ void StringIslandMember::assembleGlue() {
         if (ga >= 0) {
             const Glued& g = glued_[static_cast<std::size_t>(ga)];
             ja = jacobian(g);
-            ns.diag[g.node] += ja.transpose() * hess * ja;
             ns.rhs[g.node] += ja.transpose() * force;
             pull_[static_cast<std::size_t>(ga)] += force;
-            if (gb < 0 && !fixedRow(*string_, seg + 1)) ns.coupling[g.node].emplace_back(seg + 1, -hess * ja);
+            if (hessian) {
+                ns.diag[g.node] += ja.transpose() * hess * ja;
+                if (gb < 0 && !fixedRow(*string_, seg + 1)) ns.coupling[g.node].emplace_back(seg + 1, -hess * ja);
+            }
         }
         if (gb >= 0) {
             const Glued& g = glued_[static_cast<std::size_t>(gb)];
             jb = jacobian(g);
-            ns.diag[g.node] += jb.transpose() * hess * jb;
             ns.rhs[g.node] -= jb.transpose() * force;
             pull_[static_cast<std::size_t>(gb)] -= force;
-            if (ga < 0 && !fixedRow(*string_, seg)) ns.coupling[g.node].emplace_back(seg, -hess * jb);
+            if (hessian) {
+                ns.diag[g.node] += jb.transpose() * hess * jb;
+                if (ga < 0 && !fixedRow(*string_, seg)) ns.coupling[g.node].emplace_back(seg, -hess * jb);
+            }
         }
-        if (ga >= 0 && gb >= 0) {
+        if (hessian && ga >= 0 && gb >= 0) {
             const std::size_t na = glued_[static_cast<std::size_t>(ga)].node, nb = glued_[static_cast<std::size_t>(gb)].node;
             const Mat6 block = -ja.transpose() * hess * jb;
             if (na == nb) {
@@ -222,12 +226,59 @@ void StringIslandMember::condense(bool fresh) {
         ns.coupling[b].clear();
     }
     assembleContactCoupling(s, ns);
-    assembleGlue();
+    assembleGlue(true);
     addTurningStiffness();
     factorChain(s);
     solveFactored(s.particles(), s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(),
                   s.scratch.blk_coupled.data(), s.scratch.blk_rhs.data());  // y = A^-1 r
     if (!condenseRows()) condenseNodes(s, ns);
+}
+
+/// A chord iteration: the gradient here, against the chain's factorisation and the
+/// condensed system of the last condense(). Only for a string that touches no body (its
+/// contacts' rows would change with the state, and their active set with the step) and
+/// only where no segment changed branch since (assembleChainGradient).
+bool StringIslandMember::condenseChord() {
+    StringState& s = *string_;
+    if (!s.contacts.empty()) return false;
+    // The band's end (kTautBandIterations) changes the model only where a segment lies
+    // in the band, whose branch then changes.
+    const bool exact_slack = s.scratch.exact_slack;
+    s.scratch.exact_slack = iteration_ >= kTautBandIterations;
+    if (!assembleChainGradient(s, *ctx_)) {
+        s.scratch.exact_slack = exact_slack;
+        return false;
+    }
+    ++iteration_;
+    StringScratch::NodeScratch& ns = s.scratch.node_scratch;
+    for (std::size_t b = 0; b < s.body_nodes.size(); ++b) ns.rhs[b].setZero();
+    assembleGlue(false);
+    solveFactored(s.particles(), s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(),
+                  s.scratch.blk_coupled.data(), s.scratch.blk_rhs.data());  // y = A^-1 r
+    condenseRhs();
+    return true;
+}
+
+void StringIslandMember::condenseRhs() {
+    StringState& s = *string_;
+    StringScratch::NodeScratch& ns = s.scratch.node_scratch;
+    const std::size_t nodes = s.body_nodes.size();
+    ns.rs.resize(static_cast<Eigen::Index>(6 * nodes));
+    for (std::size_t b = 0; b < nodes; ++b) ns.rs.segment<6>(static_cast<Eigen::Index>(6 * b)) = ns.rhs[b];
+    if (by_rows_) {
+        Eigen::VectorXd y_rows(static_cast<Eigen::Index>(3 * rows_.size()));
+        for (std::size_t k = 0; k < rows_.size(); ++k) y_rows.segment<3>(static_cast<Eigen::Index>(3 * k)) = s.scratch.blk_rhs[rows_[k]];
+        ns.rs.noalias() -= rows_coupling_.transpose() * y_rows;
+        return;
+    }
+    for (std::size_t b = 0; b < nodes; ++b)
+        for (const auto& [p, blk] : ns.coupling[b]) ns.rs.segment<6>(static_cast<Eigen::Index>(6 * b)) -= blk.transpose() * s.scratch.blk_rhs[p];
+}
+
+void StringIslandMember::addRhsTo(const std::vector<int>& slot, Eigen::VectorXd& rhs) const {
+    const StringScratch::NodeScratch& ns = string_->scratch.node_scratch;
+    for (std::size_t a = 0; a < string_->body_nodes.size(); ++a)
+        rhs.segment<6>(6 * slot[a]) += ns.rs.segment<6>(static_cast<Eigen::Index>(6 * a));
 }
 
 void StringIslandMember::addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const {
@@ -296,9 +347,7 @@ bool StringIslandMember::condenseRows() {
             rows_coupling_.block<3, 6>(3 * row_of_[p], static_cast<Eigen::Index>(6 * b)) += blk;
     if (s.scratch.node_columns.size() < static_cast<std::size_t>(dim)) s.scratch.node_columns.resize(static_cast<std::size_t>(dim));
     rows_inverse_.resize(dim, dim);
-    Eigen::VectorXd y_rows(dim);
     for (std::size_t k = 0; k < rows_.size(); ++k) {
-        y_rows.segment<3>(static_cast<Eigen::Index>(3 * k)) = s.scratch.blk_rhs[rows_[k]];
         for (int c = 0; c < 3; ++c) {
             std::vector<Vec3>& column = s.scratch.node_columns[3 * k + static_cast<std::size_t>(c)];
             column.assign(n, Vec3::Zero());
@@ -312,13 +361,10 @@ bool StringIslandMember::condenseRows() {
     for (std::size_t q : rows_) row_of_[q] = -1;
     const Eigen::Index nd = static_cast<Eigen::Index>(6 * nodes);
     ns.schur.setZero(nd, nd);
-    ns.rs.resize(nd);
-    for (std::size_t b = 0; b < nodes; ++b) {
+    for (std::size_t b = 0; b < nodes; ++b)
         ns.schur.block<6, 6>(static_cast<Eigen::Index>(6 * b), static_cast<Eigen::Index>(6 * b)) = ns.diag[b];
-        ns.rs.segment<6>(static_cast<Eigen::Index>(6 * b)) = ns.rhs[b];
-    }
     ns.schur.noalias() -= rows_coupling_.transpose() * rows_inverse_ * rows_coupling_;
-    ns.rs.noalias() -= rows_coupling_.transpose() * y_rows;
+    condenseRhs();
     return true;
 }
 

@@ -24,7 +24,10 @@ public:
     void warmStep(const std::vector<int>& slot, const Eigen::VectorXd& du) override;
     void beginPass() override;
     void condense(bool fresh) override;
+    bool condenseChord() override;
+    void cancelChord() override { --iteration_; }
     void addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const override;
+    void addRhsTo(const std::vector<int>& slot, Eigen::VectorXd& rhs) const override;
     void addTurningSoftening(const std::vector<int>& slot, std::vector<Mat3>& softening) const override;
     void backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) override;
     bool addPredictedContacts() override;
@@ -48,10 +51,14 @@ private:
     };
     /// Where the glued particle is with its body displaced by alpha times its node's step.
     Vec3 trialGlue(const Glued& g, double alpha) const;
-    /// Adds the glued particles' rows (their springs and own inertia) to the nodes' blocks.
-    void assembleGlue();
+    /// Adds the glued particles' rows (their springs and own inertia) to the nodes' blocks:
+    /// their gradient to `rhs`, and with `hessian` their blocks and couplings.
+    void assembleGlue(bool hessian);
     void addTurningStiffness();
     bool condenseRows();
+    /// The condensed right-hand side r_b - C^T y for y = A^-1 r in blk_rhs, with the
+    /// couplings C of the last condense().
+    void condenseRhs();
 
     StringState* string_ = nullptr;
     RigidTable* rigids_ = nullptr;
