@@ -30,6 +30,22 @@ namespace tearables {
 
 namespace {
 
+/// Whether the island solve takes joint c from Bullet (BodyJoint): a ball joint
+/// (btPoint2PointConstraint) or a hinge (btHingeConstraint) without limits, motor or
+/// angular-only mode, enabled, that no impulse breaks. Others leave their islands to Bullet.
+bool islandJoint(const btTypedConstraint& c) {
+    if (!c.isEnabled() || c.getBreakingImpulseThreshold() < SIMD_INFINITY) return false;
+    if (c.getConstraintType() == POINT2POINT_CONSTRAINT_TYPE) return true;
+    if (c.getConstraintType() != HINGE_CONSTRAINT_TYPE) return false;
+    auto& hinge = const_cast<btHingeConstraint&>(static_cast<const btHingeConstraint&>(c));  // Bullet's getters are not const
+    return !hinge.hasLimit() && !hinge.getEnableAngularMotor() && !hinge.getAngularOnly();
+}
+
+}  // namespace
+
+
+namespace {
+
 Quat toCore(const btQuaternion& q) { return Quat(q.w(), q.x(), q.y(), q.z()); }
 btQuaternion toBullet(const Quat& q) {
     return btQuaternion(static_cast<btScalar>(q.x()), static_cast<btScalar>(q.y()), static_cast<btScalar>(q.z()),
@@ -177,6 +193,35 @@ public:
                 points_.push_back({m, k});
                 out.push_back(c);
             }
+        }
+    }
+
+    /// The joints withheld with the claimed bodies (islandJoint), at the bodies' poses now:
+    /// a ball joint's pivots, a hinge's pivots and axes (its frames' origins and z axes).
+    void findBodyJoints(std::vector<BodyJoint>& out) override {
+        if (!owner_.attachedToBullet() || !owner_.claim_) return;
+        const double h = owner_.step_;
+        for (btTypedConstraint* c : owner_.claim_->withheldConstraints()) {
+            if (!islandJoint(*c)) continue;
+            const Side sa = side(c->getRigidBodyA(), h), sb = side(c->getRigidBodyB(), h);
+            if (!sa.body.valid() && !sb.body.valid()) continue;
+            BodyJoint j;
+            j.a = sa.body;
+            j.b = sb.body;
+            if (c->getConstraintType() == POINT2POINT_CONSTRAINT_TYPE) {
+                const auto& ball = static_cast<const btPoint2PointConstraint&>(*c);
+                j.pivot_a = toCore(sa.now * ball.getPivotInA());
+                j.pivot_b = toCore(sb.now * ball.getPivotInB());
+            } else {
+                const auto& hinge = static_cast<const btHingeConstraint&>(*c);
+                const btTransform fa = sa.now * hinge.getAFrame(), fb = sb.now * hinge.getBFrame();
+                j.kind = BodyJoint::Kind::Hinge;
+                j.pivot_a = toCore(fa.getOrigin());
+                j.pivot_b = toCore(fb.getOrigin());
+                j.axis_a = toCore(fa.getBasis().getColumn(2));
+                j.axis_b = toCore(fb.getBasis().getColumn(2));
+            }
+            out.push_back(j);
         }
     }
 
@@ -719,7 +764,8 @@ BulletWorld::Impl::Impl(btDiscreteDynamicsWorld& world, const WorldSettings& set
     core_->setContactProvider(contacts_.get());
     try {
         claim_ = std::make_unique<IslandClaimSolver>(world, ClaimScope::Island);
-        claim_->setLeaveJointed(true);  // the island solve has no joints
+        claim_->setLeaveJointed(true);  // joints the island solve does not take stay Bullet's
+        claim_->setTakenJoints(islandJoint);
     } catch (const std::invalid_argument&) {
         claim_.reset();  // a multibody solver: Bullet keeps solving the bodies' contacts
     }

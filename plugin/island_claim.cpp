@@ -108,6 +108,7 @@ void IslandClaimSolver::prepareSolve(int numBodies, int numManifolds) {
         if (leaveJointed_) {
             for (int i = 0; i < world_.getNumConstraints(); ++i) {
                 const btTypedConstraint* joint = world_.getConstraint(i);
+                if (!joint->isEnabled() || (takes_ && takes_(*joint))) continue;
                 for (const btRigidBody* body : {&joint->getRigidBodyA(), &joint->getRigidBodyB()}) {
                     if (body->isStaticOrKinematicObject()) continue;
                     jointed_.push_back(body);

@@ -13,6 +13,7 @@
 #include <LinearMath/btTransform.h>
 #include <LinearMath/btVector3.h>
 
+#include <functional>
 #include <vector>
 
 class btCollisionObject;
@@ -77,6 +78,10 @@ public:
     /// typed constraint on one of its bodies, for a caller that cannot solve joints. Off
     /// by default.
     void setLeaveJointed(bool leave) { leaveJointed_ = leave; }
+    /// With setLeaveJointed: the joints the caller solves itself (`takes` returns true:
+    /// they are withheld with their bodies like manifolds) do not leave their islands to
+    /// Bullet; nor do disabled joints. Empty: none.
+    void setTakenJoints(std::function<bool(const btTypedConstraint&)> takes) { takes_ = std::move(takes); }
     /// The solver that receives the unclaimed work.
     btConstraintSolver& wrapped() const { return *wrapped_; }
 
@@ -108,6 +113,7 @@ private:
     bool worldOwnedWrapped_;  // the world allocated its solver itself and frees it when it dies
     ClaimScope scope_;
     bool leaveJointed_ = false;
+    std::function<bool(const btTypedConstraint&)> takes_;
     bool worldGone_ = false;
 
     std::vector<const btRigidBody*> flagged_;  // sorted, for binary search

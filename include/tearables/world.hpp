@@ -112,6 +112,22 @@ struct BodyContact {
     std::size_t host_tag = 0;      ///< the host's own name for the contact, returned unchanged
 };
 
+/// A joint between two bodies, or between a body and a frame fixed in the world, that the
+/// host hands to the island solve (ContactProvider::findBodyJoints) instead of solving it
+/// itself: the body or bodies then move in one system with the strings that hold them
+/// and the contacts they touch. A ball joint keeps the two pivots together; a hinge also
+/// keeps the two axes parallel (free to turn about them: no limit, no motor).
+struct BodyJoint {
+    enum class Kind { Ball, Hinge };
+    Kind kind = Kind::Ball;
+    RigidId a;                     ///< a movable body's proxy
+    RigidId b;                     ///< the other body's proxy, or none: a frame only the host moves
+    Vec3 pivot_a = Vec3::Zero();   ///< world, m: the joint's point on a, at the poses in the table
+    Vec3 pivot_b = Vec3::Zero();   ///< world, m: its point on b (or the fixed frame)
+    Vec3 axis_a = Vec3::UnitZ();   ///< world, unit: a hinge's axis on a
+    Vec3 axis_b = Vec3::UnitZ();   ///< world, unit: on b
+};
+
 /// Positions a host's collision query sees: every live string's particles after the
 /// prediction (where they would go), and where they were at the start of the step.
 struct CollisionQuery {
@@ -184,6 +200,9 @@ public:
     /// bodies' poses are those of the table when the step starts). A host that solves its
     /// bodies' contacts itself reports none.
     virtual void findBodyContacts(std::vector<BodyContact>& out) { (void)out; }
+    /// Appends the joints between bodies that the island solve is to keep (at the poses of
+    /// the table when the step starts). A host that solves its joints itself reports none.
+    virtual void findBodyJoints(std::vector<BodyJoint>& out) { (void)out; }
 };
 
 /// Read-only view of a string's state, valid until the next step or change.

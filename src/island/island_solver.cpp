@@ -60,6 +60,11 @@ void IslandSolver::setBodyContacts(const std::vector<BodyContact>& contacts, con
     prepareBodyContacts(body_contacts_, rigids);
 }
 
+void IslandSolver::setBodyJoints(const std::vector<BodyJoint>& joints, const RigidTable& rigids) {
+    body_joints_.assign(joints.begin(), joints.end());
+    prepareBodyJoints(body_joints_, rigids);
+}
+
 void IslandSolver::solve(const std::vector<IslandMember*>& members, RigidTable& rigids, const StepContext& ctx) {
     reports_.clear();
     all_members_ = members;
@@ -73,7 +78,10 @@ void IslandSolver::solve(const std::vector<IslandMember*>& members, RigidTable& 
         body_members_[pairs++].start(body_contacts_, first, end - first, rigids, ctx);
         first = end;
     }
+    if (joint_members_.size() < body_joints_.size()) joint_members_.resize(body_joints_.size());
+    for (std::size_t k = 0; k < body_joints_.size(); ++k) joint_members_[k].start(body_joints_[k], rigids, ctx);
     for (std::size_t k = 0; k < pairs; ++k) all_members_.push_back(&body_members_[k]);  // after any growth
+    for (std::size_t k = 0; k < body_joints_.size(); ++k) all_members_.push_back(&joint_members_[k]);
     group(all_members_, rigids);
     inv_h2_ = ctx.inv_h * ctx.inv_h;
     pool_ = ctx.pool;

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "island/body_contacts.hpp"
+#include "island/body_joints.hpp"
 #include "sim/body_motion.hpp"
 #include "sim/island.hpp"
 
@@ -19,10 +20,13 @@ class ThreadPool;
 class IslandSolver final : public IslandSolve {
 public:
     void solve(const std::vector<IslandMember*>& members, RigidTable& rigids, const StepContext& ctx) override;
-    bool hasOwnMembers() const override { return !body_contacts_.empty(); }
+    bool hasOwnMembers() const override { return !body_contacts_.empty() || !body_joints_.empty(); }
     /// The host's contacts between bodies for this step (ContactProvider::findBodyContacts):
     /// those the solve can keep (prepareBodyContacts) join the islands of their bodies.
     void setBodyContacts(const std::vector<BodyContact>& contacts, const RigidTable& rigids);
+    /// The host's joints between bodies for this step (ContactProvider::findBodyJoints):
+    /// those the solve can keep (prepareBodyJoints) join the islands of their bodies.
+    void setBodyJoints(const std::vector<BodyJoint>& joints, const RigidTable& rigids);
     /// This step's body contacts, with the normal force each carried (0 before the solve).
     const std::vector<BodyContact>& bodyContacts() const { return body_contacts_; }
     /// Forgets the last step's islands (a step may have none to solve).
@@ -53,6 +57,8 @@ private:
 
     std::vector<BodyContact> body_contacts_;      ///< grouped by pair (prepareBodyContacts)
     std::vector<BodyContactMember> body_members_;  ///< one per pair; kept from step to step
+    std::vector<BodyJoint> body_joints_;           ///< prepareBodyJoints
+    std::vector<BodyJointMember> joint_members_;   ///< one per joint; kept from step to step
     std::vector<IslandMember*> all_members_;       ///< the strings', then the pairs'
     std::vector<Island> islands_;  ///< kept from step to step: a step does not allocate
     std::size_t used_ = 0;         ///< of which this step's

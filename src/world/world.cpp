@@ -61,6 +61,7 @@ struct World::Impl {
     detail::ThreadPool pool;  // independent strings' stages (WorldSettings::threads)
     detail::IslandSolver islands;  // strings coupled through movable bodies
     std::vector<BodyContact> body_found;  // the host's body contacts this step (kept: no allocation)
+    std::vector<BodyJoint> joints_found;  // the host's joints handed to the islands this step
     std::vector<Event> events;
     std::vector<Event> pending;  // emitted between steps, reported with the next step
     StageTimes last;
@@ -130,6 +131,16 @@ struct World::Impl {
             }
         }
         islands.setBodyContacts(body_found, rigids);
+        // The joints the host handed over (its bodies then move only here).
+        joints_found.clear();
+        if (contact_provider) {
+            try {
+                contact_provider->findBodyJoints(joints_found);
+            } catch (...) {
+                joints_found.clear();
+            }
+        }
+        islands.setBodyJoints(joints_found, rigids);
     }
 
     /// The host's contacts of mesh vertices (sheets, cloths) with rigid bodies: only those

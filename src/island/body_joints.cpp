@@ -1,0 +1,150 @@
+// Joints between bodies in an island (body_joints.hpp).
+//
+// A joint adds to the island's energy stiff penalties on its residuals, linearised where the
+// solve started as the body contacts' gaps are (body_contacts.cpp):
+//     pivots:  e(d) = (1 - beta) e0 + (u_a + theta_a x r_a) - (u_b + theta_b x r_b),
+//     hinge:   c(d) = (1 - beta) (a x b) + [b]x [a]x theta_a - [a]x [b]x theta_b,
+// k/2 |e|^2 + k_theta/2 |c|^2, with e0 the pivots' separation and a x b the axes'
+// misalignment where the step starts (a turned by theta: a + theta x a = a - [a]x theta, and
+// (v) x b = -[b]x v). A quadratic in the bodies' displacements d, convex, so the island's
+// Newton iteration with its line search converges as with contacts. beta: the share of a
+// separation found at the start (the linearisation's second order, left by the last step)
+// that the step takes back, as Bullet's joints' ERP (0.2) does; all of it at once would
+// throw the bodies apart at e0 / h.
+#include "island/body_joints.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+
+namespace tearables::detail {
+
+namespace {
+
+/// The penalties' stiffness over the heavier body's m / h^2 (and, for the axes, its
+/// largest moment of inertia over h^2): a load F parts the pivots by F / k, g h^2 /
+/// kStiffnessFactor under a body's own weight (1.7 um at h = 1/240 s). As the contacts'.
+constexpr double kStiffnessFactor = 100.0;
+/// The share of the start's separation a step takes back (Bullet's joint ERP).
+constexpr double kSeparationRecovery = 0.2;
+/// Convergence: the pivots' relative move in an iteration over this (m).
+constexpr double kMoveTolerance = 1e-7;
+
+/// d(u + theta x r) / d(u, theta) = [I, -[r]x].
+Mat36 pointJacobian(const Vec3& r) {
+    Mat36 s;
+    s.leftCols<3>() = Mat3::Identity();
+    s.rightCols<3>() = -cross(r);
+    return s;
+}
+
+bool inTable(RigidId id, const RigidTable& rigids) {
+    return id.valid() && id.index < rigids.bodies.size() && rigids.used[id.index] && rigids.bodies[id.index].present;
+}
+
+/// The body's largest principal moment of inertia, kg m^2 (its mass times a square metre
+/// where the inertia is not finite: a body that does not turn).
+double largestMoment(const RigidState& b) {
+    const double smallest = Eigen::SelfAdjointEigenSolver<Mat3>(b.inverseInertiaWorld(), Eigen::EigenvaluesOnly).eigenvalues().minCoeff();
+    return smallest > 0.0 && std::isfinite(1.0 / smallest) ? 1.0 / smallest : 1.0 / b.inverse_mass;
+}
+
+}  // namespace
+
+void prepareBodyJoints(std::vector<BodyJoint>& joints, const RigidTable& rigids) {
+    auto keep = [&](BodyJoint& j) {
+        if (j.a.valid() && !inTable(j.a, rigids)) return false;
+        if (j.b.valid() && !inTable(j.b, rigids)) return false;
+        if (!(j.a.valid() && rigids.movable(j.a))) {
+            if (!(j.b.valid() && rigids.movable(j.b))) return false;
+            std::swap(j.a, j.b);
+            std::swap(j.pivot_a, j.pivot_b);
+            std::swap(j.axis_a, j.axis_b);
+        }
+        if (j.b.valid() && j.b.index == j.a.index) return false;
+        if (!j.pivot_a.allFinite() || !j.pivot_b.allFinite()) return false;
+        if (j.kind == BodyJoint::Kind::Hinge) {
+            for (Vec3* axis : {&j.axis_a, &j.axis_b}) {
+                const double n = axis->norm();
+                if (!(std::abs(n - 1.0) < 1e-3)) return false;
+                *axis /= n;
+            }
+        }
+        return true;
+    };
+    joints.erase(std::remove_if(joints.begin(), joints.end(), [&](BodyJoint& j) { return !keep(j); }), joints.end());
+}
+
+void BodyJointMember::start(const BodyJoint& joint, const RigidTable& rigids, const StepContext& ctx) {
+    const RigidState& a = rigids.bodies[joint.a.index];
+    b_moves_ = joint.b.valid() && rigids.movable(joint.b);
+    bodies_.assign(1, joint.a);
+    double mass = 1.0 / a.inverse_mass, moment = largestMoment(a);
+    if (b_moves_) {
+        bodies_.push_back(joint.b);
+        const RigidState& b = rigids.bodies[joint.b.index];
+        mass = std::max(mass, 1.0 / b.inverse_mass);
+        moment = std::max(moment, largestMoment(b));
+    }
+    const double inv_h2 = ctx.inv_h * ctx.inv_h;
+    ja_.setZero();
+    jb_.setZero();
+    r0_.setZero();
+    weight_.setZero();
+    r0_.head<3>() = (1.0 - kSeparationRecovery) * (joint.pivot_a - joint.pivot_b);
+    ja_.topRows<3>() = pointJacobian(joint.pivot_a - a.position);
+    if (b_moves_) jb_.topRows<3>() = -pointJacobian(joint.pivot_b - rigids.bodies[joint.b.index].position);
+    weight_.head<3>().setConstant(kStiffnessFactor * mass * inv_h2);
+    if (joint.kind == BodyJoint::Kind::Hinge) {
+        const Vec3& ax = joint.axis_a;
+        const Vec3& bx = joint.axis_b;
+        r0_.tail<3>() = (1.0 - kSeparationRecovery) * ax.cross(bx);
+        ja_.bottomRightCorner<3, 3>() = cross(bx) * cross(ax);
+        if (b_moves_) jb_.bottomRightCorner<3, 3>() = -cross(ax) * cross(bx);
+        weight_.tail<3>().setConstant(kStiffnessFactor * moment * inv_h2);
+    }
+    disp_a_.setZero();
+    disp_b_.setZero();
+    du_a_.setZero();
+    du_b_.setZero();
+}
+
+void BodyJointMember::condense(bool) {
+    Eigen::Matrix<double, 6, 12> j;
+    j << ja_, jb_;
+    const Eigen::Matrix<double, 6, 1> r = residual(disp_a_, disp_b_);
+    hessian_ = j.transpose() * weight_.asDiagonal() * j;
+    gradient_ = j.transpose() * weight_.cwiseProduct(r);
+}
+
+void BodyJointMember::addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const {
+    const Eigen::Index a = 6 * slot[0];
+    system.block<6, 6>(a, a) += hessian_.topLeftCorner<6, 6>();
+    rhs.segment<6>(a) -= gradient_.head<6>();
+    if (!b_moves_) return;
+    const Eigen::Index b = 6 * slot[1];
+    system.block<6, 6>(a, b) += hessian_.topRightCorner<6, 6>();
+    system.block<6, 6>(b, a) += hessian_.bottomLeftCorner<6, 6>();
+    system.block<6, 6>(b, b) += hessian_.bottomRightCorner<6, 6>();
+    rhs.segment<6>(b) -= gradient_.tail<6>();
+}
+
+void BodyJointMember::backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) {
+    du_a_ = du.segment<6>(6 * slot[0]);
+    du_b_ = b_moves_ ? Vec6(du.segment<6>(6 * slot[1])) : Vec6::Zero();
+}
+
+double BodyJointMember::energy(double alpha) const {
+    const Eigen::Matrix<double, 6, 1> r = residual(disp_a_ + alpha * du_a_, disp_b_ + alpha * du_b_);
+    return 0.5 * r.dot(weight_.cwiseProduct(r));
+}
+
+double BodyJointMember::apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) {
+    const double move = alpha * (ja_.topRows<3>() * du_a_ + jb_.topRows<3>() * du_b_).norm();
+    disp_a_ = displacement.segment<6>(6 * slot[0]);
+    if (b_moves_) disp_b_ = displacement.segment<6>(6 * slot[1]);
+    return move / kMoveTolerance;
+}
+
+}  // namespace tearables::detail

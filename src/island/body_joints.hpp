@@ -1,0 +1,57 @@
+// A joint between bodies as a member of an island (sim/island.hpp): a ball joint or a
+// hinge the host handed over (BodyJoint), solved in the same Newton system as the strings
+// that hold the bodies and the contacts between them, so that no solver undoes another.
+#pragma once
+
+#include "sim/body_motion.hpp"
+#include "sim/island.hpp"
+
+#include <vector>
+
+namespace tearables::detail {
+
+class BodyJointMember final : public IslandMember {
+public:
+    /// Joint `joint` (prepared: a movable, b movable or fixed) at the table's poses.
+    void start(const BodyJoint& joint, const RigidTable& rigids, const StepContext& ctx);
+
+    const std::vector<RigidId>& bodies() const override { return bodies_; }
+    bool touchesBodies() const override { return true; }
+    void addWarmHints(const std::vector<int>&, Eigen::VectorXd&, std::vector<int>&) const override {}
+    void warmStep(const std::vector<int>&, const Eigen::VectorXd&) override {}
+    void beginPass() override {}
+    void condense(bool fresh) override;
+    void addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const override;
+    void backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) override;
+    bool addPredictedContacts() override { return false; }
+    double energy(double alpha) const override;
+    double apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) override;
+    bool frictional() const override { return false; }
+    double reweigh() override { return 0.0; }
+    void finish(int) override {}
+    bool isBodyContacts() const override { return true; }
+
+private:
+    /// The joint's residuals for the bodies' displacements d = (u, theta) from where the
+    /// solve started, linearised there: the pivots' separation and, for a hinge, the axes'
+    /// cross product (zero rows for a ball joint), each r0 + Ja d_a + Jb d_b.
+    Eigen::Matrix<double, 6, 1> residual(const Vec6& da, const Vec6& db) const {
+        return r0_ + ja_ * da + jb_ * db;
+    }
+
+    std::vector<RigidId> bodies_;
+    bool b_moves_ = false;
+    Eigen::Matrix<double, 6, 1> r0_ = Eigen::Matrix<double, 6, 1>::Zero();
+    Eigen::Matrix<double, 6, 6> ja_ = Eigen::Matrix<double, 6, 6>::Zero(), jb_ = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> weight_ = Eigen::Matrix<double, 6, 1>::Zero();  ///< per residual: its stiffness
+    Vec6 disp_a_ = Vec6::Zero(), disp_b_ = Vec6::Zero();  ///< from where the solve started
+    Vec6 du_a_ = Vec6::Zero(), du_b_ = Vec6::Zero();      ///< the island's step
+    Eigen::Matrix<double, 12, 12> hessian_;
+    Eigen::Matrix<double, 12, 1> gradient_;
+};
+
+/// The joints the island solve keeps: of a movable body (with a movable one or a fixed
+/// frame), finite, with unit axes; a joint whose a is fixed and b movable is turned round.
+void prepareBodyJoints(std::vector<BodyJoint>& joints, const RigidTable& rigids);
+
+}  // namespace tearables::detail
