@@ -31,14 +31,15 @@ namespace tearables {
 namespace {
 
 /// Whether the island solve takes joint c from Bullet (BodyJoint): a ball joint
-/// (btPoint2PointConstraint) or a hinge (btHingeConstraint) without limits, motor or
-/// angular-only mode, enabled, that no impulse breaks. Others leave their islands to Bullet.
+/// (btPoint2PointConstraint) or a hinge (btHingeConstraint, its limits as hard stops)
+/// without motor or angular-only mode, enabled, that no impulse breaks. Others leave their
+/// islands to Bullet.
 bool islandJoint(const btTypedConstraint& c) {
     if (!c.isEnabled() || c.getBreakingImpulseThreshold() < SIMD_INFINITY) return false;
     if (c.getConstraintType() == POINT2POINT_CONSTRAINT_TYPE) return true;
     if (c.getConstraintType() != HINGE_CONSTRAINT_TYPE) return false;
     auto& hinge = const_cast<btHingeConstraint&>(static_cast<const btHingeConstraint&>(c));  // Bullet's getters are not const
-    return !hinge.hasLimit() && !hinge.getEnableAngularMotor() && !hinge.getAngularOnly();
+    return !hinge.getEnableAngularMotor() && !hinge.getAngularOnly();
 }
 
 }  // namespace
@@ -220,6 +221,20 @@ public:
                 j.pivot_b = toCore(fb.getOrigin());
                 j.axis_a = toCore(fa.getBasis().getColumn(2));
                 j.axis_b = toCore(fb.getBasis().getColumn(2));
+                auto& limited = const_cast<btHingeConstraint&>(hinge);  // Bullet's getters are not const
+                if (limited.hasLimit()) {
+                    // Bullet's angle, and which way it turns when a turns about the axis
+                    // (its reference sign, which has no getter): measured by a small turn.
+                    const btScalar turn = 1e-3f;
+                    btTransform turned = sa.now;
+                    turned.setBasis(btMatrix3x3(btQuaternion(fa.getBasis().getColumn(2), turn)) * sa.now.getBasis());
+                    const btScalar angle = limited.getHingeAngle(sa.now, sb.now);
+                    const btScalar moved = btNormalizeAngle(limited.getHingeAngle(turned, sb.now) - angle);
+                    j.angle = static_cast<double>(angle);
+                    j.angle_sign = moved > 0 ? 1.0 : -1.0;
+                    j.lower = static_cast<double>(limited.getLowerLimit());
+                    j.upper = static_cast<double>(limited.getUpperLimit());
+                }
             }
             out.push_back(j);
         }

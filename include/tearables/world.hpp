@@ -11,6 +11,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <limits>
 #include <vector>
 
 namespace tearables {
@@ -126,6 +127,13 @@ struct BodyJoint {
     Vec3 pivot_b = Vec3::Zero();   ///< world, m: its point on b (or the fixed frame)
     Vec3 axis_a = Vec3::UnitZ();   ///< world, unit: a hinge's axis on a
     Vec3 axis_b = Vec3::UnitZ();   ///< world, unit: on b
+    /// A hinge's angle now, rad, in the host's convention, which turns by
+    /// angle_sign * axis_a . (theta_a - theta_b) for small turns theta of the bodies; and its
+    /// limits (lower <= angle <= upper; infinite: none).
+    double angle = 0.0;
+    double angle_sign = 1.0;
+    double lower = -std::numeric_limits<double>::infinity();
+    double upper = std::numeric_limits<double>::infinity();
 };
 
 /// Positions a host's collision query sees: every live string's particles after the

@@ -4,7 +4,10 @@
 // solve started as the body contacts' gaps are (body_contacts.cpp):
 //     pivots:  e(d) = (1 - beta) e0 + (u_a + theta_a x r_a) - (u_b + theta_b x r_b),
 //     hinge:   c(d) = (1 - beta) (a x b) + [b]x [a]x theta_a - [a]x [b]x theta_b,
-// k/2 |e|^2 + k_theta/2 |c|^2, with e0 the pivots' separation and a x b the axes'
+//     limits:  phi(d) = phi0 + sign a . (theta_a - theta_b)   (a hinge's angle),
+// k/2 |e|^2 + k_theta/2 |c|^2 + k_theta/2 (phi - clamp(phi, lower, upper))^2 (a one-sided
+// penalty past either limit, held as a contact's: where it is past it, or where the step
+// runs past it), with e0 the pivots' separation and a x b the axes'
 // misalignment where the step starts (a turned by theta: a + theta x a = a - [a]x theta, and
 // (v) x b = -[b]x v). A quadratic in the bodies' displacements d, convex, so the island's
 // Newton iteration with its line search converges as with contacts. beta: the share of a
@@ -17,6 +20,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace tearables::detail {
 
@@ -61,6 +65,7 @@ void prepareBodyJoints(std::vector<BodyJoint>& joints, const RigidTable& rigids)
             std::swap(j.a, j.b);
             std::swap(j.pivot_a, j.pivot_b);
             std::swap(j.axis_a, j.axis_b);
+            j.angle_sign = -j.angle_sign;  // the angle turns with theta_old_a - theta_old_b
         }
         if (j.b.valid() && j.b.index == j.a.index) return false;
         if (!j.pivot_a.allFinite() || !j.pivot_b.allFinite()) return false;
@@ -69,6 +74,13 @@ void prepareBodyJoints(std::vector<BodyJoint>& joints, const RigidTable& rigids)
                 const double n = axis->norm();
                 if (!(std::abs(n - 1.0) < 1e-3)) return false;
                 *axis /= n;
+            }
+            // Limits only with a finite angle, a sign of +-1 and lower <= upper (else none).
+            const bool limits = std::isfinite(j.angle) && std::abs(std::abs(j.angle_sign) - 1.0) < 1e-9 &&
+                                !std::isnan(j.lower) && !std::isnan(j.upper) && j.lower <= j.upper;
+            if (!limits) {
+                j.lower = -std::numeric_limits<double>::infinity();
+                j.upper = std::numeric_limits<double>::infinity();
             }
         }
         return true;
@@ -103,19 +115,59 @@ void BodyJointMember::start(const BodyJoint& joint, const RigidTable& rigids, co
         ja_.bottomRightCorner<3, 3>() = cross(bx) * cross(ax);
         if (b_moves_) jb_.bottomRightCorner<3, 3>() = -cross(ax) * cross(bx);
         weight_.tail<3>().setConstant(kStiffnessFactor * moment * inv_h2);
+        limited_ = std::isfinite(joint.lower) || std::isfinite(joint.upper);
+        angle0_ = joint.angle;
+        lower_ = joint.lower;
+        upper_ = joint.upper;
+        limit_weight_ = kStiffnessFactor * moment * inv_h2;
+        ga_.setZero();
+        gb_.setZero();
+        ga_.tail<3>() = joint.angle_sign * ax;
+        if (b_moves_) gb_.tail<3>() = -joint.angle_sign * ax;
+    } else {
+        limited_ = false;
     }
+    limit_held_ = false;
     disp_a_.setZero();
     disp_b_.setZero();
     du_a_.setZero();
     du_b_.setZero();
 }
 
-void BodyJointMember::condense(bool) {
+void BodyJointMember::condense(bool fresh) {
     Eigen::Matrix<double, 6, 12> j;
     j << ja_, jb_;
     const Eigen::Matrix<double, 6, 1> r = residual(disp_a_, disp_b_);
     hessian_ = j.transpose() * weight_.asDiagonal() * j;
     gradient_ = j.transpose() * weight_.cwiseProduct(r);
+    if (!limited_) return;
+    const double angle = angleAt(disp_a_, disp_b_);
+    if (fresh) limit_held_ = pastLimit(angle) != 0.0;
+    if (!limit_held_) return;
+    // Held inside the limits (the step runs past one), the model carries the way to it:
+    // k (phi + g . dd - limit)^2 / 2 with the limit the step runs past.
+    Eigen::Matrix<double, 12, 1> g;
+    g << ga_, gb_;
+    const Vec6 full_a = disp_a_ + du_a_, full_b = disp_b_ + du_b_;
+    const double past = pastLimit(angle) != 0.0 ? pastLimit(angle) : angle - (angleAt(full_a, full_b) < lower_ ? lower_ : upper_);
+    hessian_ += limit_weight_ * g * g.transpose();
+    gradient_ += limit_weight_ * past * g;
+}
+
+// The limit's active set, as the contacts' (BodyContactMember::addPredictedContacts).
+bool BodyJointMember::addPredictedContacts() {
+    if (!limited_) return false;
+    const double after = pastLimit(angleAt(disp_a_ + du_a_, disp_b_ + du_b_));
+    const double now = pastLimit(angleAt(disp_a_, disp_b_));
+    if (!limit_held_ && after != 0.0) {
+        limit_held_ = true;
+        return true;
+    }
+    if (limit_held_ && after == 0.0 && now == 0.0) {
+        limit_held_ = false;
+        return true;
+    }
+    return false;
 }
 
 void BodyJointMember::addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const {
@@ -136,8 +188,14 @@ void BodyJointMember::backSubstitute(const std::vector<int>& slot, const Eigen::
 }
 
 double BodyJointMember::energy(double alpha) const {
-    const Eigen::Matrix<double, 6, 1> r = residual(disp_a_ + alpha * du_a_, disp_b_ + alpha * du_b_);
-    return 0.5 * r.dot(weight_.cwiseProduct(r));
+    const Vec6 da = disp_a_ + alpha * du_a_, db = disp_b_ + alpha * du_b_;
+    const Eigen::Matrix<double, 6, 1> r = residual(da, db);
+    double e = 0.5 * r.dot(weight_.cwiseProduct(r));
+    if (limited_) {
+        const double past = pastLimit(angleAt(da, db));
+        e += 0.5 * limit_weight_ * past * past;
+    }
+    return e;
 }
 
 double BodyJointMember::apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) {

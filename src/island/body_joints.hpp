@@ -23,7 +23,7 @@ public:
     void condense(bool fresh) override;
     void addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const override;
     void backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) override;
-    bool addPredictedContacts() override { return false; }
+    bool addPredictedContacts() override;
     double energy(double alpha) const override;
     double apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) override;
     bool frictional() const override { return false; }
@@ -39,7 +39,16 @@ private:
         return r0_ + ja_ * da + jb_ * db;
     }
 
+    /// A hinge's angle for the displacements, linearised: angle0 + ga . d_a + gb . d_b.
+    double angleAt(const Vec6& da, const Vec6& db) const { return angle0_ + ga_.dot(da) + gb_.dot(db); }
+    /// Its limits' penalty: how far the angle is past the nearer one (0 inside them).
+    double pastLimit(double angle) const { return angle < lower_ ? angle - lower_ : angle > upper_ ? angle - upper_ : 0.0; }
+
     std::vector<RigidId> bodies_;
+    bool limited_ = false;     ///< a hinge with limits
+    bool limit_held_ = false;  ///< the limit's row in the Newton system (past it, or the step runs past it)
+    double angle0_ = 0.0, lower_ = 0.0, upper_ = 0.0, limit_weight_ = 0.0;
+    Vec6 ga_ = Vec6::Zero(), gb_ = Vec6::Zero();
     bool b_moves_ = false;
     Eigen::Matrix<double, 6, 1> r0_ = Eigen::Matrix<double, 6, 1>::Zero();
     Eigen::Matrix<double, 6, 6> ja_ = Eigen::Matrix<double, 6, 6>::Zero(), jb_ = Eigen::Matrix<double, 6, 6>::Zero();

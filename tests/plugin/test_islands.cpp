@@ -312,8 +312,9 @@ TEST(Islands, BridgeAtRestConvergesQuadratically) {
 // its end times its arm is g (m_board x_board + m_crate x_crate), with the arms where the
 // bodies are (0.5%).
 TEST(Islands, HingedBoardHeldByARopeCarriesAHeavyCrate) {
-    for (const bool balls : {false, true}) {
-        SCOPED_TRACE(balls ? "two ball joints" : "a hinge");
+    for (const int kind : {0, 1, 2}) {
+        const bool balls = kind == 2;
+        SCOPED_TRACE(kind == 0 ? "a hinge" : kind == 1 ? "a hinge with limits it does not reach" : "two ball joints");
         Physics phys;
         btRigidBody& board = phys.box(btVector3(0.5f, 0.025f, 0.15f), 3.0, btVector3(0.5f, 1.0f, 0));
         board.setActivationState(DISABLE_DEACTIVATION);
@@ -322,7 +323,9 @@ TEST(Islands, HingedBoardHeldByARopeCarriesAHeavyCrate) {
             for (float z : {-0.15f, 0.15f})
                 joints.push_back(std::make_unique<btPoint2PointConstraint>(board, btVector3(-0.5f, 0, z)));
         } else {
-            joints.push_back(std::make_unique<btHingeConstraint>(board, btVector3(-0.5f, 0, 0), btVector3(0, 0, 1)));
+            auto hinge = std::make_unique<btHingeConstraint>(board, btVector3(-0.5f, 0, 0), btVector3(0, 0, 1));
+            if (kind == 1) hinge->setLimit(-1.0f, 1.0f);
+            joints.push_back(std::move(hinge));
         }
         for (auto& j : joints) phys.world->addConstraint(j.get(), true);
         BulletWorld ropes(*phys.world);
@@ -356,3 +359,32 @@ TEST(Islands, HingedBoardHeldByARopeCarriesAHeavyCrate) {
         for (auto& j : joints) phys.world->removeConstraint(j.get());
     }
 }
+
+// A hinge's limits are hard stops in the island: a 3 kg board hinged to the world at one
+// end with limits of +-0.1 rad, a rope hanging from its free end (which puts it in an
+// island), falls from level and comes to rest on the limit: turned by 0.1 rad, less the
+// stop's give (its torque m g L/2 cos 0.1 over the penalty's 100 I / h^2: ~1e-4 rad).
+TEST(Islands, HingeLimitStopsAFallingBoard) {
+    Physics phys;
+    btRigidBody& board = phys.box(btVector3(0.5f, 0.025f, 0.15f), 3.0, btVector3(0.5f, 1.0f, 0));
+    board.setActivationState(DISABLE_DEACTIVATION);
+    btHingeConstraint hinge(board, btVector3(-0.5f, 0, 0), btVector3(0, 0, 1));
+    hinge.setLimit(-0.1f, 0.1f);
+    phys.world->addConstraint(&hinge, true);
+    BulletWorld ropes(*phys.world);
+    const StringId id = ropes.addString(rope({0.95, 0.975, 0}, {0.95, 0.475, 0}, 20));
+    ropes.attach(id, 0, board, btVector3(0.45f, -0.025f, 0));
+    for (int i = 0; i < 200; ++i) phys.step(1);
+    ASSERT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+    ASSERT_EQ(ropes.core().lastIslands().size(), 1u);
+    // Turned down (clockwise about +z) by the limit.
+    const btQuaternion q = board.getOrientation();
+    const double turn = 2.0 * std::atan2(static_cast<double>(q.z()), static_cast<double>(q.w()));
+    EXPECT_NEAR(turn, -0.1, 1e-3);
+    EXPECT_LT(board.getAngularVelocity().length(), 1e-2f);
+    // Its hinge end stayed on the hinge.
+    const btVector3 pivot = board.getWorldTransform() * btVector3(-0.5f, 0, 0);
+    EXPECT_LT(pivot.distance(btVector3(0, 1, 0)), 1e-3f);
+    phys.world->removeConstraint(&hinge);
+}
+
