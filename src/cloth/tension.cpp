@@ -213,7 +213,9 @@ std::vector<std::uint32_t> naturalOrder(std::size_t n) {
     return order;
 }
 
-/// The lower triangle of the vertex graph (yarns and soft springs) in `order`, as a pattern.
+/// The lower triangle of the graph of the strain solve's preconditioner (linked: the
+/// vertices of a yarn or of a soft spring within one cell; clothLumped) in `order`, as a
+/// pattern.
 SparseMatrix vertexGraph(const ClothState& c, const std::vector<std::uint32_t>& order) {
     std::vector<int> position(c.vertices());
     for (std::size_t k = 0; k < order.size(); ++k) position[order[k]] = static_cast<int>(k);
@@ -224,7 +226,8 @@ SparseMatrix vertexGraph(const ClothState& c, const std::vector<std::uint32_t>& 
         triplets.emplace_back(std::max(i, j), std::min(i, j), 1.0);
     };
     for (const auto& [a, b] : c.edges) link(a, b);
-    for (const SoftSpring& s : c.springs) link(s.a, s.b);
+    for (const SoftSpring& s : c.springs)
+        if (!clothLumped(c, s.a, s.b)) link(s.a, s.b);
     SparseMatrix g(static_cast<Eigen::Index>(c.vertices()), static_cast<Eigen::Index>(c.vertices()));
     g.setFromTriplets(triplets.begin(), triplets.end());
     g.makeCompressed();
@@ -233,12 +236,20 @@ SparseMatrix vertexGraph(const ClothState& c, const std::vector<std::uint32_t>& 
 
 }  // namespace
 
+bool clothLumped(const ClothState& c, std::uint32_t a, std::uint32_t b) {
+    if (c.nu <= 0) return false;
+    const auto nu = static_cast<std::uint32_t>(c.nu);
+    const std::uint32_t ia = a % nu, ib = b % nu, ja = a / nu, jb = b / nu;
+    return std::max(ia, ib) - std::min(ia, ib) > 1 || std::max(ja, jb) - std::min(ja, jb) > 1;
+}
+
 const std::vector<std::uint32_t>& clothVertexOrder(ClothState& c) {
     if (c.vertex_order.size() == c.vertices()) return c.vertex_order;
     const std::vector<std::uint32_t> natural = naturalOrder(c.vertices());
-    // The cheaper of two fill-reducing orders of the vertex graph (each vertex's 3
-    // unknowns stay together): nested dissection (best on large weaves) or AMD (Eigen's
-    // AMDOrdering; better on small ones, where the two-column separators cost more).
+    // The cheaper of two fill-reducing orders of the preconditioner's vertex graph (each
+    // vertex's 3 unknowns stay together): nested dissection (best on large weaves) or AMD
+    // (Eigen's AMDOrdering; better on small ones). Without the bending springs (lumped)
+    // the graph's links stay within a cell, so one column of vertices separates a weave.
     Eigen::AMDOrdering<int> amd;
     Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> inverse;
     amd(SparseMatrix(vertexGraph(c, natural).selfadjointView<Eigen::Lower>()), inverse);
@@ -246,7 +257,7 @@ const std::vector<std::uint32_t>& clothVertexOrder(ClothState& c) {
     if (fullGrid(c)) {
         std::vector<std::array<int, 2>> at(c.vertices());
         for (std::size_t p = 0; p < at.size(); ++p) at[p] = {static_cast<int>(p % c.nu), static_cast<int>(p / c.nu)};
-        std::vector<std::uint32_t> dissection = gridDissection(at, 2, 1, 0);
+        std::vector<std::uint32_t> dissection = gridDissection(at, 1, 1, 0);
         SupernodalLLT cost_amd, cost_nd;
         cost_amd.analyze(vertexGraph(c, best));
         cost_nd.analyze(vertexGraph(c, dissection));

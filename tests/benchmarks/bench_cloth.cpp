@@ -76,20 +76,25 @@ void BM_ClothStep(benchmark::State& state) {
     const tearables::ClothId id = world.addCloth(d);
     for (int i = 0; i < 20; ++i) world.step(0.01);
     const auto parts = tearables::detail::WorldAccess::parts(world);
-    double iterations = 0.0, last_move = 0.0, steps = 0.0;
+    double iterations = 0.0, factorizations = 0.0, cg = 0.0, last_move = 0.0, steps = 0.0;
     for (auto _ : state) {
         world.step(0.01);
         benchmark::DoNotOptimize(world.viewCloth(id).tension->data());
         const tearables::detail::ClothState& c = (*parts.cloths)[id.index];
         iterations += c.strain_newton_iterations;
+        factorizations += c.strain_factorizations;
+        cg += c.strain_cg_iterations;
         last_move = std::max(last_move, c.strain_last_move);
         steps += 1.0;
     }
     state.counters["tension_ms"] = world.lastStageTimes().tension * 1e3;
     state.counters["strain_limit_ms"] = world.lastStageTimes().strain_limit * 1e3;
-    // The strain solve's Newton iterations a step, and the largest last move of a step's
-    // solve (what was left of its convergence at the budget).
+    // The strain solve's Newton iterations, factorisations and conjugate-gradient iterations
+    // a step, and the largest last move of a step's solve (what was left of its convergence
+    // at the budget).
     state.counters["newton_iterations"] = iterations / steps;
+    state.counters["factorizations"] = factorizations / steps;
+    state.counters["cg_iterations"] = cg / steps;
     state.counters["worst_last_move_um"] = last_move * 1e6;
 }
 BENCHMARK(BM_ClothStep)->Arg(20)->Arg(50)->Unit(benchmark::kMillisecond);
@@ -145,7 +150,8 @@ private:
 /// momentum tensions) dropped flat from 5 cm onto a static 20 cm box under its centre: it
 /// lands in the 11th step and drapes, its sides swinging down and about the box. The 100
 /// steps timed (0.01 s each) are the landing and the first second of the swing. Counters,
-/// per step: the strain solve's Newton iterations, the vertices touching the box, and the strain and tension stages' times.
+/// per step: the strain solve's Newton iterations, its factorisations and conjugate-gradient
+/// iterations, the vertices touching the box, and the strain and tension stages' times.
 void BM_ClothDrape(benchmark::State& state) {
     const int n = static_cast<int>(state.range(0));
     tearables::World world;
@@ -161,12 +167,14 @@ void BM_ClothDrape(benchmark::State& state) {
     const tearables::ClothId id = world.addCloth(d);
     for (int i = 0; i < 10; ++i) world.step(0.01);
     const auto parts = tearables::detail::WorldAccess::parts(world);
-    double iterations = 0.0, touching = 0.0, strain = 0.0, tension = 0.0, steps = 0.0;
+    double iterations = 0.0, factorizations = 0.0, cg = 0.0, touching = 0.0, strain = 0.0, tension = 0.0, steps = 0.0;
     for (auto _ : state) {
         world.step(0.01);
         benchmark::DoNotOptimize(world.viewCloth(id).tension->data());
         const tearables::detail::ClothState& c = (*parts.cloths)[id.index];
         iterations += c.strain_newton_iterations;
+        factorizations += c.strain_factorizations;
+        cg += c.strain_cg_iterations;
         touching += static_cast<double>(c.contacts.size());
         strain += world.lastStageTimes().strain_limit;
         tension += world.lastStageTimes().tension;
@@ -174,6 +182,8 @@ void BM_ClothDrape(benchmark::State& state) {
     }
     world.setContactProvider(nullptr);
     state.counters["newton_iterations"] = iterations / steps;
+    state.counters["factorizations"] = factorizations / steps;
+    state.counters["cg_iterations"] = cg / steps;
     state.counters["contacts"] = touching / steps;
     state.counters["strain_limit_ms"] = strain / steps * 1e3;
     state.counters["tension_ms"] = tension / steps * 1e3;
