@@ -130,7 +130,8 @@ struct ClothState {
     int strain_factorizations = 0;            ///< and the preconditioner's factorisations it made
     int strain_cg_iterations = 0;             ///< and its conjugate-gradient iterations, all Newton iterations
     double strain_last_move = 0.0;            ///< and its last iteration's largest move, m
-    std::vector<std::uint32_t> vertex_order;  ///< nested-dissection order of the vertices (the Newton unknowns'), built once
+    std::vector<std::uint32_t> vertex_order;  ///< fill-reducing order of the vertices (the Newton unknowns'), built once
+    bool lump_bending = false;                ///< the preconditioner lumps the bending blocks (chosen with vertex_order)
 
     // --- tension solve (Yarn Sec. 3.2) ----------------------------------------------------
     std::vector<Mat3> projector;      ///< per vertex: I, minus the normals of the bodies pressing it
@@ -177,9 +178,9 @@ void softSpringForces(const ClothState& c, std::vector<Vec3>& out);
 /// True when vertices a and b are not corners of one cell of the weave (a bending spring's):
 /// the strain solve's preconditioner lumps their coupling onto its diagonal.
 bool clothLumped(const ClothState& c, std::uint32_t a, std::uint32_t b);
-/// The fill-reducing orders of a cloth's vertices (of the strain solve's preconditioner)
-/// and edges (built once per weave; edges of a cloth that is not a full nu x nv grid get
-/// the natural order).
+/// The fill-reducing orders of a cloth's vertices (of the strain solve's preconditioner,
+/// which lumps the bending blocks, lump_bending, where that pays) and edges (built once per
+/// weave; edges of a cloth that is not a full nu x nv grid get the natural order).
 const std::vector<std::uint32_t>& clothVertexOrder(ClothState& c);
 const std::vector<std::uint32_t>& clothEdgeOrder(ClothState& c);
 

@@ -39,9 +39,9 @@ constexpr int kLineSearchSteps = 12;
 /// superlinear convergence; Eisenstat and Walker 1996), so a taut cloth still ends a step
 /// near round-off, while iterations far from the minimum, or stalled at a slack or contact
 /// switch, stop after 5-6 iterations instead of solving to round-off. A crack follows
-/// stresses that differ by little: a cloth of uniform yarns pulled apart tears where the
-/// direct solve tears it in each of nine pulls (0.04-0.06 m/s, damping 0.5-2 /s) at 1e-5,
-/// and elsewhere in four of them at 1e-4.
+/// stresses that differ by little: a 9 x 7 cloth of uniform yarns pulled apart (the
+/// preconditioner made to lump) tears where the direct solve tears it in each of nine
+/// pulls (0.04-0.06 m/s, damping 0.5-2 /s) at 1e-5, and elsewhere in four of them at 1e-4.
 constexpr double kNewtonSolveTolerance = 1e-5;
 constexpr double kNewtonSolveFloor = 1e-12;
 constexpr int kNewtonSolveIterations = 50;
@@ -171,8 +171,9 @@ struct Solver {
     }
 
     /// The pattern of c.preconditioner and where its values come from (see ClothState): the
-    /// lower triangle of the Hessian without the blocks that link vertices of different
-    /// cells; such a block -K of a spring (K positive semi-definite) is dropped and K added
+    /// lower triangle of the Hessian, where c.lump_bending without the blocks that link
+    /// vertices of different cells (else P = H, and one conjugate-gradient iteration is the
+    /// direct solve); such a block -K of a spring (K positive semi-definite) is dropped and K added
     /// to both vertices' diagonal blocks. P - H is then [K K; K K] on those two vertices,
     /// positive semi-definite: P >= H, and P - H <= 2 K on the diagonal, so the conjugate
     /// gradients' rate is set by the bending springs' stiffness over the inertia and the
@@ -189,7 +190,7 @@ struct Solver {
         const int* inner = c.hessian.innerIndexPtr();
         auto lumped = [&](int row, int col) {
             const int a = vertex_of[static_cast<std::size_t>(row)], b = vertex_of[static_cast<std::size_t>(col)];
-            return a >= 0 && b >= 0 && a != b &&
+            return c.lump_bending && a >= 0 && b >= 0 && a != b &&
                    clothLumped(c, static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b));
         };
         c.triplets.clear();
@@ -331,6 +332,11 @@ struct Solver {
     /// line search takes any of them; the solve's accuracy sets how fast Newton converges,
     /// not what it converges to (the gradient is exact).
     void solveStep(double forcing) {
+        if (!c.lump_bending) {  // P = H: the direct solve
+            c.step = -c.gradient;
+            c.newton_llt.solveInPlace(c.step);
+            return;
+        }
         c.step.setZero(c.unknowns);
         c.cg_r = -c.gradient;
         c.cg_z = c.cg_r;
