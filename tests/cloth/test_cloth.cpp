@@ -343,7 +343,9 @@ void hangFromTwoCorners(bool lump) {
         const double allowed = stressOf(v, e) / d.material.tensile.young;
         EXPECT_LE(strain, allowed * 1.01 + 1e-9) << e;
     }
-    if (lump) EXPECT_GT((*tearables::detail::WorldAccess::parts(world).cloths)[id.index].strain_cg_iterations, 0);
+    if (lump) {
+        EXPECT_GT((*tearables::detail::WorldAccess::parts(world).cloths)[id.index].strain_cg_iterations, 0);
+    }
 }
 
 }  // namespace
