@@ -111,18 +111,27 @@ struct ClothState {
     std::vector<std::array<int, 2>> hessian_pattern_at;  ///< the blocks the pattern of `hessian` was built from
     std::vector<std::array<int, 3>> hessian_slot;        ///< per block: where its three columns start in hessian's values
     std::vector<std::uint8_t> hessian_first;             ///< per block: the first one summed into its tile
-    SparseMatrix hessian;
+    SparseMatrix hessian;                      ///< both triangles
     Eigen::VectorXd gradient, step, trial_u;
-    SupernodalLLT newton_llt;                  ///< the Hessian's factors (the pattern's analysis is kept)
+    /// The preconditioner of the Newton system (strain_limit.cpp): the Hessian with the
+    /// blocks that link vertices of different cells (the bending springs') lumped onto their
+    /// diagonals; lower triangle. Its values come from the Hessian's: preconditioner values
+    /// [copy_to[k]] = hessian values [copy_from[k]], then [lump_to[k]] -= [lump_from[k]].
+    SparseMatrix preconditioner;
+    std::vector<int> precondition_copy_to, precondition_copy_from, precondition_lump_to, precondition_lump_from;
+    SupernodalLLT newton_llt;                  ///< the preconditioner's factors (the pattern's analysis is kept)
     bool newton_factored_llt = false;          ///< this iteration's factors are newton_llt's (else newton_solver's)
-    std::unique_ptr<ClothLDLT> newton_solver;  ///< fallback (not movable itself)
-    std::vector<int> newton_pattern_outer, newton_pattern_inner;
+    std::unique_ptr<ClothLDLT> newton_solver;  ///< fallback: the Hessian's LDL^T (not movable itself)
     bool newton_analysed = false;
+    Eigen::VectorXd cg_r, cg_z, cg_p, cg_q;    ///< the Newton system's conjugate gradients: residual, preconditioned, direction, H p
     std::vector<Vec3> x_trial;
     std::vector<double> yarn_estimate;        ///< per edge: the stretch the Newton Hessian's geometric term takes (strain_limit.cpp)
     int strain_newton_iterations = 0;         ///< the last strain solve's Newton iterations taken
+    int strain_factorizations = 0;            ///< and the preconditioner's factorisations it made
+    int strain_cg_iterations = 0;             ///< and its conjugate-gradient iterations, all Newton iterations
     double strain_last_move = 0.0;            ///< and its last iteration's largest move, m
-    std::vector<std::uint32_t> vertex_order;  ///< nested-dissection order of the vertices (the Newton unknowns'), built once
+    std::vector<std::uint32_t> vertex_order;  ///< fill-reducing order of the vertices (the Newton unknowns'), built once
+    bool lump_bending = false;                ///< the preconditioner lumps the bending blocks (chosen with vertex_order)
 
     // --- tension solve (Yarn Sec. 3.2) ----------------------------------------------------
     std::vector<Mat3> projector;      ///< per vertex: I, minus the normals of the bodies pressing it
@@ -166,8 +175,12 @@ void respondClothMaterial(ClothState& c, const StepContext& ctx, std::vector<Eve
 /// Soft spring forces at the current positions, accumulated into `out` (per vertex, N).
 void softSpringForces(const ClothState& c, std::vector<Vec3>& out);
 
-/// The nested-dissection orders of a cloth's vertices and edges (built once per weave;
-/// a cloth that is not a full nu x nv grid gets the natural order).
+/// True when vertices a and b are not corners of one cell of the weave (a bending spring's):
+/// the strain solve's preconditioner lumps their coupling onto its diagonal.
+bool clothLumped(const ClothState& c, std::uint32_t a, std::uint32_t b);
+/// The fill-reducing orders of a cloth's vertices (of the strain solve's preconditioner,
+/// which lumps the bending blocks, lump_bending, where that pays) and edges (built once per
+/// weave; edges of a cloth that is not a full nu x nv grid get the natural order).
 const std::vector<std::uint32_t>& clothVertexOrder(ClothState& c);
 const std::vector<std::uint32_t>& clothEdgeOrder(ClothState& c);
 

@@ -6,10 +6,12 @@
 //                + sum_penalty k_c/2 g^2  (contacts: only where g < 0; glue: always),
 // the compliance form of Yarn Sec. 3.3's L_max = L (1 + sigma / E), met implicitly; a slack
 // yarn pushes nothing, so yarns buckle freely. Newton's method with the geometric stiffness
-// (projected positive semi-definite for compressed soft springs), a sparse Cholesky
-// (linalg/supernodal.hpp, nested-dissection order, the analysis reused while the pattern
-// stays; SimplicialLDLT where a pivot is not positive) and a backtracking line search on
-// the energy: exact at any stiffness ratio, where Jacobi or PBD sweeps would need many.
+// (projected positive semi-definite for compressed soft springs), solved by conjugate
+// gradients preconditioned with a sparse Cholesky of the Hessian with its bending blocks
+// lumped (linalg/supernodal.hpp, nested-dissection order, the analysis reused while the
+// pattern stays; the Hessian's SimplicialLDLT where a pivot is not positive), and a
+// backtracking line search on the energy: exact at any stiffness ratio, where Jacobi or
+// PBD sweeps would need many.
 #include "cloth/cloth_state.hpp"
 
 #include <algorithm>
@@ -29,6 +31,20 @@ using Mat6 = Eigen::Matrix<double, 6, 6>;
 // the strings do). The penalty is 100x the stiffest yarn or inertia it competes with.
 constexpr double kPenaltyFactor = 100.0;
 constexpr int kLineSearchSteps = 12;
+/// The Newton system's conjugate gradients (Solver::solveStep) stop when the preconditioned
+/// residual has fallen by the forcing factor eta = min(kNewtonSolveTolerance, |g| / |g_0|)
+/// (g_0 the gradient of the solve's first iteration; floored at kNewtonSolveFloor), or after
+/// kNewtonSolveIterations. Newton with such a solve converges superlinearly where the exact
+/// one converges quadratically (Dembo, Eisenstat and Steihaug 1982: eta -> 0 gives
+/// superlinear convergence; Eisenstat and Walker 1996), so a taut cloth still ends a step
+/// near round-off, while iterations far from the minimum, or stalled at a slack or contact
+/// switch, stop after 5-6 iterations instead of solving to round-off. A crack follows
+/// stresses that differ by little: a 9 x 7 cloth of uniform yarns pulled apart (the
+/// preconditioner made to lump) tears where the direct solve tears it in each of nine
+/// pulls (0.04-0.06 m/s, damping 0.5-2 /s) at 1e-5, and elsewhere in four of them at 1e-4.
+constexpr double kNewtonSolveTolerance = 1e-5;
+constexpr double kNewtonSolveFloor = 1e-12;
+constexpr int kNewtonSolveIterations = 50;
 
 bool movableGlue(const ClothState& c, const RigidTable& rigids, std::size_t p) {
     return c.hold[p].kind == ParticleHold::Kind::Glue && rigids.movable(c.hold[p].body);
@@ -137,6 +153,7 @@ struct Solver {
                 touched[static_cast<std::size_t>(c.hessian_slot[i][0])] = 1;
             }
             c.hessian_pattern_at = c.hessian_block_at;
+            buildPreconditionerPattern();
             return;
         }
         double* values = c.hessian.valuePtr();
@@ -151,6 +168,67 @@ struct Solver {
                     for (int r = 0; r < 3; ++r) values[slot[k] + r] += m(r, k);
             }
         }
+    }
+
+    /// The pattern of c.preconditioner and where its values come from (see ClothState): the
+    /// lower triangle of the Hessian, where c.lump_bending without the blocks that link
+    /// vertices of different cells (else P = H, and one conjugate-gradient iteration is the
+    /// direct solve); such a block -K of a spring (K positive semi-definite) is dropped and K added
+    /// to both vertices' diagonal blocks. P - H is then [K K; K K] on those two vertices,
+    /// positive semi-definite: P >= H, and P - H <= 2 K on the diagonal, so the conjugate
+    /// gradients' rate is set by the bending springs' stiffness over the inertia and the
+    /// yarns' (a bending spring is soft: 0.05 N/m for the defaults' 1 cm cells, against
+    /// m/h^2 = 0.1 N/m at h = 0.01 s; 4-5 iterations a Newton step), and the weave's
+    /// separators are one column of vertices wide instead of two (a quarter of the
+    /// factorisation's work at 64 x 64: BENCHMARKS.md).
+    void buildPreconditionerPattern() {
+        std::vector<int> vertex_of(static_cast<std::size_t>(c.unknowns), -1);  // body unknowns: -1
+        for (std::size_t p = 0; p < c.vertices(); ++p)
+            if (c.dof[p] >= 0)
+                for (int k = 0; k < 3; ++k) vertex_of[static_cast<std::size_t>(c.dof[p] + k)] = static_cast<int>(p);
+        const int* outer = c.hessian.outerIndexPtr();
+        const int* inner = c.hessian.innerIndexPtr();
+        auto lumped = [&](int row, int col) {
+            const int a = vertex_of[static_cast<std::size_t>(row)], b = vertex_of[static_cast<std::size_t>(col)];
+            return c.lump_bending && a >= 0 && b >= 0 && a != b &&
+                   clothLumped(c, static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b));
+        };
+        c.triplets.clear();
+        for (int col = 0; col < c.unknowns; ++col)
+            for (int p = outer[col]; p < outer[col + 1]; ++p)
+                if (inner[p] >= col && !lumped(inner[p], col)) c.triplets.emplace_back(inner[p], col, 0.0);
+        c.preconditioner.resize(c.unknowns, c.unknowns);
+        c.preconditioner.setFromTriplets(c.triplets.begin(), c.triplets.end());
+        c.preconditioner.makeCompressed();
+        const int* p_outer = c.preconditioner.outerIndexPtr();
+        const int* p_inner = c.preconditioner.innerIndexPtr();
+        auto at = [&](int row, int col) {
+            return static_cast<int>(std::lower_bound(p_inner + p_outer[col], p_inner + p_outer[col + 1], row) - p_inner);
+        };
+        c.precondition_copy_to.clear();
+        c.precondition_copy_from.clear();
+        c.precondition_lump_to.clear();
+        c.precondition_lump_from.clear();
+        for (int col = 0; col < c.unknowns; ++col)
+            for (int p = outer[col]; p < outer[col + 1]; ++p) {
+                const int row = inner[p];
+                if (row < col) continue;
+                if (!lumped(row, col)) {
+                    c.precondition_copy_to.push_back(at(row, col));
+                    c.precondition_copy_from.push_back(p);
+                    continue;
+                }
+                // Entry (r, k) of the block -K: K_rk joins both diagonal blocks' lower
+                // triangles (r >= k; the entry (k, r) of the same block is K_kr = K_rk).
+                const int da = c.dof[static_cast<std::size_t>(vertex_of[static_cast<std::size_t>(row)])];
+                const int db = c.dof[static_cast<std::size_t>(vertex_of[static_cast<std::size_t>(col)])];
+                const int r = row - da, k = col - db;
+                if (r < k) continue;
+                for (const int d : {da, db}) {
+                    c.precondition_lump_to.push_back(at(d + r, d + k));
+                    c.precondition_lump_from.push_back(p);
+                }
+            }
     }
 
     /// Gradient and Hessian of a spring between a and b (one_sided: a yarn, no push).
@@ -227,26 +305,60 @@ struct Solver {
         storeBlocks();
     }
 
-    /// Factorises the Hessian, reusing the symbolic analysis while the pattern is the same.
+    /// Factorises the preconditioner, reusing the symbolic analysis while the pattern is
+    /// the same.
     bool factor() {
-        const int outer = static_cast<int>(c.hessian.outerSize());
-        const int nnz = static_cast<int>(c.hessian.nonZeros());
-        const bool same = c.newton_analysed && static_cast<int>(c.newton_pattern_outer.size()) == outer + 1 &&
-                          static_cast<int>(c.newton_pattern_inner.size()) == nnz &&
-                          std::equal(c.newton_pattern_outer.begin(), c.newton_pattern_outer.end(), c.hessian.outerIndexPtr()) &&
-                          std::equal(c.newton_pattern_inner.begin(), c.newton_pattern_inner.end(), c.hessian.innerIndexPtr());
-        if (!same) {
-            c.newton_llt.analyze(c.hessian);
-            c.newton_pattern_outer.assign(c.hessian.outerIndexPtr(), c.hessian.outerIndexPtr() + outer + 1);
-            c.newton_pattern_inner.assign(c.hessian.innerIndexPtr(), c.hessian.innerIndexPtr() + nnz);
+        double* to = c.preconditioner.valuePtr();
+        const double* from = c.hessian.valuePtr();
+        for (std::size_t k = 0; k < c.precondition_copy_to.size(); ++k) to[c.precondition_copy_to[k]] = from[c.precondition_copy_from[k]];
+        for (std::size_t k = 0; k < c.precondition_lump_to.size(); ++k) to[c.precondition_lump_to[k]] -= from[c.precondition_lump_from[k]];
+        if (!c.newton_analysed || !c.newton_llt.samePattern(c.preconditioner)) {
+            c.newton_llt.analyze(c.preconditioner);
             c.newton_analysed = true;
         }
-        c.newton_factored_llt = c.newton_llt.factorize(c.hessian);
+        ++c.strain_factorizations;
+        c.newton_factored_llt = c.newton_llt.factorize(c.preconditioner);
         if (c.newton_factored_llt) return true;
-        // Not positive definite in round-off: LDL^T.
+        // Not positive definite in round-off: the Hessian's LDL^T.
         if (!c.newton_solver) c.newton_solver = std::make_unique<ClothLDLT>();
         c.newton_solver->compute(c.hessian);
         return c.newton_solver->info() == Eigen::Success;
+    }
+
+    /// c.step = the Newton step H^-1 (-g), by conjugate gradients preconditioned with the
+    /// factors of P (buildPreconditionerPattern) from zero, until the preconditioned
+    /// residual's P^-1 norm has fallen by `forcing`. Every iterate is a descent
+    /// direction (it minimises the quadratic model over a subspace holding -P^-1 g), so the
+    /// line search takes any of them; the solve's accuracy sets how fast Newton converges,
+    /// not what it converges to (the gradient is exact).
+    void solveStep(double forcing) {
+        if (!c.lump_bending) {  // P = H: the direct solve
+            c.step = -c.gradient;
+            c.newton_llt.solveInPlace(c.step);
+            return;
+        }
+        c.step.setZero(c.unknowns);
+        c.cg_r = -c.gradient;
+        c.cg_z = c.cg_r;
+        c.newton_llt.solveInPlace(c.cg_z);
+        double rz = c.cg_r.dot(c.cg_z);
+        const double stop = forcing * forcing * rz;
+        c.cg_p = c.cg_z;
+        for (int it = 0; it < kNewtonSolveIterations && rz > 0.0; ++it) {
+            c.cg_q.noalias() = c.hessian * c.cg_p;
+            const double pq = c.cg_p.dot(c.cg_q);
+            if (!(pq > 0.0)) break;
+            const double alpha = rz / pq;
+            c.step += alpha * c.cg_p;
+            c.cg_r -= alpha * c.cg_q;
+            ++c.strain_cg_iterations;
+            c.cg_z = c.cg_r;
+            c.newton_llt.solveInPlace(c.cg_z);
+            const double next = c.cg_r.dot(c.cg_z);
+            if (!(next > stop)) break;
+            c.cg_p = c.cg_z + (next / rz) * c.cg_p;
+            rz = next;
+        }
     }
 
     /// Each yarn's stretch after the step alpha * c.step from c.x, to first order:
@@ -284,13 +396,18 @@ struct Solver {
             c.yarn_estimate[e] = std::max(0.0, (c.x_prev[c.edges[e][1]] - c.x_prev[c.edges[e][0]]).norm() - c.rest_length[e]);
         double current = energy(c.x, u);
         c.strain_newton_iterations = 0;
+        c.strain_factorizations = 0;
+        c.strain_cg_iterations = 0;
         c.strain_last_move = 0.0;
+        double first_gradient = 0.0;
         for (int it = 0; it < max_iterations; ++it) {
             assemble();
             if (!factor()) break;
+            const double gradient_norm = c.gradient.norm();
+            if (it == 0) first_gradient = gradient_norm;
             if (c.newton_factored_llt) {
-                c.step = -c.gradient;
-                c.newton_llt.solveInPlace(c.step);
+                const double ratio = first_gradient > 0.0 ? gradient_norm / first_gradient : 0.0;
+                solveStep(std::max(kNewtonSolveFloor, std::min(kNewtonSolveTolerance, ratio)));
             } else {
                 c.step = c.newton_solver->solve(-c.gradient);
             }

@@ -27,6 +27,9 @@ namespace tearables::detail {
 namespace {
 
 constexpr int kMaxRefinements = 12;
+/// The strain solve lumps a cloth's bending blocks into its preconditioner where the vertex
+/// graph's factorisation costs this many multiply-adds or more (clothVertexOrder).
+constexpr double kLumpFrom = 1e6;
 constexpr double kRefinementTolerance = 1e-12;
 
 /// P = I - sum n n^T over an orthonormal basis of the normals pressing the vertex.
@@ -213,8 +216,9 @@ std::vector<std::uint32_t> naturalOrder(std::size_t n) {
     return order;
 }
 
-/// The lower triangle of the vertex graph (yarns and soft springs) in `order`, as a pattern.
-SparseMatrix vertexGraph(const ClothState& c, const std::vector<std::uint32_t>& order) {
+/// The lower triangle of the vertex graph (yarns and soft springs; without the springs
+/// between vertices of different cells when `lumped`, clothLumped) in `order`, as a pattern.
+SparseMatrix vertexGraph(const ClothState& c, const std::vector<std::uint32_t>& order, bool lumped) {
     std::vector<int> position(c.vertices());
     for (std::size_t k = 0; k < order.size(); ++k) position[order[k]] = static_cast<int>(k);
     std::vector<Eigen::Triplet<double>> triplets;
@@ -224,7 +228,8 @@ SparseMatrix vertexGraph(const ClothState& c, const std::vector<std::uint32_t>& 
         triplets.emplace_back(std::max(i, j), std::min(i, j), 1.0);
     };
     for (const auto& [a, b] : c.edges) link(a, b);
-    for (const SoftSpring& s : c.springs) link(s.a, s.b);
+    for (const SoftSpring& s : c.springs)
+        if (!lumped || !clothLumped(c, s.a, s.b)) link(s.a, s.b);
     SparseMatrix g(static_cast<Eigen::Index>(c.vertices()), static_cast<Eigen::Index>(c.vertices()));
     g.setFromTriplets(triplets.begin(), triplets.end());
     g.makeCompressed();
@@ -233,26 +238,49 @@ SparseMatrix vertexGraph(const ClothState& c, const std::vector<std::uint32_t>& 
 
 }  // namespace
 
+bool clothLumped(const ClothState& c, std::uint32_t a, std::uint32_t b) {
+    if (c.nu <= 0) return false;
+    const auto nu = static_cast<std::uint32_t>(c.nu);
+    const std::uint32_t ia = a % nu, ib = b % nu, ja = a / nu, jb = b / nu;
+    return std::max(ia, ib) - std::min(ia, ib) > 1 || std::max(ja, jb) - std::min(ja, jb) > 1;
+}
+
 const std::vector<std::uint32_t>& clothVertexOrder(ClothState& c) {
     if (c.vertex_order.size() == c.vertices()) return c.vertex_order;
     const std::vector<std::uint32_t> natural = naturalOrder(c.vertices());
-    // The cheaper of two fill-reducing orders of the vertex graph (each vertex's 3
-    // unknowns stay together): nested dissection (best on large weaves) or AMD (Eigen's
-    // AMDOrdering; better on small ones, where the two-column separators cost more).
-    Eigen::AMDOrdering<int> amd;
-    Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> inverse;
-    amd(SparseMatrix(vertexGraph(c, natural).selfadjointView<Eigen::Lower>()), inverse);
-    std::vector<std::uint32_t> best(inverse.indices().data(), inverse.indices().data() + inverse.size());
-    if (fullGrid(c)) {
-        std::vector<std::array<int, 2>> at(c.vertices());
-        for (std::size_t p = 0; p < at.size(); ++p) at[p] = {static_cast<int>(p % c.nu), static_cast<int>(p / c.nu)};
-        std::vector<std::uint32_t> dissection = gridDissection(at, 2, 1, 0);
-        SupernodalLLT cost_amd, cost_nd;
-        cost_amd.analyze(vertexGraph(c, best));
-        cost_nd.analyze(vertexGraph(c, dissection));
-        if (cost_nd.flops() < cost_amd.flops()) best.swap(dissection);
-    }
-    return c.vertex_order = std::move(best);
+    // The cheaper of two fill-reducing orders of a vertex graph (each vertex's 3 unknowns
+    // stay together): nested dissection (best on large weaves) or AMD (Eigen's
+    // AMDOrdering; better on small ones), with the factorisation's multiply-adds.
+    auto cheapest = [&](bool lumped, int width, double& cost) {
+        Eigen::AMDOrdering<int> amd;
+        Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> inverse;
+        amd(SparseMatrix(vertexGraph(c, natural, lumped).selfadjointView<Eigen::Lower>()), inverse);
+        std::vector<std::uint32_t> best(inverse.indices().data(), inverse.indices().data() + inverse.size());
+        SupernodalLLT cost_amd;
+        cost_amd.analyze(vertexGraph(c, best, lumped));
+        cost = cost_amd.flops();
+        if (fullGrid(c)) {
+            std::vector<std::array<int, 2>> at(c.vertices());
+            for (std::size_t p = 0; p < at.size(); ++p) at[p] = {static_cast<int>(p % c.nu), static_cast<int>(p / c.nu)};
+            std::vector<std::uint32_t> dissection = gridDissection(at, width, 1, 0);
+            SupernodalLLT cost_nd;
+            cost_nd.analyze(vertexGraph(c, dissection, lumped));
+            if (cost_nd.flops() < cost) {
+                best.swap(dissection);
+                cost = cost_nd.flops();
+            }
+        }
+        return best;
+    };
+    // The whole graph (bending springs reach two cells: separators two columns wide), and
+    // the preconditioner's without the bending links (one column). The preconditioned
+    // solve pays once its factorisation saves more than its conjugate gradients cost:
+    // measured, from about 28 x 28 vertices, where the graph's factorisation costs
+    // kLumpFrom multiply-adds (BENCHMARKS.md, "Sheets, cloth and whole scenes").
+    double full_cost = 0.0, lumped_cost = 0.0;
+    std::vector<std::uint32_t> full = cheapest(false, 2, full_cost);
+    c.lump_bending = full_cost >= kLumpFrom;
+    return c.vertex_order = c.lump_bending ? cheapest(true, 1, lumped_cost) : std::move(full);
 }
 
 const std::vector<std::uint32_t>& clothEdgeOrder(ClothState& c) {

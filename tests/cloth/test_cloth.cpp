@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
 
 #include <algorithm>
@@ -295,8 +296,13 @@ TEST(ClothTension, HangingYarnCarriesTheWeightBelow) {
 
 // A cloth hanging from two corners, come to rest: the vertical components of the pinned
 // corners' yarn tensions add up to the weight of the free vertices within 2%, and no
-// yarn is stretched past what its stress allows (inextensible below yield).
-TEST(ClothTension, HangingFromTwoCornersCarriesItsWeight) {
+// yarn is stretched past what its stress allows (inextensible below yield). With the
+// strain solve's direct Cholesky (a cloth this small) or, made to lump its bending blocks,
+// its preconditioned conjugate gradients (strain_limit.cpp; what cloths from about
+// 28 x 28 vertices use).
+namespace {
+
+void hangFromTwoCorners(bool lump) {
     World world;
     ClothDesc d = square(8, 0.4);
     d.damping = 8.0;
@@ -306,6 +312,12 @@ TEST(ClothTension, HangingFromTwoCornersCarriesItsWeight) {
     int steps = 0;
     for (; steps < 1500 && (steps < 100 || speed > 1e-4); ++steps) {
         world.step(0.01);
+        if (steps == 0 && lump) {
+            tearables::detail::ClothState& c = (*tearables::detail::WorldAccess::parts(world).cloths)[id.index];
+            ASSERT_FALSE(c.lump_bending);
+            c.lump_bending = true;
+            c.hessian_pattern_at.clear();  // the next assembly builds the preconditioner's pattern anew
+        }
         const ClothView v = world.viewCloth(id);
         speed = 0.0;
         for (const Vec3& vel : *v.velocities) speed = std::max(speed, vel.norm());
@@ -331,7 +343,16 @@ TEST(ClothTension, HangingFromTwoCornersCarriesItsWeight) {
         const double allowed = stressOf(v, e) / d.material.tensile.young;
         EXPECT_LE(strain, allowed * 1.01 + 1e-9) << e;
     }
+    if (lump) {
+        EXPECT_GT((*tearables::detail::WorldAccess::parts(world).cloths)[id.index].strain_cg_iterations, 0);
+    }
 }
+
+}  // namespace
+
+TEST(ClothTension, HangingFromTwoCornersCarriesItsWeight) { hangFromTwoCorners(false); }
+
+TEST(ClothTension, HangingFromTwoCornersCarriesItsWeightPreconditioned) { hangFromTwoCorners(true); }
 
 // The strain solve's Newton iterations get close to the step's minimum within their budget
 // on a 20 x 20 cloth swinging from two corners: the last iteration's largest move, over
@@ -357,6 +378,64 @@ TEST(ClothStrain, SwingingClothSolveEndsNearItsMinimum) {
     }
     std::nth_element(moves.begin(), moves.begin() + moves.size() / 2, moves.end());
     EXPECT_LT(moves[moves.size() / 2], 2e-5);
+}
+
+// The strain solve's preconditioner P (the Hessian H with the bending springs' blocks
+// lumped onto their vertices' diagonals, strain_limit.cpp) is chosen where its cheaper
+// factorisation pays (a 64 x 64 weave, not a 20 x 20 one), and bounds H from above and
+// not by much: on a 12 x 12 cloth swinging from two corners, made to lump (its last
+// Newton system of a step), the eigenvalues of P^-1 H lie in [1 / (1 + rho), 1]. Upper:
+// P - H is a sum over the lumped springs of [K K; K K] >= 0. Lower: x^T (P - H) x =
+// sum_s (x_a + x_c)^T K_s (x_a + x_c) <= sum_v 2 (sum of |K_s| <= k_s over v's lumped
+// springs) |x_v|^2, and H >= M / h^2, so P <= (1 + rho) H with rho = max_v 2 h^2 sum_s k_s / m_v.
+TEST(ClothStrain, PreconditionerBoundsTheHessian) {
+    for (const int n : {20, 64}) {
+        ClothDesc large;
+        large.resolution = {n, n};
+        large.size = {0.01 * (n - 1), 0.01 * (n - 1)};
+        tearables::detail::ClothState weave = tearables::detail::makeCloth(large);
+        tearables::detail::clothVertexOrder(weave);
+        EXPECT_EQ(weave.lump_bending, n == 64) << n;
+    }
+    World world;
+    ClothDesc d;
+    d.corner = Vec3(0.0, 1.0, 0.0);
+    d.resolution = {12, 12};
+    d.size = {0.11, 0.11};
+    d.pins = {{0, 0}, {-1, 0}};
+    world.addCloth(d);
+    const double h = 0.01;
+    for (int step = 0; step < 15; ++step) world.step(h);
+    const auto parts = tearables::detail::WorldAccess::parts(world);
+    tearables::detail::ClothState& c = (*parts.cloths)[0];
+    ASSERT_FALSE(c.lump_bending);
+    c.lump_bending = true;
+    c.hessian_pattern_at.clear();  // the next assembly builds the preconditioner's pattern anew
+    world.step(h);
+    ASSERT_GT(c.unknowns, 0);
+    const Eigen::MatrixXd hessian = Eigen::MatrixXd(c.hessian);
+    const Eigen::MatrixXd lower = Eigen::MatrixXd(c.preconditioner);
+    const Eigen::MatrixXd preconditioner = lower + lower.transpose() - Eigen::MatrixXd(lower.diagonal().asDiagonal());
+    ASSERT_LT((hessian - hessian.transpose()).norm(), 1e-12 * hessian.norm());
+    std::vector<double> lumped(c.vertices(), 0.0);
+    int lumped_springs = 0;
+    for (const tearables::detail::SoftSpring& s : c.springs)
+        if (s.alive && tearables::detail::clothLumped(c, s.a, s.b)) {
+            lumped[s.a] += s.stiffness;
+            lumped[s.b] += s.stiffness;
+            ++lumped_springs;
+        }
+    EXPECT_EQ(lumped_springs, 2 * 12 * 10);  // the bending springs: 10 along each of 12 yarns, both ways
+    double rho = 0.0;
+    for (std::size_t p = 0; p < c.vertices(); ++p)
+        if (c.dof[p] >= 0) rho = std::max(rho, 2.0 * h * h * lumped[p] / c.mass[p]);
+    Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eigen(hessian, preconditioner);
+    ASSERT_EQ(eigen.info(), Eigen::Success);
+    const Eigen::VectorXd lambda = eigen.eigenvalues();
+    EXPECT_LE(lambda.maxCoeff(), 1.0 + 1e-9);
+    EXPECT_GE(lambda.minCoeff(), 1.0 / (1.0 + rho) - 1e-9);
+    EXPECT_LT(lambda.minCoeff(), 1.0 - 1e-3);  // the bending blocks were lumped: P is not H
+    EXPECT_GT(c.strain_cg_iterations, c.strain_newton_iterations);  // the conjugate gradients ran
 }
 
 // Bad input is refused with the field named, and nothing is created.
