@@ -647,6 +647,61 @@ Body parseBody(const Node& n) {
 }
 
 // =============================================================================================
+// Joints
+// =============================================================================================
+
+constexpr double kPi = 3.14159265358979323846;
+
+/// A joint (joints[]) between the scene's `bodies` (`names`: their names).
+Joint parseJoint(const Node& n, const NameMap& names, const std::vector<Body>& bodies) {
+    n.checkNoUnknownFields({"type", "body", "other", "pivot", "axis", "limits"});
+    Joint j;
+    const Node type = n.required("type");
+    const std::string kind = type.asString();
+    if (kind == "ball") {
+        j.kind = Joint::Kind::Ball;
+    } else if (kind == "hinge") {
+        j.kind = Joint::Kind::Hinge;
+    } else {
+        type.fail("must be \"ball\" or \"hinge\" (got " + jsonQuoted(kind) + ")");
+    }
+    auto body = [&](const Node& field) -> const Body& {
+        const std::string name = field.asString();
+        for (const Body& b : bodies)
+            if (b.name == name) return b;
+        field.fail("no body named " + jsonQuoted(name) + knownNames(namesOf(names), "bodies"));
+    };
+    const Node body_field = n.required("body");
+    const Body& a = body(body_field);
+    if (a.mass == 0.0 || a.kinematic)
+        body_field.fail("must name a dynamic body (mass > 0, not kinematic): \"" + a.name + "\" is " +
+                        (a.kinematic ? "kinematic" : "static") + " (give it as \"other\", or leave \"other\" out for the world)");
+    j.body = a.name;
+    if (const auto other = n.field("other")) {
+        const Body& b = body(*other);
+        if (b.name == a.name) other->fail("must name another body than \"body\" (got " + jsonQuoted(b.name) + ")");
+        j.other = b.name;
+    }
+    j.pivot = n.required("pivot").asVec3(Range::bullet());
+    if (j.kind == Joint::Kind::Ball) {
+        for (const char* key : {"axis", "limits"})
+            if (const auto extra = n.field(key)) extra->fail("is for hinges only (this joint is a ball joint)");
+        return j;
+    }
+    const Node axis = n.required("axis");
+    j.axis = axis.asVec3(Range::bullet());
+    const double length = j.axis.stableNorm();
+    if (!(length > 1e-9)) axis.fail("must not be zero (a hinge turns about it)");
+    j.axis /= length;
+    if (const auto limits = n.field("limits")) {
+        const std::vector<double> v = limits->asNumbers(2, Range::closed(-kPi, kPi));
+        if (!(v[0] <= v[1])) limits->fail("must be [lower, upper] with lower <= upper (got [" + formatNumber(v[0]) + ", " + formatNumber(v[1]) + "])");
+        j.limits = std::array<double, 2>{v[0], v[1]};
+    }
+    return j;
+}
+
+// =============================================================================================
 // Strings
 // =============================================================================================
 
@@ -1321,7 +1376,7 @@ Scene parseScene(const std::string& json_text) {
             format->fail("unsupported format " + jsonQuoted(f) + " (this build reads " + jsonQuoted(kFormat) + ")");
     }
     top.checkNoUnknownFields({"format", "description", "camera", "dt", "steps", "gravity", "seed", "bodies",
-                              "strings", "papers", "cloths", "drivers", "output"});
+                              "joints", "strings", "papers", "cloths", "drivers", "output"});
     if (const auto description = top.field("description")) description->asString();
     Scene scene;
     if (const auto camera = top.field("camera")) scene.camera = parseCamera(*camera);
@@ -1335,6 +1390,7 @@ Scene parseScene(const std::string& json_text) {
         scene.bodies.push_back(parseBody(n));
         claimName(body_names, scene.bodies.back().name, n.path(), "body");
     }
+    for (const Node& n : top.array("joints")) scene.joints.push_back(parseJoint(n, body_names, scene.bodies));
 
     NameMap string_names;
     const std::vector<Node> strings = top.array("strings");

@@ -34,11 +34,41 @@ struct BulletScene {
     std::vector<std::unique_ptr<btRigidBody>> bodies;
     std::vector<Body> specs;                    // same order as bodies
     std::map<std::string, btRigidBody*> by_name;
+    std::vector<std::unique_ptr<btTypedConstraint>> joints;  // destroyed before the bodies
 
     ~BulletScene() {
+        for (auto& j : joints) world.removeConstraint(j.get());
         for (auto& b : bodies) world.removeRigidBody(b.get());
     }
 };
+
+/// Joint `spec` between bodies already in `bs`: its world pivot and axis in each body's
+/// frame where the bodies start (a body's own collisions with the other are off, as
+/// Bullet users usually ask with addConstraint(joint, true)).
+void addBulletJoint(BulletScene& bs, const Joint& spec) {
+    btRigidBody& a = *bs.by_name.at(spec.body);
+    btRigidBody* b = spec.other ? bs.by_name.at(*spec.other) : nullptr;
+    const btVector3 pivot = toBullet(spec.pivot), axis = toBullet(spec.axis);
+    const btTransform ta = a.getWorldTransform();
+    const btVector3 pivot_a = ta.invXform(pivot), axis_a = ta.getBasis().transpose() * axis;
+    std::unique_ptr<btTypedConstraint> joint;
+    if (spec.kind == Joint::Kind::Ball) {
+        joint = b ? std::make_unique<btPoint2PointConstraint>(a, *b, pivot_a, b->getWorldTransform().invXform(pivot))
+                  : std::make_unique<btPoint2PointConstraint>(a, pivot_a);
+    } else {
+        std::unique_ptr<btHingeConstraint> hinge;
+        if (b) {
+            const btTransform tb = b->getWorldTransform();
+            hinge = std::make_unique<btHingeConstraint>(a, *b, pivot_a, tb.invXform(pivot), axis_a, tb.getBasis().transpose() * axis);
+        } else {
+            hinge = std::make_unique<btHingeConstraint>(a, pivot_a, axis_a);
+        }
+        if (spec.limits) hinge->setLimit(static_cast<btScalar>((*spec.limits)[0]), static_cast<btScalar>((*spec.limits)[1]));
+        joint = std::move(hinge);
+    }
+    bs.world.addConstraint(joint.get(), true);
+    bs.joints.push_back(std::move(joint));
+}
 
 std::unique_ptr<btCollisionShape> makeShape(const Shape& s) {
     switch (s.kind) {
@@ -461,6 +491,7 @@ SceneRun::Impl::Impl(const Scene& scene_in, const RunOptions& options_in)
     // --- build ------------------------------------------------------------------------
     bs.world.setGravity(toBullet(scene.gravity));
     for (const Body& b : scene.bodies) addBulletBody(bs, b);
+    for (const Joint& j : scene.joints) addBulletJoint(bs, j);
     ropes = std::make_unique<BulletWorld>(bs.world);
     for (std::size_t i = 0; i < scene.strings.size(); ++i) {
         const String& s = scene.strings[i];

@@ -11,6 +11,7 @@
 
 #include <functional>
 #include <memory>
+#include <array>
 #include <optional>
 #include <string>
 #include <vector>
@@ -53,6 +54,19 @@ struct Body {
     Vec3 angular_velocity = Vec3::Zero();///< rad/s
     double friction = 0.5;               ///< >= 0
     double restitution = 0.0;            ///< [0, 1]
+};
+
+/// A Bullet joint (docs/SCENE_FORMAT.md, "joints"): a ball joint (btPoint2PointConstraint) or
+/// a hinge (btHingeConstraint) between a dynamic body and another body or the world, at a
+/// world point (and axis) where the bodies start.
+struct Joint {
+    enum class Kind { Ball, Hinge };
+    Kind kind = Kind::Hinge;
+    std::string body;                      ///< a dynamic body's name
+    std::optional<std::string> other;      ///< the other body's name (not `body`); none: the world
+    Vec3 pivot = Vec3::Zero();             ///< m, world, where the bodies start
+    Vec3 axis = Vec3::UnitZ();             ///< hinge: world axis (normalised on load; non-zero)
+    std::optional<std::array<double, 2>> limits;  ///< hinge: [lower, upper] rad in [-pi, pi], lower <= upper
 };
 
 /// What holds a string's particle (the same words as a sheet's: docs/SCENE_FORMAT.md, "Words").
@@ -143,6 +157,7 @@ struct Scene {
     Vec3 gravity{0.0, -9.81, 0.0};    ///< m/s^2
     std::uint64_t seed = 1;           ///< seeds every random choice (string i gets seed + i)
     std::vector<Body> bodies;
+    std::vector<Joint> joints;
     std::vector<String> strings;
     std::vector<Cloth> cloths;
     std::vector<Paper> papers;        ///< paper i gets seed + 1000 + i unless it gives its own

@@ -2,6 +2,7 @@
 // user would, full length).
 #include "tearables/scene.hpp"
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -101,6 +102,40 @@ TEST(DemoScenes, BridgeHoldsItsBoardsThenTearsUnderTheCrates) {
     for (const auto& [name, body] : last["bodies"].items())
         if (name.rfind("board", 0) == 0) lowest_board = std::min(lowest_board, body["p"][1].get<double>());
     EXPECT_LT(lowest_board, 1.0);  // the bridge was at 2 m
+}
+
+// The drawbridge: a deck hinged to the world (a "hinge" joint) and held up by two ropes,
+// two 30 kg crates set on it. At the end, at rest: the crates sit on the deck (their
+// centres 0.125 m above its mid-plane in its frame: half a crate and half the deck, within
+// 2 mm), and the ropes' pull at the deck turns it about the hinge as much as the weights do,
+// g (m_deck x_deck + m_1 x_1 + m_2 x_2) (0.5%; the arms from the hinge's axis at x = 0).
+TEST(DemoScenes, DrawbridgeHoldsItsCratesOnTheHingedDeck) {
+    const fs::path out = run("drawbridge");
+    const json last = lastFrame(out);
+    const json& bodies = last["bodies"];
+    ASSERT_TRUE(bodies.contains("crate1") && bodies.contains("crate2") && bodies.contains("deck"));
+    auto at = [&](const std::string& name) {
+        const json& p = bodies[name]["p"];
+        return Eigen::Vector3d(p[0].get<double>(), p[1].get<double>(), p[2].get<double>());
+    };
+    const json& q = bodies["deck"]["q"];
+    const Eigen::Quaterniond deck(q[3].get<double>(), q[0].get<double>(), q[1].get<double>(), q[2].get<double>());
+    for (const char* crate : {"crate1", "crate2"}) {
+        const Eigen::Vector3d local = deck.conjugate() * (at(crate) - at("deck"));
+        EXPECT_NEAR(local.y(), 0.125, 0.002) << crate;
+    }
+    double turning = 0.0;
+    for (const char* rope : {"near", "far"}) {
+        const json& x = last["strings"][rope]["x"];
+        const json& end = x[x.size() - 1];
+        const json& above = x[x.size() - 2];
+        Eigen::Vector3d e(end[0].get<double>(), end[1].get<double>(), end[2].get<double>());
+        Eigen::Vector3d a(above[0].get<double>(), above[1].get<double>(), above[2].get<double>());
+        const Eigen::Vector3d pull = last["strings"][rope]["tension"].back().get<double>() * (a - e).normalized();
+        turning += e.x() * pull.y() - (e.y() - 1.0) * pull.x();
+    }
+    const double load = 9.81 * (8.0 * at("deck").x() + 30.0 * at("crate1").x() + 30.0 * at("crate2").x());
+    EXPECT_NEAR(turning, load, 0.005 * load);
 }
 
 TEST(DemoScenes, YarnTearWeakerYarnFirst) {  // Yarn Fig. 4

@@ -19,6 +19,13 @@ namespace {
 
 /// A scene with one static beam and one string "rope" of 10 segments (11 particles) whose
 /// remaining fields are `fields` (with a leading comma when not empty).
+/// A scene with a dynamic box "b", a static box "post" and `joint` as its one joint.
+std::string jointScene(const std::string& joint) {
+    return R"({"bodies": [{"name": "b", "shape": {"box": [0.5, 0.1, 0.1]}, "mass": 1, "position": [0.5, 1, 0]},
+                           {"name": "post", "shape": {"box": [0.1, 0.5, 0.1]}, "mass": 0, "position": [-0.1, 0.5, 0]}],
+               "joints": [)" + joint + "]}";
+}
+
 std::string ropeScene(const std::string& fields) {
     return R"({"bodies": [{"name": "beam", "shape": {"box": [1, 0.1, 0.1]}, "mass": 0}],
                "strings": [{"name": "rope", "from": [0, 2, 0], "to": [0, 1, 0])" +
@@ -736,6 +743,25 @@ const ErrorCase kErrorCases[] = {
      "drivers[0].every", "must be in (0, "},
     {"ShootEveryTooMany", driverScene(R"({"type": "shoot", "ray": {"from": [0, 0, 0], "to": [1, 0, 0]}, "impulse": 1, "every": 1e-6, "until": 1})"),
      "drivers[0].every", "more than 100000 shots"},
+    // --- joints
+    {"JointUnknownType", jointScene(R"({"type": "slider", "body": "b", "pivot": [0, 1, 0]})"), "joints[0].type",
+     "must be \"ball\" or \"hinge\" (got \"slider\")"},
+    {"JointUnknownBody", jointScene(R"({"type": "ball", "body": "nobody", "pivot": [0, 1, 0]})"), "joints[0].body",
+     "no body named \"nobody\""},
+    {"JointStaticBody", jointScene(R"({"type": "ball", "body": "post", "pivot": [0, 1, 0]})"), "joints[0].body",
+     "must name a dynamic body"},
+    {"JointOtherIsBody", jointScene(R"({"type": "ball", "body": "b", "other": "b", "pivot": [0, 1, 0]})"),
+     "joints[0].other", "must name another body"},
+    {"JointBallWithAxis", jointScene(R"({"type": "ball", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 1]})"),
+     "joints[0].axis", "is for hinges only"},
+    {"JointHingeWithoutAxis", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0]})"), "joints[0].axis",
+     "missing required field"},
+    {"JointZeroAxis", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 0]})"),
+     "joints[0].axis", "must not be zero"},
+    {"JointLimitsReversed", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 1], "limits": [0.5, -0.5]})"),
+     "joints[0].limits", "lower <= upper"},
+    {"JointLimitPastPi", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 1], "limits": [-4, 0]})"),
+     "joints[0].limits[0]", "must be in"},
     {"ShootHasNoTarget", driverScene(R"({"type": "shoot", "target": "rope", "ray": {"from": [0, 0, 0], "to": [1, 0, 0]}, "impulse": 1, "times": [1]})"),
      "drivers[0].target", "unknown field"},
 };
@@ -746,6 +772,23 @@ INSTANTIATE_TEST_SUITE_P(SceneLoader, SceneErrors, ::testing::ValuesIn(kErrorCas
 // ---------------------------------------------------------------------------------------------
 // Files and built-in scenes
 // ---------------------------------------------------------------------------------------------
+
+TEST(SceneLoader, JointsAreRead) {
+    const Scene s = parseScene(jointScene(
+        R"({"type": "hinge", "body": "b", "other": "post", "pivot": [0, 1, 0], "axis": [0, 0, 2], "limits": [-0.5, 0.25]},
+           {"type": "ball", "body": "b", "pivot": [1, 1, 0]})"));
+    ASSERT_EQ(s.joints.size(), 2u);
+    EXPECT_EQ(s.joints[0].kind, tearables::scene::Joint::Kind::Hinge);
+    EXPECT_EQ(s.joints[0].body, "b");
+    EXPECT_EQ(s.joints[0].other, std::optional<std::string>("post"));
+    EXPECT_EQ(s.joints[0].axis, Vec3(0, 0, 1));  // normalised
+    ASSERT_TRUE(s.joints[0].limits.has_value());
+    EXPECT_EQ((*s.joints[0].limits)[0], -0.5);
+    EXPECT_EQ((*s.joints[0].limits)[1], 0.25);
+    EXPECT_EQ(s.joints[1].kind, tearables::scene::Joint::Kind::Ball);
+    EXPECT_FALSE(s.joints[1].other.has_value());
+    EXPECT_EQ(s.joints[1].pivot, Vec3(1, 1, 0));
+}
 
 TEST(SceneLoader, LoadSceneFileSetsTheSource) {
     const std::string path = ::testing::TempDir() + "tearables_scene_loader_test.json";
