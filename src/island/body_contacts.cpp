@@ -41,14 +41,6 @@ Vec6 jacobian(const Vec3& n, const Vec3& r) {
     return j;
 }
 
-/// d(u + theta x r) / d(u, theta) = [I, -[r]x].
-Mat36 pointJacobian(const Vec3& r) {
-    Mat36 s;
-    s.leftCols<3>() = Mat3::Identity();
-    s.rightCols<3>() = -cross(r);
-    return s;
-}
-
 bool finite(const Vec3& v) { return v.allFinite(); }
 
 bool inTable(RigidId id, const RigidTable& rigids) {
@@ -93,11 +85,9 @@ void BodyContactMember::start(std::vector<BodyContact>& contacts, std::size_t fi
     first_ = first;
     const BodyContact& c0 = contacts[first];
     const RigidState& a = rigids.bodies[c0.a.index];
-    b_moves_ = c0.b.valid() && rigids.movable(c0.b);
-    bodies_.assign(1, c0.a);
+    startPair(c0.a, c0.b, rigids);
     double mass = 1.0 / a.inverse_mass;
     if (b_moves_) {
-        bodies_.push_back(c0.b);
         mass = std::max(mass, 1.0 / rigids.bodies[c0.b.index].inverse_mass);
     }
     stiffness_ = kStiffnessFactor * mass * ctx.inv_h * ctx.inv_h;
@@ -130,10 +120,6 @@ void BodyContactMember::start(std::vector<BodyContact>& contacts, std::size_t fi
         r.held = false;
         frictional_ = frictional_ || r.mu > 0.0;
     }
-    disp_a_.setZero();
-    disp_b_.setZero();
-    du_a_.setZero();
-    du_b_.setZero();
 }
 
 void BodyContactMember::condense(bool fresh) {
@@ -157,23 +143,6 @@ void BodyContactMember::condense(bool fresh) {
             gradient_ += r.weight * s.transpose() * slipAt(r, disp_a_, disp_b_);
         }
     }
-}
-
-void BodyContactMember::addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const {
-    const Eigen::Index a = 6 * slot[0];
-    system.block<6, 6>(a, a) += hessian_.topLeftCorner<6, 6>();
-    rhs.segment<6>(a) -= gradient_.head<6>();
-    if (!b_moves_) return;
-    const Eigen::Index b = 6 * slot[1];
-    system.block<6, 6>(a, b) += hessian_.topRightCorner<6, 6>();
-    system.block<6, 6>(b, a) += hessian_.bottomLeftCorner<6, 6>();
-    system.block<6, 6>(b, b) += hessian_.bottomRightCorner<6, 6>();
-    rhs.segment<6>(b) -= gradient_.tail<6>();
-}
-
-void BodyContactMember::backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) {
-    du_a_ = du.segment<6>(6 * slot[0]);
-    du_b_ = b_moves_ ? Vec6(du.segment<6>(6 * slot[1])) : Vec6::Zero();
 }
 
 // The active set of a semismooth Newton step, as a string's contacts (StringIslandMember):
@@ -209,8 +178,7 @@ double BodyContactMember::energy(double alpha) const {
 double BodyContactMember::apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) {
     double move = 0.0;
     for (const Row& r : rows_) move = std::max(move, alpha * (r.sa * du_a_ + r.sb * du_b_).norm());
-    disp_a_ = displacement.segment<6>(6 * slot[0]);
-    if (b_moves_) disp_b_ = displacement.segment<6>(6 * slot[1]);
+    takeDisplacements(slot, displacement);
     return move / kMoveTolerance;
 }
 

@@ -3,15 +3,14 @@
 // Newton system as the strings that hold the bodies, so that no solver undoes another.
 #pragma once
 
-#include "sim/body_motion.hpp"
-#include "sim/island.hpp"
+#include "island/body_pair.hpp"
 
 #include <cstddef>
 #include <vector>
 
 namespace tearables::detail {
 
-class BodyContactMember final : public IslandMember {
+class BodyContactMember final : public BodyPairMember {
 public:
     /// The contacts [first, first + count) of `contacts`, all between body a and body b
     /// (b fixed when it is not movable). `contacts` must outlive the solve: finish()
@@ -19,21 +18,13 @@ public:
     void start(std::vector<BodyContact>& contacts, std::size_t first, std::size_t count, const RigidTable& rigids,
                const StepContext& ctx);
 
-    const std::vector<RigidId>& bodies() const override { return bodies_; }
-    bool touchesBodies() const override { return true; }
-    void addWarmHints(const std::vector<int>&, Eigen::VectorXd&, std::vector<int>&) const override {}
-    void warmStep(const std::vector<int>&, const Eigen::VectorXd&) override {}
-    void beginPass() override {}
     void condense(bool fresh) override;
-    void addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const override;
-    void backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) override;
     bool addPredictedContacts() override;
     double energy(double alpha) const override;
     double apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) override;
     bool frictional() const override { return frictional_; }
     double reweigh() override;
     void finish(int iterations) override;
-    bool isBodyContacts() const override { return true; }
 
 private:
     /// One contact, linearised where the bodies were when the solve started: for the
@@ -57,15 +48,9 @@ private:
 
     std::vector<BodyContact>* contacts_ = nullptr;
     std::size_t first_ = 0;
-    std::vector<RigidId> bodies_;
-    bool b_moves_ = false;
     bool frictional_ = false;
     double stiffness_ = 0.0;  ///< N/m: under a load F the contact gives way by F / k only
     std::vector<Row> rows_;
-    Vec6 disp_a_ = Vec6::Zero(), disp_b_ = Vec6::Zero();  ///< from where the solve started
-    Vec6 du_a_ = Vec6::Zero(), du_b_ = Vec6::Zero();      ///< the island's step
-    Eigen::Matrix<double, 12, 12> hessian_;
-    Eigen::Matrix<double, 12, 1> gradient_;
 };
 
 /// The pairs of `contacts` that the island solve keeps: contacts of a movable body (with

@@ -35,14 +35,6 @@ constexpr double kSeparationRecovery = 0.2;
 /// Convergence: the pivots' relative move in an iteration over this (m).
 constexpr double kMoveTolerance = 1e-7;
 
-/// d(u + theta x r) / d(u, theta) = [I, -[r]x].
-Mat36 pointJacobian(const Vec3& r) {
-    Mat36 s;
-    s.leftCols<3>() = Mat3::Identity();
-    s.rightCols<3>() = -cross(r);
-    return s;
-}
-
 bool inTable(RigidId id, const RigidTable& rigids) {
     return id.valid() && id.index < rigids.bodies.size() && rigids.used[id.index] && rigids.bodies[id.index].present;
 }
@@ -90,11 +82,9 @@ void prepareBodyJoints(std::vector<BodyJoint>& joints, const RigidTable& rigids)
 
 void BodyJointMember::start(const BodyJoint& joint, const RigidTable& rigids, const StepContext& ctx) {
     const RigidState& a = rigids.bodies[joint.a.index];
-    b_moves_ = joint.b.valid() && rigids.movable(joint.b);
-    bodies_.assign(1, joint.a);
+    startPair(joint.a, joint.b, rigids);
     double mass = 1.0 / a.inverse_mass, moment = largestMoment(a);
     if (b_moves_) {
-        bodies_.push_back(joint.b);
         const RigidState& b = rigids.bodies[joint.b.index];
         mass = std::max(mass, 1.0 / b.inverse_mass);
         moment = std::max(moment, largestMoment(b));
@@ -128,10 +118,6 @@ void BodyJointMember::start(const BodyJoint& joint, const RigidTable& rigids, co
         limited_ = false;
     }
     limit_held_ = false;
-    disp_a_.setZero();
-    disp_b_.setZero();
-    du_a_.setZero();
-    du_b_.setZero();
 }
 
 void BodyJointMember::condense(bool fresh) {
@@ -170,23 +156,6 @@ bool BodyJointMember::addPredictedContacts() {
     return false;
 }
 
-void BodyJointMember::addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const {
-    const Eigen::Index a = 6 * slot[0];
-    system.block<6, 6>(a, a) += hessian_.topLeftCorner<6, 6>();
-    rhs.segment<6>(a) -= gradient_.head<6>();
-    if (!b_moves_) return;
-    const Eigen::Index b = 6 * slot[1];
-    system.block<6, 6>(a, b) += hessian_.topRightCorner<6, 6>();
-    system.block<6, 6>(b, a) += hessian_.bottomLeftCorner<6, 6>();
-    system.block<6, 6>(b, b) += hessian_.bottomRightCorner<6, 6>();
-    rhs.segment<6>(b) -= gradient_.tail<6>();
-}
-
-void BodyJointMember::backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) {
-    du_a_ = du.segment<6>(6 * slot[0]);
-    du_b_ = b_moves_ ? Vec6(du.segment<6>(6 * slot[1])) : Vec6::Zero();
-}
-
 double BodyJointMember::energy(double alpha) const {
     const Vec6 da = disp_a_ + alpha * du_a_, db = disp_b_ + alpha * du_b_;
     const Eigen::Matrix<double, 6, 1> r = residual(da, db);
@@ -200,8 +169,7 @@ double BodyJointMember::energy(double alpha) const {
 
 double BodyJointMember::apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) {
     const double move = alpha * (ja_.topRows<3>() * du_a_ + jb_.topRows<3>() * du_b_).norm();
-    disp_a_ = displacement.segment<6>(6 * slot[0]);
-    if (b_moves_) disp_b_ = displacement.segment<6>(6 * slot[1]);
+    takeDisplacements(slot, displacement);
     return move / kMoveTolerance;
 }
 

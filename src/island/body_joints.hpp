@@ -3,33 +3,24 @@
 // that hold the bodies and the contacts between them, so that no solver undoes another.
 #pragma once
 
-#include "sim/body_motion.hpp"
-#include "sim/island.hpp"
+#include "island/body_pair.hpp"
 
 #include <vector>
 
 namespace tearables::detail {
 
-class BodyJointMember final : public IslandMember {
+class BodyJointMember final : public BodyPairMember {
 public:
     /// Joint `joint` (prepared: a movable, b movable or fixed) at the table's poses.
     void start(const BodyJoint& joint, const RigidTable& rigids, const StepContext& ctx);
 
-    const std::vector<RigidId>& bodies() const override { return bodies_; }
-    bool touchesBodies() const override { return true; }
-    void addWarmHints(const std::vector<int>&, Eigen::VectorXd&, std::vector<int>&) const override {}
-    void warmStep(const std::vector<int>&, const Eigen::VectorXd&) override {}
-    void beginPass() override {}
     void condense(bool fresh) override;
-    void addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const override;
-    void backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) override;
     bool addPredictedContacts() override;
     double energy(double alpha) const override;
     double apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) override;
     bool frictional() const override { return false; }
     double reweigh() override { return 0.0; }
     void finish(int) override {}
-    bool isBodyContacts() const override { return true; }
 
 private:
     /// The joint's residuals for the bodies' displacements d = (u, theta) from where the
@@ -44,19 +35,13 @@ private:
     /// Its limits' penalty: how far the angle is past the nearer one (0 inside them).
     double pastLimit(double angle) const { return angle < lower_ ? angle - lower_ : angle > upper_ ? angle - upper_ : 0.0; }
 
-    std::vector<RigidId> bodies_;
     bool limited_ = false;     ///< a hinge with limits
     bool limit_held_ = false;  ///< the limit's row in the Newton system (past it, or the step runs past it)
     double angle0_ = 0.0, lower_ = 0.0, upper_ = 0.0, limit_weight_ = 0.0;
     Vec6 ga_ = Vec6::Zero(), gb_ = Vec6::Zero();
-    bool b_moves_ = false;
     Eigen::Matrix<double, 6, 1> r0_ = Eigen::Matrix<double, 6, 1>::Zero();
     Eigen::Matrix<double, 6, 6> ja_ = Eigen::Matrix<double, 6, 6>::Zero(), jb_ = Eigen::Matrix<double, 6, 6>::Zero();
     Eigen::Matrix<double, 6, 1> weight_ = Eigen::Matrix<double, 6, 1>::Zero();  ///< per residual: its stiffness
-    Vec6 disp_a_ = Vec6::Zero(), disp_b_ = Vec6::Zero();  ///< from where the solve started
-    Vec6 du_a_ = Vec6::Zero(), du_b_ = Vec6::Zero();      ///< the island's step
-    Eigen::Matrix<double, 12, 12> hessian_;
-    Eigen::Matrix<double, 12, 1> gradient_;
 };
 
 /// The joints the island solve keeps: of a movable body (with a movable one or a fixed

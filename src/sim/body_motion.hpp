@@ -20,6 +20,15 @@ inline Mat3 cross(const Vec3& r) {
     return m;
 }
 
+/// d(u + theta x r) / d(u, theta) = [I, -[r]x]: how a point at arm r from a body's centre
+/// moves with the body's translation u and small turn theta.
+inline Mat36 pointJacobian(const Vec3& r) {
+    Mat36 j;
+    j.leftCols<3>() = Mat3::Identity();
+    j.rightCols<3>() = -cross(r);
+    return j;
+}
+
 /// Generalised mass of a body (translation, rotation about its centre), world frame.
 inline Mat6 bodyMass(const RigidState& b) {
     Mat6 m = Mat6::Zero();

@@ -29,14 +29,6 @@ namespace {
 /// lacks, and a piece lying at zero stretch cycles at flat energy instead of converging.
 constexpr int kTautBandIterations = 2;
 
-/// d x_p / d(u, theta) of a point at arm r from its body's centre.
-Mat36 pointJacobian(const Vec3& r) {
-    Mat36 j;
-    j.leftCols<3>() = Mat3::Identity();
-    j.rightCols<3>() = -cross(r);
-    return j;
-}
-
 }  // namespace
 
 void StringIslandMember::start(StringState& s, RigidTable& rigids, const StepContext& ctx) {

@@ -1,0 +1,40 @@
+// What the island members between two bodies share (body contacts, joints): a member with
+// no unknowns of its own whose energy is a function of one movable body's displacement
+// and, where it moves, another's; its Newton system a 12 x 12 Hessian and gradient in the
+// two bodies' (u, theta).
+#pragma once
+
+#include "sim/body_motion.hpp"
+#include "sim/island.hpp"
+
+#include <vector>
+
+namespace tearables::detail {
+
+class BodyPairMember : public IslandMember {
+public:
+    const std::vector<RigidId>& bodies() const override { return bodies_; }
+    bool touchesBodies() const override { return true; }
+    void addWarmHints(const std::vector<int>&, Eigen::VectorXd&, std::vector<int>&) const override {}
+    void warmStep(const std::vector<int>&, const Eigen::VectorXd&) override {}
+    void beginPass() override {}
+    void addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const override;
+    void backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) override;
+    /// Not a string: the islands' reports count strings only.
+    bool isBodyContacts() const override { return true; }
+
+protected:
+    /// Starts a solve between body a and body b (b fixed when not movable, or invalid).
+    void startPair(RigidId a, RigidId b, const RigidTable& rigids);
+    /// The bodies' displacements taken from the island's (after apply's step).
+    void takeDisplacements(const std::vector<int>& slot, const Eigen::VectorXd& displacement);
+
+    std::vector<RigidId> bodies_;
+    bool b_moves_ = false;
+    Vec6 disp_a_ = Vec6::Zero(), disp_b_ = Vec6::Zero();  ///< from where the solve started
+    Vec6 du_a_ = Vec6::Zero(), du_b_ = Vec6::Zero();      ///< the island's step
+    Eigen::Matrix<double, 12, 12> hessian_;
+    Eigen::Matrix<double, 12, 1> gradient_;
+};
+
+}  // namespace tearables::detail
