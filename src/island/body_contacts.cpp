@@ -20,10 +20,6 @@ namespace tearables::detail {
 
 namespace {
 
-/// The penalty's stiffness over the heavier body's m / h^2: a load F sinks the contact by
-/// F / k, for a body resting on another g h^2 / kStiffnessFactor (1.7 um at h = 1/240 s).
-/// The same factor as a string's contacts (string/strain_limit.cpp).
-constexpr double kStiffnessFactor = 100.0;
 /// The fraction of an overlap that was there at the start of the step (the host's, or a
 /// body dropped into another) that the step pushes out; Bullet's contact ERP is the same
 /// 0.2. All at once would throw the bodies apart at depth / h.
@@ -31,8 +27,6 @@ constexpr double kOverlapRecovery = 0.2;
 /// Slip per step below which friction sticks (m): lagged friction holds a load F_t below
 /// mu F with a slip of eps F_t / (mu F), so a load at rest creeps by at most eps a step.
 constexpr double kStickSlip = 1e-6;
-/// Convergence: the contact points' relative move in an iteration over this (m).
-constexpr double kMoveTolerance = 1e-7;
 
 Vec6 jacobian(const Vec3& n, const Vec3& r) {
     Vec6 j;
@@ -43,16 +37,12 @@ Vec6 jacobian(const Vec3& n, const Vec3& r) {
 
 bool finite(const Vec3& v) { return v.allFinite(); }
 
-bool inTable(RigidId id, const RigidTable& rigids) {
-    return id.valid() && id.index < rigids.bodies.size() && rigids.used[id.index] && rigids.bodies[id.index].present;
-}
-
 }  // namespace
 
 void prepareBodyContacts(std::vector<BodyContact>& contacts, const RigidTable& rigids) {
     auto keep = [&](BodyContact& c) {
-        if (c.a.valid() && !inTable(c.a, rigids)) return false;
-        if (c.b.valid() && !inTable(c.b, rigids)) return false;
+        if (c.a.valid() && !rigids.holds(c.a)) return false;
+        if (c.b.valid() && !rigids.holds(c.b)) return false;
         if (!(c.a.valid() && rigids.movable(c.a))) {
             if (!(c.b.valid() && rigids.movable(c.b))) return false;
             std::swap(c.a, c.b);
@@ -90,7 +80,7 @@ void BodyContactMember::start(std::vector<BodyContact>& contacts, std::size_t fi
     if (b_moves_) {
         mass = std::max(mass, 1.0 / rigids.bodies[c0.b.index].inverse_mass);
     }
-    stiffness_ = kStiffnessFactor * mass * ctx.inv_h * ctx.inv_h;
+    stiffness_ = kPairStiffnessFactor * mass * ctx.inv_h * ctx.inv_h;
     rows_.resize(count);
     frictional_ = false;
     for (std::size_t k = 0; k < count; ++k) {
@@ -179,7 +169,7 @@ double BodyContactMember::apply(double alpha, const std::vector<int>& slot, cons
     double move = 0.0;
     for (const Row& r : rows_) move = std::max(move, alpha * (r.sa * du_a_ + r.sb * du_b_).norm());
     takeDisplacements(slot, displacement);
-    return move / kMoveTolerance;
+    return move / kPairMoveTolerance;
 }
 
 double BodyContactMember::reweigh() {

@@ -26,18 +26,8 @@ namespace tearables::detail {
 
 namespace {
 
-/// The penalties' stiffness over the heavier body's m / h^2 (and, for the axes, its
-/// largest moment of inertia over h^2): a load F parts the pivots by F / k, g h^2 /
-/// kStiffnessFactor under a body's own weight (1.7 um at h = 1/240 s). As the contacts'.
-constexpr double kStiffnessFactor = 100.0;
 /// The share of the start's separation a step takes back (Bullet's joint ERP).
 constexpr double kSeparationRecovery = 0.2;
-/// Convergence: the pivots' relative move in an iteration over this (m).
-constexpr double kMoveTolerance = 1e-7;
-
-bool inTable(RigidId id, const RigidTable& rigids) {
-    return id.valid() && id.index < rigids.bodies.size() && rigids.used[id.index] && rigids.bodies[id.index].present;
-}
 
 /// The body's largest principal moment of inertia, kg m^2 (its mass times a square metre
 /// where the inertia is not finite: a body that does not turn).
@@ -50,8 +40,8 @@ double largestMoment(const RigidState& b) {
 
 void prepareBodyJoints(std::vector<BodyJoint>& joints, const RigidTable& rigids) {
     auto keep = [&](BodyJoint& j) {
-        if (j.a.valid() && !inTable(j.a, rigids)) return false;
-        if (j.b.valid() && !inTable(j.b, rigids)) return false;
+        if (j.a.valid() && !rigids.holds(j.a)) return false;
+        if (j.b.valid() && !rigids.holds(j.b)) return false;
         if (!(j.a.valid() && rigids.movable(j.a))) {
             if (!(j.b.valid() && rigids.movable(j.b))) return false;
             std::swap(j.a, j.b);
@@ -97,19 +87,19 @@ void BodyJointMember::start(const BodyJoint& joint, const RigidTable& rigids, co
     r0_.head<3>() = (1.0 - kSeparationRecovery) * (joint.pivot_a - joint.pivot_b);
     ja_.topRows<3>() = pointJacobian(joint.pivot_a - a.position);
     if (b_moves_) jb_.topRows<3>() = -pointJacobian(joint.pivot_b - rigids.bodies[joint.b.index].position);
-    weight_.head<3>().setConstant(kStiffnessFactor * mass * inv_h2);
+    weight_.head<3>().setConstant(kPairStiffnessFactor * mass * inv_h2);
     if (joint.kind == BodyJoint::Kind::Hinge) {
         const Vec3& ax = joint.axis_a;
         const Vec3& bx = joint.axis_b;
         r0_.tail<3>() = (1.0 - kSeparationRecovery) * ax.cross(bx);
         ja_.bottomRightCorner<3, 3>() = cross(bx) * cross(ax);
         if (b_moves_) jb_.bottomRightCorner<3, 3>() = -cross(ax) * cross(bx);
-        weight_.tail<3>().setConstant(kStiffnessFactor * moment * inv_h2);
+        weight_.tail<3>().setConstant(kPairStiffnessFactor * moment * inv_h2);
         limited_ = std::isfinite(joint.lower) || std::isfinite(joint.upper);
         angle0_ = joint.angle;
         lower_ = joint.lower;
         upper_ = joint.upper;
-        limit_weight_ = kStiffnessFactor * moment * inv_h2;
+        limit_weight_ = kPairStiffnessFactor * moment * inv_h2;
         ga_.setZero();
         gb_.setZero();
         ga_.tail<3>() = joint.angle_sign * ax;
@@ -170,7 +160,7 @@ double BodyJointMember::energy(double alpha) const {
 double BodyJointMember::apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) {
     const double move = alpha * (ja_.topRows<3>() * du_a_ + jb_.topRows<3>() * du_b_).norm();
     takeDisplacements(slot, displacement);
-    return move / kMoveTolerance;
+    return move / kPairMoveTolerance;
 }
 
 }  // namespace tearables::detail

@@ -11,6 +11,14 @@
 
 namespace tearables::detail {
 
+/// The penalties' stiffness over the heavier body's m / h^2 (a joint's axes: over its largest
+/// moment of inertia / h^2): a load F gives way by F / k, for a body resting on another
+/// g h^2 / kPairStiffnessFactor (1.7 um at h = 1/240 s). The same factor as a string's
+/// contacts (string/strain_limit.cpp).
+constexpr double kPairStiffnessFactor = 100.0;
+/// Convergence: the touching or joined points' relative move in an iteration over this (m).
+constexpr double kPairMoveTolerance = 1e-7;
+
 class BodyPairMember : public IslandMember {
 public:
     const std::vector<RigidId>& bodies() const override { return bodies_; }

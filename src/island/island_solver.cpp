@@ -140,15 +140,22 @@ void IslandSolver::forMembers(const Island& island, Fn&& fn) {
     }
 }
 
+void IslandSolver::inertiaRhs(const Island& island) {
+    rhs_.setZero(static_cast<Eigen::Index>(6 * island.bodies.size()));
+    for (std::size_t b = 0; b < island.bodies.size(); ++b) {
+        const Eigen::Index r = static_cast<Eigen::Index>(6 * b);
+        rhs_.segment<6>(r) -= mass_[b] * displacement_.segment<6>(r) * inv_h2_;
+    }
+}
+
 void IslandSolver::solveSystem(Island& island, bool fresh) {
     const Eigen::Index dim = static_cast<Eigen::Index>(6 * island.bodies.size());
     system_.setZero(dim, dim);
-    rhs_.setZero(dim);
     for (std::size_t b = 0; b < island.bodies.size(); ++b) {
         const Eigen::Index r = static_cast<Eigen::Index>(6 * b);
         system_.block<6, 6>(r, r) += mass_[b] * inv_h2_;
-        rhs_.segment<6>(r) -= mass_[b] * displacement_.segment<6>(r) * inv_h2_;
     }
+    inertiaRhs(island);
     forMembers(island, [&](std::size_t k) { island.members[k]->condense(fresh); });
     for (std::size_t k = 0; k < island.members.size(); ++k) island.members[k]->addTo(island.slots[k], system_, rhs_);
     addSoftening(island);
@@ -192,11 +199,7 @@ bool IslandSolver::solveChord(Island& island) {
             if (member_value_[k] > 0.0) island.members[k]->cancelChord();
         return false;
     }
-    rhs_.setZero(static_cast<Eigen::Index>(6 * island.bodies.size()));
-    for (std::size_t b = 0; b < island.bodies.size(); ++b) {
-        const Eigen::Index r = static_cast<Eigen::Index>(6 * b);
-        rhs_.segment<6>(r) -= mass_[b] * displacement_.segment<6>(r) * inv_h2_;
-    }
+    inertiaRhs(island);
     for (std::size_t k = 0; k < island.members.size(); ++k) island.members[k]->addRhsTo(island.slots[k], rhs_);
     du_ = ldlt_.solve(rhs_);
     forMembers(island, [&](std::size_t k) { island.members[k]->backSubstitute(island.slots[k], du_); });

@@ -45,6 +45,8 @@ private:
     IslandSummary solveIsland(Island& island, RigidTable& rigids, const StepContext& ctx);
     /// Assembles the island's Newton system (fresh: a new iteration) and solves it into du_.
     void solveSystem(Island& island, bool fresh);
+    /// The bodies' inertia's part of the island's right-hand side, -M u / h^2, into rhs_.
+    void inertiaRhs(const Island& island);
     void addSoftening(const Island& island);
     bool solveChord(Island& island);
     double energy(const Island& island, double alpha);

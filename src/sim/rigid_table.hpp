@@ -15,6 +15,10 @@ struct RigidTable {
     // per-step bookkeeping
     std::vector<Vec3> start_position;
     std::vector<Quat> start_orientation;
+    /// Whether `id` names a body of the table that the host has not removed.
+    bool holds(RigidId id) const {
+        return id.valid() && id.index < bodies.size() && used[id.index] && bodies[id.index].present;
+    }
     bool movable(RigidId id) const {
         const RigidState& b = bodies[id.index];
         return b.present && b.awake && b.inverse_mass > 0.0;

@@ -829,25 +829,31 @@ void assembleContactCoupling(StringState& s, StringScratch::NodeScratch& nodes) 
     }
 }
 
+void condenseNodesRhs(const StringState& s, StringScratch::NodeScratch& nodes_scratch) {
+    const std::size_t nodes = s.body_nodes.size();
+    Eigen::VectorXd& rs = nodes_scratch.rs;
+    rs.resize(static_cast<Eigen::Index>(6 * nodes));
+    for (std::size_t b = 0; b < nodes; ++b) {
+        rs.segment<6>(static_cast<Eigen::Index>(6 * b)) = nodes_scratch.rhs[b];
+        for (const auto& [p, blk] : nodes_scratch.coupling[b])
+            rs.segment<6>(static_cast<Eigen::Index>(6 * b)) -= blk.transpose() * s.scratch.blk_rhs[p];
+    }
+}
+
 void condenseNodes(StringState& s, StringScratch::NodeScratch& nodes_scratch) {
     const std::size_t n = s.particles();
     const std::size_t nodes = s.body_nodes.size();
     const auto& node_diag = nodes_scratch.diag;
-    const auto& node_rhs = nodes_scratch.rhs;
     const auto& coupling = nodes_scratch.coupling;
     // Schur complement on the bodies' unknowns: (D - C^T A^-1 C) du = r_b - C^T y,
     // then dx = y - A^-1 C du. Each body costs six more O(n) solves.
     const std::size_t dim = 6 * nodes;
     Eigen::MatrixXd& schur = nodes_scratch.schur;
-    Eigen::VectorXd& rs = nodes_scratch.rs;
     schur.setZero(static_cast<Eigen::Index>(dim), static_cast<Eigen::Index>(dim));
-    rs.resize(static_cast<Eigen::Index>(dim));
+    condenseNodesRhs(s, nodes_scratch);
     if (s.scratch.node_columns.size() < dim) s.scratch.node_columns.resize(dim);
     for (std::size_t b = 0; b < nodes; ++b) {
         schur.block<6, 6>(static_cast<Eigen::Index>(6 * b), static_cast<Eigen::Index>(6 * b)) = node_diag[b];
-        rs.segment<6>(static_cast<Eigen::Index>(6 * b)) = node_rhs[b];
-        for (const auto& [p, blk] : coupling[b])
-            rs.segment<6>(static_cast<Eigen::Index>(6 * b)) -= blk.transpose() * s.scratch.blk_rhs[p];
         for (int col = 0; col < 6; ++col) {
             std::vector<Vec3>& column = s.scratch.node_columns[6 * b + static_cast<std::size_t>(col)];
             column.assign(n, Vec3::Zero());

@@ -154,6 +154,9 @@ void assembleContactCoupling(StringState& s, StringScratch::NodeScratch& nodes);
 /// body nodes, D - C^T A^-1 C into nodes.schur, r_b - C^T y into nodes.rs, and the
 /// columns A^-1 C into node_columns.
 void condenseNodes(StringState& s, StringScratch::NodeScratch& nodes);
+/// condenseNodes' right-hand side alone, r_b - C^T y into nodes.rs (y = A^-1 r in blk_rhs,
+/// the couplings C in nodes.coupling).
+void condenseNodesRhs(const StringState& s, StringScratch::NodeScratch& nodes);
 /// The particles' step for the bodies' step du (6 per node): dx = y - A^-1 C du in
 /// blk_rhs, du into node_step.
 void backSubstituteNodes(StringState& s, const Eigen::VectorXd& du);

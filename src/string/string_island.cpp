@@ -254,17 +254,16 @@ bool StringIslandMember::condenseChord() {
 void StringIslandMember::condenseRhs() {
     StringState& s = *string_;
     StringScratch::NodeScratch& ns = s.scratch.node_scratch;
+    if (!by_rows_) {
+        condenseNodesRhs(s, ns);
+        return;
+    }
     const std::size_t nodes = s.body_nodes.size();
     ns.rs.resize(static_cast<Eigen::Index>(6 * nodes));
     for (std::size_t b = 0; b < nodes; ++b) ns.rs.segment<6>(static_cast<Eigen::Index>(6 * b)) = ns.rhs[b];
-    if (by_rows_) {
-        Eigen::VectorXd y_rows(static_cast<Eigen::Index>(3 * rows_.size()));
-        for (std::size_t k = 0; k < rows_.size(); ++k) y_rows.segment<3>(static_cast<Eigen::Index>(3 * k)) = s.scratch.blk_rhs[rows_[k]];
-        ns.rs.noalias() -= rows_coupling_.transpose() * y_rows;
-        return;
-    }
-    for (std::size_t b = 0; b < nodes; ++b)
-        for (const auto& [p, blk] : ns.coupling[b]) ns.rs.segment<6>(static_cast<Eigen::Index>(6 * b)) -= blk.transpose() * s.scratch.blk_rhs[p];
+    Eigen::VectorXd y_rows(static_cast<Eigen::Index>(3 * rows_.size()));
+    for (std::size_t k = 0; k < rows_.size(); ++k) y_rows.segment<3>(static_cast<Eigen::Index>(3 * k)) = s.scratch.blk_rhs[rows_[k]];
+    ns.rs.noalias() -= rows_coupling_.transpose() * y_rows;
 }
 
 void StringIslandMember::addRhsTo(const std::vector<int>& slot, Eigen::VectorXd& rhs) const {
