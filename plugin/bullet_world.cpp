@@ -22,6 +22,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <memory>
 #include <exception>
@@ -132,6 +133,12 @@ constexpr double kRefineFirstStep = 0.1;
 constexpr double kRefineLastStep = 1e-6;
 constexpr double kRefineGain = 1e-7;
 constexpr double kRefineKeepPoint = 1e-6;
+/// A box's face carries a segment (boxFaceContacts) where it separates the segment from
+/// the box as well as GJK's answer does, to this much (m): GJK in float leaves its
+/// separating direction off by up to a tenth of a radian where a segment lies parallel
+/// to a face (any point of it is then a closest point), so its distance there is short
+/// by up to a few micrometres.
+constexpr double kFaceSlack = 1e-5;
 
 // Contacts between string segments and rigid bodies, with Bullet's own narrow phase: each
 // segment is a capsule, tested against the bodies the broadphase found near its string
@@ -667,6 +674,81 @@ private:
         if (n.dot(a + s * axis) > nearest + kRefineKeepPoint) s = n.dot(a) <= n.dot(b) ? 0.0 : 1.0;
     }
 
+    /// Where a segment lies on a face of a box, the support is a line, not a point. GJK
+    /// answers with one closest point anywhere along it (which one changes from step to
+    /// step with rounding), and a single contact there lets the segment rock about it:
+    /// its ends dip into the face and are pushed out at the next step at another point,
+    /// which feeds energy into whatever rests on it (a box on two ropes yawed and slid
+    /// off under Coulomb friction). As Box2D and Bullet's own box-box manifolds do, the
+    /// face is clipped instead: the face whose plane separates the segment (the capsule's
+    /// core) from the box best, when it does as well as GJK's answer (kFaceSlack), and
+    /// the part of the segment over that face (the four side planes of the face, in the
+    /// box's frame) gives a contact at each end of that part, at most two, each with the
+    /// face's normal and its point on the face. No face qualifies where the segment's
+    /// nearest feature is an edge or a corner (a rope bending over an edge): GJK's answer
+    /// stands, and so where the segment is over no part of the face. Writes `found`
+    /// contacts into `s_out`, `normal_out` and `on_body_out` (world, at `pose`).
+    static int boxFaceContacts(const btBoxShape& box, const btTransform& pose, const Vec3& a, const Vec3& axis, double radius,
+                               double reach, const Vec3& gjk_normal, std::array<double, 2>& s_out, Vec3& normal_out,
+                               std::array<Vec3, 2>& on_body_out) {
+        Mat3 basis;
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) basis(i, j) = pose.getBasis()[i][j];
+        const Vec3 centre = toCore(pose.getOrigin());
+        const Vec3 half = toCore(box.getHalfExtentsWithMargin());
+        const Vec3 la = basis.transpose() * (a - centre), ld = basis.transpose() * axis, lb = la + ld;
+        // Separation of the core along a direction (box frame): the segment's nearest end
+        // minus the box's support.
+        auto separation = [&](const Vec3& n) {
+            return std::min(n.dot(la), n.dot(lb)) - (std::abs(n.x()) * half.x() + std::abs(n.y()) * half.y() + std::abs(n.z()) * half.z());
+        };
+        int face = -1;
+        double sign = 1.0, best = -std::numeric_limits<double>::infinity();
+        for (int i = 0; i < 3; ++i)
+            for (const double sg : {1.0, -1.0}) {
+                const double sep = std::min(sg * la[i], sg * lb[i]) - half[i];
+                if (sep > best) {
+                    best = sep;
+                    face = i;
+                    sign = sg;
+                }
+            }
+        if (best < separation(basis.transpose() * gjk_normal) - kFaceSlack) return 0;
+        // The part of the segment over the face: |p_j(t)| <= half_j for the face's other
+        // two axes.
+        double t0 = 0.0, t1 = 1.0;
+        for (int j = 0; j < 3; ++j) {
+            if (j == face) continue;
+            if (std::abs(ld[j]) < 1e-12) {
+                if (std::abs(la[j]) > half[j]) return 0;
+                continue;
+            }
+            double lo = (-half[j] - la[j]) / ld[j], hi = (half[j] - la[j]) / ld[j];
+            if (lo > hi) std::swap(lo, hi);
+            t0 = std::max(t0, lo);
+            t1 = std::min(t1, hi);
+        }
+        if (!(t0 <= t1)) return 0;
+        // Bullet's points are floats: a part that reaches to within kEndSnap of the
+        // segment's end is held at the end (its particle).
+        if (t0 < kEndSnap) t0 = 0.0;
+        if (t1 > 1.0 - kEndSnap) t1 = 1.0;
+        Vec3 ln = Vec3::Zero();
+        ln[face] = sign;
+        normal_out = basis * ln;
+        int found = 0;
+        for (const double t : {t0, t1}) {
+            if (found == 1 && t - s_out[0] < kEndSnap) break;  // one point (the part is a point)
+            Vec3 p = la + t * ld;
+            if (sign * p[face] - half[face] - radius > reach) continue;
+            p[face] = sign * half[face];
+            s_out[static_cast<std::size_t>(found)] = t;
+            on_body_out[static_cast<std::size_t>(found)] = centre + basis * p;
+            ++found;
+        }
+        return found;
+    }
+
     /// Speculative contact (continuous in effect): the closest points of the segment and
     /// the body at the *start* of the step give the normal and the contact point (in the
     /// body's frame), kept when they are closer than the distance both can travel this
@@ -763,11 +845,24 @@ private:
         refineOnConvexBody(*body.getCollisionShape(), before, a, axis, normal, on_body, c.s);
         // The contact point moves with the body: from the earlier pose to the current one.
         const btTransform at = now(body);
-        c.point = toCore(at * (before.inverse() * toBullet(on_body)));
-        c.normal = toCore(at.getBasis() * (before.getBasis().transpose() * toBullet(normal))).normalized();
         c.body = proxy;
         c.friction = body.getFriction();
-        out.push_back(c);
+        auto add = [&](double s, const Vec3& n, const Vec3& point) {
+            c.s = s;
+            c.point = toCore(at * (before.inverse() * toBullet(point)));
+            c.normal = toCore(at.getBasis() * (before.getBasis().transpose() * toBullet(n))).normalized();
+            out.push_back(c);
+        };
+        if (length > 0.0 && body.getCollisionShape()->getShapeType() == BOX_SHAPE_PROXYTYPE) {
+            std::array<double, 2> s_face{};
+            std::array<Vec3, 2> on_face{};
+            Vec3 face_normal;
+            const int found = boxFaceContacts(static_cast<const btBoxShape&>(*body.getCollisionShape()), before, a, axis,
+                                              radius, reach, normal, s_face, face_normal, on_face);
+            for (int k = 0; k < found; ++k) add(s_face[static_cast<std::size_t>(k)], face_normal, on_face[static_cast<std::size_t>(k)]);
+            if (found > 0) return;
+        }
+        add(c.s, normal, on_body);
     }
 
     Impl& owner_;

@@ -469,8 +469,14 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host, c
         // Segments clear of every body (no deep overlap where the step started, and not
         // in a buried run) are done with their start.
         std::vector<std::uint8_t> deep(inside.size(), 0);
-        for (const RigidSegmentContact& c : s.contacts)
-            if (c.start_depth > kDeepOverlap * s.radius[c.segment]) deep[c.segment] = 1;
+        // A contact at a particle (s = 0 or 1) stands for both segments that share it
+        // (which of the two a host names may change from step to step).
+        for (const RigidSegmentContact& c : s.contacts) {
+            if (!(c.start_depth > kDeepOverlap * s.radius[c.segment])) continue;
+            deep[c.segment] = 1;
+            if (c.s == 0.0 && c.segment > 0) deep[c.segment - 1] = 1;
+            if (c.s == 1.0 && c.segment + 1 < deep.size()) deep[c.segment + 1] = 1;
+        }
         for (std::size_t j = 0; j < inside.size(); ++j) inside[j] = inside[j] && (deep[j] || buried[j]);
     });
     reportStartOverlaps(ctx, events);
