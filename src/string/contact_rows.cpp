@@ -158,7 +158,14 @@ FrictionTerm rigidFrictionTerm(const RigidSegmentContact& c, const Vec3& slip) {
     // it; both >= 0, so it is positive semidefinite as it stands (IPC's projection to PSD
     // has nothing to remove here). At rest (y = 0) both are 2 / eps.
     f.hessian = (muN * m.f1_over_y) * f.tangent;
-    if (y > 0.0) {
+    // With a movable body (an island's contact) the isotropic part alone: f0(sqrt(t)) is
+    // concave in t = y^2 (sqrt(t) above eps; t / eps - t^(3/2) / (3 eps^2) + eps / 3
+    // below), so the quadratic of weight f1(y_k) / y_k through the slip y_k lies above
+    // f0 (iteratively reweighted least squares). The exact Hessian's f1' = 0 along a
+    // sliding slip let full steps in an island's coupled system leave the stick range and
+    // cycle (a rope on a movable drum slid off at 0.95 of the capstan ratio); the
+    // majoriser's steps do not overshoot, at a linear rate near the verge of slipping.
+    if (y > 0.0 && c.node < 0) {
         const Vec3 along = slip / y;
         f.hessian += (muN * (m.df1 - m.f1_over_y)) * (along * along.transpose());
     }
@@ -257,7 +264,7 @@ bool predictContacts(StringState& s) {
     return changed;
 }
 
-double weighRigidFriction(StringState& s, bool lagged) {
+double weighRigidFriction(StringState& s, bool in_island) {
     double largest_bound = 0.0;
     for (RigidSegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
@@ -267,7 +274,7 @@ double weighRigidFriction(StringState& s, bool lagged) {
     }
     double change = 0.0;
     for (RigidSegmentContact& c : s.contacts) {
-        c.lagged = lagged;
+        c.lagged = in_island && c.node < 0;
         const double normal = c.friction > 0.0 ? c.force : 0.0;
         const std::size_t j = c.segment;
         const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
@@ -287,7 +294,7 @@ double weighRigidFriction(StringState& s, bool lagged) {
         if (scale > 0.0) change = std::max(change, miss / scale);
         c.solved_normal = c.friction_normal;
         c.friction_normal = normal;
-        if (lagged) {
+        if (c.lagged) {
             // IPC's lagged weight: at the fixed point of the passes, mu F against sliding, or
             // a stiff spring below eps of slip (sticking).
             double w = 0.0;

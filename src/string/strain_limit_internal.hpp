@@ -79,9 +79,9 @@ FrictionTerm addFrictionRows(StringState& s, const RigidSegmentContact& c, bool 
 /// how far the pass's friction missed Coulomb's law with these forces: the largest miss of
 /// a contact (a sliding one's |f - mu N|, a sticking one's excess over mu N) relative to
 /// its mu N, or to kNegligibleFriction of the string's largest where that is more.
-/// `lagged` (an island's members): friction is the lagged quadratic w/2 |u_t|^2 with
-/// w = mu N / max(|u_t|, eps) from the slip now.
-double weighRigidFriction(StringState& s, bool lagged);
+/// `in_island` (an island's members): friction with a static body is the lagged quadratic
+/// w/2 |u_t|^2 with w = mu N / max(|u_t|, eps) from the slip now (StringIslandMember::start).
+double weighRigidFriction(StringState& s, bool in_island);
 /// The penalty and friction rows of the string's rigid contacts that penetrate now, without
 /// body unknowns (the bodies stay where they are), with the string's own solve's stiffness
 /// and friction weights.

@@ -73,7 +73,13 @@ void StringIslandMember::start(StringState& s, RigidTable& rigids, const StepCon
         scratch.coupling.resize(nodes);
     }
     setContactStiffness(s, rigids, ctx.inv_h * ctx.inv_h);
-    for (RigidSegmentContact& c : s.contacts) c.lagged = true;
+    // Friction with a movable body is the smoothed Coulomb potential, as in a string's own
+    // solve, with the majorising Hessian (rigidFrictionTerm): the lagged weights never
+    // reached Coulomb's law in an island's passes (a rope over a movable drum slid at 0.95
+    // of the capstan ratio). Friction with a static body (the ground) keeps the lagged
+    // weights: with the smoothed potential there, islands whose torn ropes slide on the
+    // ground stalled at their iteration cap (docs/island-baseline.md).
+    for (RigidSegmentContact& c : s.contacts) c.lagged = c.node < 0;
     seed_friction_ = true;
 }
 
@@ -88,7 +94,7 @@ void StringIslandMember::start(StringState& s, RigidTable& rigids, const StepCon
 void StringIslandMember::seedFriction() {
     StringState& s = *string_;
     for (RigidSegmentContact& c : s.contacts) {
-        if (!c.remembered || !(c.friction_normal > 0.0)) continue;
+        if (!c.lagged || !c.remembered || !(c.friction_normal > 0.0)) continue;
         const std::size_t j = c.segment;
         const Vec3 slip = rigidSlip(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]);
         if (slip.norm() >= slipSmoothing(c)) continue;
