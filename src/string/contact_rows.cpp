@@ -248,9 +248,12 @@ FrictionTerm addFrictionRows(StringState& s, const RigidSegmentContact& c, bool 
 /// millinewtons, does not keep the passes going.
 constexpr double kNegligibleFriction = 0.1;
 
-bool predictContacts(StringState& s) {
+bool predictContacts(StringState& s, const std::vector<Vec3>* held_step) {
     bool changed = false;
-    auto moved = [&](std::size_t p) { return fixedRow(s, p) ? s.x[p] : Vec3(s.x[p] + s.scratch.blk_rhs[p]); };
+    auto moved = [&](std::size_t p) {
+        if (!fixedRow(s, p)) return Vec3(s.x[p] + s.scratch.blk_rhs[p]);
+        return held_step ? Vec3(s.x[p] + (*held_step)[p]) : s.x[p];
+    };
     for (RigidSegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         if ((c.active && !c.predicted) || s.broken[j]) continue;

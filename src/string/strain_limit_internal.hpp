@@ -145,7 +145,9 @@ void setContactStiffness(StringState& s, const RigidTable& rigids, double inv_h2
 /// the bodies' in node_step): a separated contact the step runs into is held (active,
 /// predicted: its gap carried in the model), one held before that the step no longer runs
 /// into is let go. Returns whether any changed (the step is then solved again).
-bool predictContacts(StringState& s);
+/// `held_step`, per particle, moves the rows the solve holds fixed (an island's glued
+/// particles, with their bodies); none: they stay.
+bool predictContacts(StringState& s, const std::vector<Vec3>* held_step = nullptr);
 /// The body nodes' rows of the active contacts' penalties and of all contacts' friction:
 /// added to `nodes` (diag, rhs, coupling; the caller zeroes or seeds them) and, on the
 /// string's side, to blk_diag and blk_rhs.

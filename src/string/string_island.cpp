@@ -129,9 +129,7 @@ void StringIslandMember::assembleGlue(bool hessian) {
     StringScratch::NodeScratch& ns = string_->scratch.node_scratch;
     const double inv_h2 = ctx_->inv_h * ctx_->inv_h;
     if (hessian) cross_.clear();
-    auto jacobian = [&](const Glued& g) {
-        return pointJacobian(string_->x[g.particle] - rigids_->bodies[string_->body_nodes[g.node].body.index].position);
-    };
+    auto jacobian = [&](const Glued& g) { return glueJacobian(g); };
     // The glued particle's own inertia, about where its own velocity takes it.
     for (const Glued& g : glued_) {
         const Mat36 j = jacobian(g);
@@ -176,6 +174,76 @@ void StringIslandMember::assembleGlue(bool hessian) {
                 cross_.push_back({na, nb, block});
             }
         }
+    }
+}
+
+Mat36 StringIslandMember::glueJacobian(const Glued& g) const {
+    return pointJacobian(string_->x[g.particle] - rigids_->bodies[string_->body_nodes[g.node].body.index].position);
+}
+
+void StringIslandMember::addCross(std::size_t a, std::size_t b, const Mat6& block) {
+    if (a == b) {
+        string_->scratch.node_scratch.diag[a] += block + block.transpose();
+    } else {
+        cross_.push_back({a, b, block});
+    }
+}
+
+/// A contact on a segment whose end is glued: the contact point x(s) = (1 - s) x_j +
+/// s x_{j+1} moves with the glued end's body by its share w = 1 - s or s, dx(s) = w J du
+/// (J = [I, -[r]x], as for the glue's springs). assembleContactCoupling holds a glued end
+/// as a fixed row, so without this that share of the contact's force acts on no body while
+/// the touched body takes the whole reaction: the island's momentum changes by w F h a
+/// step. The share joins the glued end's body: its block and gradient, its couplings with
+/// the segment's free end, with the touched body and with the other end's body where that
+/// end is glued too (the energy, and the line search, have the glued ends on their bodies).
+void StringIslandMember::assembleGlueContacts() {
+    StringState& s = *string_;
+    for (const RigidSegmentContact& c : s.contacts) {
+        const std::size_t j = c.segment;
+        if (s.broken[j] || (glued_index_[j] < 0 && glued_index_[j + 1] < 0)) continue;
+        const Vec3 xs = (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1];
+        const Vec3& n = c.plane_normal;
+        if (c.active) {
+            // k_c g^2 / 2 (assembleContactCoupling's model): residual g n, Jacobian n n^T in
+            // x(s) and n a^T in the touched body's motion (a = rigidGapBodyGradient).
+            const double gap = rigidGap(s, c, xs);
+            const double g = c.predicted ? gap : std::min(0.0, gap);
+            const Mat3 nnt = n * n.transpose();
+            const Mat36 body = n * rigidGapBodyGradient(c).transpose();
+            addGlueShare(c, c.stiffness * nnt, c.stiffness * g * n, nnt, body);
+        }
+        if (hasFriction(c)) {
+            const FrictionTerm f = rigidFrictionTerm(c, rigidSlip(s, c, xs));
+            addGlueShare(c, f.hessian, f.gradient, f.tangent, rigidSlipBodyJacobian(c, f.tangent));
+        }
+    }
+}
+
+void StringIslandMember::addGlueShare(const RigidSegmentContact& c, const Mat3& hess, const Vec3& grad, const Mat3& along,
+                                      const Mat36& body) {
+    StringState& s = *string_;
+    StringScratch::NodeScratch& ns = s.scratch.node_scratch;
+    const std::size_t ends[2] = {c.segment, c.segment + 1};
+    const double weights[2] = {1.0 - c.s, c.s};
+    Mat36 share[2];
+    for (int e = 0; e < 2; ++e) {
+        const int gi = glued_index_[ends[e]];
+        if (gi >= 0) share[e] = weights[e] * along * glueJacobian(glued_[static_cast<std::size_t>(gi)]);
+    }
+    for (int e = 0; e < 2; ++e) {
+        const int gi = glued_index_[ends[e]];
+        if (gi < 0) continue;
+        const std::size_t node = glued_[static_cast<std::size_t>(gi)].node;
+        const Mat36 hs = hess * share[e];
+        ns.diag[node] += share[e].transpose() * hs;
+        ns.rhs[node] -= share[e].transpose() * grad;
+        const int other = 1 - e;
+        const std::size_t q = ends[other];
+        const int go = glued_index_[q];
+        if (go < 0 && !fixedRow(s, q)) ns.coupling[node].emplace_back(q, weights[other] * along * hs);
+        if (c.node >= 0) addCross(node, static_cast<std::size_t>(c.node), hs.transpose() * body);
+        if (e == 0 && go >= 0) addCross(node, glued_[static_cast<std::size_t>(go)].node, hs.transpose() * share[other]);
     }
 }
 
@@ -225,6 +293,7 @@ void StringIslandMember::condense(bool fresh) {
     }
     assembleContactCoupling(s, ns);
     assembleGlue(true);
+    assembleGlueContacts();
     addTurningStiffness();
     factorChain(s);
     solveFactored(s.particles(), s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(),
@@ -369,7 +438,12 @@ bool StringIslandMember::condenseRows() {
 /// where, held, it no longer does (their model, carrying the gap, would pull the string
 /// onto the plane): the active set of a semismooth Newton step on the penalties. Those
 /// that penetrate now stay: their model is the energy's own.
-bool StringIslandMember::addPredictedContacts() { return predictContacts(*string_); }
+bool StringIslandMember::addPredictedContacts() {
+    StringState& s = *string_;
+    held_step_.assign(s.particles(), Vec3::Zero());
+    for (const Glued& g : glued_) held_step_[g.particle] = glueJacobian(g) * s.scratch.node_step[g.node];
+    return predictContacts(s, &held_step_);
+}
 
 Vec3 StringIslandMember::trialGlue(const Glued& g, double alpha) const {
     const BodyNode& node = string_->body_nodes[g.node];

@@ -54,6 +54,16 @@ private:
     /// Adds the glued particles' rows (their springs and own inertia) to the nodes' blocks:
     /// their gradient to `rhs`, and with `hessian` their blocks and couplings.
     void assembleGlue(bool hessian);
+    /// Adds the glued ends' shares of the contacts on their segments (assembleGlueContacts).
+    void assembleGlueContacts();
+    /// One contact term with residual r (Hessian `hess`, gradient `grad` in r) whose
+    /// Jacobian is `along` times x(s)'s motion and `body` times the touched body's: its
+    /// blocks that involve a glued end's body.
+    void addGlueShare(const RigidSegmentContact& c, const Mat3& hess, const Vec3& grad, const Mat3& along, const Mat36& body);
+    /// A glued particle's motion in its body's (u, theta): [I, -[r]x].
+    Mat36 glueJacobian(const Glued& g) const;
+    /// Adds a node-node block (rows of a, columns of b) and its transpose to the system.
+    void addCross(std::size_t a, std::size_t b, const Mat6& block);
     void addTurningStiffness();
     bool condenseRows();
     /// The condensed right-hand side r_b - C^T y for y = A^-1 r in blk_rhs, with the
@@ -80,6 +90,7 @@ private:
     mutable std::vector<Vec3> trial_;  ///< energy's trial positions
     std::vector<Mat3> softening_;      ///< per body node: the turning stiffness's negative part
     std::vector<Vec3> pull_;           ///< per glued particle: its springs' pull on it
+    std::vector<Vec3> held_step_;      ///< per particle: a glued one's move in its body's step
     // condenseRows: the coupled rows, each particle's row (-1: none), the couplings
     // stacked by row (3|R| x 6 nodes), A^-1 at the rows, and whether this system used them.
     std::vector<std::size_t> rows_;
