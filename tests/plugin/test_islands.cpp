@@ -31,6 +31,15 @@ StringDesc rope(const Vec3& from, const Vec3& to, int segments) { return tearabl
 
 double ropeMass(const StringDesc& d, double length) { return d.density * kPi * d.radius * d.radius * length; }
 
+/// The total momentum of the bodies (Bullet's m v) and of string `id`'s particles, N s.
+Vec3 totalMomentum(const std::vector<btRigidBody*>& bodies, const BulletWorld& ropes, StringId id) {
+    Vec3 p = Vec3::Zero();
+    for (const btRigidBody* b : bodies) p += tearables::toCore(b->getLinearVelocity()) / static_cast<double>(b->getInvMass());
+    const auto v = ropes.core().view(id);
+    for (std::size_t i = 0; i < v.particleCount(); ++i) p += (*v.masses)[i] * (*v.velocities)[i];
+    return p;
+}
+
 /// Two boards hung one below the other: two ropes from the anchors to the upper board,
 /// two from the upper board to the lower one. Returns the total mass hung.
 struct TwoBoards {
@@ -130,13 +139,7 @@ TEST(Islands, HeavyRopeBetweenFreeBodiesKeepsTheImpulseItWasGiven) {
         ropes.attach(id, end == 0 ? 0 : -1, *ends[end], btVector3(static_cast<btScalar>(end == 0 ? 0.06 : -0.06), 0, 0));
     }
     const double force = 20.0, dt = 0.01;
-    auto momentum = [&] {
-        Vec3 p = Vec3::Zero();
-        for (btRigidBody* b : ends) p += tearables::toCore(b->getLinearVelocity()) / static_cast<double>(b->getInvMass());
-        const auto v = ropes.core().view(id);
-        for (std::size_t i = 0; i < v.particleCount(); ++i) p += (*v.masses)[i] * (*v.velocities)[i];
-        return p;
-    };
+    auto momentum = [&] { return totalMomentum({ends[0], ends[1]}, ropes, id); };
     double worst = 0.0, early = 0.0;
     for (int i = 0; i < 100; ++i) {
         if (i < 20) ropes.applyForce(id, 20, btVector3(0, static_cast<btScalar>(force), 0));
@@ -179,13 +182,7 @@ TEST(Islands, BoxThrownAtARopeBetweenFreeBodiesKeepsItsMomentum) {
         thrown.setLinearVelocity(btVector3(0, -4, 0));
         thrown.setActivationState(DISABLE_DEACTIVATION);
         bodies.push_back(&thrown);
-        auto momentum = [&] {
-            Vec3 p = Vec3::Zero();
-            for (btRigidBody* b : bodies) p += tearables::toCore(b->getLinearVelocity()) / static_cast<double>(b->getInvMass());
-            const auto v = ropes.core().view(id);
-            for (std::size_t i = 0; i < v.particleCount(); ++i) p += (*v.masses)[i] * (*v.velocities)[i];
-            return p;
-        };
+        auto momentum = [&] { return totalMomentum(bodies, ropes, id); };
         const Vec3 p0 = momentum();
         double drift = 0.0, touching = 0.0;
         for (int i = 0; i < 100; ++i) {
@@ -224,13 +221,7 @@ TEST(Islands, BoxThrownOntoARopesGluedEndKeepsItsMomentum) {
         thrown.setLinearVelocity(btVector3(0, 2, 0));
         thrown.setActivationState(DISABLE_DEACTIVATION);
         const std::vector<btRigidBody*> bodies{&held, &thrown};
-        auto momentum = [&] {
-            Vec3 p = Vec3::Zero();
-            for (btRigidBody* b : bodies) p += tearables::toCore(b->getLinearVelocity()) / static_cast<double>(b->getInvMass());
-            const auto v = ropes.core().view(id);
-            for (std::size_t i = 0; i < v.particleCount(); ++i) p += (*v.masses)[i] * (*v.velocities)[i];
-            return p;
-        };
+        auto momentum = [&] { return totalMomentum(bodies, ropes, id); };
         double mass = 3.0;
         for (double m : *ropes.core().view(id).masses) mass += m;
         const Vec3 p0 = momentum();
