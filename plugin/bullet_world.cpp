@@ -678,7 +678,7 @@ private:
     /// answers with one closest point anywhere along it (which one changes from step to
     /// step with rounding), and a single contact there lets the segment rock about it:
     /// its ends dip into the face and are pushed out at the next step at another point,
-    /// which feeds energy into whatever rests on it (a box on two ropes yawed and slid
+    /// which feeds energy into whatever rests on it (a box on two ropes yaws and slides
     /// off under Coulomb friction). As Box2D and Bullet's own box-box manifolds do, the
     /// face is clipped instead: the face whose plane separates the segment (the capsule's
     /// core) from the box best, when it does as well as GJK's answer (kFaceSlack), and

@@ -161,9 +161,9 @@ FrictionTerm rigidFrictionTerm(const RigidSegmentContact& c, const Vec3& slip) {
     // With a movable body (an island's contact) the isotropic part alone: f0(sqrt(t)) is
     // concave in t = y^2 (sqrt(t) above eps; t / eps - t^(3/2) / (3 eps^2) + eps / 3
     // below), so the quadratic of weight f1(y_k) / y_k through the slip y_k lies above
-    // f0 (iteratively reweighted least squares). The exact Hessian's f1' = 0 along a
-    // sliding slip let full steps in an island's coupled system leave the stick range and
-    // cycle (a rope on a movable drum slid off at 0.95 of the capstan ratio); the
+    // f0 (iteratively reweighted least squares). With the exact Hessian's f1' = 0 along a
+    // sliding slip, full steps in an island's coupled system leave the stick range and
+    // cycle (a rope on a movable drum slides at 0.95 of the capstan ratio); the
     // majoriser's steps do not overshoot, at a linear rate near the verge of slipping.
     if (y > 0.0 && c.node < 0) {
         const Vec3 along = slip / y;

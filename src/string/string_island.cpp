@@ -74,11 +74,11 @@ void StringIslandMember::start(StringState& s, RigidTable& rigids, const StepCon
     }
     setContactStiffness(s, rigids, ctx.inv_h * ctx.inv_h);
     // Friction with a movable body is the smoothed Coulomb potential, as in a string's own
-    // solve, with the majorising Hessian (rigidFrictionTerm): the lagged weights never
-    // reached Coulomb's law in an island's passes (a rope over a movable drum slid at 0.95
+    // solve, with the majorising Hessian (rigidFrictionTerm): the lagged weights do not
+    // reach Coulomb's law in an island's passes (a rope over a movable drum slides at 0.95
     // of the capstan ratio). Friction with a static body (the ground) keeps the lagged
     // weights: with the smoothed potential there, islands whose torn ropes slide on the
-    // ground stalled at their iteration cap (docs/island-baseline.md).
+    // ground stall at their iteration cap (docs/island-baseline.md).
     for (RigidSegmentContact& c : s.contacts) c.lagged = c.node < 0;
     seed_friction_ = true;
 }

@@ -473,7 +473,7 @@ std::pair<double, double> crateSlideOnRopedBoard(double mu, double tilt) {
 }
 }  // namespace
 
-// Coulomb's friction between two bodies of an island (issue 30, item 2): a crate on a board
+// Coulomb's friction between two bodies of an island: a crate on a board
 // that hangs from ropes, gravity tilted by theta. Below tan(theta) = mu the crate sticks:
 // after the first second (the contact's first steps, without a normal force to weigh
 // friction by yet, let it settle by a few mm) it creeps by at most the stick range, 1 um a

@@ -111,9 +111,9 @@ TEST(RigidCollision, WeakRopeTearsAtTheImpact) {
 // A rope lying across the top of a static box, straight along it or at an angle to its
 // edges, comes to rest on it. Where a segment lies on the face, the face carries it at
 // the ends of the part of it over the face: each such contact has the face's normal to
-// rounding, and a segment over the face's inside is carried at its two particles (a single
-// closest point of Bullet's GJK lies anywhere along it, changes from step to step, and the
-// segment rocked about it: the rope chattered at 16 mm/s, 20-25 Newton iterations a step).
+// rounding, and a segment over the face's inside is carried at its two particles (Bullet's
+// GJK answers with one closest point anywhere along it, which changes from step to step,
+// and a segment carried there rocks about it and chatters: docs/island-baseline.md).
 // At rest means below 1 mm/s, the speed of a 10 um settling a step.
 TEST(RigidCollision, RopeAcrossABoxLiesStillOnItsFace) {
     for (const double turn : {0.0, 0.3}) {
