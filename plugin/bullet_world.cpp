@@ -43,11 +43,6 @@ bool islandJoint(const btTypedConstraint& c) {
     return !hinge.getEnableAngularMotor() && !hinge.getAngularOnly();
 }
 
-}  // namespace
-
-
-namespace {
-
 Quat toCore(const btQuaternion& q) { return Quat(q.w(), q.x(), q.y(), q.z()); }
 btQuaternion toBullet(const Quat& q) {
     return btQuaternion(static_cast<btScalar>(q.x()), static_cast<btScalar>(q.y()), static_cast<btScalar>(q.z()),

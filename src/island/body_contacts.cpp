@@ -41,16 +41,14 @@ bool finite(const Vec3& v) { return v.allFinite(); }
 
 void prepareBodyContacts(std::vector<BodyContact>& contacts, const RigidTable& rigids) {
     auto keep = [&](BodyContact& c) {
-        if (c.a.valid() && !rigids.holds(c.a)) return false;
-        if (c.b.valid() && !rigids.holds(c.b)) return false;
-        if (!(c.a.valid() && rigids.movable(c.a))) {
-            if (!(c.b.valid() && rigids.movable(c.b))) return false;
+        const PairOrder order = orderPair(c.a, c.b, rigids);
+        if (order == PairOrder::Drop) return false;
+        if (order == PairOrder::Swap) {
             std::swap(c.a, c.b);
             std::swap(c.point_a, c.point_b);
             c.normal = -c.normal;
             c.motion = -c.motion;
         }
-        if (c.b.valid() && c.b.index == c.a.index) return false;
         if (!finite(c.point_a) || !finite(c.point_b) || !finite(c.normal) || !finite(c.motion)) return false;
         const double n = c.normal.norm();
         if (!(std::abs(n - 1.0) < 1e-3)) return false;

@@ -40,16 +40,14 @@ double largestMoment(const RigidState& b) {
 
 void prepareBodyJoints(std::vector<BodyJoint>& joints, const RigidTable& rigids) {
     auto keep = [&](BodyJoint& j) {
-        if (j.a.valid() && !rigids.holds(j.a)) return false;
-        if (j.b.valid() && !rigids.holds(j.b)) return false;
-        if (!(j.a.valid() && rigids.movable(j.a))) {
-            if (!(j.b.valid() && rigids.movable(j.b))) return false;
+        const PairOrder order = orderPair(j.a, j.b, rigids);
+        if (order == PairOrder::Drop) return false;
+        if (order == PairOrder::Swap) {
             std::swap(j.a, j.b);
             std::swap(j.pivot_a, j.pivot_b);
             std::swap(j.axis_a, j.axis_b);
             j.angle_sign = -j.angle_sign;  // the angle turns with theta_old_a - theta_old_b
         }
-        if (j.b.valid() && j.b.index == j.a.index) return false;
         if (!j.pivot_a.allFinite() || !j.pivot_b.allFinite()) return false;
         if (j.kind == BodyJoint::Kind::Hinge) {
             for (Vec3* axis : {&j.axis_a, &j.axis_b}) {

@@ -3,6 +3,14 @@
 
 namespace tearables::detail {
 
+PairOrder orderPair(RigidId a, RigidId b, const RigidTable& rigids) {
+    if (a.valid() && !rigids.holds(a)) return PairOrder::Drop;
+    if (b.valid() && !rigids.holds(b)) return PairOrder::Drop;
+    if (a.valid() && b.valid() && a.index == b.index) return PairOrder::Drop;
+    if (a.valid() && rigids.movable(a)) return PairOrder::Keep;
+    return b.valid() && rigids.movable(b) ? PairOrder::Swap : PairOrder::Drop;
+}
+
 void BodyPairMember::startPair(RigidId a, RigidId b, const RigidTable& rigids) {
     b_moves_ = b.valid() && rigids.movable(b);
     bodies_.assign(1, a);

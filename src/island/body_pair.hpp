@@ -19,6 +19,12 @@ constexpr double kPairStiffnessFactor = 100.0;
 /// Convergence: the touching or joined points' relative move in an iteration over this (m).
 constexpr double kPairMoveTolerance = 1e-7;
 
+/// How the island keeps a pair between body a and body b (either may be invalid: a frame
+/// only the host moves): Drop it (a body the table no longer holds, neither body movable,
+/// or one body twice), Keep it as it is, or Swap its sides so that a is the movable body.
+enum class PairOrder { Drop, Keep, Swap };
+PairOrder orderPair(RigidId a, RigidId b, const RigidTable& rigids);
+
 class BodyPairMember : public IslandMember {
 public:
     const std::vector<RigidId>& bodies() const override { return bodies_; }

@@ -129,10 +129,9 @@ void StringIslandMember::assembleGlue(bool hessian) {
     StringScratch::NodeScratch& ns = string_->scratch.node_scratch;
     const double inv_h2 = ctx_->inv_h * ctx_->inv_h;
     if (hessian) cross_.clear();
-    auto jacobian = [&](const Glued& g) { return glueJacobian(g); };
     // The glued particle's own inertia, about where its own velocity takes it.
     for (const Glued& g : glued_) {
-        const Mat36 j = jacobian(g);
+        const Mat36 j = glueJacobian(g);
         const double w = string_->mass[g.particle] * inv_h2;
         if (hessian) ns.diag[g.node] += w * j.transpose() * j;
         ns.rhs[g.node] -= w * j.transpose() * (string_->x[g.particle] - g.inertial);
@@ -147,7 +146,7 @@ void StringIslandMember::assembleGlue(bool hessian) {
         Mat36 ja, jb;
         if (ga >= 0) {
             const Glued& g = glued_[static_cast<std::size_t>(ga)];
-            ja = jacobian(g);
+            ja = glueJacobian(g);
             ns.rhs[g.node] += ja.transpose() * force;
             pull_[static_cast<std::size_t>(ga)] += force;
             if (hessian) {
@@ -157,7 +156,7 @@ void StringIslandMember::assembleGlue(bool hessian) {
         }
         if (gb >= 0) {
             const Glued& g = glued_[static_cast<std::size_t>(gb)];
-            jb = jacobian(g);
+            jb = glueJacobian(g);
             ns.rhs[g.node] -= jb.transpose() * force;
             pull_[static_cast<std::size_t>(gb)] -= force;
             if (hessian) {
@@ -166,13 +165,7 @@ void StringIslandMember::assembleGlue(bool hessian) {
             }
         }
         if (hessian && ga >= 0 && gb >= 0) {
-            const std::size_t na = glued_[static_cast<std::size_t>(ga)].node, nb = glued_[static_cast<std::size_t>(gb)].node;
-            const Mat6 block = -ja.transpose() * hess * jb;
-            if (na == nb) {
-                ns.diag[na] += block + block.transpose();
-            } else {
-                cross_.push_back({na, nb, block});
-            }
+            addCross(glued_[static_cast<std::size_t>(ga)].node, glued_[static_cast<std::size_t>(gb)].node, -ja.transpose() * hess * jb);
         }
     }
 }

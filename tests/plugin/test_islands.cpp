@@ -438,7 +438,6 @@ TEST(Islands, HingeLimitStopsAFallingBoard) {
     phys.world->removeConstraint(&hinge);
 }
 
-
 namespace {
 /// A 5 kg crate (friction mu against a board of friction 1: Bullet's combined friction is
 /// their product) on a 1.5 kg board hung level from two parallel 1 m ropes, with gravity

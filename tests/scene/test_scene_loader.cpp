@@ -743,6 +743,8 @@ const ErrorCase kErrorCases[] = {
      "drivers[0].every", "must be in (0, "},
     {"ShootEveryTooMany", driverScene(R"({"type": "shoot", "ray": {"from": [0, 0, 0], "to": [1, 0, 0]}, "impulse": 1, "every": 1e-6, "until": 1})"),
      "drivers[0].every", "more than 100000 shots"},
+    {"ShootHasNoTarget", driverScene(R"({"type": "shoot", "target": "rope", "ray": {"from": [0, 0, 0], "to": [1, 0, 0]}, "impulse": 1, "times": [1]})"),
+     "drivers[0].target", "unknown field"},
     // --- joints
     {"JointUnknownType", jointScene(R"({"type": "slider", "body": "b", "pivot": [0, 1, 0]})"), "joints[0].type",
      "must be \"ball\" or \"hinge\" (got \"slider\")"},
@@ -762,8 +764,6 @@ const ErrorCase kErrorCases[] = {
      "joints[0].limits", "lower <= upper"},
     {"JointLimitPastPi", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 1], "limits": [-4, 0]})"),
      "joints[0].limits[0]", "must be in"},
-    {"ShootHasNoTarget", driverScene(R"({"type": "shoot", "target": "rope", "ray": {"from": [0, 0, 0], "to": [1, 0, 0]}, "impulse": 1, "times": [1]})"),
-     "drivers[0].target", "unknown field"},
 };
 
 INSTANTIATE_TEST_SUITE_P(SceneLoader, SceneErrors, ::testing::ValuesIn(kErrorCases),
