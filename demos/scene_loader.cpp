@@ -1033,21 +1033,17 @@ Cloth parseCloth(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     if (const auto list = n.field("attachments")) {
         const std::size_t vertices = static_cast<std::size_t>(d.resolution[0]) * static_cast<std::size_t>(d.resolution[1]);
         for (const SheetHold& h : parseSheetAttachments(*list, true, d.resolution[0], d.resolution[1], vertices, "cloth", bodies)) {
-            const int i = static_cast<int>(h.vertex % static_cast<std::uint32_t>(d.resolution[0]));
-            const int j = static_cast<int>(h.vertex / static_cast<std::uint32_t>(d.resolution[0]));
             if (h.body) {
-                ClothAttachment att;
-                att.i = i;
-                att.j = j;
-                att.body = *h.body;
-                att.local = h.local;
-                c.attachments.push_back(att);
+                SheetGlue g;
+                g.vertex = h.vertex;
+                g.body = *h.body;
+                g.local = h.local;
+                c.glue.push_back(g);
             } else {
-                ClothPin pin;
-                pin.i = i;
-                pin.j = j;
+                SheetAttachment pin;
+                pin.vertex = static_cast<int>(h.vertex);
                 pin.world = h.world;
-                d.pins.push_back(pin);
+                d.attachments.push_back(pin);
             }
         }
     }
@@ -1145,14 +1141,14 @@ Paper parsePaper(const Node& n, std::uint64_t seed, const NameMap& bodies) {
     if (const auto list = n.field("attachments")) {
         for (const SheetHold& h : parseSheetAttachments(*list, d.vertices.empty(), d.resolution[0], d.resolution[1], vertices, "sheet", bodies)) {
             if (h.body) {
-                PaperGlue g;
+                SheetGlue g;
                 g.vertex = h.vertex;
                 g.body = *h.body;
                 g.local = h.local;
                 p.glue.push_back(g);
             } else {
-                PaperAttachment pin;
-                pin.vertex = h.vertex;
+                SheetAttachment pin;
+                pin.vertex = static_cast<int>(h.vertex);
                 pin.world = h.world;
                 d.attachments.push_back(pin);
             }

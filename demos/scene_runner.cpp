@@ -475,7 +475,7 @@ SceneRun::Impl::Impl(const Scene& scene_in, const RunOptions& options_in)
         if (drv.type == Driver::Type::Move && drv.paper_vertex >= 0)
             for (const Paper& p : scene.papers)
                 if (p.desc.name == drv.target)
-                    for (const PaperGlue& g : p.glue)
+                    for (const SheetGlue& g : p.glue)
                         if (static_cast<int>(g.vertex) == drv.paper_vertex)
                             throw InvalidInput(path + ".vertex", "is glued to body \"" + g.body + "\" and cannot be moved");
         if (drv.type == Driver::Type::Move)
@@ -519,13 +519,12 @@ SceneRun::Impl::Impl(const Scene& scene_in, const RunOptions& options_in)
         const std::string path = "cloths[" + std::to_string(i) + "]";
         try {
             cloth_ids.push_back(ropes->addCloth(c.desc, c.collision_group, c.collision_mask));
-            for (const ClothAttachment& a : c.attachments) {
+            for (const SheetGlue& g : c.glue) {
                 // Without local: glued where the vertex is, in the body's frame.
-                btRigidBody* body = bs.by_name.at(a.body);
-                const int v = c.desc.vertex(a.i, a.j);
-                const btVector3 at = toBullet((*ropes->core().viewCloth(cloth_ids.back()).positions)[static_cast<std::size_t>(v)]);
-                const btVector3 local = a.local ? toBullet(*a.local) : body->getCenterOfMassTransform().inverse() * at;
-                ropes->attachCloth(cloth_ids.back(), v, *body, local);
+                btRigidBody* body = bs.by_name.at(g.body);
+                const btVector3 at = toBullet((*ropes->core().viewCloth(cloth_ids.back()).positions)[g.vertex]);
+                const btVector3 local = g.local ? toBullet(*g.local) : body->getCenterOfMassTransform().inverse() * at;
+                ropes->attachCloth(cloth_ids.back(), static_cast<int>(g.vertex), *body, local);
             }
         } catch (const InvalidInput& e) {
             throw InvalidInput(path + "." + e.field(), e.problem());
@@ -536,7 +535,7 @@ SceneRun::Impl::Impl(const Scene& scene_in, const RunOptions& options_in)
         const std::string path = "papers[" + std::to_string(i) + "]";
         try {
             paper_ids.push_back(ropes->addPaper(p.desc, p.collision_group, p.collision_mask));
-            for (const PaperGlue& g : p.glue) {
+            for (const SheetGlue& g : p.glue) {
                 btRigidBody* body = bs.by_name.at(g.body);
                 // Default: glued where the vertex is, in the body's frame.
                 const btVector3 at = tearables::toBullet((*ropes->core().viewPaper(paper_ids.back()).positions)[g.vertex]);
@@ -594,8 +593,8 @@ void SceneRun::Impl::advance() {
                         } catch (const InvalidInput&) {  // not pinned yet: pinned where it is, then moved
                             const bool glued = std::any_of(scene.cloths.begin(), scene.cloths.end(), [&](const Cloth& c) {
                                 return c.desc.name == drv.target &&
-                                       std::any_of(c.attachments.begin(), c.attachments.end(), [&](const ClothAttachment& a) {
-                                           return c.desc.vertex(a.i, a.j) == drv.particle;
+                                       std::any_of(c.glue.begin(), c.glue.end(), [&](const SheetGlue& g) {
+                                           return static_cast<int>(g.vertex) == drv.particle;
                                        });
                             });
                             if (glued)

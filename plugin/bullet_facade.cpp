@@ -63,6 +63,7 @@ ClothId BulletWorld::addCloth(const ClothDesc& desc) { return impl_->addCloth(de
 ClothId BulletWorld::addCloth(const ClothDesc& desc, int group, int mask) { return impl_->addCloth(desc, group, mask); }
 void BulletWorld::removeCloth(ClothId id) { impl_->removeCloth(id); }
 void BulletWorld::attachCloth(ClothId id, int vertex, const btVector3& world_point) { impl_->attachCloth(id, vertex, world_point); }
+RigidId BulletWorld::bodyId(btRigidBody& body) { return impl_->bodyId(body); }
 void BulletWorld::attachCloth(ClothId id, int vertex, btRigidBody& body, const btVector3& local_point) {
     impl_->attachCloth(id, vertex, body, local_point);
 }

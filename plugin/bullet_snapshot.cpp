@@ -78,6 +78,7 @@ void BulletWorld::Impl::loadSnapshot(std::istream& in, const std::vector<btRigid
     if (at != map->payload.size()) throw SnapshotError(where, "bytes left over at the end of the section");
     snapshot.restore(*core_);
     proxies_ = std::move(proxies);
+    named_.clear();  // the snapshot's ids name the bodies now: ask bodyId() again
     candidates_.clear();
     mesh_candidates_.clear();
     events_.clear();

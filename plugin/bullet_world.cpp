@@ -964,6 +964,7 @@ void BulletWorld::Impl::dropBodiesIfDetached() {
     if (attachedToBullet()) return;
     for (const auto& [body, id] : proxies_) core_->removeRigid(id);
     proxies_.clear();
+    named_.clear();
     candidates_.clear();
     mesh_candidates_.clear();
     removeRopeObjectsFromWorld();  // those still in a world that lost only the sentinel
@@ -1160,7 +1161,15 @@ void BulletWorld::Impl::forgetBody(const btRigidBody& body) {
     auto it = proxies_.find(&body);
     if (it == proxies_.end()) return;
     core_->removeRigid(it->second);
+    named_.erase(it->first);
     proxies_.erase(it);
+}
+
+RigidId BulletWorld::Impl::bodyId(btRigidBody& body) {
+    if (!body.getBroadphaseHandle()) throw InvalidInput("body", "is not in the Bullet world");
+    const RigidId id = proxyFor(body);
+    named_.insert(&body);
+    return id;
 }
 
 bool BulletWorld::Impl::isCandidate(const btRigidBody* body) const {
@@ -1373,10 +1382,11 @@ void BulletWorld::Impl::substep(double h, int tick, int ticks) {
             btRigidBody* body = const_cast<btRigidBody*>(it->first);
             if (!std::binary_search(in_world_.begin(), in_world_.end(), static_cast<const btCollisionObject*>(body))) {
                 core_->removeRigid(it->second);
+                named_.erase(it->first);
                 it = proxies_.erase(it);
                 continue;
             }
-            if (!core_->rigidInUse(it->second) && !isCandidate(body) &&
+            if (!core_->rigidInUse(it->second) && !isCandidate(body) && named_.count(body) == 0 &&
                 !std::binary_search(claimed_.begin(), claimed_.end(), body)) {  // nothing holds, touches or claims it
                 core_->removeRigid(it->second);
                 it = proxies_.erase(it);

@@ -15,6 +15,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -46,6 +47,7 @@ struct BulletWorld::Impl {
     void attachCloth(ClothId id, int vertex, const btVector3& world_point);
     void attachCloth(ClothId id, int vertex, btRigidBody& body, const btVector3& local_point);
     void forgetBody(const btRigidBody& body);
+    RigidId bodyId(btRigidBody& body);
     void setUserPointer(StringId id, void* user);
     void setUserPointer(ClothId id, void* user);
     void setUserPointer(PaperId id, void* user);
@@ -150,6 +152,7 @@ struct BulletWorld::Impl {
     std::unique_ptr<Action> action_;
     std::unique_ptr<Contacts> contacts_;
     std::map<const btRigidBody*, RigidId> proxies_;  // ordered: deterministic iteration
+    std::set<const btRigidBody*> named_;  // bodies given to bodyId(): their proxies stay while they are in the world
     std::map<std::uint32_t, std::vector<btRigidBody*>> candidates_;  // per string: bodies near it this step
     std::vector<btRigidBody*> mesh_candidates_;  // bodies near some mesh object this step (sorted)
     std::vector<const btCollisionObject*> in_world_;  // scratch: the Bullet world's objects, sorted

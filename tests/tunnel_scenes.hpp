@@ -97,7 +97,7 @@ inline Outcome fire(const Shot& shot, std::FILE* trace = nullptr) {
         for (int k = 0; k < d.resolution[1]; ++k)
             for (int i = 0; i < d.resolution[0]; ++i)
                 if (i == 0 || k == 0 || i == d.resolution[0] - 1 || k == d.resolution[1] - 1)
-                    d.attachments.push_back(PaperAttachment{static_cast<std::uint32_t>(d.gridVertex(i, k)), {}, Vec3::Zero(), {}});
+                    d.attachments.push_back(PaperAttachment{static_cast<int>(d.gridVertex(i, k)), {}, Vec3::Zero(), {}});
         paper = world.addPaper(d);
     } else {
         ClothDesc d;
@@ -109,10 +109,9 @@ inline Outcome fire(const Shot& shot, std::FILE* trace = nullptr) {
         for (int j = 0; j < 21; ++j)
             for (int i = 0; i < 21; ++i)
                 if (i == 0 || j == 0 || i == 20 || j == 20) {
-                    ClothPin pin;
-                    pin.i = i;
-                    pin.j = j;
-                    d.pins.push_back(pin);
+                    SheetAttachment pin;
+                    pin.vertex = d.vertex(i, j);
+                    d.attachments.push_back(pin);
                 }
         cloth = world.addCloth(d);
     }

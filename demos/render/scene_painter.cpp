@@ -65,19 +65,21 @@ void drawWorldPins(Renderer& renderer, const scene::Scene& scene, const scene::F
     for (std::size_t k = 0; k < scene.cloths.size() && k < frame.cloths.size(); ++k) {
         const ClothDesc& d = scene.cloths[k].desc;
         const ClothView& v = frame.cloths[k].view;
-        const int nu = v.resolution[0], nv = v.resolution[1];
-        for (const ClothPin& pin : d.pins) {
-            const int i = pin.i < 0 ? nu + pin.i : pin.i, j = pin.j < 0 ? nv + pin.j : pin.j;
-            const std::size_t index = static_cast<std::size_t>(j) * static_cast<std::size_t>(nu) + static_cast<std::size_t>(i);
-            if (i < 0 || j < 0 || i >= nu || j >= nv || index >= v.vertexCount()) continue;
-            mark(pin.world ? *pin.world : (*v.positions)[index], d.yarn_radius);
+        for (const SheetAttachment& a : d.attachments) {
+            const int n = static_cast<int>(v.vertexCount());
+            const int index = a.vertex < 0 ? a.vertex + n : a.vertex;
+            if (!a.body.valid() && index >= 0 && index < n) mark(a.world.value_or((*v.positions)[static_cast<std::size_t>(index)]), d.yarn_radius);
         }
     }
     for (std::size_t k = 0; k < scene.papers.size() && k < frame.papers.size(); ++k) {
         const PaperView& v = frame.papers[k].view;
-        for (const PaperAttachment& a : scene.papers[k].desc.attachments)
-            if (!a.body.valid() && a.vertex < v.positions->size())
-                mark(a.world.value_or((*v.positions)[a.vertex]), scene.papers[k].desc.thickness);
+        const PaperDesc& d = scene.papers[k].desc;  // negative indices count from the end of its vertices at creation
+        const int n = d.vertices.empty() ? d.resolution[0] * d.resolution[1] : static_cast<int>(d.vertices.size());
+        for (const SheetAttachment& a : d.attachments) {
+            const int index = a.vertex < 0 ? a.vertex + n : a.vertex;
+            if (!a.body.valid() && index >= 0 && index < n && static_cast<std::size_t>(index) < v.vertexCount())
+                mark(a.world.value_or((*v.positions)[static_cast<std::size_t>(index)]), d.thickness);
+        }
     }
 }
 

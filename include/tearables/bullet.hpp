@@ -198,6 +198,12 @@ public:
     void attachCloth(ClothId id, int vertex, const btVector3& world_point);
     /// Glues a cloth vertex to a rigid body at a point in the body's frame; two-way.
     void attachCloth(ClothId id, int vertex, btRigidBody& body, const btVector3& local_point);
+    /// The id that names `body` in a descriptor's attachments (ClothDesc::attachments,
+    /// PaperDesc::attachments: SheetAttachment::body), so that a cloth or sheet is glued to it
+    /// at creation, two-way, as attachCloth()/attachPaper() glue a vertex later. The same id
+    /// while the body stays in this Bullet world, until forgetBody() or loadSnapshot(). Throws
+    /// InvalidInput("body") when the body is not in the Bullet world.
+    RigidId bodyId(btRigidBody& body);
     /// Drops every attachment to `body` now (call before deleting a body strings hold).
     void forgetBody(const btRigidBody& body);
 

@@ -11,6 +11,7 @@
 #pragma once
 
 #include "tearables/material.hpp"
+#include "tearables/sheet_attachment.hpp"
 #include "tearables/types.hpp"
 
 #include <array>
@@ -20,14 +21,6 @@
 #include <vector>
 
 namespace tearables {
-
-/// A vertex of the weave pinned to a world point at creation (the words of a paper sheet's
-/// PaperAttachment without a body).
-struct ClothPin {
-    int i = 0;                  ///< column (along local x), negative counts from the end (-1 = last)
-    int j = 0;                  ///< row (along local z), negative counts from the end
-    std::optional<Vec3> world;  ///< the world point, m, each coordinate in [-1e6, 1e6]; default: where the vertex starts
-};
 
 /// Which yarn an edge belongs to.
 enum class YarnKind : std::uint8_t {
@@ -84,7 +77,9 @@ struct ClothDesc {
     /// after less plastic lengthening.
     double plastic_time = 0.0;
     bool tearable = true;                 ///< yarns break where their stress reaches rupture
-    std::vector<ClothPin> pins;           ///< vertices pinned to world points at creation (at most one per vertex)
+    /// Vertices glued to rigid bodies or pinned to world points at creation (at most one per
+    /// vertex; `vertex` is the flat index above, negative counts from the end).
+    std::vector<SheetAttachment> attachments;
     std::vector<ClothWeakYarn> weak_yarns;///< yarns weaker than `material` (at most one entry per yarn)
     std::uint64_t seed = 1;               ///< seeds the per-edge material variation
 

@@ -5,6 +5,7 @@
 // is stretched past its rupture point.
 #pragma once
 
+#include "tearables/sheet_attachment.hpp"
 #include "tearables/types.hpp"
 
 #include <array>
@@ -15,13 +16,8 @@
 
 namespace tearables {
 
-/// What holds a vertex of a sheet at creation.
-struct PaperAttachment {
-    std::uint32_t vertex = 0;          ///< vertex index, < vertex count
-    RigidId body;                      ///< glued to this rigid body proxy, or (invalid) pinned in the world
-    Vec3 local = Vec3::Zero();         ///< with body: the point in the body's frame, m
-    std::optional<Vec3> world;         ///< without body: the world point, m (default: where the vertex is)
-};
+/// What holds a vertex of a sheet at creation: the same as a cloth's (tearables/sheet_attachment.hpp).
+using PaperAttachment = SheetAttachment;
 
 /// How the sheet's stiff springs are integrated.
 enum class PaperIntegrator {
@@ -93,7 +89,9 @@ struct PaperDesc {
     double thickness = 1e-3;             ///< m, (0, 1]: vertices collide with rigid bodies as spheres of half this
     double friction = 0.5;               ///< Coulomb coefficient against rigid bodies, [0, 100] (combined with the body's: max)
     std::uint64_t seed = 1;              ///< seeds the sheet's random generator (breaking)
-    std::vector<PaperAttachment> attachments;  ///< at most one per vertex
+    /// Vertices glued to rigid bodies or pinned to world points at creation (at most one per
+    /// vertex; `vertex` is gridVertex(i, k) or a mesh's index, negative counts from the end).
+    std::vector<SheetAttachment> attachments;
 
     /// Vertex index of the rectangle's grid point (i along x, k along z).
     int gridVertex(int i, int k) const { return k * resolution[0] + i; }

@@ -86,32 +86,27 @@ struct String {
     std::string geometry_field = "segments";  ///< the field that gave the particles: "segments" or "points" (for messages)
 };
 
-/// What holds a cloth's vertex (pins to world points are in ClothDesc::pins).
-struct ClothAttachment {
-    int i = 0, j = 0;                  ///< the vertex, resolved to [0, resolution)
+/// A vertex of a cloth or a paper sheet glued to a body of the scene (pins to world points
+/// are in ClothDesc::attachments and PaperDesc::attachments: a scene names its bodies, which
+/// exist only once the scene runs).
+struct SheetGlue {
+    std::uint32_t vertex = 0;          ///< resolved flat vertex index
     std::string body;                  ///< the body's name (must exist)
     std::optional<Vec3> local;         ///< point in the body's frame, m; default: where the vertex is
 };
 
 /// A cloth of the scene.
 struct Cloth {
-    ClothDesc desc;                          ///< name, weave, material, pins, ... (name unique among strings and cloths)
-    std::vector<ClothAttachment> attachments;///< vertices glued to bodies
+    ClothDesc desc;                          ///< name, weave, material, world pins, ... (name unique among strings and cloths)
+    std::vector<SheetGlue> glue;             ///< vertices glued to bodies
     int collision_group = 1;              ///< Bullet's collision filter (as addSoftBody): btBroadphaseProxy::DefaultFilter
     int collision_mask = -1;              ///< AllFilter: touches every body whose mask has its group
-};
-
-/// A vertex of a paper sheet glued to a body (world pins are in PaperDesc::attachments).
-struct PaperGlue {
-    std::uint32_t vertex = 0;          ///< resolved vertex index
-    std::string body;                  ///< the body's name (must exist)
-    std::optional<Vec3> local;         ///< point in the body's frame, m; default: where the vertex is
 };
 
 /// A paper sheet of the scene.
 struct Paper {
     PaperDesc desc;                    ///< name (unique among papers, non-empty), mesh, material, world pins
-    std::vector<PaperGlue> glue;       ///< vertices glued to bodies
+    std::vector<SheetGlue> glue;       ///< vertices glued to bodies
     int collision_group = 1;              ///< Bullet's collision filter (as addSoftBody): btBroadphaseProxy::DefaultFilter
     int collision_mask = -1;              ///< AllFilter: touches every body whose mask has its group
 };

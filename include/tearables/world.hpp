@@ -342,7 +342,9 @@ public:
     int resolveParticle(StringId id, int particle) const;
 
     // --- cloths (cloth.hpp; src/cloth/) ----------------------------------------------------
-    /// Validates and creates a cloth. Throws InvalidInput naming the field; nothing is created then.
+    /// Validates and creates a cloth, its attachments held from the start (a glued vertex
+    /// placed at its body's point). Throws InvalidInput naming the field (attachments[k].body:
+    /// no such rigid body); nothing is created then.
     ClothId addCloth(const ClothDesc& desc);
     /// Removes a cloth; its id becomes invalid.
     void removeCloth(ClothId id);

@@ -190,10 +190,22 @@ const std::vector<std::uint32_t>& clothEdgeOrder(ClothState& c);
 /// Exposed for tests and benchmarks.
 void solveTensionLeastSquares(ClothState& c);
 
+/// Glues vertex `p` to `body` (in state `b`) at `local` in the body's frame and moves it
+/// there: a glue from the descriptor at creation and World::attachClothToRigid alike.
+inline void glueVertex(ClothState& c, std::size_t p, RigidId body, const RigidState& b, const Vec3& local) {
+    c.hold[p].kind = ParticleHold::Kind::Glue;
+    c.hold[p].point = local;
+    c.hold[p].body = body;
+    c.x[p] = gluePoint(b, local);
+}
+
 /// The cloths of a world: created, stepped and viewed through World.
 class ClothSystem {
 public:
-    ClothId add(const ClothDesc& desc);
+    /// Validates `desc` and its attachments' bodies against `rigids`, creates the cloth and
+    /// glues the vertices its attachments glue. Throws InvalidInput naming the field; nothing
+    /// is created then.
+    ClothId add(const ClothDesc& desc, const RigidTable& rigids);
     void remove(ClothId id);
     ClothState& get(ClothId id);
     const ClothState& get(ClothId id) const;

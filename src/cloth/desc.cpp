@@ -1,5 +1,6 @@
 // ClothDesc validation: check at creation, so the hot loop can assume.
 #include "base/validate.hpp"
+#include "sim/sheet_attachments.hpp"
 #include "sim/validate_material.hpp"
 #include "tearables/cloth.hpp"
 
@@ -16,6 +17,7 @@ using detail::requireFinite;
 using detail::requirePositive;
 using detail::requireRange;
 using detail::requirePosition;
+using detail::resolveSheetAttachments;
 
 int resolveAxis(int k, int count, const std::string& field) {
     if (k < -count || k >= count)
@@ -61,16 +63,7 @@ void validate(const ClothDesc& d) {
     requireRange("bending_stiffness", d.bending_stiffness, 0.0, 1e9);
     requireRange("damping", d.damping, 0.0, 1e3);
     requireRange("plastic_time", d.plastic_time, 0.0, 10.0);
-    std::set<int> taken;
-    for (std::size_t k = 0; k < d.pins.size(); ++k) {
-        const std::string f = "pins[" + std::to_string(k) + "]";
-        const ClothPin& p = d.pins[k];
-        const int a = resolveAxis(p.i, d.resolution[0], f + ".i");
-        const int b = resolveAxis(p.j, d.resolution[1], f + ".j");
-        if (!taken.insert(b * d.resolution[0] + a).second)
-            throw InvalidInput(f, "vertex (" + std::to_string(a) + ", " + std::to_string(b) + ") is already pinned");
-        if (p.world) requirePosition(f + ".world", *p.world);
-    }
+    resolveSheetAttachments(d.attachments, static_cast<std::size_t>(d.vertexCount()), "cloth");
     std::set<std::pair<int, int>> weak;  // (kind, flat index of the first vertex)
     for (std::size_t k = 0; k < d.weak_yarns.size(); ++k) {
         const std::string f = "weak_yarns[" + std::to_string(k) + "]";

@@ -2,6 +2,7 @@
 // and per-edge material; and the prediction stage.
 #include "base/constants.hpp"
 #include "cloth/cloth_state.hpp"
+#include "sim/sheet_attachments.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -135,10 +136,14 @@ ClothState makeCloth(const ClothDesc& desc) {
     for (std::size_t e = 0; e < m; ++e)
         for (std::uint32_t p : c.edges[e]) c.vertex_edges[p].push_back(static_cast<std::uint32_t>(e));
 
-    for (const ClothPin& pin : desc.pins) {
-        const int p = desc.vertex(pin.i, pin.j);
+    // World pins; glues to bodies are set by ClothSystem::add, which has the bodies.
+    const std::vector<std::size_t> held = resolveSheetAttachments(desc.attachments, n, "cloth");
+    for (std::size_t k = 0; k < held.size(); ++k) {
+        const SheetAttachment& a = desc.attachments[k];
+        if (a.body.valid()) continue;
+        const std::size_t p = held[k];
         c.hold[p].kind = ParticleHold::Kind::Pin;
-        c.hold[p].point = pin.world ? *pin.world : c.x[p];
+        c.hold[p].point = a.world ? *a.world : c.x[p];
         c.x[p] = c.x_prev[p] = c.x_pred[p] = c.hold[p].point;
     }
 

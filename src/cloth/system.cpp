@@ -6,6 +6,7 @@
 
 #include "base/stage_timer.hpp"
 #include "base/validate.hpp"
+#include "sim/sheet_attachments.hpp"
 #include "sim/freeze.hpp"
 
 #include <algorithm>
@@ -13,9 +14,15 @@
 
 namespace tearables::detail {
 
-ClothId ClothSystem::add(const ClothDesc& desc) {
+ClothId ClothSystem::add(const ClothDesc& desc, const RigidTable& rigids) {
     validate(desc);
-    ClothState state = makeCloth(desc);
+    checkSheetAttachmentBodies(desc.attachments, rigids);
+    ClothState state = makeCloth(desc);  // with the world pins
+    const std::vector<std::size_t> held = resolveSheetAttachments(desc.attachments, state.vertices(), "cloth");
+    for (std::size_t k = 0; k < held.size(); ++k) {
+        const SheetAttachment& a = desc.attachments[k];
+        if (a.body.valid()) glueVertex(state, held[k], a.body, rigids.bodies[a.body.index], a.local);
+    }
     for (std::size_t i = 0; i < cloths_.size(); ++i)
         if (!cloths_[i].alive) {
             state.generation = cloths_[i].generation;

@@ -3,6 +3,7 @@
 #include "paper/sheet.hpp"
 
 #include "base/validate.hpp"
+#include "sim/sheet_attachments.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -77,17 +78,7 @@ void validate(const PaperDesc& d) {
     if (!std::isfinite(d.thickness) || !(d.thickness > 0.0) || d.thickness > 1.0) throw InvalidInput("thickness", "must be in (0, 1] m");
     requireRange(d.friction, 0.0, 100.0, "friction", "[0, 100]");
     const std::size_t n = d.vertices.empty() ? static_cast<std::size_t>(d.resolution[0]) * d.resolution[1] : d.vertices.size();
-    std::vector<std::uint8_t> held(n, 0);
-    for (std::size_t i = 0; i < d.attachments.size(); ++i) {
-        const PaperAttachment& a = d.attachments[i];
-        const std::string field = "attachments[" + std::to_string(i) + "]";
-        if (a.vertex >= n) throw InvalidInput(field + ".vertex", "out of range (the sheet has " + std::to_string(n) + " vertices)");
-        if (held[a.vertex]) throw InvalidInput(field + ".vertex", "is attached twice");
-        held[a.vertex] = 1;
-        if (a.body.valid() && a.world) throw InvalidInput(field, "give a body or a world point, not both");
-        if (a.world) detail::requirePosition(field + ".world", *a.world);
-        detail::requirePosition(field + ".local", a.local);
-    }
+    detail::resolveSheetAttachments(d.attachments, n, "sheet");
 }
 
 namespace detail {

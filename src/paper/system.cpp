@@ -10,6 +10,7 @@
 #include "base/validate.hpp"
 #include "sim/freeze.hpp"
 #include "sim/rigid_table.hpp"
+#include "sim/sheet_attachments.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -34,20 +35,22 @@ void checkBody(const RigidTable& rigids, RigidId body, const std::string& field)
 
 PaperId PaperSystem::add(const PaperDesc& desc, const RigidTable& rigids) {
     validate(desc);
-    for (std::size_t i = 0; i < desc.attachments.size(); ++i)
-        if (desc.attachments[i].body.valid()) checkBody(rigids, desc.attachments[i].body, "attachments[" + std::to_string(i) + "].body");
+    checkSheetAttachmentBodies(desc.attachments, rigids);
     PaperSheet s = buildSheet(desc);
-    for (const PaperAttachment& a : desc.attachments) {
-        ParticleHold& hold = s.hold[a.vertex];
+    const std::vector<std::size_t> held = resolveSheetAttachments(desc.attachments, s.vertices(), "sheet");
+    for (std::size_t k = 0; k < held.size(); ++k) {
+        const SheetAttachment& a = desc.attachments[k];
+        const std::size_t p = held[k];
+        ParticleHold& hold = s.hold[p];
         if (a.body.valid()) {
             hold.kind = ParticleHold::Kind::Glue;
             hold.body = a.body;
             hold.point = a.local;
-            s.x[a.vertex] = gluePoint(rigids.bodies[a.body.index], a.local);
+            s.x[p] = gluePoint(rigids.bodies[a.body.index], a.local);
         } else {
             hold.kind = ParticleHold::Kind::Pin;
-            hold.point = a.world ? *a.world : s.x[a.vertex];
-            s.x[a.vertex] = hold.point;
+            hold.point = a.world ? *a.world : s.x[p];
+            s.x[p] = hold.point;
         }
     }
     s.x_pred = s.x;

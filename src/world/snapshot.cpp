@@ -337,11 +337,13 @@ void io(A& a, Event& e) {
     io(a, e.depth);
 }
 // Cloths (src/cloth/cloth_state.hpp).
+// The attachments a cloth or a sheet is created with (tearables/sheet_attachment.hpp).
 template <class A>
-void io(A& a, ClothPin& p) {
-    io(a, p.i);
-    io(a, p.j);
-    io(a, p.world);
+void io(A& a, SheetAttachment& t) {
+    io(a, t.vertex);
+    io(a, t.body);
+    io(a, t.local);
+    io(a, t.world);
 }
 template <class A>
 void io(A& a, YarnKind& k) {
@@ -363,13 +365,6 @@ void io(A& a, detail::SoftSpring& s) {
     io(a, s.alive);
 }
 // Paper sheets (src/paper/sheet.hpp).
-template <class A>
-void io(A& a, PaperAttachment& t) {
-    io(a, t.vertex);
-    io(a, t.body);
-    io(a, t.local);
-    io(a, t.world);
-}
 template <class A>
 void io(A& a, PaperSpring& sp) {
     io(a, sp.a);
@@ -485,7 +480,7 @@ void io(A& a, ClothDesc& d) {
     io(a, d.damping);
     io(a, d.plastic_time);
     io(a, d.tearable);
-    io(a, d.pins);
+    io(a, d.attachments);
     io(a, d.weak_yarns);
     io(a, d.seed);
 }

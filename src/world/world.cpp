@@ -402,6 +402,7 @@ const std::vector<Event>& World::events() const { return impl_->events; }
 
 // Paper sheets: forwarded to the paper system (src/paper/system.cpp).
 PaperId World::addPaper(const PaperDesc& desc) { return impl_->papers.add(desc, impl_->rigids); }
+ClothId World::addCloth(const ClothDesc& desc) { return impl_->cloths.add(desc, impl_->rigids); }
 void World::removePaper(PaperId id) { impl_->papers.remove(id); }
 std::vector<PaperId> World::papers() const { return impl_->papers.ids(); }
 bool World::contains(PaperId id) const { return impl_->papers.contains(id); }

@@ -16,7 +16,6 @@ std::size_t resolveVertex(const detail::ClothState& c, int vertex) {
 
 }  // namespace
 
-ClothId World::addCloth(const ClothDesc& desc) { return clothSystem().add(desc); }
 void World::removeCloth(ClothId id) { clothSystem().remove(id); }
 std::vector<ClothId> World::cloths() const { return clothSystem().ids(); }
 bool World::contains(ClothId id) const { return clothSystem().contains(id); }
@@ -58,10 +57,7 @@ void World::attachClothToRigid(ClothId id, int vertex, RigidId body, const Vec3&
     const std::size_t p = resolveVertex(c, vertex);
     const RigidState& b = rigid(body);  // throws for an unknown body
     detail::requirePosition("local", local_point);
-    c.hold[p].kind = detail::ParticleHold::Kind::Glue;
-    c.hold[p].point = local_point;
-    c.hold[p].body = body;
-    c.x[p] = detail::gluePoint(b, local_point);
+    detail::glueVertex(c, p, body, b, local_point);
 }
 
 void World::moveClothPin(ClothId id, int vertex, const Vec3& point) {

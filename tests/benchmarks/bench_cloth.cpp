@@ -22,7 +22,7 @@ tearables::detail::ClothState drapedCloth(int n) {
     d.corner = tearables::Vec3(0.0, 1.0, 0.0);
     d.resolution = {n, n};
     d.size = {0.01 * (n - 1), 0.01 * (n - 1)};
-    for (int i = 0; i < n; ++i) d.pins.push_back({i, 0});
+    for (int i = 0; i < n; ++i) d.attachments.push_back({d.vertex(i, 0)});
     tearables::detail::ClothState c = tearables::detail::makeCloth(d);
     const double radius = 0.5 * d.size[1];
     for (std::size_t p = 0; p < c.vertices(); ++p) {  // bend the weft (along z) into an arc
@@ -72,7 +72,7 @@ void BM_ClothStep(benchmark::State& state) {
     d.corner = tearables::Vec3(0.0, 1.0, 0.0);
     d.resolution = {n, n};
     d.size = {0.01 * (n - 1), 0.01 * (n - 1)};
-    d.pins = {{0, 0}, {-1, 0}};
+    d.attachments = {{d.vertex(0, 0)}, {d.vertex(-1, 0)}};
     const tearables::ClothId id = world.addCloth(d);
     for (int i = 0; i < 20; ++i) world.step(0.01);
     const auto parts = tearables::detail::WorldAccess::parts(world);

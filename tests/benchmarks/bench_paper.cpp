@@ -35,7 +35,7 @@ void paperStep(benchmark::State& state, bool breakable, tearables::PaperTension 
     d.solver = solver;
     d.tolerance = tolerance;
     d.attachments.push_back(tearables::PaperAttachment{0, {}, tearables::Vec3::Zero(), {}});
-    d.attachments.push_back(tearables::PaperAttachment{static_cast<std::uint32_t>(n - 1), {}, tearables::Vec3::Zero(), {}});
+    d.attachments.push_back(tearables::PaperAttachment{static_cast<int>(n - 1), {}, tearables::Vec3::Zero(), {}});
     const auto id = world.addPaper(d);
     for (int i = 0; i < 30; ++i) world.step(1.0 / 60.0);  // falling and swinging
     const auto parts = tearables::detail::WorldAccess::parts(world);

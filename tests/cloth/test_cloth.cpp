@@ -46,7 +46,7 @@ ClothDesc yarn(int n, double length) {
     d.density = 1150.0;
     d.yarn_radius = 5e-4;
     d.material.variation = 0.0;
-    d.pins = {{0, 0}};
+    d.attachments = {{0}};
     return d;
 }
 
@@ -113,7 +113,7 @@ TEST(ClothTension, RefinementReachesItsTolerance) {
     d.corner = Vec3(0.0, 1.0, 0.0);
     d.resolution = {n, n};
     d.size = {0.01 * (n - 1), 0.01 * (n - 1)};
-    for (int i = 0; i < n; ++i) d.pins.push_back({i, 0});
+    for (int i = 0; i < n; ++i) d.attachments.push_back({d.vertex(i, 0)});
     tearables::detail::ClothState c = tearables::detail::makeCloth(d);
     const double radius = 0.5 * d.size[1];
     for (std::size_t p = 0; p < c.vertices(); ++p) {  // bend the weft into an arc of its own length
@@ -306,7 +306,7 @@ void hangFromTwoCorners(bool lump) {
     World world;
     ClothDesc d = square(8, 0.4);
     d.damping = 8.0;
-    d.pins = {{0, 0}, {-1, 0}};
+    d.attachments = {{d.vertex(0, 0)}, {d.vertex(-1, 0)}};
     const ClothId id = world.addCloth(d);
     double speed = 1.0;
     int steps = 0;
@@ -365,7 +365,7 @@ TEST(ClothStrain, SwingingClothSolveEndsNearItsMinimum) {
     d.corner = Vec3(0.0, 1.0, 0.0);
     d.resolution = {20, 20};
     d.size = {0.19, 0.19};
-    d.pins = {{0, 0}, {-1, 0}};
+    d.attachments = {{d.vertex(0, 0)}, {d.vertex(-1, 0)}};
     world.addCloth(d);
     const auto parts = tearables::detail::WorldAccess::parts(world);
     std::vector<double> moves;
@@ -402,7 +402,7 @@ TEST(ClothStrain, PreconditionerBoundsTheHessian) {
     d.corner = Vec3(0.0, 1.0, 0.0);
     d.resolution = {12, 12};
     d.size = {0.11, 0.11};
-    d.pins = {{0, 0}, {-1, 0}};
+    d.attachments = {{d.vertex(0, 0)}, {d.vertex(-1, 0)}};
     world.addCloth(d);
     const double h = 0.01;
     for (int step = 0; step < 15; ++step) world.step(h);
@@ -470,9 +470,13 @@ TEST(ClothDesc, BadInputNamesTheField) {
         {"bending_stiffness", [](ClothDesc& d) { d.bending_stiffness = -1.0; }},
         {"damping", [](ClothDesc& d) { d.damping = -0.5; }},
         {"plastic_time", [](ClothDesc& d) { d.plastic_time = 11.0; }},
-        {"pins[0].i", [](ClothDesc& d) { d.pins = {{12, 0}}; }},
-        {"pins[1]", [](ClothDesc& d) { d.pins = {{0, 0}, {0, 0}}; }},
-        {"pins[0].world", [&](ClothDesc& d) { d.pins = {{0, 0, Vec3(nan, 0, 0)}}; }},
+        {"attachments[0].vertex", [](ClothDesc& d) { d.attachments = {{d.vertexCount()}}; }},
+        {"attachments[0].vertex", [](ClothDesc& d) { d.attachments = {{-d.vertexCount() - 1}}; }},
+        {"attachments[1].vertex", [](ClothDesc& d) { d.attachments = {{0}, {-d.vertexCount()}}; }},  // the same vertex twice
+        {"attachments[0].world", [&](ClothDesc& d) { d.attachments = {{0, {}, Vec3::Zero(), Vec3(nan, 0, 0)}}; }},
+        {"attachments[0].world", [&](ClothDesc& d) { d.attachments = {{0, tearables::RigidId{0}, Vec3::Zero(), Vec3::Zero()}}; }},  // body and world
+        {"attachments[0].local", [&](ClothDesc& d) { d.attachments = {{0, tearables::RigidId{0}, Vec3(0, std::numeric_limits<double>::infinity(), 0), {}}}; }},
+        {"attachments[1].body", [&](ClothDesc& d) { d.attachments = {{0}, {-1, tearables::RigidId{3}, Vec3::Zero(), {}}}; }},  // no such body
         {"weak_yarns[0].i", [](ClothDesc& d) { d.weak_yarns = {{6, 0, YarnKind::Warp, 0.5}}; }},
         {"weak_yarns[0].j", [](ClothDesc& d) { d.weak_yarns = {{0, -7, YarnKind::Weft, 0.5}}; }},
         {"weak_yarns[0].i", [](ClothDesc& d) { d.weak_yarns = {{-1, 0, YarnKind::Warp, 0.5}}; }},  // no warp yarn starts in the last column
@@ -506,6 +510,26 @@ TEST(ClothDesc, BadInputNamesTheField) {
     EXPECT_THROW(world.viewCloth(ClothId{7}), InvalidInput);
     for (int i = 0; i < 5; ++i) world.step(0.01);
     for (const Vec3& p : *world.viewCloth(id).positions) EXPECT_TRUE(p.allFinite());
+}
+
+// Attachments count a negative vertex index from the end, as the runtime calls do: -1 is
+// the last vertex (5, 5), -6 the first of the last row (0, 5). A pin holds its vertex
+// exactly at its world point (given, or where the vertex started) while the rest falls.
+TEST(ClothDesc, AttachmentsCountNegativeIndicesFromTheEnd) {
+    World world;
+    ClothDesc d = square(6, 0.2);
+    const Vec3 corner(0.2, 1.0, 0.2);  // where vertex (5, 5) starts
+    d.attachments = {{-1, {}, Vec3::Zero(), corner}, {-6}};
+    const ClothId id = world.addCloth(d);
+    const Vec3 start = (*world.viewCloth(id).positions)[30];
+    EXPECT_NEAR((start - Vec3(0, 1, 0.2)).norm(), 0.0, 1e-12);  // (0, 5): the corner plus 5 spacings along local z
+    for (int i = 0; i < 20; ++i) world.step(0.01);
+    const ClothView v = world.viewCloth(id);
+    EXPECT_NEAR(((*v.positions)[35] - corner).norm(), 0.0, 1e-12);
+    EXPECT_NEAR(((*v.positions)[30] - start).norm(), 0.0, 1e-12);
+    EXPECT_LT((*v.positions)[14].y(), 0.95);  // a free vertex (2, 2) swung down from the pinned row
+    EXPECT_THROW(world.moveClothPin(id, 14, Vec3::Zero()), InvalidInput);  // not pinned
+    EXPECT_NO_THROW(world.moveClothPin(id, -1, corner));  // pinned: the runtime calls read -1 the same way
 }
 
 // Yarn Fig. 4: two yarns under the same load; the right one has the higher Young's
@@ -621,8 +645,8 @@ TEST(ClothTear, PulledClothTearsAcrossThePull) {
     d.size = {0.08, 0.06};
     d.damping = 1.0;
     for (int j = 0; j < d.resolution[1]; ++j) {
-        d.pins.push_back({0, j});
-        d.pins.push_back({-1, j});
+        d.attachments.push_back({d.vertex(0, j)});
+        d.attachments.push_back({d.vertex(-1, j)});
     }
     const ClothId id = world.addCloth(d);
     const ClothView v0 = world.viewCloth(id);
@@ -690,10 +714,12 @@ TEST(ClothScene, LoadsClothFields) {
     EXPECT_EQ(a.resolution[1], 3);
     EXPECT_DOUBLE_EQ(a.yarn_radius, 0.001);
     EXPECT_DOUBLE_EQ(a.lambda, 1e-5);
-    ASSERT_EQ(a.pins.size(), 2u);
-    EXPECT_EQ(a.vertex(a.pins[0].i, a.pins[0].j), 8);
-    EXPECT_FALSE(a.pins[0].world.has_value());  // true: where the vertex starts
-    EXPECT_EQ(a.pins[1].world, std::optional<Vec3>(Vec3(1, 2, 3)));
+    ASSERT_EQ(a.attachments.size(), 2u);
+    EXPECT_EQ(a.attachments[0].vertex, 8);  // [0, -1] = 2 * 4 + 0
+    EXPECT_FALSE(a.attachments[0].body.valid());
+    EXPECT_FALSE(a.attachments[0].world.has_value());  // true: where the vertex starts
+    EXPECT_EQ(a.attachments[1].vertex, 3);  // [-1, 0]
+    EXPECT_EQ(a.attachments[1].world, std::optional<Vec3>(Vec3(1, 2, 3)));
     EXPECT_DOUBLE_EQ(s.cloths[1].desc.areal_density, 0.0);
     EXPECT_DOUBLE_EQ(s.cloths[1].desc.density, 1000.0);
     // Weak yarns: the vertex resolved like an attachment's, the kind and strength as given.
@@ -717,7 +743,7 @@ double elongationAtBreak(double speed, double plastic_time) {
     World world;
     ClothDesc d = yarn(6, 0.05);
     d.plastic_time = plastic_time;
-    d.pins = {{0, 0}, {0, -1}};
+    d.attachments = {{d.vertex(0, 0)}, {d.vertex(0, -1)}};
     const ClothId id = world.addCloth(d);
     const double original = 0.05;
     for (int i = 0; i < 20000; ++i) {

@@ -59,7 +59,7 @@ PaperDesc heldSheet(int resolution, Held held, double tolerance, PaperSolver sol
         for (int i : {0, resolution - 1}) {
             if (held == Held::Corners && k != 0 && k != resolution - 1) continue;
             PaperAttachment a;
-            a.vertex = static_cast<std::uint32_t>(d.gridVertex(i, k));
+            a.vertex = d.gridVertex(i, k);
             d.attachments.push_back(a);
         }
     return d;
@@ -225,8 +225,8 @@ TEST(PaperConverge, MultigridConvergesOnATornSheet) {
     d.tolerance = 1e-8;
     const auto left = static_cast<std::uint32_t>(d.gridVertex(0, 0));
     const auto right = static_cast<std::uint32_t>(d.gridVertex(d.resolution[0] - 1, 0));
-    d.attachments.push_back(PaperAttachment{left, {}, Vec3::Zero(), {}});
-    d.attachments.push_back(PaperAttachment{right, {}, Vec3::Zero(), {}});
+    d.attachments.push_back(PaperAttachment{static_cast<int>(left), {}, Vec3::Zero(), {}});
+    d.attachments.push_back(PaperAttachment{static_cast<int>(right), {}, Vec3::Zero(), {}});
     World world{WorldSettings{Vec3(0, -9.81, 0)}};
     const PaperId id = world.addPaper(d);
     const detail::PaperSheet& sheet = (*detail::WorldAccess::parts(world).papers)[id.index];
@@ -268,8 +268,8 @@ TEST(PaperConverge, MultigridSheetContinuesBitIdenticallyAfterRestore) {
     d.solver = PaperSolver::Multigrid;
     const auto left = static_cast<std::uint32_t>(d.gridVertex(0, 0));
     const auto right = static_cast<std::uint32_t>(d.gridVertex(d.resolution[0] - 1, 0));
-    d.attachments.push_back(PaperAttachment{left, {}, Vec3::Zero(), {}});
-    d.attachments.push_back(PaperAttachment{right, {}, Vec3::Zero(), {}});
+    d.attachments.push_back(PaperAttachment{static_cast<int>(left), {}, Vec3::Zero(), {}});
+    d.attachments.push_back(PaperAttachment{static_cast<int>(right), {}, Vec3::Zero(), {}});
     World a;
     const PaperId id = a.addPaper(d);
     const Vec3 l0 = (*a.viewPaper(id).positions)[left], r0 = (*a.viewPaper(id).positions)[right];

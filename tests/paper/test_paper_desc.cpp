@@ -134,6 +134,30 @@ TEST(PaperDesc, RectangleHasTheAreaMassAndSpringsItDescribes) {
     EXPECT_EQ(detail::checkMesh(detail::buildSheet(d)), "");
 }
 
+// A negative vertex index counts from the end, as a cloth's and the runtime calls': -1 is
+// the last of the 12 vertices, -12 the first.
+TEST(PaperDesc, AttachmentsCountNegativeIndicesFromTheEnd) {
+    World world;
+    PaperDesc d = small();
+    d.attachments.push_back(PaperAttachment{-1, {}, Vec3::Zero(), Vec3(1, 2, 3)});
+    d.attachments.push_back(PaperAttachment{-12, {}, Vec3::Zero(), {}});
+    const PaperId id = world.addPaper(d);
+    const Vec3 first = (*world.viewPaper(id).positions)[0];
+    for (int i = 0; i < 10; ++i) world.step(0.01);
+    EXPECT_NEAR(((*world.viewPaper(id).positions)[11] - Vec3(1, 2, 3)).norm(), 0.0, 1e-12);
+    EXPECT_NEAR(((*world.viewPaper(id).positions)[0] - first).norm(), 0.0, 1e-12);
+    d.attachments.push_back(PaperAttachment{11, {}, Vec3::Zero(), {}});  // -1 again
+    try {
+        world.addPaper(d);
+        ADD_FAILURE() << "accepted";
+    } catch (const InvalidInput& e) {
+        EXPECT_EQ(e.field(), "attachments[2].vertex");
+    }
+    d.attachments.back().vertex = -13;
+    EXPECT_THROW(world.addPaper(d), InvalidInput);
+    EXPECT_EQ(world.papers().size(), 1u);
+}
+
 TEST(PaperDesc, AttachmentsHoldVerticesToPointsAndBodies) {
     World world;
     RigidState body;

@@ -170,7 +170,7 @@ struct Squeeze {
         for (int k = 0; k < d.resolution[1]; ++k)
             for (int i : {0, d.resolution[0] - 1}) {
                 PaperAttachment a;
-                a.vertex = static_cast<std::uint32_t>(d.gridVertex(i, k));
+                a.vertex = d.gridVertex(i, k);
                 d.attachments.push_back(a);
             }
         id = world.addPaper(d);
@@ -251,7 +251,7 @@ TEST(PaperHinge, CreasingSheetGrowsItsRowsWithoutANewAllocationEveryStep) {
     d.resolution[1] = n;
     d.breakable = true;
     d.attachments.push_back(PaperAttachment{0, {}, Vec3::Zero(), {}});
-    d.attachments.push_back(PaperAttachment{static_cast<std::uint32_t>(n - 1), {}, Vec3::Zero(), {}});
+    d.attachments.push_back(PaperAttachment{static_cast<int>(n - 1), {}, Vec3::Zero(), {}});
     const PaperId id = world.addPaper(d);
     const detail::PaperSheet& sheet = (*detail::WorldAccess::parts(world).papers)[id.index];
     int grew = 0, allocated = 0;

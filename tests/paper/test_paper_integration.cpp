@@ -31,7 +31,7 @@ PaperDesc hangingSheet(PaperIntegrator integrator) {
     // The edge z = -0.1 is held; the sheet starts horizontal and falls about it.
     for (int i = 0; i < d.resolution[0]; ++i) {
         PaperAttachment a;
-        a.vertex = static_cast<std::uint32_t>(d.gridVertex(i, 0));
+        a.vertex = d.gridVertex(i, 0);
         d.attachments.push_back(a);
     }
     return d;

@@ -44,8 +44,8 @@ void pulledAtTwoCorners(PaperTension tension) {
     d.rupture_stretch = 0.02;
     const auto left = static_cast<std::uint32_t>(d.gridVertex(0, 0));
     const auto right = static_cast<std::uint32_t>(d.gridVertex(d.resolution[0] - 1, 0));
-    d.attachments.push_back(PaperAttachment{left, {}, Vec3::Zero(), {}});
-    d.attachments.push_back(PaperAttachment{right, {}, Vec3::Zero(), {}});
+    d.attachments.push_back(PaperAttachment{static_cast<int>(left), {}, Vec3::Zero(), {}});
+    d.attachments.push_back(PaperAttachment{static_cast<int>(right), {}, Vec3::Zero(), {}});
     World world{WorldSettings{Vec3::Zero()}};
     const PaperId id = world.addPaper(d);
     const std::vector<Vec3> rest = *world.viewPaper(id).positions;
@@ -131,7 +131,7 @@ TEST(PaperTear, NoTearBelowRupture) {
     d.tearable = true;
     d.breakable = false;
     d.attachments.push_back(PaperAttachment{0, {}, Vec3::Zero(), {}});
-    d.attachments.push_back(PaperAttachment{static_cast<std::uint32_t>(d.resolution[0] - 1), {}, Vec3::Zero(), {}});
+    d.attachments.push_back(PaperAttachment{static_cast<int>(d.resolution[0] - 1), {}, Vec3::Zero(), {}});
     World world;
     const PaperId id = world.addPaper(d);
     double peak = 0.0;
@@ -219,7 +219,7 @@ TEST(PaperTension, MomentumBalanceCarriesTheWeightBelowEachCut) {
     d.breakable = false;
     d.tension = PaperTension::Momentum;
     d.jacobi_iterations = 16;
-    for (int i = 0; i < d.resolution[0]; ++i) d.attachments.push_back(PaperAttachment{static_cast<std::uint32_t>(i), {}, Vec3::Zero(), {}});
+    for (int i = 0; i < d.resolution[0]; ++i) d.attachments.push_back(PaperAttachment{static_cast<int>(i), {}, Vec3::Zero(), {}});
     World world;
     const PaperId id = world.addPaper(d);
     for (int step = 0; step < 600; ++step) world.step(1.0 / 60.0);

@@ -159,7 +159,7 @@ TEST(DebugDraw, PaperEdgesOnceAndCreasesInTheirColour) {
     d.resolution[1] = 11;
     d.seed = 3;
     for (int k = 0; k < 11; ++k)
-        for (int i : {0, 10}) d.attachments.push_back(PaperAttachment{static_cast<std::uint32_t>(d.gridVertex(i, k)), {}, Vec3::Zero(), {}});
+        for (int i : {0, 10}) d.attachments.push_back(PaperAttachment{static_cast<int>(d.gridVertex(i, k)), {}, Vec3::Zero(), {}});
     const PaperId id = paper.addPaper(d);
     auto uniqueEdges = [&] {
         std::vector<std::array<std::uint32_t, 2>> e;

@@ -27,7 +27,7 @@ PaperDesc cornerSheet(bool breakable) {
     d.breakable = breakable;
     d.seed = 5;
     for (int k : {0, d.resolution[1] - 1})
-        for (int i : {0, d.resolution[0] - 1}) d.attachments.push_back(PaperAttachment{static_cast<std::uint32_t>(d.gridVertex(i, k)), {}, Vec3::Zero(), {}});
+        for (int i : {0, d.resolution[0] - 1}) d.attachments.push_back(PaperAttachment{static_cast<int>(d.gridVertex(i, k)), {}, Vec3::Zero(), {}});
     return d;
 }
 
@@ -100,7 +100,7 @@ TEST(PaperBullet, SmallBallIsCaughtBetweenTheVertices) {
     for (int k = 0; k < 4; ++k)
         for (int i = 0; i < 4; ++i)
             if (i == 0 || k == 0 || i == 3 || k == 3)
-                d.attachments.push_back(PaperAttachment{static_cast<std::uint32_t>(d.gridVertex(i, k)), {}, Vec3::Zero(), {}});
+                d.attachments.push_back(PaperAttachment{static_cast<int>(d.gridVertex(i, k)), {}, Vec3::Zero(), {}});
     const PaperId id = paper.addPaper(d);
     // The centre of the middle cell, which is split into two triangles: a third of the way
     // along its diagonal lies inside one of them, well away from every corner.
@@ -176,7 +176,7 @@ TEST(PaperBullet, GluedVerticesHoldABody) {
     d.resolution[0] = 6;
     d.resolution[1] = 6;
     d.breakable = false;
-    for (int i = 0; i < 6; ++i) d.attachments.push_back(PaperAttachment{static_cast<std::uint32_t>(i), {}, Vec3::Zero(), {}});
+    for (int i = 0; i < 6; ++i) d.attachments.push_back(PaperAttachment{static_cast<int>(i), {}, Vec3::Zero(), {}});
     const PaperId id = paper.addPaper(d);
     // A 2 g weight glued at the bottom corners.
     btRigidBody& weight = p.box(btVector3(0.05f, 0.005f, 0.005f), 0.002, btVector3(0, 0.945f, 0));

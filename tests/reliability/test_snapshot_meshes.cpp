@@ -166,14 +166,21 @@ struct ClothScene {
         desc.plastic_time = 0.05;
         desc.material.variation = 0.05;
         desc.seed = 5;
-        for (int j = 0; j < desc.resolution[1]; ++j) {
-            desc.pins.push_back({0, j});
-            desc.pins.push_back({-1, j});
-        }
+        pinSides();
         if (build) create();
+    }
+    /// The first and last columns pinned where they start (flat indices: again after a
+    /// change of resolution).
+    void pinSides() {
+        desc.attachments.clear();
+        for (int j = 0; j < desc.resolution[1]; ++j) {
+            desc.attachments.push_back({desc.vertex(0, j)});
+            desc.attachments.push_back({desc.vertex(-1, j)});
+        }
     }
     /// The bodies and the cloth (what a user builds again before loading a snapshot).
     void create() {
+        pinSides();
         RigidState sphere;  // slot 0: static, under the middle of the cloth
         sphere.position = {0.04, 0.974, 0.03};
         world.addRigid(sphere);
@@ -274,7 +281,7 @@ struct PaperScene {
         right = static_cast<std::uint32_t>(desc.gridVertex(desc.resolution[0] - 1, 0));
         for (int k : {0, desc.resolution[1] - 1})
             for (int i : {0, desc.resolution[0] - 1})
-                desc.attachments.push_back(PaperAttachment{static_cast<std::uint32_t>(desc.gridVertex(i, k)), {}, Vec3::Zero(), {}});
+                desc.attachments.push_back(PaperAttachment{static_cast<int>(desc.gridVertex(i, k)), {}, Vec3::Zero(), {}});
         if (build) create();
     }
     void create() {

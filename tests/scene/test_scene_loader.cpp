@@ -262,7 +262,7 @@ TEST(SceneLoader, PapersParseEveryField) {
     EXPECT_FALSE(a.tearable);
     EXPECT_DOUBLE_EQ(a.rupture_stretch, 0.02);
     ASSERT_EQ(a.attachments.size(), 1u);
-    EXPECT_EQ(a.attachments[0].vertex, 0u);
+    EXPECT_EQ(a.attachments[0].vertex, 0);
     EXPECT_FALSE(a.attachments[0].world.has_value());  // true: where the vertex is
     EXPECT_EQ(a.seed, scene.seed + 1000);
     const Paper& b = scene.papers[1];
@@ -281,7 +281,7 @@ TEST(SceneLoader, PapersParseEveryField) {
     EXPECT_DOUBLE_EQ(b.desc.friction, 0.8);
     EXPECT_EQ(b.desc.seed, 42u);
     ASSERT_EQ(b.desc.attachments.size(), 1u);
-    EXPECT_EQ(b.desc.attachments[0].vertex, 11u);  // [-1, -1] on a 3 x 4 grid
+    EXPECT_EQ(b.desc.attachments[0].vertex, 11);  // [-1, -1] on a 3 x 4 grid
     EXPECT_EQ(*b.desc.attachments[0].world, Vec3(5, 6, 7));
     ASSERT_EQ(b.glue.size(), 1u + 4u);  // vertex 1 and the x- edge (4 vertices)
     EXPECT_EQ(b.glue[0].vertex, 1u);

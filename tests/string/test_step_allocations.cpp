@@ -325,7 +325,7 @@ TEST(StepAllocations, SwingingClothStepsWithoutAllocating) {
     d.corner = tearables::Vec3(0.0, 1.0, 0.0);
     d.resolution = {12, 12};
     d.size = {0.11, 0.11};
-    d.pins = {{0, 0}, {-1, 0}};
+    d.attachments = {{d.vertex(0, 0)}, {d.vertex(-1, 0)}};
     world.addCloth(d);
     const long allocations = countedSteps(world);
     EXPECT_EQ(allocations, 0) << allocationReport(allocations);
