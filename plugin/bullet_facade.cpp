@@ -4,7 +4,9 @@
 // changed), checked before anything is converted or stored.
 #include "bullet_world_impl.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 namespace tearables {
 
@@ -121,6 +123,48 @@ std::optional<RopeHit> BulletWorld::ropeHit(const btCollisionObject* object, int
 std::optional<RopeHit> BulletWorld::ropeHit(const btCollisionObject* object, const btVector3& point) const {
     return impl_->ropeHit(object, point);
 }
+
+// --- reading a cloth or a sheet ----------------------------------------------------------
+// The core's views (InvalidInput("cloth"/"paper") for an unknown or stale id), converted.
+
+std::size_t BulletWorld::vertexCount(ClothId id) const { return impl_->core_->viewCloth(id).vertexCount(); }
+std::size_t BulletWorld::vertexCount(PaperId id) const { return impl_->core_->viewPaper(id).vertexCount(); }
+std::vector<btVector3> BulletWorld::positions(ClothId id) const { return toBulletAll(*impl_->core_->viewCloth(id).positions); }
+std::vector<btVector3> BulletWorld::positions(PaperId id) const { return toBulletAll(*impl_->core_->viewPaper(id).positions); }
+std::vector<btVector3> BulletWorld::velocities(ClothId id) const { return toBulletAll(*impl_->core_->viewCloth(id).velocities); }
+std::vector<btVector3> BulletWorld::velocities(PaperId id) const { return toBulletAll(*impl_->core_->viewPaper(id).velocities); }
+
+std::vector<BulletYarn> BulletWorld::yarns(ClothId id) const {
+    const ClothView v = impl_->core_->viewCloth(id);
+    std::vector<BulletYarn> out;
+    out.reserve(v.edgeCount());
+    for (std::size_t e = 0; e < v.edgeCount(); ++e)
+        if (!(*v.broken)[e]) {
+            const auto& edge = (*v.edges)[e];
+            out.push_back(BulletYarn{static_cast<int>(edge[0]), static_cast<int>(edge[1]), static_cast<int>(e), (*v.tension)[e]});
+        }
+    return out;
+}
+
+namespace {
+
+std::vector<std::array<int, 3>> toIntTriangles(const std::vector<std::array<std::uint32_t, 3>>& triangles) {
+    std::vector<std::array<int, 3>> out;
+    out.reserve(triangles.size());
+    for (const auto& t : triangles) out.push_back({static_cast<int>(t[0]), static_cast<int>(t[1]), static_cast<int>(t[2])});
+    return out;
+}
+
+}  // namespace
+
+std::vector<std::array<int, 3>> BulletWorld::triangles(ClothId id) const { return toIntTriangles(clothFaces(impl_->core_->viewCloth(id))); }
+std::vector<std::array<int, 3>> BulletWorld::triangles(PaperId id) const { return toIntTriangles(*impl_->core_->viewPaper(id).triangles); }
+
+std::size_t BulletWorld::tornCount(ClothId id) const {
+    const ClothView v = impl_->core_->viewCloth(id);
+    return static_cast<std::size_t>(std::count_if(v.broken->begin(), v.broken->end(), [](std::uint8_t b) { return b != 0; }));
+}
+std::size_t BulletWorld::tornCount(PaperId id) const { return static_cast<std::size_t>(impl_->core_->viewPaper(id).counters.tears); }
 
 // --- reading a string -------------------------------------------------------------------
 

@@ -49,6 +49,7 @@
 #include <LinearMath/btScalar.h>
 #include <LinearMath/btVector3.h>
 
+#include <array>
 #include <cstddef>
 #include <functional>
 #include <iosfwd>
@@ -110,6 +111,14 @@ struct BulletEvent : Event {
     /// A yield: how many segments of the string first yielded in that internal step. They
     /// are one event; its segment, stress, position and force are the worst one's.
     int count = 1;
+};
+
+/// A cloth's intact yarn edge, for drawing: its vertices and the tension it carries.
+struct BulletYarn {
+    int a = 0;             ///< first vertex (flat index j * resolution[0] + i)
+    int b = 0;             ///< second vertex: (i + 1, j) for a warp yarn, (i, j + 1) for a weft yarn
+    int edge = 0;          ///< the edge's index (a Tear event's `segment`)
+    double tension = 0.0;  ///< N, of the last internal step (least squares: may be slightly negative)
 };
 
 /// What a Bullet query (world.rayTest, convexSweepTest, contactTest) met on a rope: the
@@ -263,6 +272,30 @@ public:
     /// The angle a pinned end holds, rad: every turnEnd reached so far (a turn given for the
     /// next stepSimulation is not in it yet). Throws InvalidInput ("string", "end").
     double endTwist(StringId id, int end) const;
+
+    // --- reading a cloth or a sheet (the state after the last internal step) --------------
+    /// Vertices of a cloth, or of a sheet (a sheet gains vertices where it creases or
+    /// tears; indices never change). Throws InvalidInput("cloth"/"paper") for an unknown or
+    /// stale id, as every read below.
+    std::size_t vertexCount(ClothId id) const;
+    std::size_t vertexCount(PaperId id) const;
+    /// Every vertex's position, m.
+    std::vector<btVector3> positions(ClothId id) const;
+    std::vector<btVector3> positions(PaperId id) const;
+    /// Every vertex's velocity, m/s.
+    std::vector<btVector3> velocities(ClothId id) const;
+    std::vector<btVector3> velocities(PaperId id) const;
+    /// A cloth's intact yarn edges (torn ones left out), in edge order, with their tensions.
+    std::vector<BulletYarn> yarns(ClothId id) const;
+    /// The triangles to draw, as vertex indices, counter-clockwise seen from the front (the
+    /// local +y side): a cloth's cells whose four yarns are intact, two triangles each
+    /// (clothFaces, cloth.hpp: a cell with a torn yarn lets the air through); a sheet's
+    /// current triangles (split where it creased, parted where it tore).
+    std::vector<std::array<int, 3>> triangles(ClothId id) const;
+    std::vector<std::array<int, 3>> triangles(PaperId id) const;
+    /// Torn so far: a cloth's broken yarn edges; a sheet's tears (vertices split by tearing).
+    std::size_t tornCount(ClothId id) const;
+    std::size_t tornCount(PaperId id) const;
 
     // --- reading a string (the state after the last internal step) -----------------------
     /// Particles and segments (a segment joins particles j and j + 1; a tear breaks a

@@ -245,4 +245,116 @@ TEST(Facade, TurnEndRefusals) {
     EXPECT_EQ(ropes.endTwist(rope, -1), 0.0);
 }
 
+// A cloth's and a sheet's reads are the core's views converted (btVector3 from the
+// positions and velocities, the intact yarns with their tensions, the faces, the torn
+// counts), read after each has torn: a cloth under a heavy ball, a sheet pulled apart at two
+// corners (tests/plugin/test_cloth_bullet.cpp, tests/paper/test_paper_tear.cpp).
+TEST(Facade, ClothAndSheetReadsAreTheCoresState) {
+    Physics p;
+    BulletWorld world(*p.world);
+    tearables::ClothDesc c;
+    c.resolution = {9, 9};
+    c.size = {0.6, 0.6};
+    c.corner = Vec3(-0.3, 1.0, -0.3);
+    c.areal_density = 0.2;
+    c.yarn_radius = 5e-4;
+    c.material.variation = 0.0;
+    for (int i : {0, -1})
+        for (int j : {0, -1}) c.attachments.push_back({c.vertex(i, j)});
+    const tearables::ClothId cloth = world.addCloth(c);
+    p.sphere(0.1, 40.0, btVector3(0, 1.3f, 0));
+    tearables::PaperDesc s;
+    s.center = Vec3(3, 1, 0);
+    s.size[0] = 0.2;
+    s.size[1] = 0.1;
+    s.resolution[0] = 21;
+    s.resolution[1] = 11;
+    s.tearable = true;
+    s.breakable = false;
+    s.attachments = {{0}, {20}};  // the corners of the first row
+    const tearables::PaperId sheet = world.addPaper(s);
+    const Vec3 l0 = (*world.core().viewPaper(sheet).positions)[0], r0 = (*world.core().viewPaper(sheet).positions)[20];
+    for (int step = 1; step <= 150; ++step) {
+        const double pull = 0.02 * step / 60.0;  // each corner moves out along the edge at 2 cm/s
+        world.core().movePaperPin(sheet, 0, l0 - Vec3(pull, 0, 0));
+        world.core().movePaperPin(sheet, 20, r0 + Vec3(pull, 0, 0));
+        p.step(1, 1.0 / 60.0);
+    }
+    ASSERT_TRUE(world.lastError().empty()) << world.lastError();
+
+    const tearables::ClothView cv = world.core().viewCloth(cloth);
+    ASSERT_EQ(world.vertexCount(cloth), 81u);
+    const std::vector<btVector3> cx = world.positions(cloth), cu = world.velocities(cloth);
+    ASSERT_EQ(cx.size(), 81u);
+    ASSERT_EQ(cu.size(), 81u);
+    for (std::size_t i = 0; i < cx.size(); ++i) {
+        EXPECT_EQ(cx[i], tearables::toBullet((*cv.positions)[i])) << i;
+        EXPECT_EQ(cu[i], tearables::toBullet((*cv.velocities)[i])) << i;
+    }
+    std::size_t torn = 0;
+    std::vector<tearables::BulletYarn> intact;
+    for (std::size_t e = 0; e < cv.edgeCount(); ++e) {
+        if ((*cv.broken)[e]) {
+            ++torn;
+            continue;
+        }
+        intact.push_back({static_cast<int>((*cv.edges)[e][0]), static_cast<int>((*cv.edges)[e][1]), static_cast<int>(e), (*cv.tension)[e]});
+    }
+    EXPECT_GT(torn, 0u);  // the ball went through
+    EXPECT_EQ(world.tornCount(cloth), torn);
+    const std::vector<tearables::BulletYarn> yarns = world.yarns(cloth);
+    ASSERT_EQ(yarns.size(), intact.size());
+    for (std::size_t k = 0; k < yarns.size(); ++k) {
+        EXPECT_EQ(yarns[k].a, intact[k].a);
+        EXPECT_EQ(yarns[k].b, intact[k].b);
+        EXPECT_EQ(yarns[k].edge, intact[k].edge);
+        EXPECT_EQ(yarns[k].tension, intact[k].tension);
+    }
+    const auto faces = tearables::clothFaces(cv);
+    const std::vector<std::array<int, 3>> ct = world.triangles(cloth);
+    ASSERT_EQ(ct.size(), faces.size());
+    EXPECT_LT(ct.size(), 2u * 8u * 8u);  // torn cells show no face
+    for (std::size_t k = 0; k < ct.size(); ++k)
+        for (int m = 0; m < 3; ++m) EXPECT_EQ(ct[k][m], static_cast<int>(faces[k][m]));
+
+    const tearables::PaperView sv = world.core().viewPaper(sheet);
+    EXPECT_GT(sv.counters.tears, 0u);  // pulled apart
+    ASSERT_EQ(world.vertexCount(sheet), sv.vertexCount());
+    EXPECT_GT(sv.vertexCount(), 231u);  // a tear adds vertices
+    const std::vector<btVector3> sx = world.positions(sheet), su = world.velocities(sheet);
+    ASSERT_EQ(sx.size(), sv.vertexCount());
+    ASSERT_EQ(su.size(), sv.vertexCount());
+    for (std::size_t i = 0; i < sx.size(); ++i) {
+        EXPECT_EQ(sx[i], tearables::toBullet((*sv.positions)[i])) << i;
+        EXPECT_EQ(su[i], tearables::toBullet((*sv.velocities)[i])) << i;
+    }
+    const std::vector<std::array<int, 3>> st = world.triangles(sheet);
+    ASSERT_EQ(st.size(), sv.triangles->size());
+    for (std::size_t k = 0; k < st.size(); ++k)
+        for (int m = 0; m < 3; ++m) EXPECT_EQ(st[k][m], static_cast<int>((*sv.triangles)[k][m]));
+    EXPECT_EQ(world.tornCount(sheet), sv.counters.tears);
+
+    // A removed object's id is stale: every read refuses it naming the object, and the
+    // slot's next object does not answer to it.
+    world.removeCloth(cloth);
+    world.removePaper(sheet);
+    const tearables::ClothId next_cloth = world.addCloth(c);
+    const tearables::PaperId next_sheet = world.addPaper(s);
+    ASSERT_EQ(next_cloth.index, cloth.index);
+    ASSERT_EQ(next_sheet.index, sheet.index);
+    const std::vector<std::pair<std::string, std::function<void()>>> reads = {
+        {"cloth", [&] { (void)world.vertexCount(cloth); }},     {"cloth", [&] { (void)world.positions(cloth); }},
+        {"cloth", [&] { (void)world.velocities(cloth); }},      {"cloth", [&] { (void)world.yarns(cloth); }},
+        {"cloth", [&] { (void)world.triangles(cloth); }},       {"cloth", [&] { (void)world.tornCount(cloth); }},
+        {"cloth", [&] { (void)world.positions(tearables::ClothId{7, 0}); }},
+        {"paper", [&] { (void)world.vertexCount(sheet); }},     {"paper", [&] { (void)world.positions(sheet); }},
+        {"paper", [&] { (void)world.velocities(sheet); }},      {"paper", [&] { (void)world.triangles(sheet); }},
+        {"paper", [&] { (void)world.tornCount(sheet); }},
+        {"paper", [&] { (void)world.positions(tearables::PaperId{7, 0}); }},
+    };
+    for (const auto& [field, read] : reads) EXPECT_EQ(refusal(read), field);
+    EXPECT_EQ(world.vertexCount(next_cloth), 81u);
+    EXPECT_EQ(world.tornCount(next_sheet), 0u);
+}
+
 }  // namespace
