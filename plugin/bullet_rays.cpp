@@ -152,9 +152,17 @@ private:
 /// when its capsule left the leaf's grown box (updateChildTransform re-inserts the leaf
 /// whenever the child moves at all), and the bounds of the whole are set from the
 /// capsules' boxes.
+/// The user pointer of every rope object's shape: how the pair filter tells a rope object
+/// from a body without a dynamic_cast on every pair test. The shape is the plugin's, so its
+/// user pointer is too (the object's user pointer and indices are the user's to read:
+/// docs/facade.md, "Identity").
+const char kRopeShapeTag = 0;
+
 class RopeCompound final : public btCompoundShape {
 public:
-    explicit RopeCompound(int children) : btCompoundShape(true, children) {}
+    explicit RopeCompound(int children) : btCompoundShape(true, children) {
+        setUserPointer(const_cast<char*>(&kRopeShapeTag));
+    }
     void moveChild(int k, const btVector3& lo, const btVector3& hi) {
         btDbvtVolume box = btDbvtVolume::FromMM(lo, hi);
         if (m_dynamicAabbTree && m_children[k].m_node) m_dynamicAabbTree->update(m_children[k].m_node, box, kLeafMargin);
@@ -232,13 +240,23 @@ private:
     std::vector<std::unique_ptr<SegmentShape>> capsules_;  // per child: child k is capsules_[k]
 };
 
+namespace {
+
+/// Whether `object` is a rope object (of any BulletWorld): its shape carries the tag.
+bool isRopeObject(const btCollisionObject* object) {
+    const btCollisionShape* shape = object ? object->getCollisionShape() : nullptr;
+    return shape && shape->getUserPointer() == &kRopeShapeTag;
+}
+
+}  // namespace
+
 /// Refuses every broadphase pair with a rope object (of any BulletWorld), so that Bullet's
 /// pair cache holds the pairs it would hold without them (a pair made and dropped again
 /// reorders the cache's others). Other pairs get Bullet's own rule
 /// (btHashedOverlappingPairCache::needsBroadphaseCollision).
 struct BulletWorld::Impl::RopePairFilter final : btOverlapFilterCallback {
     static bool isRope(const btBroadphaseProxy* proxy) {
-        return dynamic_cast<const RopeObject*>(static_cast<const btCollisionObject*>(proxy->m_clientObject)) != nullptr;
+        return isRopeObject(static_cast<const btCollisionObject*>(proxy->m_clientObject));
     }
     bool needBroadphaseCollision(btBroadphaseProxy* a, btBroadphaseProxy* b) const override {
         if (isRope(a) || isRope(b)) return false;

@@ -409,7 +409,8 @@ public:
     /// objects too: the same physics, other rounding; turn the objects off where runs must
     /// match earlier ones bit for bit.) Its getUserPointer() is the string's setUserPointer()
     /// (null until set), getUserIndex() and getUserIndex2() the StringId's index and
-    /// generation; do not change them, nor remove the object from the world yourself.
+    /// generation; do not change them, nor its shape's user pointer (the plugin's mark of a
+    /// rope object), nor remove the object from the world yourself.
     /// Off: the objects leave the world (and come back, following the strings, when turned
     /// on). Changes made through core() (strings added, removed or cut there) reach the
     /// objects at the end of the next stepSimulation.
