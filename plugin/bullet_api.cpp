@@ -33,54 +33,54 @@ void* user(const std::map<Id, void*>& users, Id id) {
 
 }  // namespace
 
-void BulletWorld::Impl::setUserPointer(StringId id, void* user) {
-    (void)core_->desc(id);
-    setUser(string_users_, id, user);
-    userPointerChanged(id);
+void BulletWorld::setUserPointer(StringId id, void* user) {
+    (void)impl_->core_->desc(id);
+    setUser(impl_->string_users_, id, user);
+    impl_->userPointerChanged(id);
 }
-void BulletWorld::Impl::setUserPointer(ClothId id, void* user) {
-    (void)core_->clothDesc(id);
-    setUser(cloth_users_, id, user);
+void BulletWorld::setUserPointer(ClothId id, void* user) {
+    (void)impl_->core_->clothDesc(id);
+    setUser(impl_->cloth_users_, id, user);
 }
-void BulletWorld::Impl::setUserPointer(PaperId id, void* user) {
-    (void)core_->paperDesc(id);
-    setUser(paper_users_, id, user);
+void BulletWorld::setUserPointer(PaperId id, void* user) {
+    (void)impl_->core_->paperDesc(id);
+    setUser(impl_->paper_users_, id, user);
 }
-void* BulletWorld::Impl::userPointer(StringId id) const {
-    (void)core_->desc(id);
-    return user(string_users_, id);
+void* BulletWorld::userPointer(StringId id) const {
+    (void)impl_->core_->desc(id);
+    return user(impl_->string_users_, id);
 }
-void* BulletWorld::Impl::userPointer(ClothId id) const {
-    (void)core_->clothDesc(id);
-    return user(cloth_users_, id);
+void* BulletWorld::userPointer(ClothId id) const {
+    (void)impl_->core_->clothDesc(id);
+    return user(impl_->cloth_users_, id);
 }
-void* BulletWorld::Impl::userPointer(PaperId id) const {
-    (void)core_->paperDesc(id);
-    return user(paper_users_, id);
+void* BulletWorld::userPointer(PaperId id) const {
+    (void)impl_->core_->paperDesc(id);
+    return user(impl_->paper_users_, id);
 }
 
-void BulletWorld::Impl::setVelocities(StringId id, const std::vector<btVector3>& velocities) {
+void BulletWorld::setVelocities(StringId id, const std::vector<btVector3>& velocities) {
     std::vector<Vec3> v;
     v.reserve(velocities.size());
     for (const btVector3& b : velocities) v.push_back(tearables::toCore(b));
-    tearables::setVelocities(*core_, id, v);
+    tearables::setVelocities(*impl_->core_, id, v);
 }
 
-void BulletWorld::Impl::reel(StringId id, int end, double speed, RestMass mode) {
+void BulletWorld::reel(StringId id, int end, double speed, RestMass mode) {
     if (!std::isfinite(speed) || std::abs(speed) > 1000.0) throw InvalidInput("speed", "must be finite, at most 1000 m/s either way");
-    tearables::reel(*core_, id, end, 0.0, mode);  // checks the string, the end and the mode; changes nothing
+    tearables::reel(*impl_->core_, id, end, 0.0, mode);  // checks the string, the end and the mode; changes nothing
     if (speed == 0.0)
-        winches_.erase({id, end});
+        impl_->winches_.erase({id, end});
     else
-        winches_[{id, end}] = Winch{speed, mode};
+        impl_->winches_[{id, end}] = Impl::Winch{speed, mode};
 }
 
 // The core checks the string, the end (0 or -1, pinned to a world point) with a zero turn,
 // which changes nothing; the angle waits for the next stepSimulation (drive, bullet_world.cpp).
-void BulletWorld::Impl::turnEnd(StringId id, int end, double angle) {
-    core_->turnEnd(id, end, 0.0);
+void BulletWorld::turnEnd(StringId id, int end, double angle) {
+    impl_->core_->turnEnd(id, end, 0.0);
     if (!std::isfinite(angle)) throw InvalidInput("angle", "must be finite");
-    turns_[{id, end}].angle += angle;
+    impl_->turns_[{id, end}].angle += angle;
 }
 
 // Winches of strings since removed, or whose end was unpinned, stop.
@@ -98,10 +98,10 @@ void BulletWorld::Impl::turnWinches(double h) {
 
 // --- contacts and events as a Bullet user reads them --------------------------------------
 
-const std::vector<BulletContact>& BulletWorld::Impl::contacts() const { return contact_list_; }
-void BulletWorld::Impl::setTearCallback(std::function<void(const BulletEvent&)> callback) { on_tear_ = std::move(callback); }
-void BulletWorld::Impl::setContactCallback(std::function<void(const BulletContact&)> callback) {
-    on_contact_ = std::move(callback);
+const std::vector<BulletContact>& BulletWorld::contacts() const { return impl_->contact_list_; }
+void BulletWorld::setTearCallback(std::function<void(const BulletEvent&)> callback) { impl_->on_tear_ = std::move(callback); }
+void BulletWorld::setContactCallback(std::function<void(const BulletContact&)> callback) {
+    impl_->on_contact_ = std::move(callback);
 }
 
 btRigidBody* BulletWorld::Impl::bodyOf(RigidId id) const {

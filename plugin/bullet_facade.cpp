@@ -1,7 +1,9 @@
-// tearables::BulletWorld, the public face: each call forwards to BulletWorld::Impl
-// (bullet_world_impl.hpp), or reads a string's state from the core and converts it to
-// Bullet's vectors. Validation is the core's (InvalidInput naming the argument, nothing
-// changed), checked before anything is converted or stored.
+// tearables::BulletWorld's reads and small calls: a string's, a cloth's and a sheet's state
+// read from the core and converted to Bullet's vectors. The other calls are defined beside
+// the state they use (bullet_world.cpp, bullet_api.cpp, bullet_rays.cpp,
+// bullet_snapshot.cpp); BulletWorld::Impl (bullet_world_impl.hpp) holds the data.
+// Validation is the core's (InvalidInput naming the argument, nothing changed), checked
+// before anything is converted or stored.
 #include "bullet_world_impl.hpp"
 
 #include <algorithm>
@@ -32,9 +34,6 @@ BulletWorld::BulletWorld(btDiscreteDynamicsWorld& world, const WorldSettings& se
     : impl_(std::make_unique<Impl>(world, settings)) {}
 BulletWorld::~BulletWorld() = default;
 
-World& BulletWorld::core() { return impl_->core(); }
-const World& BulletWorld::core() const { return impl_->core(); }
-
 // --- building ropes ---------------------------------------------------------------------
 
 StringDesc BulletWorld::ropeBetween(const btVector3& a, const btVector3& b, double length, int segments) {
@@ -48,81 +47,22 @@ StringId BulletWorld::addRope(const btVector3& a, const btVector3& b, double len
     desc.material = p->material;
     desc.radius = p->radius;
     desc.density = p->density;
-    return impl_->addString(desc);
+    return addString(desc);
 }
 
-StringId BulletWorld::addString(const StringDesc& desc) { return impl_->addString(desc); }
-StringId BulletWorld::addString(const StringDesc& desc, int group, int mask) { return impl_->addString(desc, group, mask); }
-void BulletWorld::removeString(StringId id) { impl_->removeString(id); }
-void BulletWorld::attach(StringId id, int particle, const btVector3& world_point) { impl_->attach(id, particle, world_point); }
-void BulletWorld::attach(StringId id, int particle, btRigidBody& body, const btVector3& local_point) {
-    impl_->attach(id, particle, body, local_point);
-}
-void BulletWorld::detach(StringId id, int particle) { impl_->detach(id, particle); }
-void BulletWorld::setVelocities(StringId id, const std::vector<btVector3>& velocities) { impl_->setVelocities(id, velocities); }
-void BulletWorld::reel(StringId id, int end, double speed, RestMass mode) { impl_->reel(id, end, speed, mode); }
-ClothId BulletWorld::addCloth(const ClothDesc& desc) { return impl_->addCloth(desc); }
-ClothId BulletWorld::addCloth(const ClothDesc& desc, int group, int mask) { return impl_->addCloth(desc, group, mask); }
-void BulletWorld::removeCloth(ClothId id) { impl_->removeCloth(id); }
-void BulletWorld::attachCloth(ClothId id, int vertex, const btVector3& world_point) { impl_->attachCloth(id, vertex, world_point); }
-RigidId BulletWorld::bodyId(btRigidBody& body) { return impl_->bodyId(body); }
-void BulletWorld::attachCloth(ClothId id, int vertex, btRigidBody& body, const btVector3& local_point) {
-    impl_->attachCloth(id, vertex, body, local_point);
-}
-void BulletWorld::forgetBody(const btRigidBody& body) { impl_->forgetBody(body); }
-void BulletWorld::setUserPointer(StringId id, void* user) { impl_->setUserPointer(id, user); }
-void BulletWorld::setUserPointer(ClothId id, void* user) { impl_->setUserPointer(id, user); }
-void BulletWorld::setUserPointer(PaperId id, void* user) { impl_->setUserPointer(id, user); }
-void* BulletWorld::userPointer(StringId id) const { return impl_->userPointer(id); }
-void* BulletWorld::userPointer(ClothId id) const { return impl_->userPointer(id); }
-void* BulletWorld::userPointer(PaperId id) const { return impl_->userPointer(id); }
-PaperId BulletWorld::addPaper(const PaperDesc& desc) { return impl_->addPaper(desc); }
-PaperId BulletWorld::addPaper(const PaperDesc& desc, int group, int mask) { return impl_->addPaper(desc, group, mask); }
-void BulletWorld::removePaper(PaperId id) { impl_->removePaper(id); }
-void BulletWorld::attachPaper(PaperId id, int vertex, const btVector3& world_point) { impl_->attachPaper(id, vertex, world_point); }
-void BulletWorld::attachPaper(PaperId id, int vertex, btRigidBody& body, const btVector3& local_point) {
-    impl_->attachPaper(id, vertex, body, local_point);
-}
-void BulletWorld::applyForce(StringId id, int particle, const btVector3& force) { impl_->applyForce(id, particle, force); }
-void BulletWorld::applyClothForce(ClothId id, int vertex, const btVector3& force) { impl_->applyClothForce(id, vertex, force); }
-void BulletWorld::applyPaperForce(PaperId id, int vertex, const btVector3& force) { impl_->applyPaperForce(id, vertex, force); }
-void BulletWorld::movePin(StringId id, int particle, const btVector3& point) { impl_->movePin(id, particle, point); }
 bool BulletWorld::cut(StringId id, int segment) {
     const bool cut = impl_->core_->cutSegment(id, segment);
     if (cut) impl_->syncRopeObject(id);  // the gap is open to ray tests at once
     return cut;
 }
-void BulletWorld::turnEnd(StringId id, int end, double angle) { impl_->turnEnd(id, end, angle); }
 double BulletWorld::endTwist(StringId id, int end) const {
     (void)impl_->core_->desc(id);
     return impl_->core_->endTwist(id, end);
 }
-std::vector<double> BulletWorld::peakTension(StringId id) const { return impl_->peakTension(id); }
-void BulletWorld::clearPeakTension(StringId id) { impl_->clearPeakTension(id); }
-const std::vector<BulletEvent>& BulletWorld::events() const { return impl_->events(); }
-void BulletWorld::clearEvents() { impl_->clearEvents(); }
-const std::vector<BulletContact>& BulletWorld::contacts() const { return impl_->contacts(); }
-void BulletWorld::setTearCallback(std::function<void(const BulletEvent&)> callback) { impl_->setTearCallback(std::move(callback)); }
-void BulletWorld::setContactCallback(std::function<void(const BulletContact&)> callback) {
-    impl_->setContactCallback(std::move(callback));
-}
-const StageTimes& BulletWorld::totalStageTimes() const { return impl_->totalStageTimes(); }
+// The step uses these two as well (the plugin's action: its drawing, Bullet's liveness).
 bool BulletWorld::attachedToBullet() const { return impl_->attachedToBullet(); }
 void BulletWorld::debugDraw(btIDebugDraw& drawer) const { impl_->debugDraw(drawer); }
-const std::string& BulletWorld::lastError() const { return impl_->lastError(); }
-void BulletWorld::saveSnapshot(std::ostream& out, const std::vector<const btRigidBody*>& bodies) const {
-    impl_->saveSnapshot(out, bodies);
-}
-void BulletWorld::loadSnapshot(std::istream& in, const std::vector<btRigidBody*>& bodies) { impl_->loadSnapshot(in, bodies); }
-void BulletWorld::setRopesRayTestable(bool on) { impl_->setRopesRayTestable(on); }
-bool BulletWorld::ropesRayTestable() const { return impl_->ropesRayTestable(); }
-const btCollisionObject* BulletWorld::rayObject(StringId id) const { return impl_->rayObject(id); }
-std::optional<RopeHit> BulletWorld::ropeHit(const btCollisionObject* object, int child) const {
-    return impl_->ropeHit(object, child);
-}
-std::optional<RopeHit> BulletWorld::ropeHit(const btCollisionObject* object, const btVector3& point) const {
-    return impl_->ropeHit(object, point);
-}
+bool BulletWorld::ropesRayTestable() const { return impl_->rope_objects_on_; }
 
 // --- reading a cloth or a sheet ----------------------------------------------------------
 // The core's views (InvalidInput("cloth"/"paper") for an unknown or stale id), converted.

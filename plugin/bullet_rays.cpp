@@ -317,9 +317,9 @@ void BulletWorld::Impl::syncRopeObjects() {
     for (const StringId id : core_->strings()) syncRopeObject(id);
 }
 
-void BulletWorld::Impl::setRopesRayTestable(bool on) {
-    rope_objects_on_ = on;
-    syncRopeObjects();
+void BulletWorld::setRopesRayTestable(bool on) {
+    impl_->rope_objects_on_ = on;
+    impl_->syncRopeObjects();
 }
 
 void BulletWorld::Impl::userPointerChanged(StringId id) {
@@ -334,32 +334,32 @@ void BulletWorld::Impl::removeRopeObjectsFromWorld() {
         if (slot.object->getBroadphaseHandle()) world_->removeCollisionObject(slot.object.get());
 }
 
-const btCollisionObject* BulletWorld::Impl::rayObject(StringId id) const {
-    (void)core_->desc(id);  // InvalidInput("string") for an unknown or stale id
-    const auto it = rope_objects_.find(id);
-    return it == rope_objects_.end() ? nullptr : it->second.object.get();
+const btCollisionObject* BulletWorld::rayObject(StringId id) const {
+    (void)impl_->core_->desc(id);  // InvalidInput("string") for an unknown or stale id
+    const auto it = impl_->rope_objects_.find(id);
+    return it == impl_->rope_objects_.end() ? nullptr : it->second.object.get();
 }
 
 // The object must be one of this plugin's, for a live string whose segment is still
 // intact (a change made through core() reaches the objects at the next step).
-std::optional<RopeHit> BulletWorld::Impl::ropeHit(const btCollisionObject* object, int child) const {
-    const auto* rope = dynamic_cast<const RopeObject*>(object);
-    if (!rope || &rope->owner() != this || !core_->contains(rope->id())) return std::nullopt;
+std::optional<RopeHit> BulletWorld::ropeHit(const btCollisionObject* object, int child) const {
+    const auto* rope = dynamic_cast<const Impl::RopeObject*>(object);
+    if (!rope || &rope->owner() != impl_.get() || !impl_->core_->contains(rope->id())) return std::nullopt;
     const auto& segments = rope->segments();
     if (child < 0 || static_cast<std::size_t>(child) >= segments.size()) return std::nullopt;
     const int segment = segments[child];
-    const StringView v = core_->view(rope->id());
+    const StringView v = impl_->core_->view(rope->id());
     if (static_cast<std::size_t>(segment) >= v.segmentCount() || (*v.broken)[segment]) return std::nullopt;
     return RopeHit{rope->id(), segment};
 }
 
 // The capsule whose surface is nearest the point: |distance to the axis - r| least.
-std::optional<RopeHit> BulletWorld::Impl::ropeHit(const btCollisionObject* object, const btVector3& point) const {
-    const auto* rope = dynamic_cast<const RopeObject*>(object);
-    if (!rope || &rope->owner() != this || !core_->contains(rope->id())) return std::nullopt;
+std::optional<RopeHit> BulletWorld::ropeHit(const btCollisionObject* object, const btVector3& point) const {
+    const auto* rope = dynamic_cast<const Impl::RopeObject*>(object);
+    if (!rope || &rope->owner() != impl_.get() || !impl_->core_->contains(rope->id())) return std::nullopt;
     const Vec3 at = toCore(point);
     if (!at.allFinite()) throw InvalidInput("point", "must be finite");
-    const StringView v = core_->view(rope->id());
+    const StringView v = impl_->core_->view(rope->id());
     const auto& x = *v.positions;
     std::optional<RopeHit> best;
     double best_gap = std::numeric_limits<double>::infinity();

@@ -30,10 +30,10 @@ std::uint64_t getWord(const std::string& in, std::size_t& at) {
 
 }  // namespace
 
-void BulletWorld::Impl::saveSnapshot(std::ostream& out, const std::vector<const btRigidBody*>& bodies) const {
+void BulletWorld::saveSnapshot(std::ostream& out, const std::vector<const btRigidBody*>& bodies) const {
     std::string map;
-    putWord(map, proxies_.size());
-    for (const auto& [body, id] : proxies_) {
+    putWord(map, impl_->proxies_.size());
+    for (const auto& [body, id] : impl_->proxies_) {
         const auto it = std::find(bodies.begin(), bodies.end(), body);
         if (it == bodies.end())
             throw InvalidInput("bodies", "a body the strings hold or touch (rigid proxy " + std::to_string(id.index) +
@@ -41,10 +41,10 @@ void BulletWorld::Impl::saveSnapshot(std::ostream& out, const std::vector<const 
         putWord(map, id.index);
         putWord(map, static_cast<std::uint64_t>(it - bodies.begin()));
     }
-    tearables::saveSnapshot(*core_, out, {{kTag, map}});
+    tearables::saveSnapshot(*impl_->core_, out, {{kTag, map}});
 }
 
-void BulletWorld::Impl::loadSnapshot(std::istream& in, const std::vector<btRigidBody*>& bodies) {
+void BulletWorld::loadSnapshot(std::istream& in, const std::vector<btRigidBody*>& bodies) {
     const Snapshot snapshot = Snapshot::read(in);
     const std::string where = std::string("snapshot.") + kTag;
     const SnapshotSection* map = nullptr;
@@ -76,19 +76,19 @@ void BulletWorld::Impl::loadSnapshot(std::istream& in, const std::vector<btRigid
         if (!proxies.emplace(body, id).second) throw InvalidInput(field, "stands for two rigid proxies");
     }
     if (at != map->payload.size()) throw SnapshotError(where, "bytes left over at the end of the section");
-    snapshot.restore(*core_);
-    proxies_ = std::move(proxies);
-    named_.clear();  // the snapshot's ids name the bodies now: ask bodyId() again
-    candidates_.clear();
-    mesh_candidates_.clear();
-    events_.clear();
-    forces_.clear();  // what was given for the next stepSimulation belonged to the state replaced
-    pins_.clear();
-    turns_.clear();
-    cloth_forces_.clear();
-    paper_forces_.clear();
-    peaks_.clear();
-    syncRopeObjects();
+    snapshot.restore(*impl_->core_);
+    impl_->proxies_ = std::move(proxies);
+    impl_->named_.clear();  // the snapshot's ids name the bodies now: ask bodyId() again
+    impl_->candidates_.clear();
+    impl_->mesh_candidates_.clear();
+    impl_->events_.clear();
+    impl_->forces_.clear();  // what was given for the next stepSimulation belonged to the state replaced
+    impl_->pins_.clear();
+    impl_->turns_.clear();
+    impl_->cloth_forces_.clear();
+    impl_->paper_forces_.clear();
+    impl_->peaks_.clear();
+    impl_->syncRopeObjects();
 }
 
 }  // namespace tearables

@@ -952,9 +952,9 @@ BulletWorld::Impl::~Impl() {
 }
 
 bool BulletWorld::Impl::attachedToBullet() const { return action_->inWorld(); }
-World& BulletWorld::Impl::core() {
-    dropBodiesIfDetached();
-    return *core_;
+World& BulletWorld::core() {
+    impl_->dropBodiesIfDetached();
+    return *impl_->core_;
 }
 
 // Once the Bullet world is gone its bodies may be too: their proxies leave the core (the
@@ -970,30 +970,33 @@ void BulletWorld::Impl::dropBodiesIfDetached() {
     removeRopeObjectsFromWorld();  // those still in a world that lost only the sentinel
     rope_objects_.clear();
 }
-const World& BulletWorld::Impl::core() const { return *core_; }
-StringId BulletWorld::Impl::addString(const StringDesc& desc) {
-    const StringId id = core_->addString(desc);
-    string_filters_.erase(id.index);
-    syncRopeObject(id);
+const World& BulletWorld::core() const { return *impl_->core_; }
+StringId BulletWorld::addString(const StringDesc& desc) {
+    const StringId id = impl_->core_->addString(desc);
+    impl_->string_filters_.erase(id.index);
+    impl_->syncRopeObject(id);
     return id;
 }
-StringId BulletWorld::Impl::addString(const StringDesc& desc, int group, int mask) {
-    const StringId id = core_->addString(desc);
-    string_filters_[id.index] = Filter{group, mask};
-    syncRopeObject(id);
+StringId BulletWorld::addString(const StringDesc& desc, int group, int mask) {
+    const StringId id = impl_->core_->addString(desc);
+    impl_->string_filters_[id.index] = Impl::Filter{group, mask};
+    impl_->syncRopeObject(id);
     return id;
 }
 // A removed string's slot may hold the next string added (with the next generation):
 // nothing of it is kept.
-void BulletWorld::Impl::removeString(StringId id) {
-    core_->removeString(id);
-    dropRopeObject(id);
-    string_filters_.erase(id.index);
-    peaks_.erase(id);
-    string_users_.erase(id);
-    forces_.erase(forces_.lower_bound({id, INT_MIN}), forces_.upper_bound({id, INT_MAX}));
-    pins_.erase(pins_.lower_bound({id, INT_MIN}), pins_.upper_bound({id, INT_MAX}));
-    turns_.erase(turns_.lower_bound({id, INT_MIN}), turns_.upper_bound({id, INT_MAX}));
+void BulletWorld::removeString(StringId id) {
+    impl_->core_->removeString(id);
+    impl_->dropRopeObject(id);
+    impl_->string_filters_.erase(id.index);
+    impl_->peaks_.erase(id);
+    impl_->string_users_.erase(id);
+    auto& forces = impl_->forces_;
+    auto& pins = impl_->pins_;
+    auto& turns = impl_->turns_;
+    forces.erase(forces.lower_bound({id, INT_MIN}), forces.upper_bound({id, INT_MAX}));
+    pins.erase(pins.lower_bound({id, INT_MIN}), pins.upper_bound({id, INT_MAX}));
+    turns.erase(turns.lower_bound({id, INT_MIN}), turns.upper_bound({id, INT_MAX}));
 }
 
 // Bullet's rule (btOverlappingPairCache's needsBroadphaseCollision), both ways.
@@ -1021,10 +1024,10 @@ BulletWorld::Impl::Filter BulletWorld::Impl::meshFilter(const PointQuery& query,
     }
     return Filter{};
 }
-const std::vector<BulletEvent>& BulletWorld::Impl::events() const { return events_; }
-void BulletWorld::Impl::clearEvents() { events_.clear(); }
-const StageTimes& BulletWorld::Impl::totalStageTimes() const { return total_; }
-const std::string& BulletWorld::Impl::lastError() const { return last_error_; }
+const std::vector<BulletEvent>& BulletWorld::events() const { return impl_->events_; }
+void BulletWorld::clearEvents() { impl_->events_.clear(); }
+const StageTimes& BulletWorld::totalStageTimes() const { return impl_->total_; }
+const std::string& BulletWorld::lastError() const { return impl_->last_error_; }
 
 void BulletWorld::Impl::debugDraw(btIDebugDraw& drawer) const {
     // Colours by load fraction T / (rupture stress * pi r^2), clamped to [0, 1], as MuJoCo's
@@ -1075,8 +1078,8 @@ void BulletWorld::Impl::debugDraw(btIDebugDraw& drawer) const {
     }
 }
 
-void BulletWorld::Impl::attach(StringId id, int particle, const btVector3& world_point) {
-    core_->attachToPoint(id, particle, toCore(world_point));
+void BulletWorld::attach(StringId id, int particle, const btVector3& world_point) {
+    impl_->core_->attachToPoint(id, particle, toCore(world_point));
 }
 
 RigidId BulletWorld::Impl::proxyFor(btRigidBody& body) {
@@ -1090,85 +1093,87 @@ RigidId BulletWorld::Impl::proxyFor(btRigidBody& body) {
     return id;
 }
 
-void BulletWorld::Impl::attach(StringId id, int particle, btRigidBody& body, const btVector3& local_point) {
+void BulletWorld::attach(StringId id, int particle, btRigidBody& body, const btVector3& local_point) {
     if (!body.getBroadphaseHandle()) throw InvalidInput("body", "is not in the Bullet world");
-    requireLive(*core_, id);
-    core_->resolveParticle(id, particle);  // validates before anything is created
-    core_->attachToRigid(id, particle, proxyFor(body), toCore(local_point));
+    requireLive(*impl_->core_, id);
+    impl_->core_->resolveParticle(id, particle);  // validates before anything is created
+    impl_->core_->attachToRigid(id, particle, impl_->proxyFor(body), toCore(local_point));
 }
 
-void BulletWorld::Impl::detach(StringId id, int particle) { core_->detach(id, particle); }
+void BulletWorld::detach(StringId id, int particle) { impl_->core_->detach(id, particle); }
 
-ClothId BulletWorld::Impl::addCloth(const ClothDesc& desc) {
-    const ClothId id = core_->addCloth(desc);
-    cloth_filters_.erase(id.index);
+ClothId BulletWorld::addCloth(const ClothDesc& desc) {
+    const ClothId id = impl_->core_->addCloth(desc);
+    impl_->cloth_filters_.erase(id.index);
     return id;
 }
-ClothId BulletWorld::Impl::addCloth(const ClothDesc& desc, int group, int mask) {
-    const ClothId id = core_->addCloth(desc);
-    cloth_filters_[id.index] = Filter{group, mask};
+ClothId BulletWorld::addCloth(const ClothDesc& desc, int group, int mask) {
+    const ClothId id = impl_->core_->addCloth(desc);
+    impl_->cloth_filters_[id.index] = Impl::Filter{group, mask};
     return id;
 }
-void BulletWorld::Impl::removeCloth(ClothId id) {
-    core_->removeCloth(id);
-    cloth_filters_.erase(id.index);
-    cloth_users_.erase(id);
-    cloth_forces_.erase(cloth_forces_.lower_bound({id, INT_MIN}), cloth_forces_.upper_bound({id, INT_MAX}));
+void BulletWorld::removeCloth(ClothId id) {
+    impl_->core_->removeCloth(id);
+    impl_->cloth_filters_.erase(id.index);
+    impl_->cloth_users_.erase(id);
+    auto& forces = impl_->cloth_forces_;
+    forces.erase(forces.lower_bound({id, INT_MIN}), forces.upper_bound({id, INT_MAX}));
 }
 
-void BulletWorld::Impl::removePaper(PaperId id) {
-    core_->removePaper(id);
-    paper_filters_.erase(id.index);
-    paper_users_.erase(id);
-    paper_forces_.erase(paper_forces_.lower_bound({id, 0u}), paper_forces_.upper_bound({id, UINT32_MAX}));
+void BulletWorld::removePaper(PaperId id) {
+    impl_->core_->removePaper(id);
+    impl_->paper_filters_.erase(id.index);
+    impl_->paper_users_.erase(id);
+    auto& forces = impl_->paper_forces_;
+    forces.erase(forces.lower_bound({id, 0u}), forces.upper_bound({id, UINT32_MAX}));
 }
 
-void BulletWorld::Impl::attachCloth(ClothId id, int vertex, const btVector3& world_point) {
-    core_->attachClothToPoint(id, vertex, toCore(world_point));
+void BulletWorld::attachCloth(ClothId id, int vertex, const btVector3& world_point) {
+    impl_->core_->attachClothToPoint(id, vertex, toCore(world_point));
 }
 
-void BulletWorld::Impl::attachCloth(ClothId id, int vertex, btRigidBody& body, const btVector3& local_point) {
+void BulletWorld::attachCloth(ClothId id, int vertex, btRigidBody& body, const btVector3& local_point) {
     if (!body.getBroadphaseHandle()) throw InvalidInput("body", "is not in the Bullet world");
-    requireLive(*core_, id);
-    const int n = core_->clothDesc(id).vertexCount();
+    requireLive(*impl_->core_, id);
+    const int n = impl_->core_->clothDesc(id).vertexCount();
     if (vertex < -n || vertex >= n) throw InvalidInput("vertex", "vertex index " + std::to_string(vertex) + " out of range");
-    core_->attachClothToRigid(id, vertex, proxyFor(body), toCore(local_point));
+    impl_->core_->attachClothToRigid(id, vertex, impl_->proxyFor(body), toCore(local_point));
 }
 
-PaperId BulletWorld::Impl::addPaper(const PaperDesc& desc) {
-    const PaperId id = core_->addPaper(desc);
-    paper_filters_.erase(id.index);
+PaperId BulletWorld::addPaper(const PaperDesc& desc) {
+    const PaperId id = impl_->core_->addPaper(desc);
+    impl_->paper_filters_.erase(id.index);
     return id;
 }
-PaperId BulletWorld::Impl::addPaper(const PaperDesc& desc, int group, int mask) {
-    const PaperId id = core_->addPaper(desc);
-    paper_filters_[id.index] = Filter{group, mask};
+PaperId BulletWorld::addPaper(const PaperDesc& desc, int group, int mask) {
+    const PaperId id = impl_->core_->addPaper(desc);
+    impl_->paper_filters_[id.index] = Impl::Filter{group, mask};
     return id;
 }
 
-void BulletWorld::Impl::attachPaper(PaperId id, int vertex, const btVector3& world_point) {
-    core_->attachPaperToPoint(id, vertex, toCore(world_point));
+void BulletWorld::attachPaper(PaperId id, int vertex, const btVector3& world_point) {
+    impl_->core_->attachPaperToPoint(id, vertex, toCore(world_point));
 }
 
-void BulletWorld::Impl::attachPaper(PaperId id, int vertex, btRigidBody& body, const btVector3& local_point) {
+void BulletWorld::attachPaper(PaperId id, int vertex, btRigidBody& body, const btVector3& local_point) {
     if (!body.getBroadphaseHandle()) throw InvalidInput("body", "is not in the Bullet world");
-    requireLive(*core_, id);
-    core_->paperVertex(id, vertex);  // refused before a proxy is made for the body
-    core_->attachPaperToRigid(id, vertex, proxyFor(body), toCore(local_point));
+    requireLive(*impl_->core_, id);
+    impl_->core_->paperVertex(id, vertex);  // refused before a proxy is made for the body
+    impl_->core_->attachPaperToRigid(id, vertex, impl_->proxyFor(body), toCore(local_point));
 }
 
-void BulletWorld::Impl::forgetBody(const btRigidBody& body) {
-    auto it = proxies_.find(&body);
-    if (it == proxies_.end()) return;
-    core_->removeRigid(it->second);
-    named_.erase(it->first);
-    proxies_.erase(it);
+void BulletWorld::forgetBody(const btRigidBody& body) {
+    auto it = impl_->proxies_.find(&body);
+    if (it == impl_->proxies_.end()) return;
+    impl_->core_->removeRigid(it->second);
+    impl_->named_.erase(it->first);
+    impl_->proxies_.erase(it);
 }
 
-RigidId BulletWorld::Impl::bodyId(btRigidBody& body) {
+RigidId BulletWorld::bodyId(btRigidBody& body) {
     if (!body.getBroadphaseHandle()) throw InvalidInput("body", "is not in the Bullet world");
-    const RigidId id = proxyFor(body);
-    named_.insert(&body);
+    const RigidId id = impl_->proxyFor(body);
+    impl_->named_.insert(&body);
     return id;
 }
 
@@ -1313,53 +1318,54 @@ void BulletWorld::Impl::recordPeaks() {
     }
 }
 
-void BulletWorld::Impl::applyForce(StringId id, int particle, const btVector3& force) {
-    requireLive(*core_, id);
-    const int p = core_->resolveParticle(id, particle);
+void BulletWorld::applyForce(StringId id, int particle, const btVector3& force) {
+    requireLive(*impl_->core_, id);
+    const int p = impl_->core_->resolveParticle(id, particle);
     const Vec3 f = tearables::toCore(force);
     if (!f.allFinite()) throw InvalidInput("force", "must be finite");
-    auto [it, fresh] = forces_.try_emplace({id, p}, Vec3::Zero());
+    auto [it, fresh] = impl_->forces_.try_emplace({id, p}, Vec3::Zero());
     it->second += f;
 }
 
 // The core checks the object and the vertex (a zero force changes nothing).
-void BulletWorld::Impl::applyClothForce(ClothId id, int vertex, const btVector3& force) {
+void BulletWorld::applyClothForce(ClothId id, int vertex, const btVector3& force) {
     const Vec3 f = tearables::toCore(force);
-    core_->applyClothForce(id, vertex, Vec3::Zero());
+    impl_->core_->applyClothForce(id, vertex, Vec3::Zero());
     if (!f.allFinite()) throw InvalidInput("force", "must be finite");
-    auto [it, fresh] = cloth_forces_.try_emplace({id, vertex}, Vec3::Zero());
+    auto [it, fresh] = impl_->cloth_forces_.try_emplace({id, vertex}, Vec3::Zero());
     it->second += f;
 }
 
-void BulletWorld::Impl::applyPaperForce(PaperId id, int index, const btVector3& force) {
+void BulletWorld::applyPaperForce(PaperId id, int index, const btVector3& force) {
     const Vec3 f = tearables::toCore(force);
-    const std::uint32_t vertex = core_->paperVertex(id, index);
+    const std::uint32_t vertex = impl_->core_->paperVertex(id, index);
     if (!f.allFinite()) throw InvalidInput("force", "must be finite");
-    auto [it, fresh] = paper_forces_.try_emplace({id, vertex}, Vec3::Zero());
+    auto [it, fresh] = impl_->paper_forces_.try_emplace({id, vertex}, Vec3::Zero());
     it->second += f;
 }
 
-void BulletWorld::Impl::movePin(StringId id, int particle, const btVector3& point) {
-    requireLive(*core_, id);
-    const int p = core_->resolveParticle(id, particle);
+void BulletWorld::movePin(StringId id, int particle, const btVector3& point) {
+    requireLive(*impl_->core_, id);
+    const int p = impl_->core_->resolveParticle(id, particle);
     Vec3 now;
-    if (!core_->pinTarget(id, p, &now)) throw InvalidInput("particle", "particle " + std::to_string(particle) + " is not pinned to a world point");
+    if (!impl_->core_->pinTarget(id, p, &now))
+        throw InvalidInput("particle", "particle " + std::to_string(particle) + " is not pinned to a world point");
     const Vec3 to = tearables::toCore(point);
     if (!to.allFinite()) throw InvalidInput("point", "must be finite");
-    auto [it, fresh] = pins_.try_emplace({id, p}, PendingPin{now, to});
+    auto [it, fresh] = impl_->pins_.try_emplace({id, p}, Impl::PendingPin{now, to});
     it->second.to = to;  // a second move before the step keeps the first start
 }
 
-std::vector<double> BulletWorld::Impl::peakTension(StringId id) const {
-    requireLive(*core_, id);
-    const auto it = peaks_.find(id);
-    if (it != peaks_.end()) return it->second;
-    return std::vector<double>(core_->view(id).segmentCount(), 0.0);
+std::vector<double> BulletWorld::peakTension(StringId id) const {
+    requireLive(*impl_->core_, id);
+    const auto it = impl_->peaks_.find(id);
+    if (it != impl_->peaks_.end()) return it->second;
+    return std::vector<double>(impl_->core_->view(id).segmentCount(), 0.0);
 }
 
-void BulletWorld::Impl::clearPeakTension(StringId id) {
-    requireLive(*core_, id);
-    peaks_.erase(id);
+void BulletWorld::clearPeakTension(StringId id) {
+    requireLive(*impl_->core_, id);
+    impl_->peaks_.erase(id);
 }
 
 void BulletWorld::Impl::substep(double h, int tick, int ticks) {

@@ -1,8 +1,9 @@
 // The state behind tearables::BulletWorld (tearables/bullet.hpp keeps only a pointer to it,
-// so that its users compile without Eigen, the core's headers or these containers). The
-// public calls forward here with the same names (bullet_facade.cpp); the step's adapter
-// is bullet_world.cpp, the Bullet-facing reports bullet_api.cpp, snapshots
-// bullet_snapshot.cpp.
+// so that its users compile without Eigen, the core's headers or these containers), and
+// the step's private helpers. BulletWorld's public calls are defined once, as BulletWorld's
+// members, beside the code they use: the step's adapter and the building calls in
+// bullet_world.cpp, the Bullet-facing reports bullet_api.cpp, ray objects bullet_rays.cpp,
+// snapshots bullet_snapshot.cpp, the reads bullet_facade.cpp.
 #pragma once
 
 #include "tearables/bullet_core.hpp"
@@ -30,58 +31,12 @@ struct BulletWorld::Impl {
     Impl(const Impl&) = delete;
     Impl& operator=(const Impl&) = delete;
 
-    // --- the public calls (tearables/bullet.hpp documents them) ---------------------------
-    World& core();
-    const World& core() const;
-    StringId addString(const StringDesc& desc);
-    StringId addString(const StringDesc& desc, int group, int mask);
-    void removeString(StringId id);
-    void attach(StringId id, int particle, const btVector3& world_point);
-    void attach(StringId id, int particle, btRigidBody& body, const btVector3& local_point);
-    void detach(StringId id, int particle);
-    void setVelocities(StringId id, const std::vector<btVector3>& velocities);
-    void reel(StringId id, int end, double speed, RestMass mode);
-    ClothId addCloth(const ClothDesc& desc);
-    ClothId addCloth(const ClothDesc& desc, int group, int mask);
-    void removeCloth(ClothId id);
-    void attachCloth(ClothId id, int vertex, const btVector3& world_point);
-    void attachCloth(ClothId id, int vertex, btRigidBody& body, const btVector3& local_point);
-    void forgetBody(const btRigidBody& body);
-    RigidId bodyId(btRigidBody& body);
-    void setUserPointer(StringId id, void* user);
-    void setUserPointer(ClothId id, void* user);
-    void setUserPointer(PaperId id, void* user);
-    void* userPointer(StringId id) const;
-    void* userPointer(ClothId id) const;
-    void* userPointer(PaperId id) const;
-    PaperId addPaper(const PaperDesc& desc);
-    PaperId addPaper(const PaperDesc& desc, int group, int mask);
-    void removePaper(PaperId id);
-    void attachPaper(PaperId id, int vertex, const btVector3& world_point);
-    void attachPaper(PaperId id, int vertex, btRigidBody& body, const btVector3& local_point);
-    void applyForce(StringId id, int particle, const btVector3& force);
-    void applyClothForce(ClothId id, int vertex, const btVector3& force);
-    void applyPaperForce(PaperId id, int vertex, const btVector3& force);
-    void movePin(StringId id, int particle, const btVector3& point);
-    void turnEnd(StringId id, int end, double angle);
-    std::vector<double> peakTension(StringId id) const;
-    void clearPeakTension(StringId id);
-    const std::vector<BulletEvent>& events() const;
-    void clearEvents();
-    const std::vector<BulletContact>& contacts() const;
-    void setTearCallback(std::function<void(const BulletEvent&)> callback);
-    void setContactCallback(std::function<void(const BulletContact&)> callback);
-    const StageTimes& totalStageTimes() const;
+    // BulletWorld's calls are its own (bullet_world.cpp, bullet_api.cpp, bullet_rays.cpp,
+    // bullet_snapshot.cpp, bullet_facade.cpp); these two are the step's too.
+    /// False once the Bullet world was destroyed (or the plugin's action removed from it).
     bool attachedToBullet() const;
+    /// BulletWorld::debugDraw, also called by Bullet's debugDrawWorld through the action.
     void debugDraw(btIDebugDraw& drawer) const;
-    const std::string& lastError() const;
-    void saveSnapshot(std::ostream& out, const std::vector<const btRigidBody*>& bodies) const;
-    void loadSnapshot(std::istream& in, const std::vector<btRigidBody*>& bodies);
-    void setRopesRayTestable(bool on);
-    bool ropesRayTestable() const { return rope_objects_on_; }
-    const btCollisionObject* rayObject(StringId id) const;
-    std::optional<RopeHit> ropeHit(const btCollisionObject* object, int child) const;
-    std::optional<RopeHit> ropeHit(const btCollisionObject* object, const btVector3& point) const;
 
     // --- ropes in Bullet's queries (bullet_rays.cpp) ----------------------------------------
     /// A string's collision object: a compound of one capsule per intact segment.
