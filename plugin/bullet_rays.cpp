@@ -148,16 +148,16 @@ private:
     btVector3 unit_scale_{1, 1, 1};
 };
 
-/// A compound whose children are moved in place: a child's leaf in the tree is moved only
-/// when its capsule left the leaf's grown box (updateChildTransform re-inserts the leaf
-/// whenever the child moves at all), and the bounds of the whole are set from the
-/// capsules' boxes.
 /// The user pointer of every rope object's shape: how the pair filter tells a rope object
 /// from a body without a dynamic_cast on every pair test. The shape is the plugin's, so its
 /// user pointer is too (the object's user pointer and indices are the user's to read:
 /// docs/facade.md, "Identity").
 const char kRopeShapeTag = 0;
 
+/// A compound whose children are moved in place: a child's leaf in the tree is moved only
+/// when its capsule left the leaf's grown box (updateChildTransform re-inserts the leaf
+/// whenever the child moves at all), and the bounds of the whole are set from the
+/// capsules' boxes.
 class RopeCompound final : public btCompoundShape {
 public:
     explicit RopeCompound(int children) : btCompoundShape(true, children) {
