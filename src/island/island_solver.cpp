@@ -52,6 +52,9 @@ constexpr double kQuadraticRegime = 0.1;
 /// Times per iteration that the contacts the step runs into are revised (addPredictedContacts)
 /// and the system solved again.
 constexpr int kPredictRounds = 3;
+/// The slowest rate that the estimate of the distance still to go takes (a rate near 1
+/// would ask for moves far below rounding).
+constexpr double kSlowestRate = 0.99;
 
 }  // namespace
 
@@ -317,7 +320,14 @@ IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, cons
             // was factorised: a short one ends the solve only where it fell as fast as a
             // Newton step would (and one the line search refused is retried as Newton's).
             const bool fell = last_move > 0.0 && worst < kQuadraticRegime * last_move;
-            if (chord ? (!stalled && worst < 1.0 && fell) : (stalled || worst < 1.0)) {
+            // A Newton step ends the solve where the distance still to go is within
+            // tolerance: its move where the moves fall quadratically, but at a linear rate r
+            // (friction's majoriser near the verge of slipping: r ~ 0.9) the moves still to
+            // come sum to about move r / (1 - r), and a move within tolerance is far from
+            // the fixed point (a rope sliding over a movable drum stopped a third of the way).
+            const double rate = last_move > 0.0 ? std::min(worst / last_move, kSlowestRate) : 0.0;
+            const double to_go = std::max(worst, worst * rate / (1.0 - rate));
+            if (chord ? (!stalled && worst < 1.0 && fell) : (stalled || to_go < 1.0)) {
                 converged = true;
                 break;
             }

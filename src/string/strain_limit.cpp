@@ -33,6 +33,9 @@ namespace tearables::detail {
 namespace {
 /// A segment shorter than its rest length by less than this fraction counts as taut.
 constexpr double kTautSlack = 1e-4;
+/// The active mark of a slack segment put in the model by prediction (springForce): none
+/// of springBranch's, so that a chord iteration sees the change when it becomes taut.
+constexpr std::uint8_t kPredictedTaut = 4;
 /// Contact penalty over the stiffest spring, particle and body inertia it competes with.
 constexpr double kContactStiffnessFactor = 100.0;
 /// The iteration budget of a contact-free chain relative to WorldSettings::strain_iterations
@@ -237,7 +240,21 @@ template <bool kHessian>
     // kTautSlack of rest) join with their stiffness but no force, so that one
     // Newton step sees the whole taut chain a correction would stretch; a
     // segment the step compresses leaves again at the next iteration.
-    if (slackSegment(s, j, stretch, effective)) return false;
+    if (slackSegment(s, j, stretch, effective)) {
+        // A slack segment that the step is predicted to stretch (predictSprings): its
+        // spring with the slack carried, k/2 (C + e . (dx_b - dx_a))^2 in the model (a
+        // force k C < 0 and the axial stiffness alone), so that the step stops where the
+        // segment becomes taut instead of running on past it with no stiffness in the
+        // model, which the energy then refuses (the line search's halvings).
+        if (s.scratch.predicted_taut.empty() || !s.scratch.predicted_taut[j]) return false;
+        s.scratch.active[j] = kPredictedTaut;
+        term.force = k * effective * s.scratch.dir[j];
+        term.to_a = !fixedRow(s, j);
+        term.to_b = !fixedRow(s, j + 1);
+        axial = 1.0;
+        geometric = 0.0;
+        return kHessian;
+    }
     // Past yield (yield_in_solve) the force follows the plastic branch (plastic_spring.hpp):
     // c here is the equivalent elastic stretch f / k, `slope` the tangent over k. The
     // branch is the segment's active mark, so a chord iteration whose segment changed
@@ -877,6 +894,29 @@ void backSubstituteNodes(StringState& s, const Eigen::VectorXd& du) {
             for (std::size_t p = 0; p < n; ++p) s.scratch.blk_rhs[p] -= f * s.scratch.node_columns[c][p];
     }
     for (std::size_t b = 0; b < nodes; ++b) s.scratch.node_step[b] = du.segment<6>(static_cast<Eigen::Index>(6 * b));
+}
+
+bool predictSprings(StringState& s, const StepContext& ctx, const std::vector<Vec3>* held_step) {
+    const std::size_t m = s.segments();
+    if (s.scratch.predicted_taut.size() != m) s.scratch.predicted_taut.assign(m, 0);
+    auto moved = [&](std::size_t p) {
+        if (!fixedRow(s, p)) return Vec3(s.x[p] + s.scratch.blk_rhs[p]);
+        return held_step ? Vec3(s.x[p] + (*held_step)[p]) : s.x[p];
+    };
+    const double rate_gain = s.desc.axial_damping * ctx.inv_h;
+    bool changed = false;
+    for (std::size_t j = 0; j < m; ++j) {
+        if (s.broken[j]) continue;
+        const double stretch = (s.x[j + 1] - s.x[j]).norm() - s.rest_length[j];
+        if (!slackSegment(s, j, stretch, effectiveStretch(s, j, stretch, rate_gain))) continue;
+        const double after = (moved(j + 1) - moved(j)).norm() - s.rest_length[j];
+        const std::uint8_t stretched = effectiveStretch(s, j, after, rate_gain) > 0.0;
+        if (stretched != s.scratch.predicted_taut[j]) {
+            s.scratch.predicted_taut[j] = stretched;
+            changed = true;
+        }
+    }
+    return changed;
 }
 
 bool springRow(StringState& s, const StepContext& ctx, std::size_t j, Mat3& hess, Vec3& force) {

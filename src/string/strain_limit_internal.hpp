@@ -148,6 +148,11 @@ void setContactStiffness(StringState& s, const RigidTable& rigids, double inv_h2
 /// `held_step`, per particle, moves the rows the solve holds fixed (an island's glued
 /// particles, with their bodies); none: they stay.
 bool predictContacts(StringState& s, const std::vector<Vec3>* held_step = nullptr);
+/// The same for the slack segments: those that the Newton step in blk_rhs (`held_step`
+/// for the rows the solve holds) stretches are marked in scratch.predicted_taut, those it
+/// no longer stretches unmarked; the chain's assembly then puts their springs in the model
+/// with their slack carried (springForce). Returns whether any mark changed.
+bool predictSprings(StringState& s, const StepContext& ctx, const std::vector<Vec3>* held_step);
 /// The body nodes' rows of the active contacts' penalties and of all contacts' friction:
 /// added to `nodes` (diag, rhs, coupling; the caller zeroes or seeds them) and, on the
 /// string's side, to blk_diag and blk_rhs.

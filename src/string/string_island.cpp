@@ -275,6 +275,7 @@ void StringIslandMember::condense(bool fresh) {
             c.active = !s.broken[j] && rigidGap(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]) < 0.0;
             c.predicted = false;
         }
+        s.scratch.predicted_taut.clear();
     }
     assembleChain(s, *rigids_, *ctx_, nullptr);
     StringScratch::NodeScratch& ns = s.scratch.node_scratch;
@@ -435,7 +436,8 @@ bool StringIslandMember::addPredictedContacts() {
     StringState& s = *string_;
     held_step_.assign(s.particles(), Vec3::Zero());
     for (const Glued& g : glued_) held_step_[g.particle] = glueJacobian(g) * s.scratch.node_step[g.node];
-    return predictContacts(s, &held_step_);
+    const bool contacts = predictContacts(s, &held_step_);
+    return predictSprings(s, *ctx_, &held_step_) || contacts;
 }
 
 Vec3 StringIslandMember::trialGlue(const Glued& g, double alpha) const {
@@ -504,6 +506,7 @@ void StringIslandMember::finish(int iterations) {
         c.active = !s.broken[j] && rigidGap(s, c, (1.0 - c.s) * s.x[j] + c.s * s.x[j + 1]) < 0.0;
         c.predicted = false;
     }
+    s.scratch.predicted_taut.clear();
     finishChain(s, *rigids_, *ctx_);
     // What the segments gave each glued particle (x h^2): their final pull, the impulse the
     // tension solve reads for a glued row.

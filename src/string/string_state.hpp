@@ -88,6 +88,10 @@ struct StringScratch {
     /// Slack exactly at the rest length (no taut band): set by the island solve after its
     /// first iterations (StringIslandMember::condense).
     bool exact_slack = false;
+    /// Per segment (empty: none), set by the island solve: a slack segment that this
+    /// iteration's step stretches (predictSprings) joins the Newton model with its slack
+    /// carried, as a contact the step runs into does.
+    std::vector<std::uint8_t> predicted_taut;
     std::vector<double> geometric_tension;  ///< per segment: the tension estimate of the chain Hessian's geometric term, N
     /// This step's strain solve of the string converged (false where its own solve stopped
     /// at the iteration cap): the return mapping of yield_in_solve trusts only a converged
