@@ -33,10 +33,10 @@ namespace {
 
 /// Whether the island solve takes joint c from Bullet (BodyJoint): a ball joint
 /// (btPoint2PointConstraint) or a hinge (btHingeConstraint, its limits as hard stops)
-/// without motor or angular-only mode, enabled, that no impulse breaks. Others leave their
-/// islands to Bullet.
+/// without motor or angular-only mode, enabled (a breaking impulse is checked after the
+/// step, writeJointImpulses). Others leave their islands to Bullet.
 bool islandJoint(const btTypedConstraint& c) {
-    if (!c.isEnabled() || c.getBreakingImpulseThreshold() < SIMD_INFINITY) return false;
+    if (!c.isEnabled()) return false;
     if (c.getConstraintType() == POINT2POINT_CONSTRAINT_TYPE) return true;
     if (c.getConstraintType() != HINGE_CONSTRAINT_TYPE) return false;
     auto& hinge = const_cast<btHingeConstraint&>(static_cast<const btHingeConstraint&>(c));  // Bullet's getters are not const
@@ -202,6 +202,7 @@ public:
     /// The joints withheld with the claimed bodies (islandJoint), at the bodies' poses now:
     /// a ball joint's pivots, a hinge's pivots and axes (its frames' origins and z axes).
     void findBodyJoints(std::vector<BodyJoint>& out) override {
+        joints_.clear();
         if (!owner_.attachedToBullet() || !owner_.claim_) return;
         const double h = owner_.step_;
         for (btTypedConstraint* c : owner_.claim_->withheldConstraints()) {
@@ -209,6 +210,8 @@ public:
             const Side sa = side(c->getRigidBodyA(), h), sb = side(c->getRigidBodyB(), h);
             if (!sa.body.valid() && !sb.body.valid()) continue;
             BodyJoint j;
+            j.host_tag = joints_.size();
+            joints_.push_back(c);
             j.a = sa.body;
             j.b = sb.body;
             if (c->getConstraintType() == POINT2POINT_CONSTRAINT_TYPE) {
@@ -254,6 +257,50 @@ public:
             }
     }
 
+    /// After the step, for every joint the island solved, what Bullet's solver leaves on a
+    /// constraint it solved (btSequentialImpulseConstraintSolver's finish): its applied
+    /// impulse, the sum of its rows' impulses (a ball joint's rows are the world's axes,
+    /// acting on A: the sum of the components of the impulse on A; a hinge's also its
+    /// alignment about the two axes across its own, and its limit about the axis); its
+    /// joint feedback (forces and torques on A and B: the impulses over h); and where a row's
+    /// impulse reaches the breaking threshold, the constraint disabled (it stays with Bullet
+    /// from the next step, disabled).
+    void writeJointImpulses(const std::vector<BodyJoint>& solved) {
+        const double h = owner_.step_;
+        if (!(h > 0.0)) return;
+        for (const BodyJoint& j : solved) {
+            if (j.host_tag >= joints_.size()) continue;
+            btTypedConstraint& c = *joints_[j.host_tag];
+            // The host's A and B (the solve may have turned the joint round).
+            const Vec3 lin_a = j.swapped ? j.impulse_b : j.impulse_a, ang_a = j.swapped ? j.angular_impulse_b : j.angular_impulse_a;
+            const Vec3 lin_b = j.swapped ? j.impulse_a : j.impulse_b, ang_b = j.swapped ? j.angular_impulse_a : j.angular_impulse_b;
+            // A's row impulses: the pivot's along the world axes (the impulse on A, or minus
+            // the impulse on B where A is a fixed frame: the joint's impulse is equal and opposite).
+            const Vec3 pivot = (j.swapped ? j.b : j.a).valid() ? lin_a : Vec3(-lin_b);
+            double sum = pivot.sum(), largest = pivot.cwiseAbs().maxCoeff();
+            if (j.kind == BodyJoint::Kind::Hinge) {
+                // The angular rows about A's axis frame: the two across it (alignment) and
+                // the axis itself (the limit), each the angular impulse's component less
+                // the pivot force's moment, which the linear rows carry.
+                const Vec3 axis = j.swapped ? j.axis_b : j.axis_a;
+                const btRigidBody& body_a = c.getRigidBodyA();
+                const Vec3 arm = (j.swapped ? j.pivot_b : j.pivot_a) - toCore(body_a.getCenterOfMassPosition());
+                const Vec3 turning = (j.swapped ? j.b : j.a).valid() ? Vec3(ang_a - arm.cross(lin_a)) : Vec3::Zero();
+                const Vec3 across = turning - axis * axis.dot(turning);
+                sum += across.norm() + axis.dot(turning);
+                largest = std::max({largest, across.norm(), std::abs(axis.dot(turning))});
+            }
+            c.internalSetAppliedImpulse(static_cast<btScalar>(sum));
+            if (btJointFeedback* fb = c.needsFeedback() ? c.getJointFeedback() : nullptr) {
+                fb->m_appliedForceBodyA = tearables::toBullet(lin_a / h);
+                fb->m_appliedTorqueBodyA = tearables::toBullet(ang_a / h);
+                fb->m_appliedForceBodyB = tearables::toBullet(lin_b / h);
+                fb->m_appliedTorqueBodyB = tearables::toBullet(ang_b / h);
+            }
+            if (largest >= static_cast<double>(c.getBreakingImpulseThreshold())) c.setEnabled(false);
+        }
+    }
+
 private:
     /// One body of a withheld manifold: its proxy (none for a fixed one: static,
     /// kinematic, or a body not claimed), and its poses now and at the step's start.
@@ -278,6 +325,7 @@ private:
     }
 
     std::vector<std::pair<btPersistentManifold*, int>> points_;  // per body contact: its manifold point
+    std::vector<btTypedConstraint*> joints_;                      // per body joint: its constraint
 
     void findStringContacts(const CollisionQuery& query, std::vector<RigidContact>& out) {
         const double h = owner_.step_;
@@ -1418,6 +1466,7 @@ void BulletWorld::Impl::substep(double h, int tick, int ticks) {
 
         writeBodies();
         contacts_->writeBodyImpulses(core_->lastBodyContacts());
+        contacts_->writeJointImpulses(core_->lastBodyJoints());
         claimIslandBodies();
         recordPeaks();
         // Rays are cast between frames: the rope objects follow at a frame's last step

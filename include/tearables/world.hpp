@@ -134,6 +134,16 @@ struct BodyJoint {
     double angle_sign = 1.0;
     double lower = -std::numeric_limits<double>::infinity();
     double upper = std::numeric_limits<double>::infinity();
+    std::size_t host_tag = 0;      ///< the host's own name for the joint, returned unchanged
+    // Out (World::lastBodyJoints), world frame: what the joint gave each body over the step,
+    // as impulses (its force times h): linear, N s, and angular about the body's centre of
+    // mass, N m s (the pivot's lever arm, a hinge's alignment and its limits). Zero for a
+    // fixed frame's side, and for a joint whose bodies no island solved.
+    Vec3 impulse_a = Vec3::Zero(), angular_impulse_a = Vec3::Zero();
+    Vec3 impulse_b = Vec3::Zero(), angular_impulse_b = Vec3::Zero();
+    /// The island solve turned the joint round (its a was the host's b: a fixed frame's
+    /// joint is always held by a movable a); a and b, and the impulses, are as solved.
+    bool swapped = false;
 };
 
 /// Positions a host's collision query sees: every live string's particles after the
@@ -315,6 +325,9 @@ public:
     /// The host's body-body contacts of the last step (findBodyContacts), with the normal
     /// force each carried (`force`, N); those between bodies outside every island carry 0.
     const std::vector<BodyContact>& lastBodyContacts() const;
+    /// The host's joints of the last step (findBodyJoints) that the island solve kept, with
+    /// the impulses each gave its bodies (BodyJoint::impulse_a, ...).
+    const std::vector<BodyJoint>& lastBodyJoints() const;
 
     /// Advances all strings, cloths and paper sheets by `h` seconds, [1e-7, 1]. Throws
     /// InvalidInput ("h", or the name of a setting made invalid through settings()) before

@@ -47,6 +47,7 @@ void prepareBodyJoints(std::vector<BodyJoint>& joints, const RigidTable& rigids)
             std::swap(j.pivot_a, j.pivot_b);
             std::swap(j.axis_a, j.axis_b);
             j.angle_sign = -j.angle_sign;  // the angle turns with theta_old_a - theta_old_b
+            j.swapped = !j.swapped;
         }
         if (!j.pivot_a.allFinite() || !j.pivot_b.allFinite()) return false;
         if (j.kind == BodyJoint::Kind::Hinge) {
@@ -68,7 +69,13 @@ void prepareBodyJoints(std::vector<BodyJoint>& joints, const RigidTable& rigids)
     joints.erase(std::remove_if(joints.begin(), joints.end(), [&](BodyJoint& j) { return !keep(j); }), joints.end());
 }
 
-void BodyJointMember::start(const BodyJoint& joint, const RigidTable& rigids, const StepContext& ctx) {
+void BodyJointMember::start(BodyJoint& joint, const RigidTable& rigids, const StepContext& ctx) {
+    joint_ = &joint;
+    h_ = ctx.h;
+    joint.impulse_a.setZero();
+    joint.angular_impulse_a.setZero();
+    joint.impulse_b.setZero();
+    joint.angular_impulse_b.setZero();
     const RigidState& a = rigids.bodies[joint.a.index];
     startPair(joint.a, joint.b, rigids);
     double mass = 1.0 / a.inverse_mass, moment = largestMoment(a);
@@ -153,6 +160,24 @@ double BodyJointMember::energy(double alpha) const {
         e += 0.5 * limit_weight_ * past * past;
     }
     return e;
+}
+
+// The joint's forces at the solution: minus the energy's gradient in each body's
+// displacement (u, theta), the force and the torque about its centre of mass; times h.
+void BodyJointMember::finish(int) {
+    const Eigen::Matrix<double, 6, 1> f = weight_.cwiseProduct(residual(disp_a_, disp_b_));
+    Vec6 on_a = -(ja_.transpose() * f), on_b = -(jb_.transpose() * f);
+    if (limited_) {
+        const double past = pastLimit(angleAt(disp_a_, disp_b_));
+        on_a -= limit_weight_ * past * ga_;
+        on_b -= limit_weight_ * past * gb_;
+    }
+    joint_->impulse_a = h_ * on_a.head<3>();
+    joint_->angular_impulse_a = h_ * on_a.tail<3>();
+    if (b_moves_) {
+        joint_->impulse_b = h_ * on_b.head<3>();
+        joint_->angular_impulse_b = h_ * on_b.tail<3>();
+    }
 }
 
 double BodyJointMember::apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) {

@@ -12,7 +12,8 @@ namespace tearables::detail {
 class BodyJointMember final : public BodyPairMember {
 public:
     /// Joint `joint` (prepared: a movable, b movable or fixed) at the table's poses.
-    void start(const BodyJoint& joint, const RigidTable& rigids, const StepContext& ctx);
+    /// `joint` receives the impulses it gave (BodyJoint::impulse_a, ...) at finish().
+    void start(BodyJoint& joint, const RigidTable& rigids, const StepContext& ctx);
 
     void condense(bool fresh) override;
     bool addPredictedContacts() override;
@@ -20,7 +21,7 @@ public:
     double apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) override;
     bool frictional() const override { return false; }
     double reweigh() override { return 0.0; }
-    void finish(int) override {}
+    void finish(int) override;
 
 private:
     /// The joint's residuals for the bodies' displacements d = (u, theta) from where the
@@ -35,6 +36,8 @@ private:
     /// Its limits' penalty: how far the angle is past the nearer one (0 inside them).
     double pastLimit(double angle) const { return angle < lower_ ? angle - lower_ : angle > upper_ ? angle - upper_ : 0.0; }
 
+    BodyJoint* joint_ = nullptr;  ///< where finish() writes the impulses
+    double h_ = 0.0;
     bool limited_ = false;     ///< a hinge with limits
     bool limit_held_ = false;  ///< the limit's row in the Newton system (past it, or the step runs past it)
     double angle0_ = 0.0, lower_ = 0.0, upper_ = 0.0, limit_weight_ = 0.0;

@@ -29,6 +29,8 @@ public:
     void setBodyJoints(const std::vector<BodyJoint>& joints, const RigidTable& rigids);
     /// This step's body contacts, with the normal force each carried (0 before the solve).
     const std::vector<BodyContact>& bodyContacts() const { return body_contacts_; }
+    /// The joints kept (prepareBodyJoints), with the impulses the last solve gave (BodyJoint).
+    const std::vector<BodyJoint>& bodyJoints() const { return body_joints_; }
     /// Forgets the last step's islands (a step may have none to solve).
     void clearReports() { reports_.clear(); }
     /// The islands of the last solve, in the order of their first member.

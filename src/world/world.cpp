@@ -431,6 +431,7 @@ const std::vector<RigidContact>& World::lastContacts() const { return impl_->str
 
 const std::vector<IslandSummary>& World::lastIslands() const { return impl_->islands.reports(); }
 const std::vector<BodyContact>& World::lastBodyContacts() const { return impl_->islands.bodyContacts(); }
+const std::vector<BodyJoint>& World::lastBodyJoints() const { return impl_->islands.bodyJoints(); }
 const StageTimes& World::lastStageTimes() const { return impl_->last; }
 detail::ClothSystem& World::clothSystem() { return impl_->cloths; }
 const detail::ClothSystem& World::clothSystem() const { return impl_->cloths; }

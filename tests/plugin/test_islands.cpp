@@ -439,6 +439,94 @@ TEST(Islands, HingeLimitStopsAFallingBoard) {
 }
 
 namespace {
+/// What a ball joint did over a run of blockOnABallJoint.
+struct JointRun {
+    double applied = 0.0;  ///< the joint's applied impulse, averaged over the run's second half, N s
+    Vec3 force_a = Vec3::Zero(), force_b = Vec3::Zero();  ///< its feedback's forces, averaged likewise, N
+    int broke_at = -1;     ///< the step after which it was disabled (-1: never)
+    double y_break = 0.0, v_break = 0.0;  ///< the lower block's height and vertical speed then
+    double y_end = 0.0;    ///< its height at the end
+    int in_island = 0;     ///< steps on which the island solved the joint (World::lastBodyJoints)
+};
+
+/// A 2 kg block hung from a pin by a 0.5 m rope (which puts it in an island), and a 3 kg
+/// block hung 10 cm below it by a ball joint (btPoint2PointConstraint) of breaking impulse
+/// `breaking` (N s), both at rest where they start; `steps` steps of h.
+JointRun blockOnABallJoint(double breaking, int steps, double h) {
+    Physics phys;
+    btRigidBody& upper = phys.box(btVector3(0.05f, 0.05f, 0.05f), 2.0, btVector3(0, 1.0f, 0));
+    btRigidBody& lower = phys.box(btVector3(0.05f, 0.05f, 0.05f), 3.0, btVector3(0, 0.9f, 0));
+    for (btRigidBody* b : {&upper, &lower}) b->setActivationState(DISABLE_DEACTIVATION);
+    btPoint2PointConstraint joint(upper, lower, btVector3(0, -0.05f, 0), btVector3(0, 0.05f, 0));
+    joint.setBreakingImpulseThreshold(static_cast<btScalar>(breaking));
+    btJointFeedback feedback;
+    joint.setJointFeedback(&feedback);
+    joint.enableFeedback(true);
+    phys.world->addConstraint(&joint, true);
+    BulletWorld ropes(*phys.world);
+    const StringId id = ropes.addString(rope({0, 1.55, 0}, {0, 1.05, 0}, 20));
+    ropes.attach(id, 0, btVector3(0, 1.55f, 0));
+    ropes.attach(id, -1, upper, btVector3(0, 0.05f, 0));
+    JointRun run;
+    int averaged = 0;
+    for (int i = 0; i < steps; ++i) {
+        phys.step(1, h);
+        run.in_island += static_cast<int>(ropes.core().lastBodyJoints().size() == 1);
+        if (run.broke_at < 0 && !joint.isEnabled()) {
+            run.broke_at = i;
+            run.y_break = static_cast<double>(lower.getCenterOfMassPosition().y());
+            run.v_break = static_cast<double>(lower.getLinearVelocity().y());
+        }
+        if (2 * i >= steps && joint.isEnabled()) {
+            run.applied += static_cast<double>(joint.getAppliedImpulse());
+            run.force_a += tearables::toCore(feedback.m_appliedForceBodyA);
+            run.force_b += tearables::toCore(feedback.m_appliedForceBodyB);
+            ++averaged;
+        }
+    }
+    EXPECT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+    if (averaged > 0) {
+        run.applied /= averaged;
+        run.force_a /= averaged;
+        run.force_b /= averaged;
+    }
+    run.y_end = static_cast<double>(lower.getCenterOfMassPosition().y());
+    phys.world->removeConstraint(&joint);
+    return run;
+}
+}  // namespace
+
+// A joint the island solves leaves on its constraint what Bullet's solver would: the
+// impulse it applied and its joint feedback. The ball joint carries the lower block: on
+// average over a second it pulls the upper block (A) down and the lower (B) up by m g (the
+// rope's bounce averages out), and its applied impulse, the sum of its world-axis rows'
+// impulses on A, is -m g h. A joint whose impulse reaches its breaking threshold breaks,
+// as in Bullet: disabled, and the block falls freely from there (Bullet's semi-implicit
+// Euler: v0 t - g h^2 n (n + 1) / 2 after n steps), while a threshold three times the load
+// (above the sudden load's twofold bounce) holds it.
+TEST(Islands, BallJointReportsItsImpulseAndBreaksAtItsThreshold) {
+    const double m = 3.0, h = 1.0 / 240.0, load = m * kG * h;
+    const JointRun held = blockOnABallJoint(3.0 * load, 480, h);
+    EXPECT_EQ(held.broke_at, -1);
+    // A breakable joint is the island's, not Bullet's, from the second step (the plugin
+    // claims a rope's bodies at the end of a step, for the next).
+    EXPECT_EQ(held.in_island, 479);
+    EXPECT_NEAR(held.y_end, 0.9, 0.01);
+    EXPECT_NEAR(held.applied, -load, 0.01 * load);
+    EXPECT_NEAR(held.force_a.y(), -m * kG, 0.01 * m * kG);
+    EXPECT_NEAR(held.force_b.y(), m * kG, 0.01 * m * kG);
+    EXPECT_LT(std::hypot(held.force_a.x(), held.force_a.z()), 0.01 * m * kG);
+
+    const int steps = 240;
+    const JointRun broke = blockOnABallJoint(0.5 * load, steps, h);
+    ASSERT_GE(broke.broke_at, 0);
+    ASSERT_LT(broke.broke_at, 60);
+    EXPECT_EQ(broke.in_island, broke.broke_at);  // the island broke it; disabled, it is Bullet's
+    const double n = steps - 1 - broke.broke_at, drop = -broke.v_break * n * h + 0.5 * kG * h * h * n * (n + 1);
+    EXPECT_NEAR(broke.y_break - broke.y_end, drop, 0.01 * drop);
+}
+
+namespace {
 /// A 5 kg crate (friction mu against a board of friction 1: Bullet's combined friction is
 /// their product) on a 1.5 kg board hung level from two parallel 1 m ropes, with gravity
 /// tilted by `tilt` in x and the ropes along it (at rest from the start). Returns how far
