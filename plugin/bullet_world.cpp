@@ -271,21 +271,30 @@ public:
         for (const BodyJoint& j : solved) {
             if (j.host_tag >= joints_.size()) continue;
             btTypedConstraint& c = *joints_[j.host_tag];
-            // The host's A and B (the solve may have turned the joint round).
-            const Vec3 lin_a = j.swapped ? j.impulse_b : j.impulse_a, ang_a = j.swapped ? j.angular_impulse_b : j.angular_impulse_a;
-            const Vec3 lin_b = j.swapped ? j.impulse_a : j.impulse_b, ang_b = j.swapped ? j.angular_impulse_a : j.angular_impulse_b;
-            // A's row impulses: the pivot's along the world axes (the impulse on A, or minus
-            // the impulse on B where A is a fixed frame: the joint's impulse is equal and opposite).
-            const Vec3 pivot = (j.swapped ? j.b : j.a).valid() ? lin_a : Vec3(-lin_b);
-            double sum = pivot.sum(), largest = pivot.cwiseAbs().maxCoeff();
+            // The host's A and B (the solve may have turned the joint round). A side the
+            // island does not move (a fixed frame, a static or kinematic body) takes the
+            // reaction, as Bullet's feedback gives it: the opposite impulse at its own
+            // pivot, and the opposite of the couple the joint put on the other.
+            const bool a_moves = (j.swapped ? j.b : j.a).valid(), b_moves = (j.swapped ? j.a : j.b).valid();
+            Vec3 lin_a = j.swapped ? j.impulse_b : j.impulse_a, ang_a = j.swapped ? j.angular_impulse_b : j.angular_impulse_a;
+            Vec3 lin_b = j.swapped ? j.impulse_a : j.impulse_b, ang_b = j.swapped ? j.angular_impulse_a : j.angular_impulse_b;
+            const Vec3 arm_a = (j.swapped ? j.pivot_b : j.pivot_a) - toCore(c.getRigidBodyA().getCenterOfMassPosition());
+            const Vec3 arm_b = (j.swapped ? j.pivot_a : j.pivot_b) - toCore(c.getRigidBodyB().getCenterOfMassPosition());
+            if (!b_moves) {
+                lin_b = -lin_a;
+                ang_b = -(ang_a - arm_a.cross(lin_a)) + arm_b.cross(lin_b);
+            } else if (!a_moves) {
+                lin_a = -lin_b;
+                ang_a = -(ang_b - arm_b.cross(lin_b)) + arm_a.cross(lin_a);
+            }
+            // A's row impulses: the pivot's along the world axes.
+            double sum = lin_a.sum(), largest = lin_a.cwiseAbs().maxCoeff();
             if (j.kind == BodyJoint::Kind::Hinge) {
                 // The angular rows about A's axis frame: the two across it (alignment) and
                 // the axis itself (the limit), each the angular impulse's component less
                 // the pivot force's moment, which the linear rows carry.
                 const Vec3 axis = j.swapped ? j.axis_b : j.axis_a;
-                const btRigidBody& body_a = c.getRigidBodyA();
-                const Vec3 arm = (j.swapped ? j.pivot_b : j.pivot_a) - toCore(body_a.getCenterOfMassPosition());
-                const Vec3 turning = (j.swapped ? j.b : j.a).valid() ? Vec3(ang_a - arm.cross(lin_a)) : Vec3::Zero();
+                const Vec3 turning = ang_a - arm_a.cross(lin_a);
                 const Vec3 across = turning - axis * axis.dot(turning);
                 sum += across.norm() + axis.dot(turning);
                 largest = std::max({largest, across.norm(), std::abs(axis.dot(turning))});

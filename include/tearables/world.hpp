@@ -138,7 +138,8 @@ struct BodyJoint {
     // Out (World::lastBodyJoints), world frame: what the joint gave each body over the step,
     // as impulses (its force times h): linear, N s, and angular about the body's centre of
     // mass, N m s (the pivot's lever arm, a hinge's alignment and its limits). Zero for a
-    // fixed frame's side, and for a joint whose bodies no island solved.
+    // fixed frame's side (its reaction is the other's, opposite, at its own pivot), and
+    // for a joint whose bodies no island solved.
     Vec3 impulse_a = Vec3::Zero(), angular_impulse_a = Vec3::Zero();
     Vec3 impulse_b = Vec3::Zero(), angular_impulse_b = Vec3::Zero();
     /// The island solve turned the joint round (its a was the host's b: a fixed frame's

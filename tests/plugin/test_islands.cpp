@@ -526,6 +526,43 @@ TEST(Islands, BallJointReportsItsImpulseAndBreaksAtItsThreshold) {
     EXPECT_NEAR(broke.y_break - broke.y_end, drop, 0.01 * drop);
 }
 
+// A joint to the world reports the world's side as Bullet's feedback does: the reaction.
+// A 2 kg block hangs from a world point by a ball joint, with a 1 m rope hanging from it
+// (which puts it in an island): the joint's feedback holds the block and the rope up, m g
+// on A over the last half second (the rope's settling averages out), and the world (B)
+// takes the opposite force (to rounding).
+TEST(Islands, JointToTheWorldReportsTheReaction) {
+    Physics phys;
+    btRigidBody& block = phys.box(btVector3(0.05f, 0.05f, 0.05f), 2.0, btVector3(0, 1.0f, 0));
+    block.setActivationState(DISABLE_DEACTIVATION);
+    btPoint2PointConstraint joint(block, btVector3(0, 0.05f, 0));
+    btJointFeedback feedback;
+    joint.setJointFeedback(&feedback);
+    joint.enableFeedback(true);
+    phys.world->addConstraint(&joint, true);
+    BulletWorld ropes(*phys.world);
+    const StringDesc d = rope({0, 0.95, 0}, {0, -0.05, 0}, 40);
+    const StringId id = ropes.addString(d);
+    ropes.attach(id, 0, block, btVector3(0, -0.05f, 0));
+    const double weight = (2.0 + ropeMass(d, 1.0)) * kG, h = 1.0 / 240.0;
+    Vec3 on_a = Vec3::Zero();
+    int averaged = 0;
+    for (int i = 0; i < 480; ++i) {
+        phys.step(1, h);
+        ASSERT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+        if (i < 360) continue;
+        ASSERT_EQ(ropes.core().lastBodyJoints().size(), 1u);
+        on_a += tearables::toCore(feedback.m_appliedForceBodyA);
+        ++averaged;
+        const Vec3 a = tearables::toCore(feedback.m_appliedForceBodyA), b = tearables::toCore(feedback.m_appliedForceBodyB);
+        EXPECT_LT((a + b).norm(), 1e-5 * weight) << "step " << i;
+    }
+    on_a /= averaged;
+    EXPECT_NEAR(on_a.y(), weight, 0.01 * weight);
+    EXPECT_LT(std::hypot(on_a.x(), on_a.z()), 0.01 * weight);
+    phys.world->removeConstraint(&joint);
+}
+
 namespace {
 /// A 5 kg crate (friction mu against a board of friction 1: Bullet's combined friction is
 /// their product) on a 1.5 kg board hung level from two parallel 1 m ropes, with gravity
