@@ -250,10 +250,7 @@ constexpr double kNegligibleFriction = 0.1;
 
 bool predictContacts(StringState& s, const std::vector<Vec3>* held_step) {
     bool changed = false;
-    auto moved = [&](std::size_t p) {
-        if (!fixedRow(s, p)) return Vec3(s.x[p] + s.scratch.blk_rhs[p]);
-        return held_step ? Vec3(s.x[p] + (*held_step)[p]) : s.x[p];
-    };
+    auto moved = [&](std::size_t p) { return steppedPosition(s, p, held_step); };
     for (RigidSegmentContact& c : s.contacts) {
         const std::size_t j = c.segment;
         if ((c.active && !c.predicted) || s.broken[j]) continue;

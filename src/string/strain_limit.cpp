@@ -899,10 +899,7 @@ void backSubstituteNodes(StringState& s, const Eigen::VectorXd& du) {
 bool predictSprings(StringState& s, const StepContext& ctx, const std::vector<Vec3>* held_step) {
     const std::size_t m = s.segments();
     if (s.scratch.predicted_taut.size() != m) s.scratch.predicted_taut.assign(m, 0);
-    auto moved = [&](std::size_t p) {
-        if (!fixedRow(s, p)) return Vec3(s.x[p] + s.scratch.blk_rhs[p]);
-        return held_step ? Vec3(s.x[p] + (*held_step)[p]) : s.x[p];
-    };
+    auto moved = [&](std::size_t p) { return steppedPosition(s, p, held_step); };
     const double rate_gain = s.desc.axial_damping * ctx.inv_h;
     bool changed = false;
     for (std::size_t j = 0; j < m; ++j) {

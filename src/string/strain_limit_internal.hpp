@@ -177,6 +177,13 @@ inline bool fixedRow(const StringState& s, std::size_t p) {
     return hold.kind == ParticleHold::Kind::Pin ||
            (hold.kind == ParticleHold::Kind::Glue && (!s.glue_movable[p] || s.island_glue));
 }
+/// Where particle p goes by the Newton step in blk_rhs: a free particle by its step, a row
+/// the solve holds by `held_step` where given (an island's glued particle, with its body),
+/// else nowhere. predictContacts and predictSprings test their active sets here.
+inline Vec3 steppedPosition(const StringState& s, std::size_t p, const std::vector<Vec3>* held_step) {
+    if (!fixedRow(s, p)) return s.x[p] + s.scratch.blk_rhs[p];
+    return held_step ? Vec3(s.x[p] + (*held_step)[p]) : s.x[p];
+}
 
 /// factorBlockTridiagonal of the string's system (blk_diag, blk_off) into blk_factor,
 /// blk_factor_gain and blk_coupled.
