@@ -69,6 +69,10 @@ struct StringScratch {
     /// Per particle: the first contact with a body at it (at an end of a segment), -1 if
     /// none (StringSystem::collideBodies merges repeats).
     std::vector<std::int32_t> end_contact;
+    /// Per contact with a body: the entry of contact_memory its friction took, -1 if none;
+    /// per entry: how many contacts took it (StringSystem::collideBodies).
+    std::vector<std::int32_t> memory_taken;
+    std::vector<std::uint32_t> memory_takers;
 
     // --- the strain solve: block-tridiagonal Newton system (particles) ----------------------
     std::vector<Mat3> blk_diag, blk_off;

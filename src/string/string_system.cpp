@@ -117,28 +117,57 @@ bool repeatsEndContact(StringState& s, const RigidSegmentContact& c) {
 }
 
 /// Friction from where the last step left it (ContactMemory): the normal force of the
-/// segment's contact with the same body facing the same way (the closest in direction);
-/// at a particle, also of the contact the neighbouring segment had there (which of two
-/// segments a host names for a particle on a face may change from step to step).
-void rememberFriction(const StringState& s, RigidSegmentContact& c) {
-    if (!(c.friction > 0.0)) return;
+/// entry with the same body, facing the same way, nearest to c along the string (within
+/// a segment's length either side: a host may name either segment for a contact at a
+/// particle, and a contact slides along the string from step to step); of entries as
+/// near, the closest in direction. Nearest, not any entry of the segment: two contacts
+/// either side of a particle (a ball on a rope) each take their own entry, where taking
+/// the segment's first would give one of them the other's force, or none, and its
+/// friction would act on one side only, a couple that spins the body up from rest.
+/// Returns the entry taken (an index into contact_memory), -1 if none.
+std::int32_t rememberFriction(const StringState& s, RigidSegmentContact& c) {
+    if (!(c.friction > 0.0)) return -1;
+    const double at = static_cast<double>(c.segment) + c.s;
+    double nearest = 1.0;
     double best = kSameFacing;
-    auto look = [&](std::uint32_t segment, double only_s) {
-        ContactMemory key;
+    std::int32_t taken = -1;
+    const std::uint32_t first = c.segment > 0 ? c.segment - 1 : 0;
+    const std::uint32_t last = std::min<std::uint32_t>(c.segment + 1, static_cast<std::uint32_t>(s.segments() - 1));
+    ContactMemory key;
+    key.body = c.body;
+    for (std::uint32_t segment = first; segment <= last; ++segment) {
         key.segment = segment;
-        key.body = c.body;
         const auto range = std::equal_range(s.contact_memory.begin(), s.contact_memory.end(), key);
         for (auto it = range.first; it != range.second; ++it) {
             const double facing = it->normal.dot(c.local_normal);
-            if (facing < best || (only_s >= 0.0 && it->s != only_s)) continue;
+            const double distance = std::abs(static_cast<double>(it->segment) + it->s - at);
+            if (facing < kSameFacing || distance > nearest) continue;
+            if (distance == nearest && facing <= best) continue;
+            nearest = distance;
             best = facing;
-            c.friction_normal = it->force;
-            c.remembered = true;
+            taken = static_cast<std::int32_t>(it - s.contact_memory.begin());
         }
-    };
-    look(c.segment, -1.0);
-    if (c.s == 0.0 && c.segment > 0) look(c.segment - 1, 1.0);
-    if (c.s == 1.0 && c.segment + 1 < s.segments()) look(c.segment + 1, 0.0);
+    }
+    if (taken >= 0) {
+        c.friction_normal = s.contact_memory[static_cast<std::size_t>(taken)].force;
+        c.remembered = true;
+    }
+    return taken;
+}
+
+/// Where k contacts took one entry (the host now gives more contacts than the step
+/// before, a face settling onto the string), they share its force, N / k each: the
+/// force the step before carried, not k times it.
+void shareRememberedFriction(StringState& s) {
+    std::vector<std::uint32_t>& takers = s.scratch.memory_takers;
+    takers.assign(s.contact_memory.size(), 0);
+    for (const std::int32_t e : s.scratch.memory_taken)
+        if (e >= 0) ++takers[static_cast<std::size_t>(e)];
+    for (std::size_t i = 0; i < s.contacts.size(); ++i) {
+        const std::int32_t e = s.scratch.memory_taken[i];
+        if (e >= 0 && takers[static_cast<std::size_t>(e)] > 1)
+            s.contacts[i].friction_normal /= static_cast<double>(takers[static_cast<std::size_t>(e)]);
+    }
 }
 
 }  // namespace
@@ -381,6 +410,7 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host, c
         StringState& s = strings_[i];
         s.contacts.clear();
         s.scratch.end_contact.assign(s.particles(), -1);
+        s.scratch.memory_taken.clear();
         s.body_nodes.clear();
         if (s.scratch.rows_pressed)
             std::fill(s.scratch.row_projector.begin(), s.scratch.row_projector.end(), Mat3::Identity());
@@ -444,7 +474,7 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host, c
         if (c.segment < s.made_inside.size() && s.made_inside[c.segment] && sc.start_depth > kDeepOverlap * sc.gap)
             sc.gap -= (1.0 - kOverlapRecovery) * sc.start_depth;
         if (repeatsEndContact(s, sc)) continue;
-        rememberFriction(s, sc);
+        const std::int32_t taken = rememberFriction(s, sc);
         if (rigids.movable(c.body)) {
             int node = -1;
             for (std::size_t b = 0; b < s.body_nodes.size(); ++b)
@@ -457,9 +487,13 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host, c
             sc.node = node;
         }
         s.contacts.push_back(sc);
+        s.scratch.memory_taken.push_back(taken);
     }
     // The memory is this step's now (finishChain writes the next).
-    for (StringState& s : strings_) s.contact_memory.clear();
+    for (StringState& s : strings_) {
+        if (!s.contact_memory.empty()) shareRememberedFriction(s);
+        s.contact_memory.clear();
+    }
     eachLive([&](StringState& s) {
         std::vector<std::uint8_t>& inside = s.made_inside;
         if (inside.size() != s.segments()) inside.assign(s.segments(), 0);
