@@ -354,7 +354,7 @@ private:
             SegmentTree& tree = treeFor(query.strings[i].index, start, pred, radius, broken);
             for (btRigidBody* body : it->second) {
                 const SweptBody swept(*body, h, now(*body));
-                const btTransform& before = swept.before;
+                const btTransform& before = swept.found_at;
                 const btVector3 &bmin = swept.lo, &bmax = swept.hi;
                 const double body_travel = swept.travel;
                 const RigidId proxy = owner_.proxies_.at(body);
@@ -498,13 +498,30 @@ private:
     /// A body over the step: where it was at the start (Bullet has already moved it by
     /// x += h v, so step back along its velocities), the bounds of both poses, and how far
     /// any of its points can have travelled.
+    ///
+    /// `found_at`: the pose a string's contacts are found at. Where the body was (`before`),
+    /// unless it turns through more than kLargeTurn in the step: a contact is a plane fixed
+    /// in the body and carried to `now` with it, so one found where the body was turns by
+    /// the whole step's turn, a plane that faced the string at the start faces along it (or
+    /// away) by the end, and the string slips past a spinning box. Found at the body's
+    /// turned orientation (and the start's position: a body moving fast still meets the
+    /// string on its way), the plane faces the string as the body will.
     struct SweptBody {
-        btTransform now, before;
+        /// A turn in one step beyond which contacts are found at the turned orientation,
+        /// rad: where the plane's tilt over the step (1 - cos 0.1 = 0.5%) starts to matter.
+        static constexpr double kLargeTurn = 0.1;
+        btTransform now, before, found_at;
         btVector3 lo, hi;
         double travel = 0.0;
         SweptBody(const btRigidBody& body, double h, const btTransform& at) : now(at) {
             btTransformUtil::integrateTransform(now, -body.getLinearVelocity(), -body.getAngularVelocity(),
                                                 static_cast<btScalar>(h), before);
+            // A ball's surface is the same at any orientation: its contacts are found at the
+            // turned one, whose carry to `now` is a pure translation (spherical contacts keep
+            // the direction they were found with).
+            const bool ball = body.getCollisionShape()->getShapeType() == SPHERE_SHAPE_PROXYTYPE;
+            const bool turns = ball || static_cast<double>(body.getAngularVelocity().length()) * h > kLargeTurn;
+            found_at = turns ? btTransform(now.getBasis(), before.getOrigin()) : before;
             btVector3 plo, phi;
             body.getCollisionShape()->getAabb(now, lo, hi);
             body.getCollisionShape()->getAabb(before, plo, phi);
@@ -899,6 +916,7 @@ private:
         const btTransform at = now(body);
         c.body = proxy;
         c.friction = body.getFriction();
+        c.spherical = body.getCollisionShape()->getShapeType() == SPHERE_SHAPE_PROXYTYPE;
         auto add = [&](double s, const Vec3& n, const Vec3& point) {
             c.s = s;
             c.point = toCore(at * (before.inverse() * toBullet(point)));

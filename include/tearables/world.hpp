@@ -87,6 +87,11 @@ struct RigidContact {
     Vec3 point = Vec3::Zero();     ///< on the body's surface, world, m
     RigidId body;                  ///< the body's proxy (inverse mass 0 = static)
     double friction = 0.5;         ///< Coulomb coefficient, >= 0
+    /// The body's surface here is a sphere about its centre (a ball): as the body turns,
+    /// its surface under the string stays where it is and only its material rolls past,
+    /// so the contact plane keeps its direction. Otherwise the plane is fixed in the body
+    /// and turns with it (a box's face).
+    bool spherical = false;
 };
 
 /// A contact between two rigid bodies that the host hands to the island solve (the

@@ -17,8 +17,14 @@ struct RigidSegmentContact {
     std::uint32_t segment = 0;
     double s = 0.0;              ///< fraction along the segment
     Vec3 normal = Vec3::UnitY(); ///< from the body toward the string (at collection; see local_normal)
-    Vec3 local_normal = Vec3::UnitY();  ///< the normal in the body's frame: it turns with the body
-    Vec3 local = Vec3::Zero();   ///< contact point in the body's frame (follows the body); world point without a body
+    /// The normal in the body's frame: it turns with the body. Spherical: in the world's
+    /// axes (a ball's surface under the string does not turn with it).
+    Vec3 local_normal = Vec3::UnitY();
+    /// The contact point in the body's frame (follows the body); spherical: its offset from
+    /// the body's centre in the world's axes (follows the centre, does not turn); a world
+    /// point without a body.
+    Vec3 local = Vec3::Zero();
+    bool spherical = false;      ///< RigidContact::spherical
     RigidId body;                ///< invalid: a fixed world point
     double gap = 0.0;            ///< required clearance along the normal, m (the radius for bodies)
     double friction = 0.5;

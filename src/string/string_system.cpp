@@ -454,8 +454,9 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host, c
         sc.s = std::clamp(c.s, 0.0, 1.0);
         sc.normal = c.normal / len;
         const RigidState& body = rigids.bodies[c.body.index];
-        sc.local = body.orientation.conjugate() * (c.point - body.position);
-        sc.local_normal = body.orientation.conjugate() * sc.normal;
+        sc.spherical = c.spherical;
+        sc.local = c.spherical ? Vec3(c.point - body.position) : Vec3(body.orientation.conjugate() * (c.point - body.position));
+        sc.local_normal = c.spherical ? sc.normal : Vec3(body.orientation.conjugate() * sc.normal);
         sc.body = c.body;
         sc.friction = std::max(0.0, c.friction);
         sc.gap = s.radius[c.segment];
