@@ -43,6 +43,7 @@ struct Shot {
     double speed = 100.0; ///< m/s
     double dt = 0.01;     ///< s, one internal Bullet step a frame
     int steps = 40;       ///< steps simulated (0.4 s: a body that passed is 20 m away at 50 m/s)
+    double spin = 0.0;    ///< rad/s about z (across the rope), a pitched ball's
 };
 
 struct Outcome {
@@ -55,8 +56,19 @@ struct Outcome {
     double half = 0;           ///< m, the body's half size along y
     bool end_inside = false;   ///< at the end the body's centre is within the target's outline
     double end_gap = 0;        ///< m, at the end: the body's centre minus the target's height under it (> 0: near side)
+    double start_energy = 0;   ///< J, the body's kinetic energy (translation and rotation) at the start
+    double peak_energy = 0;    ///< J, its largest at any step end (no gravity: the target can only take energy)
     std::string error;         ///< BulletWorld::lastError() at the end
 };
+
+/// A body's kinetic energy, translation and rotation, J.
+inline double kineticEnergy(const btRigidBody& body) {
+    const btVector3 w = body.getWorldTransform().getBasis().transpose() * body.getAngularVelocity();  // body frame
+    const btVector3 inertia = body.getLocalInertia();
+    const double m = 1.0 / static_cast<double>(body.getInvMass());
+    return 0.5 * m * static_cast<double>(body.getLinearVelocity().length2()) +
+           0.5 * static_cast<double>(inertia.x() * w.x() * w.x() + inertia.y() * w.y() * w.y() + inertia.z() * w.z() * w.z());
+}
 
 inline double halfSize(Shape s) { return s == Shape::Sphere ? 0.01 : 0.05; }
 
@@ -70,10 +82,12 @@ inline Outcome fire(const Shot& shot, std::FILE* trace = nullptr) {
     btRigidBody& body = shot.shape == Shape::Sphere ? phys.sphere(half, shot.mass, start)
                                                     : phys.box(btVector3(0.05f, 0.05f, 0.05f), shot.mass, start);
     body.setLinearVelocity(btVector3(0, static_cast<btScalar>(-shot.speed), 0));
+    body.setAngularVelocity(btVector3(0, 0, static_cast<btScalar>(shot.spin)));
     body.setActivationState(DISABLE_DEACTIVATION);
     BulletWorld world(*phys.world);
     Outcome out;
     out.half = half;
+    out.start_energy = out.peak_energy = kineticEnergy(body);
     StringId rope;
     PaperId paper;
     ClothId cloth;
@@ -180,6 +194,7 @@ inline Outcome fire(const Shot& shot, std::FILE* trace = nullptr) {
         const Under u = under(c);
         // Through: wholly past the intact target's surface, within its outline.
         if (!torn && u.inside && c.y() + half < u.y) out.through = true;
+        out.peak_energy = std::max(out.peak_energy, kineticEnergy(body));
         if (trace) {
             const std::vector<Vec3>* x = is_rope ? world.core().view(rope).positions
                                          : shot.target == Target::Paper ? world.core().viewPaper(paper).positions
@@ -190,9 +205,9 @@ inline Outcome fire(const Shot& shot, std::FILE* trace = nullptr) {
             double lowest = 1e300, fastest = 0.0;
             for (const Vec3& p : *x) lowest = std::min(lowest, p.y());
             for (const Vec3& w : *v) fastest = std::max(fastest, w.norm());
-            std::fprintf(trace, "step %2d  body y %9.4f  v %9.3f  under %9.4f%s  lowest %9.4f  fastest %8.3f%s\n", i + 1, c.y(),
-                         -body.getLinearVelocity().y(), u.y, u.inside ? "" : " (outside)", lowest, fastest,
-                         torn ? "  tore" : "");
+            std::fprintf(trace, "step %2d  body y %9.4f  v %9.3f  spin %8.1f  under %9.4f%s  lowest %9.4f  fastest %8.3f%s\n",
+                         i + 1, c.y(), -body.getLinearVelocity().y(), body.getAngularVelocity().z(), u.y,
+                         u.inside ? "" : " (outside)", lowest, fastest, torn ? "  tore" : "");
         }
     }
     for (const Event& e : world.events())

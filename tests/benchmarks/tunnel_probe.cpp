@@ -3,8 +3,8 @@
 // the outcome (stopped, tore, through) and the body's speed and height at the end. Not a
 // test: docs/tunnelling.md keeps its table; tests/plugin/test_tunnelling.cpp holds the cases.
 // Run: build/tests/benchmarks/tearables_tunnel_probe [dt]
-// One shot traced step by step: tearables_tunnel_probe dt TARGET SHAPE MASS SPEED, with
-// TARGET rope, tearable, paper or cloth and SHAPE sphere or box.
+// One shot traced step by step: tearables_tunnel_probe dt TARGET SHAPE MASS SPEED [SPIN],
+// with TARGET rope, tearable, paper or cloth, SHAPE sphere or box and SPIN in rad/s about z.
 #include "tunnel_scenes.hpp"
 
 #include <cstdio>
@@ -14,7 +14,7 @@
 int main(int argc, char** argv) {
     using namespace tearables::tunnel;
     const double dt = argc > 1 ? std::atof(argv[1]) : 0.01;
-    if (argc == 6) {
+    if (argc == 6 || argc == 7) {
         Shot shot;
         shot.dt = dt;
         const char* t = argv[2];
@@ -25,9 +25,10 @@ int main(int argc, char** argv) {
         shot.shape = !std::strcmp(argv[3], "box") ? Shape::Box : Shape::Sphere;
         shot.mass = std::atof(argv[4]);
         shot.speed = std::atof(argv[5]);
+        if (argc == 7) shot.spin = std::atof(argv[6]);
         const Outcome o = fire(shot, stdout);
-        std::printf("%s%s%s\n", o.through ? "THROUGH" : o.tore ? "tore" : "not through", o.error.empty() ? "" : "; error: ",
-                    o.error.c_str());
+        std::printf("%s%s%s; body's energy %.4g J at the start, %.4g J at most\n", o.through ? "THROUGH" : o.tore ? "tore" : "not through",
+                    o.error.empty() ? "" : "; error: ", o.error.c_str(), o.start_energy, o.peak_energy);
         return 0;
     }
     std::printf("| target | body | mass kg | speed m/s | outcome | end speed m/s | end y m | peak T / rupture load |\n");
