@@ -4,6 +4,7 @@
 // solver's effect on each can be read. Every step is 1/100 s (one internal Bullet step)
 // unless a probe says otherwise.
 // Run: build/tests/benchmarks/tearables_island_probes [crate|statics|capstan|momentum|overlap]
+// or `closing V` (two island boxes thrown at each other at +-V m/s, step by step)
 // or `momentum-trace` (not in the default run): item 3's scene step by step; with
 // tools/momentum_stage_trace.patch applied and TEARABLES_MTRACE set, each stage's share.
 #include "island_scenes.hpp"
@@ -345,6 +346,41 @@ void momentumTrace(double density, bool kick) {
 // differs. Reported: tears in the first step and in the first second, and
 // the first step's peak stress (the largest tear event's stress, or the largest tension
 // over the section) over the material's rupture stress.
+// Two island boxes meeting face to face (docs/island-plan.md, "Boxes that pass through
+// each other"): two 1 kg, 0.1 m boxes joined by a slack rope arched over them (so both are
+// island bodies), no gravity, thrown at each other at +-v along x, 1/60 s steps. Per
+// step: the boxes' centres and speeds, the gap between their faces (negative: inside each
+// other), and the island's body-body contacts where the step started (points on A, the
+// gap there) with the force the solve left on each.
+void closing(double v) {
+    Rig rig(0.0);
+    btRigidBody& a = rig.phys.box(btVector3(0.05f, 0.05f, 0.05f), 1.0, btVector3(-0.3f, 0, 0));
+    btRigidBody& b = rig.phys.box(btVector3(0.05f, 0.05f, 0.05f), 1.0, btVector3(0.3f, 0, 0));
+    StringDesc d;
+    for (int i = 0; i <= 30; ++i) {
+        const double t = kPi * i / 30;
+        d.points.push_back(Vec3(-0.3 * std::cos(t), 0.05 + 0.3 * std::sin(t), 0));
+    }
+    d.material.variation = 0.0;
+    d.tearable = false;
+    const StringId rope = rig.ropes->addString(d);
+    rig.ropes->attach(rope, 0, a, btVector3(0, 0.05f, 0));
+    rig.ropes->attach(rope, -1, b, btVector3(0, 0.05f, 0));
+    a.setLinearVelocity(btVector3(static_cast<btScalar>(v), 0, 0));
+    b.setLinearVelocity(btVector3(static_cast<btScalar>(-v), 0, 0));
+    for (btRigidBody* body : {&a, &b}) body->setActivationState(DISABLE_DEACTIVATION);
+    std::printf("two 0.1 m boxes closing at %g m/s\n", 2 * v);
+    for (int i = 1; i <= 12; ++i) {
+        rig.phys.world->stepSimulation(1.0f / 60.0f, 1, 1.0f / 60.0f);
+        const double xa = a.getCenterOfMassPosition().x(), xb = b.getCenterOfMassPosition().x();
+        std::printf("step %2d: A at %.4f (%.3f m/s), B at %.4f (%.3f m/s), faces %.4f m apart\n", i, xa, a.getLinearVelocity().x(), xb,
+                    b.getLinearVelocity().x(), xb - xa - 0.1);
+        for (const BodyContact& c : rig.ropes->core().lastBodyContacts())
+            std::printf("    contact at (%.4f, %.4f, %.4f) on A, gap %.4f, force %.1f N\n", c.point_a.x(), c.point_a.y(), c.point_a.z(),
+                        c.normal.dot(c.point_a - c.point_b), c.force);
+    }
+}
+
 void overlapStart(bool glued, bool inside = true) {
     Rig rig;
     const btScalar lift = inside ? 0.0f : 0.103f;
@@ -427,6 +463,8 @@ int main(int argc, char** argv) {
             std::printf("\n");
         }
     }
+    // `closing V`: two island boxes thrown at each other at +-V m/s, step by step.
+    if (only == "closing") closing(argc > 2 ? std::atof(argv[2]) : 3.0);
     if (want("overlap")) {
         overlapStart(true);
         overlapStart(false);
