@@ -178,6 +178,7 @@ public:
             if (!o0 || !o1 || m->getNumContacts() == 0) continue;
             const Side s0 = side(*o0, h), s1 = side(*o1, h);
             if (!s0.body.valid() && !s1.body.valid()) continue;
+            const std::size_t first = out.size();
             for (int k = 0; k < m->getNumContacts(); ++k) {
                 const btManifoldPoint& p = m->getContactPoint(k);
                 const btVector3 a_now = s0.now * p.m_localPointA, b_now = s1.now * p.m_localPointB;
@@ -196,6 +197,89 @@ public:
                 points_.push_back({m, k});
                 out.push_back(c);
             }
+            addBoxCorners(*o0, swept(*o0, h), *o1, swept(*o1, h), static_cast<double>(m->getContactPoint(0).m_combinedFriction), first,
+                          out);
+        }
+        addSpeculativeBodyContacts(h, out);
+    }
+
+    /// Speculative contacts for the claimed bodies' pairs that Bullet's manifolds give no
+    /// point this step. Those are found where the step starts, before the island moves the
+    /// bodies, and only within a breaking threshold (Bullet's box-box test gives none for
+    /// boxes apart at all): two island bodies closing faster than they are apart per step
+    /// meet no contact before they overlap, and past half a body's width they pass through
+    /// (two 0.1 m boxes closing at 12 m/s at 1/60 s). Each pair of convex bodies whose
+    /// swept bounds overlap gets its closest points where the step started (GJK), when
+    /// they are within the distance both can travel in the step, as a contact with a
+    /// positive gap: the island holds it only where the step runs into it, as it does a
+    /// manifold point apart (BodyContact); two boxes get their corners over each other
+    /// (addBoxCorners). Its impulse goes back to no manifold (host_tag past points_);
+    /// Bullet's own points take over at the next step.
+    void addSpeculativeBodyContacts(double h, std::vector<BodyContact>& out) {
+        const std::vector<const btRigidBody*>& claimed = owner_.claimed_;  // sorted by address
+        if (claimed.empty()) return;
+        // In the broadphase's order (deterministic, as bodiesIn gives the others).
+        auto uid = [](const btRigidBody* body) { return body->getBroadphaseHandle() ? body->getBroadphaseHandle()->getUid() : -1; };
+        by_uid_.assign(claimed.begin(), claimed.end());
+        std::sort(by_uid_.begin(), by_uid_.end(), [&](const btRigidBody* x, const btRigidBody* y) { return uid(x) < uid(y); });
+        auto ordered = [](const btCollisionObject* x, const btCollisionObject* y) {
+            return x < y ? std::make_pair(x, y) : std::make_pair(y, x);
+        };
+        touching_.clear();
+        for (btPersistentManifold* m : owner_.claim_->withheldManifolds())
+            if (m->getNumContacts() > 0) touching_.push_back(ordered(m->getBody0(), m->getBody1()));
+        std::sort(touching_.begin(), touching_.end());
+        // Candidates: the claimed bodies' swept bounds against each other and against what
+        // Bullet's broadphase has there (bodies it does not move in the step, or moves on
+        // its own), each pair once.
+        candidates_.clear();
+        bounds_.clear();
+        for (const btRigidBody* a : by_uid_) bounds_.push_back(swept(*a, h));
+        for (std::size_t i = 0; i < by_uid_.size(); ++i) {
+            const Swept& sa = bounds_[i];
+            for (std::size_t j = i + 1; j < by_uid_.size(); ++j)
+                if (TestAabbAgainstAabb2(sa.lo, sa.hi, bounds_[j].lo, bounds_[j].hi)) candidates_.push_back({by_uid_[i], by_uid_[j]});
+            for (const btRigidBody* b : owner_.bodiesIn(toCore(sa.lo), toCore(sa.hi)))
+                if (b != by_uid_[i] && !std::binary_search(claimed.begin(), claimed.end(), b)) candidates_.push_back({by_uid_[i], b});
+        }
+        btDispatcher& dispatcher = *owner_.world_->getDispatcher();
+        btOverlapFilterCallback* filter = owner_.world_->getPairCache()->getOverlapFilterCallback();
+        for (const auto& [a, b] : candidates_) {
+            const btCollisionShape &shape_a = *a->getCollisionShape(), &shape_b = *b->getCollisionShape();
+            if (!shape_a.isConvex() || !shape_b.isConvex()) continue;
+            if (std::binary_search(touching_.begin(), touching_.end(), ordered(a, b))) continue;
+            const btBroadphaseProxy *pa = a->getBroadphaseHandle(), *pb = b->getBroadphaseHandle();
+            if (!pa || !pb || !dispatcher.needsCollision(a, b)) continue;
+            const bool passes = filter ? filter->needBroadphaseCollision(const_cast<btBroadphaseProxy*>(pa), const_cast<btBroadphaseProxy*>(pb))
+                                       : (pa->m_collisionFilterGroup & pb->m_collisionFilterMask) != 0 &&
+                                             (pb->m_collisionFilterGroup & pa->m_collisionFilterMask) != 0;
+            if (!passes) continue;
+            const Swept sa = swept(*a, h), sb = swept(*b, h);
+            if (!sa.side.body.valid()) continue;  // a claimed body has a proxy (startClaimedBodies)
+            const double reach = sa.travel + sb.travel + kContactMargin;
+            btVoronoiSimplexSolver simplex;
+            btGjkEpaPenetrationDepthSolver epa;
+            btGjkPairDetector gjk(static_cast<const btConvexShape*>(&shape_a), static_cast<const btConvexShape*>(&shape_b), &simplex, &epa);
+            btGjkPairDetector::ClosestPointInput input;
+            input.m_transformA = sa.side.then;
+            input.m_transformB = sb.side.then;
+            input.m_maximumDistanceSquared = static_cast<btScalar>(reach * reach);
+            btPointCollector result;
+            gjk.getClosestPoints(input, result, nullptr);
+            if (!result.m_hasResult || static_cast<double>(result.m_distance) > reach) continue;
+            // Bullet's normal on B points from B toward A; A's point is B's moved along it.
+            const btVector3 n = result.m_normalOnBInWorld;
+            const btVector3 closest_b = result.m_pointInWorld, closest_a = closest_b + n * result.m_distance;
+            const double friction = std::min(10.0, static_cast<double>(a->getFriction() * b->getFriction()));  // Bullet's combination
+            const std::size_t before = out.size();
+            addBoxCorners(*a, sa, *b, sb, friction, before, out);
+            if (out.size() > before) continue;
+            // Other shapes: one contact, slid across the normal (the gap stays) to below the
+            // midpoint of the centres, where its arm has no turn to open it with (see
+            // addBoxCorners).
+            const btVector3 mid = 0.5 * (sa.side.then.getOrigin() + sb.side.then.getOrigin()) - closest_b;
+            const btVector3 shift = mid - n * n.dot(mid);
+            out.push_back(carried(sa, sb, closest_a + shift, closest_b + shift, n, friction));
         }
     }
 
@@ -333,7 +417,114 @@ private:
         return s;
     }
 
+    /// A body over the step for the body-body contacts: its poses (side), its swept bounds
+    /// and how far any of its points can travel in the step.
+    struct Swept {
+        Side side;
+        btVector3 lo, hi;
+        double travel = 0.0;
+    };
+    Swept swept(const btRigidBody& body, double h) const {
+        Swept s{side(body, h), {}, {}, 0.0};
+        btVector3 lo, hi;
+        body.getCollisionShape()->getAabb(s.side.then, s.lo, s.hi);
+        body.getCollisionShape()->getAabb(s.side.now, lo, hi);
+        s.lo.setMin(lo);
+        s.hi.setMax(hi);
+        const btQuaternion turn = s.side.now.getRotation() * s.side.then.getRotation().inverse();
+        s.travel = static_cast<double>((s.side.now.getOrigin() - s.side.then.getOrigin()).length() +
+                                       turn.getAngleShortestPath() * body.getCollisionShape()->getAngularMotionDisc());
+        return s;
+    }
+
+    /// One body-body contact from points where the step started (`a_then` on A,
+    /// `b_then` on B, normal `n` from B toward A): carried to the bodies' poses now.
+    static BodyContact carried(const Swept& a, const Swept& b, const btVector3& a_then, const btVector3& b_then, const btVector3& n,
+                               double friction) {
+        const btVector3 a_now = a.side.now * (a.side.then.inverse() * a_then);
+        const btVector3 b_now = b.side.now * (b.side.then.inverse() * b_then);
+        BodyContact c;
+        c.a = a.side.body;
+        c.b = b.side.body;
+        c.point_a = toCore(a_now);
+        c.point_b = toCore(b_now);
+        c.normal = toCore(b.side.now.getBasis() * (b.side.then.getBasis().transpose() * n)).normalized();
+        c.motion = toCore((a_now - a_then) - (b_now - b_then));
+        c.depth = std::max(0.0, -static_cast<double>(n.dot(a_then - b_then)));
+        c.friction = friction;
+        c.force = 0.0;
+        c.host_tag = std::numeric_limits<std::size_t>::max();  // no manifold point takes its impulse
+        return c;
+    }
+
+    /// Bullet's first points of two boxes meeting face to face are often one edge (two
+    /// points), and the manifold fills over the next steps. An island moves its bodies in
+    /// one step by their positions, with contacts linearised where the step started: held
+    /// by one edge, the step met the contact by turning both boxes about it (the edge
+    /// opens by its arm times the turn), and the opposite edge, with no point, swung into
+    /// the other box (two boxes closing at 6 m/s sank 6 cm into each other). So each
+    /// corner of either box within the pair's reach of the other box is a contact too: its
+    /// closest point on the other box, the normal from there (the face it lies over, an
+    /// edge or a corner), or where it is inside, the nearest face. Only the corners of a
+    /// box's near half (within its smallest half extent of its nearest corner): its far
+    /// corners lie behind its own near faces. A corner that a contact of the pair (from
+    /// `first` in `out`) already holds is left to it.
+    void addBoxCorners(const btRigidBody& a, const Swept& sa, const btRigidBody& b, const Swept& sb, double friction,
+                       std::size_t first, std::vector<BodyContact>& out) {
+        if (a.getCollisionShape()->getShapeType() != BOX_SHAPE_PROXYTYPE ||
+            b.getCollisionShape()->getShapeType() != BOX_SHAPE_PROXYTYPE)
+            return;
+        const btVector3 half_a = static_cast<const btBoxShape*>(a.getCollisionShape())->getHalfExtentsWithMargin();
+        const btVector3 half_b = static_cast<const btBoxShape*>(b.getCollisionShape())->getHalfExtentsWithMargin();
+        const double reach = sa.travel + sb.travel + kContactMargin;
+        const std::size_t found = out.size();
+        // Corners of box X (pose x, half extents hx) against box Y; `on_a`: X is A.
+        auto corners = [&](const btTransform& x, const btVector3& hx, const btTransform& y, const btVector3& hy, bool on_a) {
+            std::array<btVector3, 8> corner, on_y, normal;  // world; normal from Y toward the corner
+            std::array<double, 8> distance;                 // signed: < 0 inside Y
+            for (int i = 0; i < 8; ++i) {
+                corner[i] = x * btVector3((i & 1) ? hx.x() : -hx.x(), (i & 2) ? hx.y() : -hx.y(), (i & 4) ? hx.z() : -hx.z());
+                const btVector3 local = y.invXform(corner[i]);
+                btVector3 closest(btClamped(local.x(), -hy.x(), hy.x()), btClamped(local.y(), -hy.y(), hy.y()),
+                                  btClamped(local.z(), -hy.z(), hy.z()));
+                btVector3 n = local - closest;
+                distance[i] = static_cast<double>(n.length());
+                if (distance[i] > 0.0) {
+                    n /= static_cast<btScalar>(distance[i]);
+                } else {  // inside: out through the nearest face
+                    int axis = 0;
+                    for (int k = 1; k < 3; ++k)
+                        if (hy[k] - btFabs(local[k]) < hy[axis] - btFabs(local[axis])) axis = k;
+                    const btScalar side = local[axis] < 0 ? -1 : 1;
+                    distance[i] = -static_cast<double>(hy[axis] - btFabs(local[axis]));
+                    n.setZero();
+                    n[axis] = side;
+                    closest[axis] = side * hy[axis];
+                }
+                on_y[i] = y * closest;
+                normal[i] = y.getBasis() * n;
+            }
+            const double near = std::min(reach, *std::min_element(distance.begin(), distance.end()) +
+                                                    static_cast<double>(hx[hx.minAxis()]));
+            for (int i = 0; i < 8; ++i) {
+                if (distance[i] > near) continue;
+                const BodyContact c = on_a ? carried(sa, sb, corner[i], on_y[i], normal[i], friction)
+                                           : carried(sa, sb, on_y[i], corner[i], -normal[i], friction);
+                bool there = false;
+                for (std::size_t k = first; k < found && !there; ++k)
+                    there = ((on_a ? c.point_a : c.point_b) - (on_a ? out[k].point_a : out[k].point_b)).norm() < kContactMargin;
+                if (!there) out.push_back(c);
+            }
+        };
+        corners(sa.side.then, half_a, sb.side.then, half_b, true);
+        corners(sb.side.then, half_b, sa.side.then, half_a, false);
+    }
+
     std::vector<std::pair<btPersistentManifold*, int>> points_;  // per body contact: its manifold point
+    std::vector<std::pair<const btCollisionObject*, const btCollisionObject*>> touching_;  // pairs with manifold points
+    std::vector<std::pair<const btRigidBody*, const btRigidBody*>> candidates_;  // pairs for speculative contacts
+    std::vector<const btRigidBody*> by_uid_;  // the claimed bodies in the broadphase's order
+    std::vector<Swept> bounds_;               // per by_uid_
     std::vector<btTypedConstraint*> joints_;                      // per body joint: its constraint
 
     void findStringContacts(const CollisionQuery& query, std::vector<RigidContact>& out) {

@@ -354,12 +354,14 @@ void momentumTrace(double density, bool kick) {
 // gap there) with the force the solve left on each.
 void closing(double v) {
     Rig rig(0.0);
-    btRigidBody& a = rig.phys.box(btVector3(0.05f, 0.05f, 0.05f), 1.0, btVector3(-0.3f, 0, 0));
-    btRigidBody& b = rig.phys.box(btVector3(0.05f, 0.05f, 0.05f), 1.0, btVector3(0.3f, 0, 0));
+    // 1.1 m apart: at up to 20 m/s each they meet after the first step (which Bullet
+    // solves: the island takes bodies from the step after a rope holds them).
+    btRigidBody& a = rig.phys.box(btVector3(0.05f, 0.05f, 0.05f), 1.0, btVector3(-0.6f, 0, 0));
+    btRigidBody& b = rig.phys.box(btVector3(0.05f, 0.05f, 0.05f), 1.0, btVector3(0.6f, 0, 0));
     StringDesc d;
     for (int i = 0; i <= 30; ++i) {
         const double t = kPi * i / 30;
-        d.points.push_back(Vec3(-0.3 * std::cos(t), 0.05 + 0.3 * std::sin(t), 0));
+        d.points.push_back(Vec3(-0.6 * std::cos(t), 0.05 + 0.6 * std::sin(t), 0));
     }
     d.material.variation = 0.0;
     d.tearable = false;

@@ -153,6 +153,51 @@ TEST(Islands, HeavyRopeBetweenFreeBodiesKeepsTheImpulseItWasGiven) {
     EXPECT_LT(worst, 5e-3);
 }
 
+// Two 1 kg, 0.1 m boxes joined by a slack rope arched over them (so both move in the
+// island), no gravity, thrown at each other at 6, 12 and 20 m/s (10-33 cm a 1/60 s step,
+// up to three times their width): they meet and stop face to face, and never pass or
+// sink into each other. The contacts give under the force that stops them within a step,
+// F = m v / h (up to 600 N), by F / k with k = 100 m / h^2 (3.6e5 N/m): under 2 mm, so
+// their centres stay 0.1 m apart to 3 mm. All forces are internal: the total momentum,
+// zero, stays so to the solve's tolerance, a move of 1e-6 of the 6.3 cm segments: at most
+// 2 kg x 63 nm / h = 7.6e-6 N s a step, 3e-4 N s over the 40 steps. Bullet's
+// first manifold of two boxes meeting is often one edge: held by it alone, the island
+// turned the boxes about it and they sank 6 cm into each other at 6 m/s.
+TEST(Islands, BoxesThrownAtEachOtherMeetAndStop) {
+    for (double v : {3.0, 6.0, 10.0}) {
+        Physics p(0.0);
+        btRigidBody& a = p.box(btVector3(0.05f, 0.05f, 0.05f), 1.0, btVector3(-0.6f, 0, 0));
+        btRigidBody& b = p.box(btVector3(0.05f, 0.05f, 0.05f), 1.0, btVector3(0.6f, 0, 0));
+        // The slack rope folds onto itself as the boxes meet; string-string contacts are
+        // solved after the island with its bodies held, which leaks momentum (README,
+        // known limits), so they are off here: this is about the boxes.
+        tearables::WorldSettings settings;
+        settings.string_collisions = false;
+        BulletWorld ropes(*p.world, settings);
+        StringDesc d;
+        for (int i = 0; i <= 30; ++i)
+            d.points.push_back(Vec3(-0.6 * std::cos(kPi * i / 30), 0.05 + 0.6 * std::sin(kPi * i / 30), 0));
+        d.material.variation = 0.0;
+        d.tearable = false;
+        const StringId id = ropes.addString(d);
+        ropes.attach(id, 0, a, btVector3(0, 0.05f, 0));
+        ropes.attach(id, -1, b, btVector3(0, 0.05f, 0));
+        a.setLinearVelocity(btVector3(static_cast<btScalar>(v), 0, 0));
+        b.setLinearVelocity(btVector3(static_cast<btScalar>(-v), 0, 0));
+        a.setActivationState(DISABLE_DEACTIVATION);
+        b.setActivationState(DISABLE_DEACTIVATION);
+        double closest = 1e300, drift = 0.0;
+        for (int i = 0; i < 40; ++i) {
+            p.step(1, 1.0 / 60.0);
+            closest = std::min(closest, static_cast<double>(b.getCenterOfMassPosition().x() - a.getCenterOfMassPosition().x()));
+            drift = std::max(drift, totalMomentum({&a, &b}, ropes, id).norm());
+        }
+        ASSERT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+        EXPECT_GT(closest, 0.1 - 3e-3) << "at " << v << " m/s each";
+        EXPECT_LT(drift, 3e-4) << "at " << v << " m/s each";
+    }
+}
+
 // A 2 kg box thrown at 4 m/s, in zero gravity, onto a rope glued at its ends to two free
 // 1 kg boxes: the box presses and drags the rope (friction rolls and twists it), and
 // every force between box, rope and end boxes is internal, so the total momentum stays
