@@ -197,8 +197,10 @@ public:
                 points_.push_back({m, k});
                 out.push_back(c);
             }
-            addBoxCorners(*o0, swept(*o0, h), *o1, swept(*o1, h), static_cast<double>(m->getContactPoint(0).m_combinedFriction), first,
-                          out);
+            // A full manifold (four points) holds the pair already; fewer is a first touch.
+            if (m->getNumContacts() < 4)
+                addBoxCorners(*o0, swept(*o0, h), *o1, swept(*o1, h), static_cast<double>(m->getContactPoint(0).m_combinedFriction),
+                              first, out);
         }
         addSpeculativeBodyContacts(h, out);
     }
@@ -468,7 +470,11 @@ private:
     /// edge or a corner), or where it is inside, the nearest face. Only the corners of a
     /// box's near half (within its smallest half extent of its nearest corner): its far
     /// corners lie behind its own near faces. A corner that a contact of the pair (from
-    /// `first` in `out`) already holds is left to it.
+    /// `first` in `out`) already holds is left to it. (A corner just past the other box's
+    /// edge gets a plane through that edge, a wall the box does not have: a crate sliding
+    /// back onto a board it overhangs by less than its reach would be stopped at the edge.
+    /// The manifold's own points at the edge, within kContactMargin of such a corner, and
+    /// a full manifold, which takes no corners, keep that to first touches.)
     void addBoxCorners(const btRigidBody& a, const Swept& sa, const btRigidBody& b, const Swept& sb, double friction,
                        std::size_t first, std::vector<BodyContact>& out) {
         if (a.getCollisionShape()->getShapeType() != BOX_SHAPE_PROXYTYPE ||
