@@ -462,9 +462,9 @@ private:
     /// Bullet's first points of two boxes meeting face to face are often one edge (two
     /// points), and the manifold fills over the next steps. An island moves its bodies in
     /// one step by their positions, with contacts linearised where the step started: held
-    /// by one edge, the step met the contact by turning both boxes about it (the edge
-    /// opens by its arm times the turn), and the opposite edge, with no point, swung into
-    /// the other box (two boxes closing at 6 m/s sank 6 cm into each other). So each
+    /// by one edge, the step meets the contact by turning both boxes about it (the edge
+    /// opens by its arm times the turn), and the opposite edge, with no point, swings into
+    /// the other box (docs/island-plan.md: 6 cm deep at 6 m/s closing). So each
     /// corner of either box within the pair's reach of the other box is a contact too: its
     /// closest point on the other box, the normal from there (the face it lies over, an
     /// edge or a corner), or where it is inside, the nearest face. Only the corners of a

@@ -59,11 +59,11 @@ Throw throwSpinning(Shape shape, double speed, double spin) {
 }
 
 // A ball dropped or thrown at a pinned rope, with or without spin (300 rad/s is a pitched
-// baseball's 2900 rpm, 1000 rad/s a table-tennis ball's), is held and gains no energy. A
-// rope pressed on both sides of a particle once gave friction on one side only, a couple
-// that spun a still ball up to 1000 rad/s in one step and drove it through the rope with
-// 25 times its energy; and a contact plane fixed in a spinning ball turned with it, to
-// face along the rope within a step.
+// baseball's 2900 rpm, 1000 rad/s a table-tennis ball's), is held and gains no energy.
+// What it checks: friction on both sides of the particle the ball presses (friction on
+// one side only is a couple that spins a still ball up and drives it through the rope),
+// and a ball's contact plane that keeps facing the rope as the ball turns
+// (docs/tunnelling.md has the traces).
 TEST(Tunnelling, BallThrownAtARopeIsHeldAndGainsNoEnergy) {
     for (double speed : {2.0, 5.0, 10.0, 20.0, 50.0})
         for (double spin : {0.0, 30.0, 300.0, -1000.0}) {
