@@ -24,9 +24,11 @@ namespace tearables::detail {
 /// i couples to i - 1 into `coupled`.
 void factorBlockTridiagonal(std::size_t n, const Mat3* diag, const Mat3* off, Cholesky3* factor, Mat3* gain,
                             std::uint8_t* coupled);
-/// Solves the system factorised by factorBlockTridiagonal for `rhs` (n) in place.
+/// Solves the system factorised by factorBlockTridiagonal for `rhs` (n) in place. With
+/// `first`, rhs is zero above row `first`: the forward substitution starts there (the rows
+/// above stay exactly zero through it; the same bits as from row 0).
 void solveFactored(std::size_t n, const Mat3* off, const Cholesky3* factor, const Mat3* gain, const std::uint8_t* coupled,
-                   Vec3* rhs);
+                   Vec3* rhs, std::size_t first = 0);
 
 /// Solves (diag, off) x = rhs in place by the twisted factorisation: each sweep folds
 /// factor, forward substitution and y_i = D_i^-1 r_i into one pass; the two meet at the

@@ -108,10 +108,11 @@ inline bool slackSegment(const StringState& s, std::size_t j, double stretch, do
     return stretch <= -band * s.rest_length[j] && effective <= 0.0;
 }
 
-/// solveFactored of the string's factorised system (factorChain) for `rhs` (n) in place.
-void solveFactored(const StringState& s, std::vector<Vec3>& rhs) {
+/// solveFactored of the string's factorised system (factorChain) for `rhs` (n) in place;
+/// rhs is zero above row `first`.
+void solveFactored(const StringState& s, std::vector<Vec3>& rhs, std::size_t first = 0) {
     solveFactored(s.particles(), s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(),
-                  s.scratch.blk_coupled.data(), rhs.data());
+                  s.scratch.blk_coupled.data(), rhs.data(), first);
 }
 
 /// A segment's spring in the chain's Newton system: Hessian and force, and to which of its
@@ -874,8 +875,12 @@ void condenseNodes(StringState& s, StringScratch::NodeScratch& nodes_scratch) {
         for (int col = 0; col < 6; ++col) {
             std::vector<Vec3>& column = s.scratch.node_columns[6 * b + static_cast<std::size_t>(col)];
             column.assign(n, Vec3::Zero());
-            for (const auto& [p, blk] : coupling[b]) column[p] += blk.col(col);
-            solveFactored(s, column);
+            std::size_t first = n;
+            for (const auto& [p, blk] : coupling[b]) {
+                column[p] += blk.col(col);
+                first = std::min<std::size_t>(first, p);
+            }
+            solveFactored(s, column, first < n ? first : 0);
         }
     }
     for (std::size_t b = 0; b < nodes; ++b)

@@ -413,7 +413,7 @@ bool StringIslandMember::condenseRows() {
             column.assign(n, Vec3::Zero());
             column[rows_[k]][c] = 1.0;
             solveFactored(n, s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(),
-                          s.scratch.blk_coupled.data(), column.data());
+                          s.scratch.blk_coupled.data(), column.data(), rows_[k]);
             for (std::size_t k2 = 0; k2 < rows_.size(); ++k2)
                 rows_inverse_.block<3, 1>(static_cast<Eigen::Index>(3 * k2), static_cast<Eigen::Index>(3 * k) + c) = column[rows_[k2]];
         }
