@@ -199,7 +199,7 @@ public:
             }
             // A full manifold (four points) holds the pair already; fewer is a first touch.
             if (m->getNumContacts() < 4)
-                addBoxCorners(*o0, swept(*o0, h), *o1, swept(*o1, h), static_cast<double>(m->getContactPoint(0).m_combinedFriction),
+                addBoxCorners(*o0, swept(*o0, s0), *o1, swept(*o1, s1), static_cast<double>(m->getContactPoint(0).m_combinedFriction),
                               first, out);
         }
         addSpeculativeBodyContacts(h, out);
@@ -236,27 +236,28 @@ public:
         // its own), each pair once.
         candidates_.clear();
         bounds_.clear();
-        for (const btRigidBody* a : by_uid_) bounds_.push_back(swept(*a, h));
+        for (const btRigidBody* a : by_uid_) bounds_.push_back(swept(*a, side(*a, h)));
         for (std::size_t i = 0; i < by_uid_.size(); ++i) {
             const Swept& sa = bounds_[i];
             for (std::size_t j = i + 1; j < by_uid_.size(); ++j)
-                if (TestAabbAgainstAabb2(sa.lo, sa.hi, bounds_[j].lo, bounds_[j].hi)) candidates_.push_back({by_uid_[i], by_uid_[j]});
+                if (TestAabbAgainstAabb2(sa.lo, sa.hi, bounds_[j].lo, bounds_[j].hi)) candidates_.push_back({i, by_uid_[j], j});
             for (const btRigidBody* b : owner_.bodiesIn(toCore(sa.lo), toCore(sa.hi)))
-                if (b != by_uid_[i] && !std::binary_search(claimed.begin(), claimed.end(), b)) candidates_.push_back({by_uid_[i], b});
+                if (b != by_uid_[i] && !std::binary_search(claimed.begin(), claimed.end(), b)) candidates_.push_back({i, b, kUnclaimed});
         }
         btDispatcher& dispatcher = *owner_.world_->getDispatcher();
         btOverlapFilterCallback* filter = owner_.world_->getPairCache()->getOverlapFilterCallback();
-        for (const auto& [a, b] : candidates_) {
+        for (const Candidate& pair : candidates_) {
+            const btRigidBody *a = by_uid_[pair.a], *b = pair.b;
             const btCollisionShape &shape_a = *a->getCollisionShape(), &shape_b = *b->getCollisionShape();
             if (!shape_a.isConvex() || !shape_b.isConvex()) continue;
             if (std::binary_search(touching_.begin(), touching_.end(), ordered(a, b))) continue;
             const btBroadphaseProxy *pa = a->getBroadphaseHandle(), *pb = b->getBroadphaseHandle();
             if (!pa || !pb || !dispatcher.needsCollision(a, b)) continue;
             const bool passes = filter ? filter->needBroadphaseCollision(const_cast<btBroadphaseProxy*>(pa), const_cast<btBroadphaseProxy*>(pb))
-                                       : (pa->m_collisionFilterGroup & pb->m_collisionFilterMask) != 0 &&
-                                             (pb->m_collisionFilterGroup & pa->m_collisionFilterMask) != 0;
+                                       : Filter{pa->m_collisionFilterGroup, pa->m_collisionFilterMask}.passes(*b);
             if (!passes) continue;
-            const Swept sa = swept(*a, h), sb = swept(*b, h);
+            const Swept& sa = bounds_[pair.a];
+            const Swept sb = pair.b_claimed != kUnclaimed ? bounds_[pair.b_claimed] : swept(*b, side(*b, h));
             if (!sa.side.body.valid()) continue;  // a claimed body has a proxy (startClaimedBodies)
             const double reach = sa.travel + sb.travel + kContactMargin;
             btVoronoiSimplexSolver simplex;
@@ -426,8 +427,8 @@ private:
         btVector3 lo, hi;
         double travel = 0.0;
     };
-    Swept swept(const btRigidBody& body, double h) const {
-        Swept s{side(body, h), {}, {}, 0.0};
+    Swept swept(const btRigidBody& body, const Side& poses) const {
+        Swept s{poses, {}, {}, 0.0};
         btVector3 lo, hi;
         body.getCollisionShape()->getAabb(s.side.then, s.lo, s.hi);
         body.getCollisionShape()->getAabb(s.side.now, lo, hi);
@@ -528,7 +529,15 @@ private:
 
     std::vector<std::pair<btPersistentManifold*, int>> points_;  // per body contact: its manifold point
     std::vector<std::pair<const btCollisionObject*, const btCollisionObject*>> touching_;  // pairs with manifold points
-    std::vector<std::pair<const btRigidBody*, const btRigidBody*>> candidates_;  // pairs for speculative contacts
+    /// A pair for speculative contacts: its claimed body (an index into by_uid_ and
+    /// bounds_), the other body, and the other's index there if it is claimed too.
+    static constexpr std::size_t kUnclaimed = std::numeric_limits<std::size_t>::max();
+    struct Candidate {
+        std::size_t a;
+        const btRigidBody* b;
+        std::size_t b_claimed;
+    };
+    std::vector<Candidate> candidates_;
     std::vector<const btRigidBody*> by_uid_;  // the claimed bodies in the broadphase's order
     std::vector<Swept> bounds_;               // per by_uid_
     std::vector<btTypedConstraint*> joints_;                      // per body joint: its constraint
