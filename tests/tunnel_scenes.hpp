@@ -61,15 +61,6 @@ struct Outcome {
     std::string error;         ///< BulletWorld::lastError() at the end
 };
 
-/// A body's kinetic energy, translation and rotation, J.
-inline double kineticEnergy(const btRigidBody& body) {
-    const btVector3 w = body.getWorldTransform().getBasis().transpose() * body.getAngularVelocity();  // body frame
-    const btVector3 inertia = body.getLocalInertia();
-    const double m = 1.0 / static_cast<double>(body.getInvMass());
-    return 0.5 * m * static_cast<double>(body.getLinearVelocity().length2()) +
-           0.5 * static_cast<double>(inertia.x() * w.x() * w.x() + inertia.y() * w.y() * w.y() + inertia.z() * w.z() * w.z());
-}
-
 inline double halfSize(Shape s) { return s == Shape::Sphere ? 0.01 : 0.05; }
 
 /// Runs `shot` and classifies where the body ended. With `trace`, one line a step: the
@@ -87,7 +78,7 @@ inline Outcome fire(const Shot& shot, std::FILE* trace = nullptr) {
     BulletWorld world(*phys.world);
     Outcome out;
     out.half = half;
-    out.start_energy = out.peak_energy = kineticEnergy(body);
+    out.start_energy = out.peak_energy = testing::kineticEnergy(body);
     StringId rope;
     PaperId paper;
     ClothId cloth;
@@ -194,7 +185,7 @@ inline Outcome fire(const Shot& shot, std::FILE* trace = nullptr) {
         const Under u = under(c);
         // Through: wholly past the intact target's surface, within its outline.
         if (!torn && u.inside && c.y() + half < u.y) out.through = true;
-        out.peak_energy = std::max(out.peak_energy, kineticEnergy(body));
+        out.peak_energy = std::max(out.peak_energy, testing::kineticEnergy(body));
         if (trace) {
             const std::vector<Vec3>* x = is_rope ? world.core().view(rope).positions
                                          : shot.target == Target::Paper ? world.core().viewPaper(paper).positions

@@ -354,23 +354,8 @@ void momentumTrace(double density, bool kick) {
 // gap there) with the force the solve left on each.
 void closing(double v) {
     Rig rig(0.0);
-    // 1.1 m apart: at up to 20 m/s each they meet after the first step (which Bullet
-    // solves: the island takes bodies from the step after a rope holds them).
-    btRigidBody& a = rig.phys.box(btVector3(0.05f, 0.05f, 0.05f), 1.0, btVector3(-0.6f, 0, 0));
-    btRigidBody& b = rig.phys.box(btVector3(0.05f, 0.05f, 0.05f), 1.0, btVector3(0.6f, 0, 0));
-    StringDesc d;
-    for (int i = 0; i <= 30; ++i) {
-        const double t = kPi * i / 30;
-        d.points.push_back(Vec3(-0.6 * std::cos(t), 0.05 + 0.6 * std::sin(t), 0));
-    }
-    d.material.variation = 0.0;
-    d.tearable = false;
-    const StringId rope = rig.ropes->addString(d);
-    rig.ropes->attach(rope, 0, a, btVector3(0, 0.05f, 0));
-    rig.ropes->attach(rope, -1, b, btVector3(0, 0.05f, 0));
-    a.setLinearVelocity(btVector3(static_cast<btScalar>(v), 0, 0));
-    b.setLinearVelocity(btVector3(static_cast<btScalar>(-v), 0, 0));
-    for (btRigidBody* body : {&a, &b}) body->setActivationState(DISABLE_DEACTIVATION);
+    const island::ClosingBoxes boxes = island::buildClosingBoxes(rig.phys, *rig.ropes, v);
+    const btRigidBody &a = *boxes.a, &b = *boxes.b;
     std::printf("two 0.1 m boxes closing at %g m/s\n", 2 * v);
     for (int i = 1; i <= 12; ++i) {
         rig.phys.world->stepSimulation(1.0f / 60.0f, 1, 1.0f / 60.0f);

@@ -8,6 +8,7 @@
 
 #include <btBulletDynamicsCommon.h>
 
+#include <cmath>
 #include <memory>
 #include <vector>
 
@@ -167,6 +168,33 @@ inline StringId buildFloorRope(Rig& rig, int segments = 64) {
     StringDesc d = StringDesc::straight({-0.5, 0.007, 0}, {0.5, 0.007, 0}, segments);
     d.radius = 0.006;
     return rig.ropes->addString(d);
+}
+
+/// Two 1 kg, 0.1 m boxes 1.1 m apart along x (centres at -+0.6 m), joined by a slack rope
+/// arched over them from top to top (so both are island bodies), thrown at each other at
+/// +-v. At up to 20 m/s each they meet after the first step, which Bullet solves (the
+/// island takes bodies from the step after a rope holds them).
+struct ClosingBoxes {
+    btRigidBody* a = nullptr;
+    btRigidBody* b = nullptr;
+    StringId rope;
+};
+inline ClosingBoxes buildClosingBoxes(testing::Physics& phys, BulletWorld& ropes, double v) {
+    ClosingBoxes out;
+    out.a = &phys.box(btVector3(0.05f, 0.05f, 0.05f), 1.0, btVector3(-0.6f, 0, 0));
+    out.b = &phys.box(btVector3(0.05f, 0.05f, 0.05f), 1.0, btVector3(0.6f, 0, 0));
+    StringDesc d;
+    const double pi = 3.14159265358979323846;
+    for (int i = 0; i <= 30; ++i) d.points.push_back(Vec3(-0.6 * std::cos(pi * i / 30), 0.05 + 0.6 * std::sin(pi * i / 30), 0));
+    d.material.variation = 0.0;
+    d.tearable = false;
+    out.rope = ropes.addString(d);
+    ropes.attach(out.rope, 0, *out.a, btVector3(0, 0.05f, 0));
+    ropes.attach(out.rope, -1, *out.b, btVector3(0, 0.05f, 0));
+    out.a->setLinearVelocity(btVector3(static_cast<btScalar>(v), 0, 0));
+    out.b->setLinearVelocity(btVector3(static_cast<btScalar>(-v), 0, 0));
+    for (btRigidBody* body : {out.a, out.b}) body->setActivationState(DISABLE_DEACTIVATION);
+    return out;
 }
 
 }  // namespace tearables::island

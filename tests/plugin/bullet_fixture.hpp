@@ -51,7 +51,6 @@ struct Physics {
     }
 };
 
-/// Kinetic energy of a body (translation and rotation), J.
 /// A straight rope for tests about holding and coupling: no material scatter, untearable,
 /// no bending.
 inline StringDesc plainRope(const Vec3& from, const Vec3& to, int segments) {
@@ -62,6 +61,7 @@ inline StringDesc plainRope(const Vec3& from, const Vec3& to, int segments) {
     return d;
 }
 
+/// Kinetic energy of a body (translation and rotation), J.
 inline double kineticEnergy(const btRigidBody& body) {
     const double mass = body.getInvMass() > 0 ? 1.0 / static_cast<double>(body.getInvMass()) : 0.0;
     double e = 0.5 * mass * static_cast<double>(body.getLinearVelocity().length2());
