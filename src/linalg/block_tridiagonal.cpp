@@ -42,6 +42,20 @@ void solveFactored(std::size_t n, const Mat3* off, const Cholesky3* factor, cons
     for (std::size_t i = n - 1; i-- > 0;) rhs[i] = factor[i].solve(Vec3(rhs[i] - off[i] * rhs[i + 1]));
 }
 
+void solveFactoredColumns(std::size_t n, const Mat3* off, const Cholesky3* factor, const Mat3* gain, const std::uint8_t* coupled,
+                          Vec3* const* columns, const std::size_t* first, std::size_t count) {
+    if (count == 0 || n == 0) return;
+    const std::size_t start = *std::min_element(first, first + count);
+    for (std::size_t i = start + 1; i < n; ++i) {
+        if (!coupled[i]) continue;
+        for (std::size_t c = 0; c < count; ++c)
+            if (i > first[c]) columns[c][i] -= gain[i] * columns[c][i - 1];
+    }
+    for (std::size_t c = 0; c < count; ++c) columns[c][n - 1] = factor[n - 1].solve(columns[c][n - 1]);
+    for (std::size_t i = n - 1; i-- > 0;)
+        for (std::size_t c = 0; c < count; ++c) columns[c][i] = factor[i].solve(Vec3(columns[c][i] - off[i] * columns[c][i + 1]));
+}
+
 namespace {
 
 /// solveChain's back substitution, outward from the middle particle, with the gains it

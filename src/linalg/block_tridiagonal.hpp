@@ -30,6 +30,13 @@ void factorBlockTridiagonal(std::size_t n, const Mat3* diag, const Mat3* off, Ch
 void solveFactored(std::size_t n, const Mat3* off, const Cholesky3* factor, const Mat3* gain, const std::uint8_t* coupled,
                    Vec3* rhs, std::size_t first = 0);
 
+/// solveFactored for `count` right-hand sides at once, `columns[c]` (n each) in place,
+/// column c zero above row `first[c]`. Each column gets exactly solveFactored's
+/// operations; interleaved, their sweeps' dependency chains (six divisions a particle on
+/// the way back) overlap in the pipeline instead of running one after another.
+void solveFactoredColumns(std::size_t n, const Mat3* off, const Cholesky3* factor, const Mat3* gain, const std::uint8_t* coupled,
+                          Vec3* const* columns, const std::size_t* first, std::size_t count);
+
 /// Solves (diag, off) x = rhs in place by the twisted factorisation: each sweep folds
 /// factor, forward substitution and y_i = D_i^-1 r_i into one pass; the two meet at the
 /// middle particle, whose pivot takes both sides' Schur complements, and the back

@@ -870,6 +870,10 @@ void condenseNodes(StringState& s, StringScratch::NodeScratch& nodes_scratch) {
     schur.setZero(static_cast<Eigen::Index>(dim), static_cast<Eigen::Index>(dim));
     condenseNodesRhs(s, nodes_scratch);
     if (s.scratch.node_columns.size() < dim) s.scratch.node_columns.resize(dim);
+    std::vector<Vec3*>& columns = s.scratch.column_pointers;
+    std::vector<std::size_t>& firsts = s.scratch.column_firsts;
+    columns.clear();
+    firsts.clear();
     for (std::size_t b = 0; b < nodes; ++b) {
         schur.block<6, 6>(static_cast<Eigen::Index>(6 * b), static_cast<Eigen::Index>(6 * b)) = node_diag[b];
         for (int col = 0; col < 6; ++col) {
@@ -880,9 +884,12 @@ void condenseNodes(StringState& s, StringScratch::NodeScratch& nodes_scratch) {
                 column[p] += blk.col(col);
                 first = std::min<std::size_t>(first, p);
             }
-            solveFactored(s, column, first < n ? first : 0);
+            columns.push_back(column.data());
+            firsts.push_back(first < n ? first : 0);
         }
     }
+    solveFactoredColumns(n, s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(),
+                         s.scratch.blk_coupled.data(), columns.data(), firsts.data(), columns.size());
     for (std::size_t b = 0; b < nodes; ++b)
         for (std::size_t c = 0; c < dim; ++c)
             for (const auto& [p, blk] : coupling[b])

@@ -290,9 +290,10 @@ void StringIslandMember::condense(bool fresh) {
     assembleGlueContacts();
     addTurningStiffness();
     factorChain(s);
+    if (condenseRows()) return;
     solveFactored(s.particles(), s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(),
                   s.scratch.blk_coupled.data(), s.scratch.blk_rhs.data());  // y = A^-1 r
-    if (!condenseRows()) condenseNodes(s, ns);
+    condenseNodes(s, ns);
 }
 
 /// A chord iteration: the gradient here, against the chain's factorisation and the
@@ -381,7 +382,8 @@ void StringIslandMember::backSubstitute(const std::vector<int>& slot, const Eige
 /// The Schur complement through the coupled rows R (the particles the bodies' rows touch)
 /// where they are fewer than half the body unknowns: D - B^T G B, r_b - B^T y_R, with G the
 /// 3|R| x 3|R| block of A^-1 at R (3 columns a row) and B the couplings stacked by row.
-/// A rope glued to two boards couples two rows: 6 solves instead of 12.
+/// A rope glued to two boards couples two rows: 6 solves instead of 12. Solves y = A^-1 r
+/// (blk_rhs) with the columns; returns false, having solved nothing, where R is too large.
 bool StringIslandMember::condenseRows() {
     StringState& s = *string_;
     StringScratch::NodeScratch& ns = s.scratch.node_scratch;
@@ -406,18 +408,26 @@ bool StringIslandMember::condenseRows() {
         for (const auto& [p, blk] : ns.coupling[b])
             rows_coupling_.block<3, 6>(3 * row_of_[p], static_cast<Eigen::Index>(6 * b)) += blk;
     if (s.scratch.node_columns.size() < static_cast<std::size_t>(dim)) s.scratch.node_columns.resize(static_cast<std::size_t>(dim));
-    rows_inverse_.resize(dim, dim);
+    // y = A^-1 r and the columns of A^-1 at the rows, solved together.
+    std::vector<Vec3*>& columns = s.scratch.column_pointers;
+    std::vector<std::size_t>& firsts = s.scratch.column_firsts;
+    columns.assign(1, s.scratch.blk_rhs.data());
+    firsts.assign(1, 0);
     for (std::size_t k = 0; k < rows_.size(); ++k) {
         for (int c = 0; c < 3; ++c) {
             std::vector<Vec3>& column = s.scratch.node_columns[3 * k + static_cast<std::size_t>(c)];
             column.assign(n, Vec3::Zero());
             column[rows_[k]][c] = 1.0;
-            solveFactored(n, s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(),
-                          s.scratch.blk_coupled.data(), column.data(), rows_[k]);
-            for (std::size_t k2 = 0; k2 < rows_.size(); ++k2)
-                rows_inverse_.block<3, 1>(static_cast<Eigen::Index>(3 * k2), static_cast<Eigen::Index>(3 * k) + c) = column[rows_[k2]];
+            columns.push_back(column.data());
+            firsts.push_back(rows_[k]);
         }
     }
+    solveFactoredColumns(n, s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(),
+                         s.scratch.blk_coupled.data(), columns.data(), firsts.data(), columns.size());
+    rows_inverse_.resize(dim, dim);
+    for (std::size_t k = 0; k < 3 * rows_.size(); ++k)
+        for (std::size_t k2 = 0; k2 < rows_.size(); ++k2)
+            rows_inverse_.block<3, 1>(static_cast<Eigen::Index>(3 * k2), static_cast<Eigen::Index>(k)) = s.scratch.node_columns[k][rows_[k2]];
     for (std::size_t q : rows_) row_of_[q] = -1;
     const Eigen::Index nd = static_cast<Eigen::Index>(6 * nodes);
     ns.schur.setZero(nd, nd);

@@ -112,6 +112,8 @@ struct StringScratch {
     // --- the strain solve's body unknowns ---------------------------------------------------
     std::vector<Eigen::Matrix<double, 6, 1>> node_step;  ///< per body node: this iteration's Newton step
     std::vector<std::vector<Vec3>> node_columns;  ///< A^-1 C, 6 columns per body node (n each; grown, never shrunk)
+    std::vector<Vec3*> column_pointers;           ///< the columns one solveFactoredColumns call solves
+    std::vector<std::size_t> column_firsts;       ///< and the row above which each is zero
     /// The body unknowns' Schur complement (limitStrain): per node its 6x6 block,
     /// right-hand side and coupling rows (particle, 3x6 block); the dense Schur system and
     /// its factorisation.
