@@ -51,9 +51,10 @@ void solveFactoredColumns(std::size_t n, const Mat3* off, const Cholesky3* facto
         for (std::size_t c = 0; c < count; ++c)
             if (i > first[c]) columns[c][i] -= gain[i] * columns[c][i - 1];
     }
-    for (std::size_t c = 0; c < count; ++c) columns[c][n - 1] = factor[n - 1].solve(columns[c][n - 1]);
+    for (std::size_t c = 0; c < count; ++c) columns[c][n - 1] = factor[n - 1].solveByReciprocals(columns[c][n - 1]);
     for (std::size_t i = n - 1; i-- > 0;)
-        for (std::size_t c = 0; c < count; ++c) columns[c][i] = factor[i].solve(Vec3(columns[c][i] - off[i] * columns[c][i + 1]));
+        for (std::size_t c = 0; c < count; ++c)
+            columns[c][i] = factor[i].solveByReciprocals(Vec3(columns[c][i] - off[i] * columns[c][i + 1]));
 }
 
 namespace {

@@ -59,6 +59,18 @@ struct Cholesky3 {
         const double x0 = (y0 - (l10 * x1 + l20 * x2)) / l00;
         return Vec3(x0, x1, x2);
     }
+    /// A^-1 b with the stored reciprocals of the diagonal for its six divisions: products
+    /// only, within an ulp or two of solve(b) (each division rounded once, a product by
+    /// a rounded reciprocal twice).
+    Vec3 solveByReciprocals(const Vec3& b) const {
+        const double y0 = b.x() * i00;
+        const double y1 = (b.y() - l10 * y0) * i11;
+        const double y2 = (b.z() - (l20 * y0 + l21 * y1)) * i22;
+        const double x2 = y2 * i22;
+        const double x1 = (y1 - l21 * x2) * i11;
+        const double x0 = (y0 - (l10 * x1 + l20 * x2)) * i00;
+        return Vec3(x0, x1, x2);
+    }
     Mat3 solve(const Mat3& b) const {
         // Eigen's solver for several right-hand sides multiplies by the reciprocal of
         // the diagonal instead, and sums differently (checked bit for bit). The
