@@ -558,12 +558,15 @@ private:
             const auto& radius = *query.radius[i];
             const auto& broken = *query.broken[i];
             SegmentTree& tree = treeFor(query.strings[i].index, start, pred, radius, broken);
+            const auto glued = std::equal_range(query.glued.begin(), query.glued.end(), std::make_pair(query.strings[i], RigidId{}),
+                                                [](const auto& a, const auto& b) { return a.first.index < b.first.index; });
             for (btRigidBody* body : it->second) {
+                const RigidId proxy = owner_.proxies_.at(body);
+                if (std::any_of(glued.first, glued.second, [&](const auto& g) { return g.second == proxy; })) continue;
                 const SweptBody swept(*body, h, now(*body));
                 const btTransform& before = swept.found_at;
                 const btVector3 &bmin = swept.lo, &bmax = swept.hi;
                 const double body_travel = swept.travel;
-                const RigidId proxy = owner_.proxies_.at(body);
                 // The segments whose swept bounds overlap the body's: from the string's own
                 // btDbvt, in segment order (deterministic).
                 hits_.clear();

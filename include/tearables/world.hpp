@@ -160,6 +160,9 @@ struct CollisionQuery {
     std::vector<const std::vector<Vec3>*> predicted; ///< per string, predicted positions
     std::vector<const std::vector<double>*> radius;  ///< per string, per segment radius
     std::vector<const std::vector<std::uint8_t>*> broken;  ///< per string, per segment
+    /// (string, body) for each movable body a string is glued to, ordered by string: the
+    /// string does not collide with it (the glue couples them), so a host need not look.
+    std::vector<std::pair<StringId, RigidId>> glued;
 };
 
 /// One island of the last step: strings coupled through the movable bodies they hold or

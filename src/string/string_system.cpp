@@ -424,9 +424,17 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host, c
     query_.predicted.clear();
     query_.radius.clear();
     query_.broken.clear();
+    query_.glued.clear();
     for (std::size_t i = 0; i < strings_.size(); ++i) {
         const StringState& s = strings_[i];
         if (!s.alive || s.frozen) continue;
+        const std::size_t first_glued = query_.glued.size();
+        for (const ParticleHold& hold : s.hold) {
+            if (hold.kind != ParticleHold::Kind::Glue || !(rigids.bodies[hold.body.index].inverse_mass > 0.0)) continue;
+            const auto listed = std::find_if(query_.glued.begin() + static_cast<std::ptrdiff_t>(first_glued), query_.glued.end(),
+                                             [&](const std::pair<StringId, RigidId>& g) { return g.second == hold.body; });
+            if (listed == query_.glued.end()) query_.glued.emplace_back(idAt(i), hold.body);
+        }
         query_.strings.push_back(idAt(i));
         query_.start.push_back(&s.x_prev);
         query_.predicted.push_back(&s.x);
