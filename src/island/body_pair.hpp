@@ -29,7 +29,7 @@ class BodyPairMember : public IslandMember {
 public:
     const std::vector<RigidId>& bodies() const override { return bodies_; }
     bool touchesBodies() const override { return true; }
-    void addWarmHints(const std::vector<int>&, Eigen::VectorXd&, std::vector<int>&) const override {}
+    void addWarmHints(const std::vector<int>&, std::vector<Mat6>&, Eigen::VectorXd&) const override {}
     void warmStep(const std::vector<int>&, const Eigen::VectorXd&) override {}
     void beginPass() override {}
     void addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const override;

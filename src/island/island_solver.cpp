@@ -46,6 +46,11 @@ constexpr std::size_t kEnergyMemory = 10;
 /// The share of a body's rotational inertia that the turning stiffness's negative part may
 /// not take away (addSoftening).
 constexpr double kInertiaKept = 0.5;
+/// The warm start's weight on a body's turn, relative to its held points' arms squared
+/// (and a floor, m^2, for points at its centre): small enough to leave the turn the points
+/// fix, large enough to make the one they leave free zero.
+constexpr double kWarmTurnWeight = 1e-6;
+constexpr double kWarmTurnFloor = 1e-12;
 /// A chord iteration follows an iteration whose move fell by this factor or more (the
 /// strings' own solve's kQuadraticRegime).
 constexpr double kQuadraticRegime = 0.1;
@@ -240,26 +245,36 @@ void IslandSolver::moveBodies(Island& island, RigidTable& rigids, const StepCont
 
 /// A structure held the same way step after step (a board hanging on ropes) is corrected
 /// by about as much each step: the island starts from the last step's corrections, each
-/// body translated by the mean of its held points', where that lowers its energy (convex:
-/// the same minimum). Not where a string touches a body: a contact the start would jump.
-void IslandSolver::warmStart(Island& island, RigidTable& rigids, const StepContext& ctx) {
+/// body moved (translated and turned) as best carries its held points by theirs, where that
+/// lowers its energy (convex: the same minimum). Not where a string touches a body: a
+/// contact the start would jump.
+bool IslandSolver::warmStart(Island& island, RigidTable& rigids, const StepContext& ctx) {
     const std::size_t bodies = island.bodies.size();
     du_.setZero(static_cast<Eigen::Index>(6 * bodies));
     pass_start_ = displacement_;
-    if (ctx.cold_strain_starts) return;
+    if (ctx.cold_strain_starts) return false;
     for (const IslandMember* m : island.members)
-        if (m->touchesBodies()) return;
-    hint_count_.assign(bodies, 0);
-    for (std::size_t k = 0; k < island.members.size(); ++k) island.members[k]->addWarmHints(island.slots[k], du_, hint_count_);
-    for (std::size_t b = 0; b < bodies; ++b)
-        if (hint_count_[b] > 0) du_.segment<3>(static_cast<Eigen::Index>(6 * b)) /= static_cast<double>(hint_count_[b]);
+        if (m->touchesBodies()) return false;
+    hint_normal_.assign(bodies, Mat6::Zero());
+    hint_rhs_.setZero(static_cast<Eigen::Index>(6 * bodies));
+    for (std::size_t k = 0; k < island.members.size(); ++k) island.members[k]->addWarmHints(island.slots[k], hint_normal_, hint_rhs_);
+    for (std::size_t b = 0; b < bodies; ++b) {
+        Mat6 normal = hint_normal_[b];
+        if (!(normal(0, 0) > 0.0)) continue;
+        // A turn the held points do not fix (about the line through two of them, any turn
+        // for one) is taken as none: a small weight on the turn's size.
+        normal.bottomRightCorner<3, 3>().diagonal().array() += kWarmTurnWeight * normal.bottomRightCorner<3, 3>().trace() / 3.0 + kWarmTurnFloor;
+        const Vec6 step = normal.ldlt().solve(hint_rhs_.segment<6>(static_cast<Eigen::Index>(6 * b)));
+        if (step.allFinite()) du_.segment<6>(static_cast<Eigen::Index>(6 * b)) = step;
+    }
     for (std::size_t k = 0; k < island.members.size(); ++k) {
         island.members[k]->beginPass();
         island.members[k]->warmStep(island.slots[k], du_);
     }
-    if (!(energy(island, 1.0) < energy(island, 0.0))) return;
+    if (!(energy(island, 1.0) < energy(island, 0.0))) return false;
     moveBodies(island, rigids, ctx, 1.0);
     forMembers(island, [&](std::size_t k) { island.members[k]->apply(1.0, island.slots[k], displacement_); });
+    return true;
 }
 
 IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, const StepContext& ctx) {
@@ -271,7 +286,7 @@ IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, cons
     displacement_.setZero(static_cast<Eigen::Index>(6 * island.bodies.size()));
     bool frictional = false;
     for (IslandMember* m : island.members) frictional = frictional || m->frictional();
-    warmStart(island, rigids, ctx);
+    const bool warm = warmStart(island, rigids, ctx);
     const int iterations = ctx.settings->strain_iterations * kIterationFactor;
     for (int pass = 0; pass < (frictional ? kFrictionPasses : 1); ++pass) {
         for (IslandMember* m : island.members) m->beginPass();
@@ -285,6 +300,9 @@ IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, cons
         // the Hessian's rate of change): as good where d is the last step, which the
         // quadratic regime makes short; not after a long first step (a taut segment's
         // axial stiffness, turned by d / L, swamps its transverse stiffness T / L).
+        // From a warm start the first step is short (the change of the structure's
+        // correction since the last step): a chord iteration may follow it, as in a
+        // string's own solve.
         bool chord_next = false;
         double last_move = 0.0;
         for (int iter = 0; iter < iterations; ++iter) {
@@ -331,7 +349,7 @@ IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, cons
                 converged = true;
                 break;
             }
-            chord_next = !stalled && fell;
+            chord_next = !stalled && (fell || (warm && pass == 0 && iter == 0));
             last_move = worst;
         }
         if (!frictional) break;

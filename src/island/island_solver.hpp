@@ -57,7 +57,8 @@ private:
     void forMembers(const Island& island, Fn&& fn);
     /// Moves the island's bodies by alpha du_.
     void moveBodies(Island& island, RigidTable& rigids, const StepContext& ctx, double alpha);
-    void warmStart(Island& island, RigidTable& rigids, const StepContext& ctx);
+    /// Returns whether the island took the warm start.
+    bool warmStart(Island& island, RigidTable& rigids, const StepContext& ctx);
 
     std::vector<BodyContact> body_contacts_;      ///< grouped by pair (prepareBodyContacts)
     std::vector<BodyContactMember> body_members_;  ///< one per pair; kept from step to step
@@ -70,7 +71,8 @@ private:
     std::vector<std::uint32_t> parent_;  ///< union-find over body slots of the table
     std::vector<int> island_of_;  ///< per table body: island index, or -1
     std::vector<int> slot_of_;    ///< per table body: its slot in its island, or -1
-    std::vector<int> hint_count_;  ///< per body: held points giving the warm start
+    std::vector<Mat6> hint_normal_;  ///< per body: the warm start's least-squares matrix
+    Eigen::VectorXd hint_rhs_;       ///< and right-hand side (6 per body)
     // One island's solve.
     std::vector<Mat6> mass_;          ///< per body: generalised mass
     std::vector<Mat3> softening_;     ///< per body: the members' turning softening (addSoftening)

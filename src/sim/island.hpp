@@ -28,9 +28,11 @@ public:
     virtual const std::vector<RigidId>& bodies() const = 0;
     /// Whether the member touches a body (contacts): the island then starts cold.
     virtual bool touchesBodies() const = 0;
-    /// The warm start: adds to `sum` the last step's correction of each point the member
-    /// holds on a body (translation, 3 of each 6), and 1 to `count` per point.
-    virtual void addWarmHints(const std::vector<int>& slot, Eigen::VectorXd& sum, std::vector<int>& count) const = 0;
+    /// The warm start: each point the member holds on a body, its last step's correction c
+    /// and its arm r from the body's centre, as the least-squares terms of the body's
+    /// move (u, theta) that carries the point by c: J^T J into `normal` (per body) and
+    /// J^T c into `rhs` (6 per body), J = [I, -[r]x].
+    virtual void addWarmHints(const std::vector<int>& slot, std::vector<Mat6>& normal, Eigen::VectorXd& rhs) const = 0;
     /// The warm start's step: the bodies' `du`, the member's own its last step's
     /// correction. The island takes it where it lowers the energy.
     virtual void warmStep(const std::vector<int>& slot, const Eigen::VectorXd& du) = 0;

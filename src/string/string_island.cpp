@@ -104,10 +104,12 @@ void StringIslandMember::seedFriction() {
 
 /// A glued particle's correction (prepareStrainLimit left it in blk_rhs) is its body's at
 /// that point.
-void StringIslandMember::addWarmHints(const std::vector<int>& slot, Eigen::VectorXd& sum, std::vector<int>& count) const {
+void StringIslandMember::addWarmHints(const std::vector<int>& slot, std::vector<Mat6>& normal, Eigen::VectorXd& rhs) const {
     for (const Glued& g : glued_) {
-        sum.segment<3>(6 * slot[g.node]) += string_->scratch.blk_rhs[g.particle];
-        ++count[static_cast<std::size_t>(slot[g.node])];
+        const Mat36 j = glueJacobian(g);
+        const std::size_t b = static_cast<std::size_t>(slot[g.node]);
+        normal[b] += j.transpose() * j;
+        rhs.segment<6>(static_cast<Eigen::Index>(6 * b)) += j.transpose() * string_->scratch.blk_rhs[g.particle];
     }
 }
 

@@ -20,7 +20,7 @@ public:
 
     const std::vector<RigidId>& bodies() const override { return bodies_; }
     bool touchesBodies() const override { return !string_->contacts.empty(); }
-    void addWarmHints(const std::vector<int>& slot, Eigen::VectorXd& sum, std::vector<int>& count) const override;
+    void addWarmHints(const std::vector<int>& slot, std::vector<Mat6>& normal, Eigen::VectorXd& rhs) const override;
     void warmStep(const std::vector<int>& slot, const Eigen::VectorXd& du) override;
     void beginPass() override;
     void condense(bool fresh) override;

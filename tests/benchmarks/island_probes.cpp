@@ -437,6 +437,29 @@ int main(int argc, char** argv) {
     }
     // `rest`: the bridge at rest (BM_IslandRopesVsPinned/1's island), the Newton iterations
     // and final residual of its solve in 10 steps after 100 of settling.
+    if (only == "rest-pinned") {
+        island::Rig rig;
+        const auto ids = island::buildBridge(rig, {8, 4.0, 0.04, 0.8, true}).ropes;
+        for (int i = 0; i < 100; ++i) rig.step();
+        for (int i = 0; i < 5; ++i) {
+            rig.step();
+            std::printf("step %d:", 100 + i);
+            for (StringId id : ids) std::printf(" %d", rig.ropes->core().view(id).newton_iterations);
+            std::printf("\n");
+        }
+    }
+    if (only == "rest-swing") {
+        island::Rig rig;
+        island::buildSwing(rig, false, argc > 2);
+        for (int i = 0; i < 100; ++i) rig.step();
+        for (int i = 0; i < 3; ++i) {
+            rig.step();
+            std::printf("step %d:", 100 + i);
+            for (const IslandSummary& s : rig.ropes->core().lastIslands())
+                std::printf(" [%zu strings, %zu bodies: %d iterations, residual %.3g]", s.strings, s.bodies, s.iterations, s.residual);
+            std::printf("\n");
+        }
+    }
     if (only == "rest") {
         island::Rig rig;
         const auto bridge = island::buildBridge(rig, {});
