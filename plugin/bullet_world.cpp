@@ -557,12 +557,19 @@ private:
             const auto& pred = *query.predicted[i];
             const auto& radius = *query.radius[i];
             const auto& broken = *query.broken[i];
-            SegmentTree& tree = treeFor(query.strings[i].index, start, pred, radius, broken);
             const auto glued = std::equal_range(query.glued.begin(), query.glued.end(), std::make_pair(query.strings[i], RigidId{}),
                                                 [](const auto& a, const auto& b) { return a.first.index < b.first.index; });
-            for (btRigidBody* body : it->second) {
+            auto isGlued = [&](btRigidBody* body) {
                 const RigidId proxy = owner_.proxies_.at(body);
-                if (std::any_of(glued.first, glued.second, [&](const auto& g) { return g.second == proxy; })) continue;
+                return std::any_of(glued.first, glued.second, [&](const auto& g) { return g.second == proxy; });
+            };
+            // A string near only the bodies it is glued to (a rope hanging from a board)
+            // leaves its tree as it is: the next step that needs it brings every leaf up to date.
+            if (std::all_of(it->second.begin(), it->second.end(), isGlued)) continue;
+            SegmentTree& tree = treeFor(query.strings[i].index, start, pred, radius, broken);
+            for (btRigidBody* body : it->second) {
+                if (isGlued(body)) continue;
+                const RigidId proxy = owner_.proxies_.at(body);
                 const SweptBody swept(*body, h, now(*body));
                 const btTransform& before = swept.found_at;
                 const btVector3 &bmin = swept.lo, &bmax = swept.hi;
