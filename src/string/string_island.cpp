@@ -28,6 +28,8 @@ namespace {
 /// iteration); kept for the whole solve, it puts a stiffness in the model that the energy
 /// lacks, and a piece lying at zero stretch cycles at flat energy instead of converging.
 constexpr int kTautBandIterations = 2;
+/// addTurningStiffness takes a pull and an arm as parallel below this sin^2 of their angle.
+constexpr double kParallelSin2 = 1e-16;
 
 }  // namespace
 
@@ -248,6 +250,12 @@ void StringIslandMember::addGlueShare(const RigidSegmentContact& c, const Mat3& 
 /// the island, which adds it where the body's inertia keeps the system positive definite:
 /// without it Newton converges only linearly where held points carry load
 /// (docs/island-baseline.md, "The turn's whole Hessian").
+///
+/// The split is closed-form. With a = F / |F|, b = r / |r| and c = a . b, the symmetric part
+/// (F r^T + r F^T) / 2 has eigenvalues |F||r| (c + 1) / 2 along a + b, |F||r| (c - 1) / 2
+/// along a - b and 0 along a x b, so the Hessian's are |F||r| (c - 1) / 2 <= 0 along a + b,
+/// |F||r| (c + 1) / 2 >= 0 along a - b and F . r along a x b. Where F and r are parallel
+/// the Hessian is (F . r) (I - b b^T), all of one sign.
 void StringIslandMember::addTurningStiffness() {
     StringScratch::NodeScratch& ns = string_->scratch.node_scratch;
     softening_.assign(string_->body_nodes.size(), Mat3::Zero());
@@ -255,12 +263,26 @@ void StringIslandMember::addTurningStiffness() {
         const Glued& g = glued_[k];
         const Vec3& f = pull_[k];
         const Vec3 r = string_->x[g.particle] - rigids_->bodies[string_->body_nodes[g.node].body.index].position;
-        const Mat3 geo = f.dot(r) * Mat3::Identity() - 0.5 * (f * r.transpose() + r * f.transpose());
-        const Eigen::SelfAdjointEigenSolver<Mat3> eig(geo);
-        const Vec3 kept = eig.eigenvalues().cwiseMax(0.0);
-        const Vec3 left = eig.eigenvalues().cwiseMin(0.0);
-        ns.diag[g.node].bottomRightCorner<3, 3>() += eig.eigenvectors() * kept.asDiagonal() * eig.eigenvectors().transpose();
-        softening_[g.node] += eig.eigenvectors() * left.asDiagonal() * eig.eigenvectors().transpose();
+        const double fn = f.norm(), rn = r.norm();
+        if (!(fn > 0.0) || !(rn > 0.0)) continue;
+        const Vec3 a = f / fn, b = r / rn;
+        const double fr = f.dot(r);
+        const Vec3 axis = a.cross(b);
+        const double sin2 = axis.squaredNorm();
+        Mat3 kept, left;
+        if (sin2 < kParallelSin2) {
+            const Mat3 geo = fr * (Mat3::Identity() - b * b.transpose());
+            kept = fr > 0.0 ? geo : Mat3::Zero();
+            left = fr > 0.0 ? Mat3::Zero() : geo;
+        } else {
+            const Vec3 plus = (a + b).normalized(), minus = (a - b).normalized(), n = axis / std::sqrt(sin2);
+            const double c = a.dot(b);
+            const Mat3 across = n * n.transpose();
+            kept = (0.5 * fn * rn * (c + 1.0)) * (minus * minus.transpose()) + std::max(fr, 0.0) * across;
+            left = (0.5 * fn * rn * (c - 1.0)) * (plus * plus.transpose()) + std::min(fr, 0.0) * across;
+        }
+        ns.diag[g.node].bottomRightCorner<3, 3>() += kept;
+        softening_[g.node] += left;
     }
 }
 
