@@ -305,6 +305,10 @@ IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, cons
         // string's own solve.
         bool chord_next = false;
         double last_move = 0.0;
+        // The energy where the last accepted step ends: the next iteration's start (the
+        // energy is fixed within a pass: friction's weights change between passes only).
+        bool carried_energy = false;
+        double last_energy = 0.0;
         for (int iter = 0; iter < iterations; ++iter) {
             const bool chord = chord_next && solveChord(island);
             if (!chord) {
@@ -319,15 +323,19 @@ IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, cons
             // Backtrack until the (convex) energy is below the reference of the
             // non-monotone search; where no fraction of the step gets there, the state is
             // the minimum to rounding.
-            const double e0 = energy(island, 0.0);
+            const double e0 = carried_energy ? last_energy : energy(island, 0.0);
             if (accepted_energy_.size() == kEnergyMemory) accepted_energy_.erase(accepted_energy_.begin());
             accepted_energy_.push_back(e0);
             const double reference = *std::max_element(accepted_energy_.begin(), accepted_energy_.end());
             double alpha = 1.0;
             int halving = 0;
-            for (; halving < kLineSearchHalvings && !(energy(island, alpha) <= reference); ++halving) alpha *= 0.5;
+            for (; halving < kLineSearchHalvings && !((last_energy = energy(island, alpha)) <= reference); ++halving) alpha *= 0.5;
             const bool stalled = halving == kLineSearchHalvings;
-            if (stalled) alpha = 0.0;
+            if (stalled) {
+                alpha = 0.0;
+                last_energy = e0;
+            }
+            carried_energy = true;
             moveBodies(island, rigids, ctx, alpha);
             forMembers(island, [&](std::size_t k) { member_value_[k] = island.members[k]->apply(alpha, island.slots[k], displacement_); });
             double worst = 0.0;
