@@ -1,5 +1,5 @@
-// The block Thomas algorithm for a chain's symmetric block-tridiagonal system: Cholesky
-// pivots (factorBlockTridiagonal), and the twisted factorisation with explicit pivot
+// The block Thomas algorithm for a chain's symmetric block-tridiagonal system: root-free
+// Cholesky pivots (factorBlockTridiagonal), and the twisted factorisation with explicit pivot
 // inverses in two lanes (solveChain). See block_tridiagonal.hpp.
 #include "linalg/block_tridiagonal.hpp"
 
@@ -9,9 +9,9 @@
 namespace tearables::detail {
 
 /// The recursion is one dependency chain along the chain, bounded by the divider (the
-/// pivots' square roots and divisions). The solve with U uses the pivot's stored
-/// reciprocals (Cholesky3::solve), and only the lower triangle of U^T W is formed: the
-/// Cholesky reads no more, and each entry is the same dot product as the full product's.
+/// pivots' three divisions). The solve with U uses the pivot's stored reciprocals
+/// (Cholesky3::solve), and only the lower triangle of U^T W is formed: the factorisation
+/// reads no more, and each entry is the same dot product as the full product's.
 void factorBlockTridiagonal(std::size_t n, const Mat3* diag, const Mat3* off, Cholesky3* factor, Mat3* gain,
                             std::uint8_t* coupled_to) {
     factor[0].compute(diag[0]);
@@ -51,10 +51,10 @@ void solveFactoredColumns(std::size_t n, const Mat3* off, const Cholesky3* facto
         for (std::size_t c = 0; c < count; ++c)
             if (i > first[c]) columns[c][i] -= gain[i] * columns[c][i - 1];
     }
-    for (std::size_t c = 0; c < count; ++c) columns[c][n - 1] = factor[n - 1].solveByReciprocals(columns[c][n - 1]);
+    for (std::size_t c = 0; c < count; ++c) columns[c][n - 1] = factor[n - 1].solve(columns[c][n - 1]);
     for (std::size_t i = n - 1; i-- > 0;)
         for (std::size_t c = 0; c < count; ++c)
-            columns[c][i] = factor[i].solveByReciprocals(Vec3(columns[c][i] - off[i] * columns[c][i + 1]));
+            columns[c][i] = factor[i].solve(Vec3(columns[c][i] - off[i] * columns[c][i + 1]));
 }
 
 namespace {

@@ -1,8 +1,9 @@
 // The symmetric block-tridiagonal solve of a chain of particles (3x3 blocks, particle i
 // coupled to i + 1): the block Thomas algorithm, O(n), no pivoting (the blocks are
 // symmetric positive definite). Two forms:
-//  - factorBlockTridiagonal / solveFactored: Cholesky pivots (Cholesky3), for systems with
-//    stiff contact blocks, which an explicit inverse would lose a direction of;
+//  - factorBlockTridiagonal / solveFactored: root-free Cholesky pivots (Cholesky3, L D L^T),
+//    for systems with stiff contact blocks, which an explicit inverse would lose a
+//    direction of;
 //  - solveChain / chordSolveChain: each pivot inverted explicitly (three divisions) and run
 //    from both ends at once (a twisted factorisation), the two sweeps in the two lanes of
 //    one register; the pivots' inverses can be kept for chord solves.
@@ -19,7 +20,7 @@
 
 namespace tearables::detail {
 
-/// Factorises the block tridiagonal (diag, off) of n blocks: Cholesky pivots into
+/// Factorises the block tridiagonal (diag, off) of n blocks: root-free Cholesky pivots into
 /// `factor`, gains U_{i-1}^T D'_{i-1}^-1 into `gain` (entry 0 unused) and whether particle
 /// i couples to i - 1 into `coupled`.
 void factorBlockTridiagonal(std::size_t n, const Mat3* diag, const Mat3* off, Cholesky3* factor, Mat3* gain,
@@ -32,8 +33,8 @@ void solveFactored(std::size_t n, const Mat3* off, const Cholesky3* factor, cons
 
 /// solveFactored for `count` right-hand sides at once, `columns[c]` (n each) in place,
 /// column c zero above row `first[c]`. Each column gets exactly solveFactored's
-/// operations; interleaved, their sweeps' dependency chains (six divisions a particle on
-/// the way back) overlap in the pipeline instead of running one after another.
+/// operations; interleaved, their sweeps' dependency chains overlap in the pipeline
+/// instead of running one after another.
 void solveFactoredColumns(std::size_t n, const Mat3* off, const Cholesky3* factor, const Mat3* gain, const std::uint8_t* coupled,
                           Vec3* const* columns, const std::size_t* first, std::size_t count);
 
