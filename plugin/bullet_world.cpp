@@ -40,7 +40,7 @@ bool islandJoint(const btTypedConstraint& c) {
     if (c.getConstraintType() == POINT2POINT_CONSTRAINT_TYPE) return true;
     if (c.getConstraintType() != HINGE_CONSTRAINT_TYPE) return false;
     auto& hinge = const_cast<btHingeConstraint&>(static_cast<const btHingeConstraint&>(c));  // Bullet's getters are not const
-    return !hinge.getEnableAngularMotor() && !hinge.getAngularOnly();
+    return !hinge.getAngularOnly();
 }
 
 Quat toCore(const btQuaternion& q) { return Quat(q.w(), q.x(), q.y(), q.z()); }
@@ -314,7 +314,7 @@ public:
                 j.axis_a = toCore(fa.getBasis().getColumn(2));
                 j.axis_b = toCore(fb.getBasis().getColumn(2));
                 auto& limited = const_cast<btHingeConstraint&>(hinge);  // Bullet's getters are not const
-                if (limited.hasLimit()) {
+                if (limited.hasLimit() || limited.getEnableAngularMotor()) {
                     // Bullet's angle, and which way it turns when a turns about the axis
                     // (its reference sign, which has no getter): measured by a small turn.
                     const btScalar turn = 1e-3f;
@@ -322,10 +322,20 @@ public:
                     turned.setBasis(btMatrix3x3(btQuaternion(fa.getBasis().getColumn(2), turn)) * sa.now.getBasis());
                     const btScalar angle = limited.getHingeAngle(sa.now, sb.now);
                     const btScalar moved = btNormalizeAngle(limited.getHingeAngle(turned, sb.now) - angle);
-                    j.angle = static_cast<double>(angle);
                     j.angle_sign = moved > 0 ? 1.0 : -1.0;
-                    j.lower = static_cast<double>(limited.getLowerLimit());
-                    j.upper = static_cast<double>(limited.getUpperLimit());
+                    if (limited.hasLimit()) {
+                        j.angle = static_cast<double>(angle);
+                        j.lower = static_cast<double>(limited.getLowerLimit());
+                        j.upper = static_cast<double>(limited.getUpperLimit());
+                    }
+                    // The motor's row drives (omega_A - omega_B) . axis_A to the target rate
+                    // times the reference sign (btHingeConstraint::getInfo2Internal), the
+                    // sign the small turn measures.
+                    if (limited.getEnableAngularMotor()) {
+                        j.motor = true;
+                        j.motor_velocity = j.angle_sign * static_cast<double>(limited.getMotorTargetVelocity());
+                        j.motor_impulse = static_cast<double>(limited.getMaxMotorImpulse());
+                    }
                 }
             }
             out.push_back(j);

@@ -139,6 +139,12 @@ struct BodyJoint {
     double angle_sign = 1.0;
     double lower = -std::numeric_limits<double>::infinity();
     double upper = std::numeric_limits<double>::infinity();
+    /// A hinge's motor: it drives the bodies' relative turn rate about the axis,
+    /// (omega_a - omega_b) . axis_a, toward motor_velocity (rad/s) with an impulse of at
+    /// most motor_impulse (N m s) a step, as btHingeConstraint's angular motor does.
+    bool motor = false;
+    double motor_velocity = 0.0;
+    double motor_impulse = 0.0;
     std::size_t host_tag = 0;      ///< the host's own name for the joint, returned unchanged
     // Out (World::lastBodyJoints), world frame: what the joint gave each body over the step,
     // as impulses (its force times h): linear, N s, and angular about the body's centre of

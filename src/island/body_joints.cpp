@@ -47,6 +47,7 @@ void prepareBodyJoints(std::vector<BodyJoint>& joints, const RigidTable& rigids)
             std::swap(j.pivot_a, j.pivot_b);
             std::swap(j.axis_a, j.axis_b);
             j.angle_sign = -j.angle_sign;  // the angle turns with theta_old_a - theta_old_b
+            j.motor_velocity = -j.motor_velocity;  // and the motor's rate with omega_old_a - omega_old_b
             j.swapped = !j.swapped;
         }
         if (!j.pivot_a.allFinite() || !j.pivot_b.allFinite()) return false;
@@ -63,6 +64,8 @@ void prepareBodyJoints(std::vector<BodyJoint>& joints, const RigidTable& rigids)
                 j.lower = -std::numeric_limits<double>::infinity();
                 j.upper = std::numeric_limits<double>::infinity();
             }
+            // A motor only with a finite rate and a positive, finite impulse.
+            j.motor = j.motor && std::isfinite(j.motor_velocity) && j.motor_impulse > 0.0 && std::isfinite(j.motor_impulse);
         }
         return true;
     };
@@ -109,8 +112,22 @@ void BodyJointMember::start(BodyJoint& joint, const RigidTable& rigids, const St
         gb_.setZero();
         ga_.tail<3>() = joint.angle_sign * ax;
         if (b_moves_) gb_.tail<3>() = -joint.angle_sign * ax;
+        motor_ = joint.motor;
+        if (motor_) {
+            // The relative turn about the axis over the step: the free motion's (the bodies'
+            // angular velocities now) and the solve's, against the motor's rate times h.
+            const Vec3 spin_b = joint.b.valid() ? rigids.bodies[joint.b.index].angular_velocity : Vec3::Zero();
+            motor_a_.setZero();
+            motor_b_.setZero();
+            motor_a_.tail<3>() = ax;
+            if (b_moves_) motor_b_.tail<3>() = -ax;
+            motor_offset_ = (ax.dot(a.angular_velocity - spin_b) - joint.motor_velocity) * ctx.h;
+            motor_torque_ = joint.motor_impulse * ctx.inv_h;
+            motor_weight_ = limit_weight_;
+        }
     } else {
         limited_ = false;
+        motor_ = false;
     }
     limit_held_ = false;
 }
@@ -121,6 +138,13 @@ void BodyJointMember::condense(bool fresh) {
     const Eigen::Matrix<double, 6, 1> r = residual(disp_a_, disp_b_);
     hessian_ = j.transpose() * weight_.asDiagonal() * j;
     gradient_ = j.transpose() * weight_.cwiseProduct(r);
+    if (motor_) {
+        Eigen::Matrix<double, 12, 1> g;
+        g << motor_a_, motor_b_;
+        const double slip = motorSlip(disp_a_, disp_b_);
+        gradient_ += motorTorque(slip) * g;
+        if (std::abs(slip) * motor_weight_ < motor_torque_) hessian_ += motor_weight_ * g * g.transpose();
+    }
     if (!limited_) return;
     const double angle = angleAt(disp_a_, disp_b_);
     if (fresh) limit_held_ = pastLimit(angle) != 0.0;
@@ -159,6 +183,11 @@ double BodyJointMember::energy(double alpha) const {
         const double past = pastLimit(angleAt(da, db));
         e += 0.5 * limit_weight_ * past * past;
     }
+    if (motor_) {
+        // Huber's function of the slip: k s^2 / 2 within the torque's reach, then linear.
+        const double slip = std::abs(motorSlip(da, db)), reach = motor_torque_ / motor_weight_;
+        e += slip < reach ? 0.5 * motor_weight_ * slip * slip : motor_torque_ * (slip - 0.5 * reach);
+    }
     return e;
 }
 
@@ -171,6 +200,11 @@ void BodyJointMember::finish(int) {
         const double past = pastLimit(angleAt(disp_a_, disp_b_));
         on_a -= limit_weight_ * past * ga_;
         on_b -= limit_weight_ * past * gb_;
+    }
+    if (motor_) {
+        const double torque = motorTorque(motorSlip(disp_a_, disp_b_));
+        on_a -= torque * motor_a_;
+        on_b -= torque * motor_b_;
     }
     joint_->impulse_a = h_ * on_a.head<3>();
     joint_->angular_impulse_a = h_ * on_a.tail<3>();

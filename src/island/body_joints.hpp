@@ -5,6 +5,8 @@
 
 #include "island/body_pair.hpp"
 
+#include <algorithm>
+
 #include <vector>
 
 namespace tearables::detail {
@@ -36,12 +38,24 @@ private:
     /// Its limits' penalty: how far the angle is past the nearer one (0 inside them).
     double pastLimit(double angle) const { return angle < lower_ ? angle - lower_ : angle > upper_ ? angle - upper_ : 0.0; }
 
+    /// A motor's slip for the displacements: the relative turn about the axis over the
+    /// step less the motor's rate times h, s = a . (omega_a - omega_b) h + a . (theta_a -
+    /// theta_b) - w h. Its energy is Huber's function of s, k s^2 / 2 up to the torque T
+    /// (|s| = T / k) and T |s| beyond: the motor holds its rate as stiffly as the joint's
+    /// limits hold and gives way at its largest torque, a convex term (as Coulomb friction).
+    double motorSlip(const Vec6& da, const Vec6& db) const { return motor_offset_ + motor_a_.dot(da) + motor_b_.dot(db); }
+    /// The energy's derivative in the slip: k s within the torque, else +-T.
+    double motorTorque(double slip) const { return std::clamp(motor_weight_ * slip, -motor_torque_, motor_torque_); }
+
     BodyJoint* joint_ = nullptr;  ///< where finish() writes the impulses
     double h_ = 0.0;
     bool limited_ = false;     ///< a hinge with limits
     bool limit_held_ = false;  ///< the limit's row in the Newton system (past it, or the step runs past it)
     double angle0_ = 0.0, lower_ = 0.0, upper_ = 0.0, limit_weight_ = 0.0;
     Vec6 ga_ = Vec6::Zero(), gb_ = Vec6::Zero();
+    bool motor_ = false;  ///< a hinge with a motor (motorSlip)
+    double motor_offset_ = 0.0, motor_torque_ = 0.0, motor_weight_ = 0.0;
+    Vec6 motor_a_ = Vec6::Zero(), motor_b_ = Vec6::Zero();
     Eigen::Matrix<double, 6, 1> r0_ = Eigen::Matrix<double, 6, 1>::Zero();
     Eigen::Matrix<double, 6, 6> ja_ = Eigen::Matrix<double, 6, 6>::Zero(), jb_ = Eigen::Matrix<double, 6, 6>::Zero();
     Eigen::Matrix<double, 6, 1> weight_ = Eigen::Matrix<double, 6, 1>::Zero();  ///< per residual: its stiffness

@@ -473,6 +473,55 @@ TEST(Islands, HingeLimitStopsAFallingBoard) {
 }
 
 namespace {
+/// A 3 kg board 1 m long hinged to the world at one end about z, level, its hinge's motor
+/// driving it at `rate` (Bullet's target velocity) with at most `impulse` N m s a step of
+/// 1/100 s, with a rope of 20 segments hanging from its free end (which puts it in an
+/// island) or none (Bullet solves it). Returns the board's turn rate about z after `steps`.
+double motorRun(double rate, double impulse, bool with_rope, int steps) {
+    Physics phys;
+    btRigidBody& board = phys.box(btVector3(0.5f, 0.025f, 0.15f), 3.0, btVector3(0.5f, 1.0f, 0));
+    board.setActivationState(DISABLE_DEACTIVATION);
+    btHingeConstraint hinge(board, btVector3(-0.5f, 0, 0), btVector3(0, 0, 1));
+    hinge.enableAngularMotor(true, static_cast<btScalar>(rate), static_cast<btScalar>(impulse));
+    phys.world->addConstraint(&hinge, true);
+    BulletWorld ropes(*phys.world);
+    if (with_rope) {
+        const StringId id = ropes.addString(rope({0.95, 0.975, 0}, {0.95, 0.475, 0}, 20));
+        ropes.attach(id, 0, board, btVector3(0.45f, -0.025f, 0));
+    }
+    for (int i = 0; i < steps; ++i) phys.step(1);
+    EXPECT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+    EXPECT_EQ(ropes.core().lastIslands().size(), with_rope ? 1u : 0u);
+    const btVector3 pivot = board.getWorldTransform() * btVector3(-0.5f, 0, 0);
+    EXPECT_LT(pivot.distance(btVector3(0, 1, 0)), 2e-3f) << "the board's end left the hinge";
+    phys.world->removeConstraint(&hinge);
+    return static_cast<double>(board.getAngularVelocity().z());
+}
+}  // namespace
+
+// A hinge's motor in an island drives the bodies' relative turn rate to its target, as
+// Bullet's own solver does, with at most its impulse a step: a 3 kg board hinged at one end
+// (gravity's torque about the hinge m g L / 2 = 14.7 N m, and the hanging rope's) is lifted
+// at the motor's rate where the motor's largest torque (impulse / h) exceeds gravity's, and
+// falls where it does not.
+TEST(Islands, HingeMotorTurnsABoardAtItsRateUpToItsTorque) {
+    const StringDesc hanging = rope({0.95, 0.975, 0}, {0.95, 0.475, 0}, 20);
+    const double gravity_torque = kG * (3.0 * 0.5 + ropeMass(hanging, 0.5) * 0.95), h = 0.01;
+    // Bullet alone, a strong motor: which way its target turns the board.
+    const double bullet = motorRun(1.0, 10.0 * gravity_torque * h, false, 30);
+    ASSERT_NEAR(std::abs(bullet), 1.0, 0.02);
+    const double up = bullet > 0.0 ? 1.0 : -1.0;  // the target that lifts the board (turns it about +z)
+    // In the island, the same motor: the same rate and direction, within the penalty's give
+    // (its torque over 100 I / h^2, I ~ 0.26 kg m^2: ~0.6% of the rate).
+    EXPECT_NEAR(motorRun(1.0, 10.0 * gravity_torque * h, true, 30), bullet, 0.01);
+    // Lifting, with 1.3 and 0.7 times gravity's torque at most: it rises at the target rate
+    // (reached within about 0.3 s: 0.3 of gravity's torque left on ~1.1 kg m^2 about the
+    // hinge, board and rope), or falls.
+    EXPECT_NEAR(motorRun(up, 1.3 * gravity_torque * h, true, 60), 1.0, 0.01);
+    EXPECT_LT(motorRun(up, 0.7 * gravity_torque * h, true, 30), -0.1);
+}
+
+namespace {
 /// What a ball joint did over a run of blockOnABallJoint.
 struct JointRun {
     double applied = 0.0;  ///< the joint's applied impulse, averaged over the run's second half, N s
