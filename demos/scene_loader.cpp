@@ -654,7 +654,7 @@ constexpr double kPi = 3.14159265358979323846;
 
 /// A joint (joints[]) between the scene's `bodies` (`names`: their names).
 Joint parseJoint(const Node& n, const NameMap& names, const std::vector<Body>& bodies) {
-    n.checkNoUnknownFields({"type", "body", "other", "pivot", "axis", "limits"});
+    n.checkNoUnknownFields({"type", "body", "other", "pivot", "axis", "limits", "motor"});
     Joint j;
     const Node type = n.required("type");
     const std::string kind = type.asString();
@@ -684,7 +684,7 @@ Joint parseJoint(const Node& n, const NameMap& names, const std::vector<Body>& b
     }
     j.pivot = n.required("pivot").asVec3(Range::bullet());
     if (j.kind == Joint::Kind::Ball) {
-        for (const char* key : {"axis", "limits"})
+        for (const char* key : {"axis", "limits", "motor"})
             if (const auto extra = n.field(key)) extra->fail("is for hinges only (this joint is a ball joint)");
         return j;
     }
@@ -697,6 +697,13 @@ Joint parseJoint(const Node& n, const NameMap& names, const std::vector<Body>& b
         const std::vector<double> v = limits->asNumbers(2, Range::closed(-kPi, kPi));
         if (!(v[0] <= v[1])) limits->fail("must be [lower, upper] with lower <= upper (got [" + formatNumber(v[0]) + ", " + formatNumber(v[1]) + "])");
         j.limits = std::array<double, 2>{v[0], v[1]};
+    }
+    if (const auto motor = n.field("motor")) {
+        motor->checkNoUnknownFields({"velocity", "impulse"});
+        Joint::Motor m;
+        m.velocity = motor->required("velocity").asNumber(Range::closed(-1e3, 1e3));
+        m.impulse = motor->required("impulse").asNumber(Range{0.0, 1e6, true, false});
+        j.motor = m;
     }
     return j;
 }

@@ -64,6 +64,8 @@ void addBulletJoint(BulletScene& bs, const Joint& spec) {
             hinge = std::make_unique<btHingeConstraint>(a, pivot_a, axis_a);
         }
         if (spec.limits) hinge->setLimit(static_cast<btScalar>((*spec.limits)[0]), static_cast<btScalar>((*spec.limits)[1]));
+        if (spec.motor)
+            hinge->enableAngularMotor(true, static_cast<btScalar>(spec.motor->velocity), static_cast<btScalar>(spec.motor->impulse));
         joint = std::move(hinge);
     }
     bs.world.addConstraint(joint.get(), true);

@@ -67,6 +67,13 @@ struct Joint {
     Vec3 pivot = Vec3::Zero();             ///< m, world, where the bodies start
     Vec3 axis = Vec3::UnitZ();             ///< hinge: world axis (normalised on load; non-zero)
     std::optional<std::array<double, 2>> limits;  ///< hinge: [lower, upper] rad in [-pi, pi], lower <= upper
+    /// A hinge's angular motor (btHingeConstraint::enableAngularMotor): its target rate,
+    /// rad/s in [-1e3, 1e3], and its largest impulse a step, N m s in (0, 1e6].
+    struct Motor {
+        double velocity = 0.0;
+        double impulse = 0.0;
+    };
+    std::optional<Motor> motor;
 };
 
 /// What holds a string's particle (the same words as a sheet's: docs/SCENE_FORMAT.md, "Words").

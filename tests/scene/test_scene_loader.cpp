@@ -764,6 +764,16 @@ const ErrorCase kErrorCases[] = {
      "joints[0].limits", "lower <= upper"},
     {"JointLimitPastPi", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 1], "limits": [-4, 0]})"),
      "joints[0].limits[0]", "must be in"},
+    {"JointBallWithMotor", jointScene(R"({"type": "ball", "body": "b", "pivot": [0, 1, 0], "motor": {"velocity": 1, "impulse": 1}})"),
+     "joints[0].motor", "is for hinges only"},
+    {"JointMotorWithoutImpulse", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 1], "motor": {"velocity": 1}})"),
+     "joints[0].motor.impulse", "missing required field"},
+    {"JointMotorZeroImpulse", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 1], "motor": {"velocity": 1, "impulse": 0}})"),
+     "joints[0].motor.impulse", "must be in"},
+    {"JointMotorTooFast", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 1], "motor": {"velocity": 1e4, "impulse": 1}})"),
+     "joints[0].motor.velocity", "must be in"},
+    {"JointMotorUnknownField", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 1], "motor": {"velocity": 1, "impulse": 1, "torque": 2}})"),
+     "joints[0].motor.torque", "unknown field"},
 };
 
 INSTANTIATE_TEST_SUITE_P(SceneLoader, SceneErrors, ::testing::ValuesIn(kErrorCases),
@@ -785,9 +795,19 @@ TEST(SceneLoader, JointsAreRead) {
     ASSERT_TRUE(s.joints[0].limits.has_value());
     EXPECT_EQ((*s.joints[0].limits)[0], -0.5);
     EXPECT_EQ((*s.joints[0].limits)[1], 0.25);
+    EXPECT_FALSE(s.joints[0].motor.has_value());
     EXPECT_EQ(s.joints[1].kind, tearables::scene::Joint::Kind::Ball);
     EXPECT_FALSE(s.joints[1].other.has_value());
     EXPECT_EQ(s.joints[1].pivot, Vec3(1, 1, 0));
+}
+
+TEST(SceneLoader, HingeMotorIsRead) {
+    const Scene s = parseScene(jointScene(
+        R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 1], "motor": {"velocity": -2.5, "impulse": 0.75}})"));
+    ASSERT_EQ(s.joints.size(), 1u);
+    ASSERT_TRUE(s.joints[0].motor.has_value());
+    EXPECT_EQ(s.joints[0].motor->velocity, -2.5);
+    EXPECT_EQ(s.joints[0].motor->impulse, 0.75);
 }
 
 TEST(SceneLoader, LoadSceneFileSetsTheSource) {
