@@ -388,17 +388,20 @@ TEST(Islands, BridgeAtRestConvergesQuadratically) {
 
 // Joints in an island: a drawbridge, a 3 kg board hinged to the world at one end and held
 // level by a rope from above its other end, with a crate twenty times its mass on it; the
-// hinge a btHingeConstraint (no limit), or two ball joints (btPoint2PointConstraint) at the
-// ends of the same axis. The joints, the rope, the crate's contacts and the board are one
+// hinge a btHingeConstraint (no limit, limits, or a weak motor), or two ball joints
+// (btPoint2PointConstraint) at the ends of the same axis. The joints, the rope, the crate's contacts and the board are one
 // island, so no solver undoes another: the crate rests on the board within 2 mm (where
 // Bullet solved the joints and the crate, and the strings the rope, a 60 kg crate sank
 // 65-106 mm into it), and the moments about the hinge's axis balance: the rope's pull at
 // its end times its arm is g (m_board x_board + m_crate x_crate), with the arms where the
 // bodies are (0.5%).
 TEST(Islands, HingedBoardHeldByARopeCarriesAHeavyCrate) {
-    for (const int kind : {0, 1, 2}) {
+    for (const int kind : {0, 1, 2, 3}) {
         const bool balls = kind == 2;
-        SCOPED_TRACE(kind == 0 ? "a hinge" : kind == 1 ? "a hinge with limits it does not reach" : "two ball joints");
+        SCOPED_TRACE(kind == 0   ? "a hinge"
+                     : kind == 1 ? "a hinge with limits it does not reach"
+                     : kind == 2 ? "two ball joints"
+                                 : "a hinge with a weak motor");
         Physics phys;
         btRigidBody& board = phys.box(btVector3(0.5f, 0.025f, 0.15f), 3.0, btVector3(0.5f, 1.0f, 0));
         board.setActivationState(DISABLE_DEACTIVATION);
@@ -409,6 +412,9 @@ TEST(Islands, HingedBoardHeldByARopeCarriesAHeavyCrate) {
         } else {
             auto hinge = std::make_unique<btHingeConstraint>(board, btVector3(-0.5f, 0, 0), btVector3(0, 0, 1));
             if (kind == 1) hinge->setLimit(-1.0f, 1.0f);
+            // A motor holding the board still with at most 0.1 N m, within the moments'
+            // 0.5% (about 1.5 N m): the hinge stays the island's.
+            if (kind == 3) hinge->enableAngularMotor(true, 0.0f, 1e-3f);
             joints.push_back(std::move(hinge));
         }
         for (auto& j : joints) phys.world->addConstraint(j.get(), true);
