@@ -517,8 +517,8 @@ TEST(Islands, HingeMotorTurnsABoardAtItsRateUpToItsTorque) {
     const double bullet = motorRun(1.0, 10.0 * gravity_torque * h, false, 30);
     ASSERT_NEAR(std::abs(bullet), 1.0, 0.02);
     const double up = bullet > 0.0 ? 1.0 : -1.0;  // the target that lifts the board (turns it about +z)
-    // In the island, the same motor: the same rate and direction, within the penalty's give
-    // (its torque over 100 I / h^2, I ~ 0.26 kg m^2: ~0.6% of the rate).
+    // In the island, the same motor: the same rate and direction, within the motor's give
+    // (its torque over its stiffness, 1000 I / h^2 with I ~ 0.26 kg m^2: ~0.06% of the rate).
     EXPECT_NEAR(motorRun(1.0, 10.0 * gravity_torque * h, true, 30), bullet, 0.01);
     // Lifting, with 1.3 and 0.7 times gravity's torque at most: it rises at the target rate
     // (reached within about 0.3 s: 0.3 of gravity's torque left on ~1.1 kg m^2 about the
