@@ -6,7 +6,6 @@
 #include "island/body_pair.hpp"
 
 #include <algorithm>
-
 #include <vector>
 
 namespace tearables::detail {
@@ -41,8 +40,9 @@ private:
     /// A motor's slip for the displacements: the relative turn about the axis over the
     /// step less the motor's rate times h, s = a . (omega_a - omega_b) h + a . (theta_a -
     /// theta_b) - w h. Its energy is Huber's function of s, k s^2 / 2 up to the torque T
-    /// (|s| = T / k) and T |s| beyond: the motor holds its rate as stiffly as the joint's
-    /// limits hold and gives way at its largest torque, a convex term (as Coulomb friction).
+    /// (|s| = T / k) and T |s| - T^2 / 2k beyond: the motor holds its rate stiffly (k ten
+    /// times the limits') and gives way at its largest torque, a convex term (as Coulomb
+    /// friction).
     double motorSlip(const Vec6& da, const Vec6& db) const { return motor_offset_ + motor_a_.dot(da) + motor_b_.dot(db); }
     /// The energy's derivative in the slip: k s within the torque, else +-T.
     double motorTorque(double slip) const { return std::clamp(motor_weight_ * slip, -motor_torque_, motor_torque_); }

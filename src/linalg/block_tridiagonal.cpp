@@ -36,10 +36,7 @@ void factorBlockTridiagonal(std::size_t n, const Mat3* diag, const Mat3* off, Ch
 
 void solveFactored(std::size_t n, const Mat3* off, const Cholesky3* factor, const Mat3* gain, const std::uint8_t* coupled,
                    Vec3* rhs, std::size_t first) {
-    for (std::size_t i = first + 1; i < n; ++i)
-        if (coupled[i]) rhs[i] -= gain[i] * rhs[i - 1];
-    rhs[n - 1] = factor[n - 1].solve(rhs[n - 1]);
-    for (std::size_t i = n - 1; i-- > 0;) rhs[i] = factor[i].solve(Vec3(rhs[i] - off[i] * rhs[i + 1]));
+    solveFactoredColumns(n, off, factor, gain, coupled, &rhs, &first, 1);
 }
 
 void solveFactoredColumns(std::size_t n, const Mat3* off, const Cholesky3* factor, const Mat3* gain, const std::uint8_t* coupled,

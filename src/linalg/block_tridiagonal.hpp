@@ -32,9 +32,9 @@ void solveFactored(std::size_t n, const Mat3* off, const Cholesky3* factor, cons
                    Vec3* rhs, std::size_t first = 0);
 
 /// solveFactored for `count` right-hand sides at once, `columns[c]` (n each) in place,
-/// column c zero above row `first[c]`. Each column gets exactly solveFactored's
-/// operations; interleaved, their sweeps' dependency chains overlap in the pipeline
-/// instead of running one after another.
+/// column c zero above row `first[c]` (solveFactored is its one-column case). Each column
+/// gets the operations it would alone; interleaved, their sweeps' dependency chains overlap
+/// in the pipeline instead of running one after another.
 void solveFactoredColumns(std::size_t n, const Mat3* off, const Cholesky3* factor, const Mat3* gain, const std::uint8_t* coupled,
                           Vec3* const* columns, const std::size_t* first, std::size_t count);
 

@@ -12,8 +12,6 @@
 
 #include "string/strain_limit_internal.hpp"
 
-#include <Eigen/Eigenvalues>
-
 #include <algorithm>
 #include <cmath>
 
