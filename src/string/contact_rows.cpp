@@ -110,12 +110,6 @@ Vec6 rigidGapBodyGradient(const RigidSegmentContact& c) {
 /// below which the contact sticks (IPC's eps_v h).
 constexpr double kRigidSlip = 1e-3;
 
-namespace {
-
-/// The mollifier's parts at slip y >= 0 (eps > 0): f0(y), f1(y) / y, and f1'(y).
-struct Mollifier {
-    double f0 = 0.0, f1_over_y = 0.0, df1 = 0.0;
-};
 Mollifier mollify(double y, double eps) {
     Mollifier m;
     if (y >= eps) {
@@ -130,8 +124,6 @@ Mollifier mollify(double y, double eps) {
     }
     return m;
 }
-
-}  // namespace
 
 double slipSmoothing(const RigidSegmentContact& c) { return kRigidSlip * std::max(c.gap, 1e-9); }
 

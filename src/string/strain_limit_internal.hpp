@@ -46,6 +46,12 @@ Vec6 rigidGapBodyGradient(const RigidSegmentContact& c);
 /// The tangential motion u_t of contact c over the step (relative to the body), with the
 /// string's contact point at xs and the body moved by `extra` beyond its displacement.
 Vec3 rigidSlip(const StringState& s, const RigidSegmentContact& c, const Vec3& xs, const Vec6* extra = nullptr);
+/// IPC's friction mollifier (contact_rows.cpp) at slip y >= 0 with smoothing eps > 0:
+/// f0(y), f1(y) / y and f1'(y), f1 = f0'.
+struct Mollifier {
+    double f0 = 0.0, f1_over_y = 0.0, df1 = 0.0;
+};
+Mollifier mollify(double y, double eps);
 /// Friction's eps of contact c (the slip a step below which it sticks): kRigidSlip of its
 /// thickness, m.
 double slipSmoothing(const RigidSegmentContact& c);

@@ -154,9 +154,11 @@ TEST(Viewer, DragTearsARopeAndAClickCutsAnother) {
     // Before: both ropes hang whole, tension coloured, along their length (the ends left out).
     EXPECT_GT(ropeCoverage(before, -0.3, 0.65, 1.35), 0.9);
     EXPECT_GT(ropeCoverage(before, 0.3, 0.65, 1.35), 0.9);
-    // After: the pulled rope's lower part has fallen away; the cut rope keeps its upper half
-    // and has lost its lower half.
-    EXPECT_LT(ropeCoverage(after, -0.3, 0.65, 1.2), 0.1);
+    // After: the pulled rope tore where the hand held it, so its torn-off end fell from the
+    // hand when it was let go (0.6 m up before, and 1.5 s of free fall take it ~10 m down;
+    // a rope that had not torn would hold it within its 0.8 m and 13% of plastic stretch);
+    // the cut rope keeps its upper half and has lost its lower half.
+    EXPECT_LT(state["strings"]["pull"]["ends"][1][1].get<double>(), -1.0);
     EXPECT_GT(ropeCoverage(after, 0.3, 1.05, 1.35), 0.9);
     EXPECT_LT(ropeCoverage(after, 0.3, 0.65, 0.95), 0.1);
     expectColourBar(before);
