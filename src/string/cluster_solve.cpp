@@ -196,12 +196,12 @@ struct Direction {
 /// running step does not allocate (vectors only grow).
 struct ClusterScratch::Impl {
     std::vector<double> stiffest;
-    std::vector<char> shadowed, was_shadowed;
+    std::vector<char> shadowed, was_shadowed, forward;
     std::vector<char> predicted;             // per contact: held as one the step runs into
     std::vector<std::size_t> predicted_dir;  // per contact: its direction in `dirs` while predicted
     std::vector<char> touches;               // per string: touches another (chooseStart)
     std::vector<std::vector<Vec3>> own;      // per string: where its own solve ended
-    std::vector<PairKey> keys;
+    std::vector<std::pair<PairKey, std::size_t>> keys;  // unordered keys with their contacts, sorted
     std::vector<double> friction_bound;  // per contact: mu F of the pass
     std::vector<std::size_t> live, candidates, on;
     std::vector<double> gap_seen, travel_seen;
@@ -438,23 +438,40 @@ private:
     // shared particle lies on both): it is shadowed, so that the four pairs of two strings
     // crossing at particles do not push four times and toggle against each other.
 
-    /// The contacts' keys, sorted for the binary searches of `exists`.
+    /// The contacts' keys, sorted for the binary searches of `find`.
     void sortKeys() {
         sc_.keys.resize(contacts_.size());
-        for (std::size_t i = 0; i < contacts_.size(); ++i) {
-            const StringPairContact& c = contacts_[i];
-            sc_.keys[i] = c.key().unordered();
-        }
-        std::sort(sc_.keys.begin(), sc_.keys.end());
+        for (std::size_t i = 0; i < contacts_.size(); ++i) sc_.keys[i] = {contacts_[i].key().unordered(), i};
+        std::sort(sc_.keys.begin(), sc_.keys.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
     }
-    bool exists(std::uint32_t sa, std::int64_t ja, std::uint32_t sb, std::int64_t jb) const {
+    /// The contact of segment ja of string sa with segment jb of string sb, if the step has
+    /// it and neither segment is broken.
+    const StringPairContact* find(std::uint32_t sa, std::int64_t ja, std::uint32_t sb, std::int64_t jb) const {
         if (ja < 0 || jb < 0 || ja >= static_cast<std::int64_t>(strings_[sa]->segments()) ||
-            jb >= static_cast<std::int64_t>(strings_[sb]->segments()))
-            return false;
+            jb >= static_cast<std::int64_t>(strings_[sb]->segments()) || strings_[sa]->broken[static_cast<std::size_t>(ja)] ||
+            strings_[sb]->broken[static_cast<std::size_t>(jb)])
+            return nullptr;
         const PairKey k = PairKey{sa, static_cast<std::uint32_t>(ja), sb, static_cast<std::uint32_t>(jb)}.unordered();
-        return std::binary_search(sc_.keys.begin(), sc_.keys.end(), k) && !strings_[sa]->broken[static_cast<std::size_t>(ja)] &&
-               !strings_[sb]->broken[static_cast<std::size_t>(jb)];
+        const auto it = std::lower_bound(sc_.keys.begin(), sc_.keys.end(), k, [](const auto& e, const PairKey& key) { return e.first < key; });
+        return it != sc_.keys.end() && it->first == k ? &contacts_[it->second] : nullptr;
     }
+    bool exists(std::uint32_t sa, std::int64_t ja, std::uint32_t sb, std::int64_t jb) const { return find(sa, ja, sb, jb) != nullptr; }
+    /// Where contact c's closest point lies on segment `segment` of string `string` (one of its two).
+    static double fractionOn(const StringPairContact& c, std::uint32_t string, std::uint32_t segment) {
+        return c.string == string && c.segment == segment ? c.s : c.partner_s;
+    }
+    /// The rule above; then a contact whose closest point is an end of a segment (s or t
+    /// 0 or 1) that the pair of the neighbouring segment through that end touches more deeply (a smaller
+    /// gap, the pair not shadowed by the rule above) is shadowed too: its distance, at the
+    /// joint, is no less than the deeper pair's (the joint is a point of both segments), so
+    /// it adds no contact the capsules have, only a push along its own normal, tilted
+    /// toward the joint. A rope wrapped round a pinned rope of segments shorter than its
+    /// own had such a pair at every chord, pushing it along the other's axis: it walked
+    /// off and slid 0.07-9 m where it should have held. (Edges toward deeper pairs only,
+    /// to pairs the first rule left: no cycle of shadows can leave a touching point bare.)
+    /// Between two strings only: a string's contacts with itself keep the first rule (with
+    /// both, the telephone cord coiled by less than 1 turn of writhe instead of more than 2:
+    /// not traced).
     void shadow() {
         for (std::size_t i = 0; i < contacts_.size(); ++i) {
             const StringPairContact& c = contacts_[i];
@@ -462,6 +479,19 @@ private:
             // Toward the next segment only, so that two pairs never shadow each other.
             sc_.shadowed[i] = (c.s == 1.0 && exists(c.string, j + 1, c.partner, k)) ||
                               (c.partner_s == 1.0 && exists(c.string, j, c.partner, k + 1));
+        }
+        sc_.forward = sc_.shadowed;
+        for (std::size_t i = 0; i < contacts_.size(); ++i) {
+            const StringPairContact& c = contacts_[i];
+            if (sc_.forward[i] || c.string == c.partner) continue;
+            const std::int64_t j = c.segment, k = c.partner_segment;
+            const double g = gapAt(c, 0.0);
+            const StringPairContact* n[4] = {
+                c.s == 0.0 ? find(c.string, j - 1, c.partner, k) : nullptr, c.s == 1.0 ? find(c.string, j + 1, c.partner, k) : nullptr,
+                c.partner_s == 0.0 ? find(c.string, j, c.partner, k - 1) : nullptr,
+                c.partner_s == 1.0 ? find(c.string, j, c.partner, k + 1) : nullptr};
+            for (const StringPairContact* p : n)
+                if (p && !sc_.forward[static_cast<std::size_t>(p - contacts_.data())] && gapAt(*p, 0.0) < g) sc_.shadowed[i] = 1;
         }
     }
     bool skipped(const StringPairContact& c) const {
