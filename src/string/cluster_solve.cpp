@@ -402,13 +402,13 @@ private:
         // Where a particle is for this: its prediction, unless a huge force sent that past
         // where max_speed reaches in a step (then where its own solve left it).
         const double reach2 = ctx_.settings->max_speed * ctx_.h * ctx_.settings->max_speed * ctx_.h;
-        auto at = [reach2](const StringState& s, std::size_t p, bool pred) -> const Vec3& {
-            return pred && (s.x_pred[p] - s.x_prev[p]).squaredNorm() <= reach2 ? s.x_pred[p] : s.x[p];
+        auto where = [reach2, predicted](const StringState& s, std::size_t p) -> const Vec3& {
+            return predicted && (s.x_pred[p] - s.x_prev[p]).squaredNorm() <= reach2 ? s.x_pred[p] : s.x[p];
         };
         const StringState& a = *strings_[c.string];
         const StringState& b = *strings_[c.partner];
         const std::size_t j = c.segment, k = c.partner_segment;
-        const Vec3 a0 = at(a, j, predicted), a1 = at(a, j + 1, predicted), b0 = at(b, k, predicted), b1 = at(b, k + 1, predicted);
+        const Vec3 a0 = where(a, j), a1 = where(a, j + 1), b0 = where(b, k), b1 = where(b, k + 1);
         const Vec3 pa0 = a.x_prev[j], pa1 = a.x_prev[j + 1], pb0 = b.x_prev[k], pb1 = b.x_prev[k + 1];
         const SegmentClosest cp = closestPointsOfSegments(a0, a1, b0, b1);
         c.s = cp.s;
@@ -456,16 +456,12 @@ private:
         return it != sc_.keys.end() && it->first == k ? &contacts_[it->second] : nullptr;
     }
     bool exists(std::uint32_t sa, std::int64_t ja, std::uint32_t sb, std::int64_t jb) const { return find(sa, ja, sb, jb) != nullptr; }
-    /// Where contact c's closest point lies on segment `segment` of string `string` (one of its two).
-    static double fractionOn(const StringPairContact& c, std::uint32_t string, std::uint32_t segment) {
-        return c.string == string && c.segment == segment ? c.s : c.partner_s;
-    }
     /// The rule above; then a contact whose closest point is an end of a segment (s or t
-    /// 0 or 1) that the pair of the neighbouring segment through that end touches more deeply (a smaller
-    /// gap, the pair not shadowed by the rule above) is shadowed too: its distance, at the
-    /// joint, is no less than the deeper pair's (the joint is a point of both segments), so
-    /// it adds no contact the capsules have, only a push along its own normal, tilted
-    /// toward the joint. A rope wrapped round a pinned rope of segments shorter than its
+    /// 0 or 1) that the pair of the neighbouring segment through that end touches more
+    /// deeply (a smaller gap, the pair not shadowed by the rule above) is shadowed too: its
+    /// distance, at the joint, is no less than the deeper pair's (the joint is a point of
+    /// both segments), so it adds no contact the capsules have, only a push along its own
+    /// normal, tilted toward the joint. A rope wrapped round a pinned rope of segments shorter than its
     /// own had such a pair at every chord, pushing it along the other's axis: it walked
     /// off and slid 0.07-9 m where it should have held. (Edges toward deeper pairs only,
     /// to pairs the first rule left: no cycle of shadows can leave a touching point bare.)
@@ -636,9 +632,9 @@ private:
     }
 
     /// Where the solve starts: where the strings' own solves ended, or, for the strings that
-    /// touch, where they started (their prediction), whichever the cluster's energy is
-    /// lower at (the energy is convex in the positions: either start has the same
-    /// minimum). Each own solve ignored the other strings, so a rope pulled taut round
+    /// touch another string, where they started (their prediction), whichever the
+    /// cluster's energy is lower at (the energy is convex in the positions: either start
+    /// has the same minimum). Each own solve ignored the other strings, so a rope pulled taut round
     /// another one ended its own solve millimetres inside it, and the joint solve, starting
     /// there with its contacts linearised at the prediction, pushed it out along a path of
     /// its own: a zigzag of alternate particles 0.2 mm deep that flipped every step, whose
