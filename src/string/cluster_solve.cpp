@@ -44,10 +44,8 @@ constexpr double kStringAxisContact = 1e-3;
 /// Another pass when a contact's closest points (fractions) or normal moved by more.
 constexpr double kStringRelinearise = 1e-3;
 /// Another pass when a contact's friction missed Coulomb's law, with the forces the pass
-/// ended with, by more than this fraction of its mu F (weighFriction), or of
-/// kNegligibleStringFriction of the cluster's largest mu F where that is more.
+/// ended with, by more than this fraction (coulombMiss).
 constexpr double kStringFrictionSettled = 1e-2;
-constexpr double kNegligibleStringFriction = 0.1;
 /// Times per Newton iteration that contacts the step would hit are added and the step
 /// solved again.
 constexpr int kStringPredictRounds = 4;
@@ -525,9 +523,7 @@ private:
         return sc_.friction_bound[i] * mollify(slipAt(c, alpha).norm(), slipSmoothing(c)).f0;
     }
     /// Each contact's mu F for the next pass. Returns how far the last pass's friction
-    /// missed Coulomb's law with these forces (weighRigidFriction's measure): the largest
-    /// miss (a sliding contact's |f - mu F|, a sticking one's excess over mu F) over mu F,
-    /// or over kNegligibleStringFriction of the cluster's largest mu F where that is more.
+    /// missed Coulomb's law with these forces: the largest coulombMiss of a contact.
     double weighFriction() {
         double largest = 0.0;
         for (const StringPairContact& c : contacts_)
@@ -538,9 +534,7 @@ private:
             const double bound = frictional(c) && near(c) ? c.friction * c.force : 0.0;
             const double slip = slipAt(c, 0.0).norm(), eps = slipSmoothing(c);
             const double applied = sc_.friction_bound[i] * mollify(slip, eps).f1_over_y * slip;
-            const double miss = slip >= eps ? std::abs(applied - bound) : std::max(0.0, applied - bound);
-            const double scale = std::max(bound, kNegligibleStringFriction * largest);
-            if (scale > 0.0) change = std::max(change, miss / scale);
+            change = std::max(change, coulombMiss(applied, bound, slip, eps, largest));
             sc_.friction_bound[i] = bound;
         }
         return change;
@@ -667,13 +661,8 @@ private:
     double startEnergy() const {
         double e = 0.0;
         for (const StringState* s : strings_) e += stepEnergy(*s, rigids_, ctx_, 0.0);
-        for (std::size_t ci = 0; ci < contacts_.size(); ++ci) {
-            const StringPairContact& c = contacts_[ci];
-            if (skipped(c)) continue;
-            const double g = std::min(0.0, gapAt(c, 0.0));
-            e += 0.5 * c.stiffness * g * g;
-            if (sc_.friction_bound[ci] > 0.0) e += frictionEnergy(ci, 0.0);
-        }
+        for (std::size_t ci = 0; ci < contacts_.size(); ++ci)
+            if (!skipped(contacts_[ci])) addContactEnergy(ci, 0.0, e);
         return e;
     }
 
@@ -936,13 +925,15 @@ private:
     double energy(double alpha) const {
         double e = 0.0;
         for (const StringState* s : strings_) e += stepEnergy(*s, rigids_, ctx_, alpha);
-        for (std::size_t ci : sc_.candidates) {
-            const StringPairContact& c = contacts_[ci];
-            const double g = std::min(0.0, gapAt(c, alpha));
-            e += 0.5 * c.stiffness * g * g;
-            if (sc_.friction_bound[ci] > 0.0) e += frictionEnergy(ci, alpha);
-        }
+        for (std::size_t ci : sc_.candidates) addContactEnergy(ci, alpha, e);
         return e;
+    }
+    /// Adds contact ci's penalty and friction alpha of the way along the step to `e`.
+    void addContactEnergy(std::size_t ci, double alpha, double& e) const {
+        const StringPairContact& c = contacts_[ci];
+        const double g = std::min(0.0, gapAt(c, alpha));
+        e += 0.5 * c.stiffness * g * g;
+        if (sc_.friction_bound[ci] > 0.0) e += frictionEnergy(ci, alpha);
     }
 
     /// Backtracking line search on the cluster's energy, then the move; true where no

@@ -253,6 +253,12 @@ FrictionTerm addFrictionRows(StringState& s, const RigidSegmentContact& c, bool 
 /// millinewtons, does not keep the passes going.
 constexpr double kNegligibleFriction = 0.1;
 
+double coulombMiss(double applied, double bound, double slip, double eps, double largest_bound) {
+    const double miss = slip >= eps ? std::abs(applied - bound) : std::max(0.0, applied - bound);
+    const double scale = std::max(bound, kNegligibleFriction * largest_bound);
+    return scale > 0.0 ? miss / scale : 0.0;
+}
+
 bool predictContacts(StringState& s, const std::vector<Vec3>* held_step) {
     bool changed = false;
     auto moved = [&](std::size_t p) { return steppedPosition(s, p, held_step); };
@@ -293,10 +299,7 @@ double weighRigidFriction(StringState& s, bool in_island) {
         // shared among contacts in a way the stiff penalties decide to the micron (a crate
         // on a rope on the floor) may move between them, as long as each stays in its cone.
         const double applied = rigidFrictionTerm(c, slip_vector).gradient.norm();
-        const double bound = c.friction * normal;
-        const double miss = slip >= eps ? std::abs(applied - bound) : std::max(0.0, applied - bound);
-        const double scale = std::max(bound, kNegligibleFriction * largest_bound);
-        if (scale > 0.0) change = std::max(change, miss / scale);
+        change = std::max(change, coulombMiss(applied, c.friction * normal, slip, eps, largest_bound));
         c.solved_normal = c.friction_normal;
         c.friction_normal = normal;
         if (c.lagged) {

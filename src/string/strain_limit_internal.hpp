@@ -81,6 +81,13 @@ Vec3 solvedFrictionForce(const RigidSegmentContact& c, const Vec3& slip);
 /// Rigid contact c's friction on the string's own rows, at the segment's ends that move
 /// (`fa`, `fb`). Returns its rigidFrictionTerm.
 FrictionTerm addFrictionRows(StringState& s, const RigidSegmentContact& c, bool fa, bool fb);
+/// How far a contact's friction force `applied` misses Coulomb's law with its bound mu N
+/// (`bound`), at `slip` against the smoothing eps: a sliding contact's |f - mu N|, a
+/// sticking one's excess over mu N, relative to mu N, or to kNegligibleFriction of
+/// `largest_bound` (the largest mu N of the string or cluster) where that is more; 0 where
+/// both are 0. The measure that ends friction's passes (weighRigidFriction, the string-pair
+/// solve).
+double coulombMiss(double applied, double bound, double slip, double eps, double largest_bound);
 /// Friction's normal forces for the next pass: each contact's penalty force now. Returns
 /// how far the pass's friction missed Coulomb's law with these forces: the largest miss of
 /// a contact (a sliding one's |f - mu N|, a sticking one's excess over mu N) relative to
