@@ -26,21 +26,51 @@
 #include <map>
 #include <memory>
 #include <exception>
+#include <functional>
 
 namespace tearables {
 
 namespace {
 
 /// Whether the island solve takes joint c from Bullet (BodyJoint): a ball joint
-/// (btPoint2PointConstraint) or a hinge (btHingeConstraint, its limits as hard stops)
-/// without motor or angular-only mode, enabled (a breaking impulse is checked after the
-/// step, writeJointImpulses). Others leave their islands to Bullet.
+/// (btPoint2PointConstraint); a hinge (btHingeConstraint, its limits as hard stops, its
+/// motor) not in angular-only mode; a slider (btSliderConstraint) without powered motors;
+/// a 6-dof joint (btGeneric6DofConstraint and btUniversalConstraint; btGeneric6DofSpring2Constraint
+/// and btFixedConstraint) without motors or springs; enabled (a breaking impulse is checked
+/// after the step, writeJointImpulses). Others (cone-twist, gear, the older spring 6-dof,
+/// hinge2's suspension spring, motors) leave their islands to Bullet.
 bool islandJoint(const btTypedConstraint& c) {
     if (!c.isEnabled()) return false;
-    if (c.getConstraintType() == POINT2POINT_CONSTRAINT_TYPE) return true;
-    if (c.getConstraintType() != HINGE_CONSTRAINT_TYPE) return false;
-    auto& hinge = const_cast<btHingeConstraint&>(static_cast<const btHingeConstraint&>(c));  // Bullet's getters are not const
-    return !hinge.getAngularOnly();
+    auto& joint = const_cast<btTypedConstraint&>(c);  // Bullet's getters are not const
+    switch (c.getConstraintType()) {
+    case POINT2POINT_CONSTRAINT_TYPE:
+        return true;
+    case HINGE_CONSTRAINT_TYPE:
+        return !static_cast<btHingeConstraint&>(joint).getAngularOnly();
+    case SLIDER_CONSTRAINT_TYPE: {
+        auto& slider = static_cast<btSliderConstraint&>(joint);
+        return !slider.getPoweredLinMotor() && !slider.getPoweredAngMotor();
+    }
+    case D6_CONSTRAINT_TYPE: {
+        auto& d6 = static_cast<btGeneric6DofConstraint&>(joint);
+        for (int i = 0; i < 3; ++i)
+            if (d6.getTranslationalLimitMotor()->m_enableMotor[i] || d6.getRotationalLimitMotor(i)->m_enableMotor) return false;
+        return true;
+    }
+    case D6_SPRING_2_CONSTRAINT_TYPE: {
+        auto& d6 = static_cast<btGeneric6DofSpring2Constraint&>(joint);
+        const btTranslationalLimitMotor2& linear = *d6.getTranslationalLimitMotor();
+        for (int i = 0; i < 3; ++i) {
+            const btRotationalLimitMotor2& angular = *d6.getRotationalLimitMotor(i);
+            if (linear.m_enableMotor[i] || linear.m_servoMotor[i] || linear.m_enableSpring[i] || angular.m_enableMotor ||
+                angular.m_servoMotor || angular.m_enableSpring)
+                return false;
+        }
+        return true;
+    }
+    default:
+        return false;
+    }
 }
 
 Quat toCore(const btQuaternion& q) { return Quat(q.w(), q.x(), q.y(), q.z()); }
@@ -50,6 +80,109 @@ btQuaternion toBullet(const Quat& q) {
 }
 
 constexpr double kPi = 3.14159265358979323846;
+
+Mat3 basisToCore(const btMatrix3x3& m) {
+    Mat3 out;
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) out(r, c) = static_cast<double>(m[r][c]);
+    return out;
+}
+
+/// A frame joint (BodyJoint::Kind::Frame) from a slider or a 6-dof joint at the bodies'
+/// poses ta and tb (islandJoint's types): its frames, Bullet's coordinates and bounds (a
+/// coordinate Bullet leaves free, lower > upper, is free), and how its angles turn,
+/// measured by small turns of b's pose about each world axis (Bullet's angle conventions,
+/// Euler angles in a joint's rotation order, have no rates to read).
+BodyJoint frameJoint(btTypedConstraint& c, const btTransform& ta, const btTransform& tb) {
+    BodyJoint j;
+    j.kind = BodyJoint::Kind::Frame;
+    const double inf = std::numeric_limits<double>::infinity();
+    const auto bounds = [inf](btScalar lower, btScalar upper, double& lo, double& hi) {
+        lo = lower > upper ? -inf : static_cast<double>(lower);
+        hi = lower > upper ? inf : static_cast<double>(upper);
+    };
+    std::function<Vec3(const btTransform&)> angles;  // of b's frame relative to a's, b at a pose
+    btTransform fa, fb;
+    if (c.getConstraintType() == SLIDER_CONSTRAINT_TYPE) {
+        auto& slider = static_cast<btSliderConstraint&>(c);
+        fa = ta * slider.getFrameOffsetA();
+        fb = tb * slider.getFrameOffsetB();
+        // Bullet's slider: a's x axis is the slide; b's position along it, from a's pivot
+        // (from b's to a's where the linear reference is b's); its turn about it, b's y axis
+        // in a's (y, z); about a's y and z axes, the x axes' misalignment (ax x bx).
+        const btScalar lower = slider.getLowerLinLimit(), upper = slider.getUpperLinLimit();
+        bounds(lower, upper, j.linear_lower.x(), j.linear_upper.x());
+        if (!slider.getUseLinearReferenceFrameA() && lower <= upper) {
+            j.linear_lower.x() = -static_cast<double>(upper);
+            j.linear_upper.x() = -static_cast<double>(lower);
+        }
+        const btScalar ang_lower = slider.getLowerAngLimit(), ang_upper = slider.getUpperAngLimit();
+        bounds(ang_lower, ang_upper, j.angular_lower.x(), j.angular_upper.x());
+        angles = [fa, &slider](const btTransform& b) {
+            const btMatrix3x3 frame_b = b.getBasis() * slider.getFrameOffsetB().getBasis();
+            const btVector3 ax = fa.getBasis().getColumn(0), ay = fa.getBasis().getColumn(1), az = fa.getBasis().getColumn(2);
+            const btVector3 by = frame_b.getColumn(1), misalign = ax.cross(frame_b.getColumn(0));
+            btScalar turn = btAtan2(by.dot(az), by.dot(ay));
+            if (slider.getLowerAngLimit() <= slider.getUpperAngLimit())
+                turn = btAdjustAngleToLimits(turn, slider.getLowerAngLimit(), slider.getUpperAngLimit());
+            return Vec3(static_cast<double>(turn), static_cast<double>(misalign.dot(ay)), static_cast<double>(misalign.dot(az)));
+        };
+    } else {
+        // A 6-dof joint: Bullet's Euler angles of b's frame relative to a's and b's pivot in
+        // a's frame (calculateTransforms), bounds per axis.
+        btVector3 lin_lo, lin_hi, ang_lo, ang_hi;
+        if (c.getConstraintType() == D6_CONSTRAINT_TYPE) {
+            auto& d6 = static_cast<btGeneric6DofConstraint&>(c);
+            d6.calculateTransforms(ta, tb);
+            fa = d6.getCalculatedTransformA();
+            fb = d6.getCalculatedTransformB();
+            d6.getLinearLowerLimit(lin_lo);
+            d6.getLinearUpperLimit(lin_hi);
+            d6.getAngularLowerLimit(ang_lo);
+            d6.getAngularUpperLimit(ang_hi);
+            angles = [&d6, ta](const btTransform& b) {
+                d6.calculateTransforms(ta, b);
+                return Vec3(static_cast<double>(d6.getAngle(0)), static_cast<double>(d6.getAngle(1)), static_cast<double>(d6.getAngle(2)));
+            };
+        } else {
+            auto& d6 = static_cast<btGeneric6DofSpring2Constraint&>(c);
+            d6.calculateTransforms(ta, tb);
+            fa = d6.getCalculatedTransformA();
+            fb = d6.getCalculatedTransformB();
+            d6.getLinearLowerLimit(lin_lo);
+            d6.getLinearUpperLimit(lin_hi);
+            d6.getAngularLowerLimit(ang_lo);
+            d6.getAngularUpperLimit(ang_hi);
+            angles = [&d6, ta](const btTransform& b) {
+                d6.calculateTransforms(ta, b);
+                return Vec3(static_cast<double>(d6.getAngle(0)), static_cast<double>(d6.getAngle(1)), static_cast<double>(d6.getAngle(2)));
+            };
+        }
+        for (int i = 0; i < 3; ++i) {
+            bounds(lin_lo[i], lin_hi[i], j.linear_lower[i], j.linear_upper[i]);
+            bounds(ang_lo[i], ang_hi[i], j.angular_lower[i], j.angular_upper[i]);
+        }
+    }
+    j.pivot_a = tearables::toCore(fa.getOrigin());
+    j.pivot_b = tearables::toCore(fb.getOrigin());
+    j.basis_a = basisToCore(fa.getBasis());
+    j.angles = angles(tb);
+    // The rates: b turned by +-eps about world axis k changes the angles by
+    // -+eps angle_rates e_k (they turn with theta_a - theta_b); central differences.
+    const btScalar eps = 1e-3f;
+    for (int k = 0; k < 3; ++k) {
+        btVector3 axis(0, 0, 0);
+        axis[k] = 1;
+        btTransform plus = tb, minus = tb;
+        plus.setBasis(btMatrix3x3(btQuaternion(axis, eps)) * tb.getBasis());
+        minus.setBasis(btMatrix3x3(btQuaternion(axis, -eps)) * tb.getBasis());
+        const Vec3 up = angles(plus), down = angles(minus);
+        for (int i = 0; i < 3; ++i)
+            j.angle_rates(i, k) = -static_cast<double>(btNormalizeAngle(static_cast<btScalar>(up[i] - down[i]))) / (2.0 * static_cast<double>(eps));
+    }
+    angles(tb);  // a 6-dof joint's calculated transforms back at the poses
+    return j;
+}
 
 // Where a body is at the end of internal step `tick` of `ticks`: Bullet moves a kinematic
 // body only once a frame, to its end pose, with the velocity that takes it there over the
@@ -287,7 +420,8 @@ public:
     }
 
     /// The joints withheld with the claimed bodies (islandJoint), at the bodies' poses now:
-    /// a ball joint's pivots, a hinge's pivots and axes (its frames' origins and z axes).
+    /// a ball joint's pivots, a hinge's pivots and axes (its frames' origins and z axes), a
+    /// slider's or 6-dof joint's frames and coordinates (frameJoint).
     void findBodyJoints(std::vector<BodyJoint>& out) override {
         joints_.clear();
         if (!owner_.attachedToBullet() || !owner_.claim_) return;
@@ -296,21 +430,22 @@ public:
             if (!islandJoint(*c)) continue;
             const Side sa = side(c->getRigidBodyA(), h), sb = side(c->getRigidBodyB(), h);
             if (!sa.body.valid() && !sb.body.valid()) continue;
-            BodyJoint j;
+            const int type = c->getConstraintType();
+            BodyJoint j = type == POINT2POINT_CONSTRAINT_TYPE || type == HINGE_CONSTRAINT_TYPE ? BodyJoint{} : frameJoint(*c, sa.now, sb.now);
             j.host_tag = joints_.size();
             joints_.push_back(c);
             j.a = sa.body;
             j.b = sb.body;
-            if (c->getConstraintType() == POINT2POINT_CONSTRAINT_TYPE) {
+            if (type == POINT2POINT_CONSTRAINT_TYPE) {
                 const auto& ball = static_cast<const btPoint2PointConstraint&>(*c);
                 j.pivot_a = toCore(sa.now * ball.getPivotInA());
                 j.pivot_b = toCore(sb.now * ball.getPivotInB());
-            } else {
+            } else if (type == HINGE_CONSTRAINT_TYPE) {
                 const auto& hinge = static_cast<const btHingeConstraint&>(*c);
                 const btTransform fa = sa.now * hinge.getAFrame(), fb = sb.now * hinge.getBFrame();
                 j.kind = BodyJoint::Kind::Hinge;
-                j.pivot_a = toCore(fa.getOrigin());
-                j.pivot_b = toCore(fb.getOrigin());
+                j.pivot_a = tearables::toCore(fa.getOrigin());
+                j.pivot_b = tearables::toCore(fb.getOrigin());
                 j.axis_a = toCore(fa.getBasis().getColumn(2));
                 j.axis_b = toCore(fb.getBasis().getColumn(2));
                 auto& limited = const_cast<btHingeConstraint&>(hinge);  // Bullet's getters are not const
@@ -386,7 +521,17 @@ public:
             }
             // A's row impulses: the pivot's along the world axes.
             double sum = lin_a.sum(), largest = lin_a.cwiseAbs().maxCoeff();
-            if (j.kind == BodyJoint::Kind::Hinge) {
+            if (j.kind == BodyJoint::Kind::Frame) {
+                // The rows along and about the axes of A's frame (the host's basis_a).
+                const Vec3 turning = ang_a - arm_a.cross(lin_a);
+                sum = 0.0;
+                largest = 0.0;
+                for (int i = 0; i < 3; ++i) {
+                    const double along = j.basis_a.col(i).dot(lin_a), about = j.basis_a.col(i).dot(turning);
+                    sum += along + about;
+                    largest = std::max({largest, std::abs(along), std::abs(about)});
+                }
+            } else if (j.kind == BodyJoint::Kind::Hinge) {
                 // The angular rows about A's axis frame: the two across it (alignment) and
                 // the axis itself (the limit), each the angular impulse's component less
                 // the pivot force's moment, which the linear rows carry.

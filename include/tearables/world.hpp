@@ -122,9 +122,11 @@ struct BodyContact {
 /// host hands to the island solve (ContactProvider::findBodyJoints) instead of solving it
 /// itself: the body or bodies then move in one system with the strings that hold them
 /// and the contacts they touch. A ball joint keeps the two pivots together; a hinge also
-/// keeps the two axes parallel (free to turn about them: no limit, no motor).
+/// keeps the two axes parallel, free to turn about them within its limits; a frame joint
+/// (a slider, a 6-dof joint, a weld) holds each of six coordinates of b's frame relative
+/// to a's, locked, limited or free.
 struct BodyJoint {
-    enum class Kind { Ball, Hinge };
+    enum class Kind { Ball, Hinge, Frame };
     Kind kind = Kind::Ball;
     RigidId a;                     ///< a movable body's proxy
     RigidId b;                     ///< the other body's proxy, or none: a frame only the host moves
@@ -145,6 +147,20 @@ struct BodyJoint {
     bool motor = false;
     double motor_velocity = 0.0;
     double motor_impulse = 0.0;
+    /// A frame joint's coordinates: the linear ones, basis_a^T (pivot_b - pivot_a), where
+    /// b's pivot is along the axes of a's frame (basis_a: its columns, unit, orthogonal,
+    /// world); the angular ones, `angles` (rad, the host's convention: Euler angles of b's
+    /// frame relative to a's, an angle about an axis), which turn by
+    /// angle_rates (theta_a - theta_b) for small turns theta of the bodies. Each coordinate
+    /// is locked at lower == upper, limited within lower < upper (an infinite bound: none on
+    /// that side) or free (both infinite). The defaults lock all six: a weld. basis_a,
+    /// angles, angle_rates and the bounds stay the host's when the solve turns the joint
+    /// round (`swapped`): they describe the host's b relative to the host's a.
+    Mat3 basis_a = Mat3::Identity();
+    Vec3 angles = Vec3::Zero();
+    Mat3 angle_rates = Mat3::Identity();
+    Vec3 linear_lower = Vec3::Zero(), linear_upper = Vec3::Zero();    ///< m
+    Vec3 angular_lower = Vec3::Zero(), angular_upper = Vec3::Zero();  ///< rad
     std::size_t host_tag = 0;      ///< the host's own name for the joint, returned unchanged
     // Out (World::lastBodyJoints), world frame: what the joint gave each body over the step,
     // as impulses (its force times h): linear, N s, and angular about the body's centre of

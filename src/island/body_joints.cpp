@@ -9,7 +9,15 @@
 // penalty past either limit, held as a contact's: where it is past it, or where the step
 // runs past it), with e0 the pivots' separation and a x b the axes'
 // misalignment where the step starts (a turned by theta: a + theta x a = a - [a]x theta, and
-// (v) x b = -[b]x v). A quadratic in the bodies' displacements d, convex, so the island's
+// (v) x b = -[b]x v). A frame joint's coordinates, each locked (a penalty on its distance
+// from its value) or limited (a one-sided one, as a hinge's angle):
+//     linear:  q_i(d) = q_i0 + e_i . ((u_b + theta_b x r_b) - (u_a + theta_a x r_a))
+//                     + (theta_a x e_i) . (p_b - p_a),
+//     angular: phi(d) = phi0 + R (theta_a - theta_b),
+// with e_i the axes of a's frame (they turn with a), p the pivots, r their arms from the
+// centres of mass, and R the host's rates of its angles. The linear rows' forces, e_i f on
+// a at p_b's line and -e_i f on b at p_b, have no net moment: the rows keep momentum.
+// A quadratic in the bodies' displacements d, convex, so the island's
 // Newton iteration with its line search converges as with contacts. beta: the share of a
 // separation found at the start (the linearisation's second order, left by the last step)
 // that the step takes back, as Bullet's joints' ERP (0.2) does; all of it at once would
@@ -50,11 +58,27 @@ void prepareBodyJoints(std::vector<BodyJoint>& joints, const RigidTable& rigids)
             std::swap(j.a, j.b);
             std::swap(j.pivot_a, j.pivot_b);
             std::swap(j.axis_a, j.axis_b);
+            // A frame joint's coordinates stay the host's (startFrame turns their rows round).
             j.angle_sign = -j.angle_sign;  // the angle turns with theta_old_a - theta_old_b
             j.motor_velocity = -j.motor_velocity;  // and the motor's rate with omega_old_a - omega_old_b
             j.swapped = !j.swapped;
         }
         if (!j.pivot_a.allFinite() || !j.pivot_b.allFinite()) return false;
+        if (j.kind == BodyJoint::Kind::Frame) {
+            // An orthonormal frame, finite rates; a coordinate whose bounds are not
+            // lower <= upper (or lock it at an infinite value) is free, as is an angle that is
+            // not finite.
+            if (!j.basis_a.allFinite() || !((j.basis_a.transpose() * j.basis_a - Mat3::Identity()).cwiseAbs().maxCoeff() < 1e-3) ||
+                !j.angle_rates.allFinite())
+                return false;
+            const double inf = std::numeric_limits<double>::infinity();
+            for (int i = 0; i < 3; ++i) {
+                const auto bounded = [](double lower, double upper) { return lower <= upper && (lower < upper || std::isfinite(lower)); };
+                if (!bounded(j.linear_lower[i], j.linear_upper[i])) j.linear_lower[i] = -inf, j.linear_upper[i] = inf;
+                if (!bounded(j.angular_lower[i], j.angular_upper[i]) || !std::isfinite(j.angles[i]))
+                    j.angular_lower[i] = -inf, j.angular_upper[i] = inf;
+            }
+        }
         if (j.kind == BodyJoint::Kind::Hinge) {
             for (Vec3* axis : {&j.axis_a, &j.axis_b}) {
                 const double n = axis->norm();
@@ -92,30 +116,40 @@ void BodyJointMember::start(BodyJoint& joint, const RigidTable& rigids, const St
         moment = std::max(moment, largestMoment(b));
     }
     const double inv_h2 = ctx.inv_h * ctx.inv_h;
+    const double linear_weight = kPairStiffnessFactor * mass * inv_h2, angular_weight = kPairStiffnessFactor * moment * inv_h2;
     ja_.setZero();
     jb_.setZero();
     r0_.setZero();
     weight_.setZero();
+    limit_count_ = 0;
+    motor_ = false;
+    move_a_ = pointJacobian(joint.pivot_a - a.position);
+    move_b_ = b_moves_ ? Mat36(-pointJacobian(joint.pivot_b - rigids.bodies[joint.b.index].position)) : Mat36::Zero();
+    if (joint.kind == BodyJoint::Kind::Frame) {
+        startFrame(joint, rigids, linear_weight, angular_weight);
+        return;
+    }
     r0_.head<3>() = (1.0 - kSeparationRecovery) * (joint.pivot_a - joint.pivot_b);
-    ja_.topRows<3>() = pointJacobian(joint.pivot_a - a.position);
-    if (b_moves_) jb_.topRows<3>() = -pointJacobian(joint.pivot_b - rigids.bodies[joint.b.index].position);
-    weight_.head<3>().setConstant(kPairStiffnessFactor * mass * inv_h2);
+    ja_.topRows<3>() = move_a_;
+    jb_.topRows<3>() = move_b_;
+    weight_.head<3>().setConstant(linear_weight);
     if (joint.kind == BodyJoint::Kind::Hinge) {
         const Vec3& ax = joint.axis_a;
         const Vec3& bx = joint.axis_b;
         r0_.tail<3>() = (1.0 - kSeparationRecovery) * ax.cross(bx);
         ja_.bottomRightCorner<3, 3>() = cross(bx) * cross(ax);
         if (b_moves_) jb_.bottomRightCorner<3, 3>() = -cross(ax) * cross(bx);
-        weight_.tail<3>().setConstant(kPairStiffnessFactor * moment * inv_h2);
-        limited_ = std::isfinite(joint.lower) || std::isfinite(joint.upper);
-        angle0_ = joint.angle;
-        lower_ = joint.lower;
-        upper_ = joint.upper;
-        limit_weight_ = kPairStiffnessFactor * moment * inv_h2;
-        ga_.setZero();
-        gb_.setZero();
-        ga_.tail<3>() = joint.angle_sign * ax;
-        if (b_moves_) gb_.tail<3>() = -joint.angle_sign * ax;
+        weight_.tail<3>().setConstant(angular_weight);
+        if (std::isfinite(joint.lower) || std::isfinite(joint.upper)) {
+            Limit& limit = limits_[limit_count_++];
+            limit = Limit{};
+            limit.value0 = joint.angle;
+            limit.lower = joint.lower;
+            limit.upper = joint.upper;
+            limit.weight = angular_weight;
+            limit.ga.tail<3>() = joint.angle_sign * ax;
+            if (b_moves_) limit.gb.tail<3>() = -joint.angle_sign * ax;
+        }
         motor_ = joint.motor;
         if (motor_) {
             // The relative turn about the axis over the step: the free motion's (the bodies'
@@ -127,13 +161,62 @@ void BodyJointMember::start(BodyJoint& joint, const RigidTable& rigids, const St
             if (b_moves_) motor_b_.tail<3>() = -ax;
             motor_offset_ = (ax.dot(a.angular_velocity - spin_b) - joint.motor_velocity) * ctx.h;
             motor_torque_ = joint.motor_impulse * ctx.inv_h;
-            motor_weight_ = kMotorStiffnessFactor * limit_weight_;
+            motor_weight_ = kMotorStiffnessFactor * angular_weight;
         }
-    } else {
-        limited_ = false;
-        motor_ = false;
     }
-    limit_held_ = false;
+}
+
+// A frame joint's rows. Its coordinates are the host's (b relative to a), whose sides the
+// solve may have turned round: each row's gradient is formed in the host's a and b and
+// given to the solve's sides.
+void BodyJointMember::startFrame(const BodyJoint& joint, const RigidTable& rigids, double linear_weight, double angular_weight) {
+    const bool swapped = joint.swapped;
+    const Vec3& pivot_a = swapped ? joint.pivot_b : joint.pivot_a;  // the host's
+    const Vec3& pivot_b = swapped ? joint.pivot_a : joint.pivot_b;
+    const RigidId host_a = swapped ? joint.b : joint.a, host_b = swapped ? joint.a : joint.b;
+    const Vec3 centre_a = host_a.valid() ? rigids.bodies[host_a.index].position : pivot_a;
+    const Vec3 centre_b = host_b.valid() ? rigids.bodies[host_b.index].position : pivot_b;
+    const Vec3 offset = pivot_b - pivot_a;
+    int locked = 0;
+    for (int row = 0; row < 6; ++row) {
+        const bool linear = row < 3;
+        const int i = row % 3;
+        const double lower = linear ? joint.linear_lower[i] : joint.angular_lower[i];
+        const double upper = linear ? joint.linear_upper[i] : joint.angular_upper[i];
+        if (!std::isfinite(lower) && !std::isfinite(upper)) continue;  // free
+        // The coordinate's gradient in the host's a and b (u, theta).
+        Vec6 host_ga = Vec6::Zero(), host_gb = Vec6::Zero();
+        double value;
+        if (linear) {
+            const Vec3 e = joint.basis_a.col(i);
+            value = e.dot(offset);
+            host_ga << -e, e.cross(pivot_b - centre_a);
+            host_gb << e, (pivot_b - centre_b).cross(e);
+        } else {
+            value = joint.angles[i];
+            host_ga.tail<3>() = joint.angle_rates.row(i).transpose();
+            host_gb.tail<3>() = -joint.angle_rates.row(i).transpose();
+        }
+        Vec6 ga = swapped ? host_gb : host_ga, gb = swapped ? host_ga : host_gb;
+        if (!b_moves_) gb.setZero();
+        const double weight = linear ? linear_weight : angular_weight;
+        if (lower == upper) {
+            r0_[locked] = (1.0 - kSeparationRecovery) * (value - lower);
+            ja_.row(locked) = ga.transpose();
+            jb_.row(locked) = gb.transpose();
+            weight_[locked] = weight;
+            ++locked;
+            continue;
+        }
+        Limit& limit = limits_[limit_count_++];
+        limit = Limit{};
+        limit.ga = ga;
+        limit.gb = gb;
+        limit.value0 = value;
+        limit.lower = lower;
+        limit.upper = upper;
+        limit.weight = weight;
+    }
 }
 
 void BodyJointMember::condense(bool fresh) {
@@ -154,43 +237,47 @@ void BodyJointMember::condense(bool fresh) {
         const double stiffness = std::abs(slip) * motor_weight_ < motor_torque_ ? motor_weight_ : motor_torque_ / std::abs(slip);
         hessian_ += stiffness * g * g.transpose();
     }
-    if (!limited_) return;
-    const double angle = angleAt(disp_a_, disp_b_);
-    if (fresh) limit_held_ = pastLimit(angle) != 0.0;
-    if (!limit_held_) return;
-    // Held inside the limits (the step runs past one), the model carries the way to it:
-    // k (phi + g . dd - limit)^2 / 2 with the limit the step runs past.
-    Eigen::Matrix<double, 12, 1> g;
-    g << ga_, gb_;
-    const Vec6 full_a = disp_a_ + du_a_, full_b = disp_b_ + du_b_;
-    const double past = pastLimit(angle) != 0.0 ? pastLimit(angle) : angle - (angleAt(full_a, full_b) < lower_ ? lower_ : upper_);
-    hessian_ += limit_weight_ * g * g.transpose();
-    gradient_ += limit_weight_ * past * g;
+    for (int k = 0; k < limit_count_; ++k) {
+        Limit& limit = limits_[k];
+        const double value = limit.at(disp_a_, disp_b_);
+        if (fresh) limit.held = limit.past(value) != 0.0;
+        if (!limit.held) continue;
+        // Held inside the bounds (the step runs past one), the model carries the way to it:
+        // k (phi + g . dd - bound)^2 / 2 with the bound the step runs past.
+        Eigen::Matrix<double, 12, 1> g;
+        g << limit.ga, limit.gb;
+        const double after = limit.at(disp_a_ + du_a_, disp_b_ + du_b_);
+        const double past = limit.past(value) != 0.0 ? limit.past(value) : value - (after < limit.lower ? limit.lower : limit.upper);
+        hessian_ += limit.weight * g * g.transpose();
+        gradient_ += limit.weight * past * g;
+    }
 }
 
-// The limit's active set, as the contacts' (BodyContactMember::addPredictedContacts).
+// The limits' active set, as the contacts' (BodyContactMember::addPredictedContacts).
 bool BodyJointMember::addPredictedContacts() {
-    if (!limited_) return false;
-    const double after = pastLimit(angleAt(disp_a_ + du_a_, disp_b_ + du_b_));
-    const double now = pastLimit(angleAt(disp_a_, disp_b_));
-    if (!limit_held_ && after != 0.0) {
-        limit_held_ = true;
-        return true;
+    bool changed = false;
+    for (int k = 0; k < limit_count_; ++k) {
+        Limit& limit = limits_[k];
+        const double after = limit.past(limit.at(disp_a_ + du_a_, disp_b_ + du_b_));
+        const double now = limit.past(limit.at(disp_a_, disp_b_));
+        if (!limit.held && after != 0.0) {
+            limit.held = true;
+            changed = true;
+        } else if (limit.held && after == 0.0 && now == 0.0) {
+            limit.held = false;
+            changed = true;
+        }
     }
-    if (limit_held_ && after == 0.0 && now == 0.0) {
-        limit_held_ = false;
-        return true;
-    }
-    return false;
+    return changed;
 }
 
 double BodyJointMember::energy(double alpha) const {
     const Vec6 da = disp_a_ + alpha * du_a_, db = disp_b_ + alpha * du_b_;
     const Eigen::Matrix<double, 6, 1> r = residual(da, db);
     double e = 0.5 * r.dot(weight_.cwiseProduct(r));
-    if (limited_) {
-        const double past = pastLimit(angleAt(da, db));
-        e += 0.5 * limit_weight_ * past * past;
+    for (int k = 0; k < limit_count_; ++k) {
+        const double past = limits_[k].past(limits_[k].at(da, db));
+        e += 0.5 * limits_[k].weight * past * past;
     }
     if (motor_) {
         // Huber's function of the slip: k s^2 / 2 within the torque's reach, then linear.
@@ -205,10 +292,11 @@ double BodyJointMember::energy(double alpha) const {
 void BodyJointMember::finish(int) {
     const Eigen::Matrix<double, 6, 1> f = weight_.cwiseProduct(residual(disp_a_, disp_b_));
     Vec6 on_a = -(ja_.transpose() * f), on_b = -(jb_.transpose() * f);
-    if (limited_) {
-        const double past = pastLimit(angleAt(disp_a_, disp_b_));
-        on_a -= limit_weight_ * past * ga_;
-        on_b -= limit_weight_ * past * gb_;
+    for (int k = 0; k < limit_count_; ++k) {
+        const Limit& limit = limits_[k];
+        const double past = limit.past(limit.at(disp_a_, disp_b_));
+        on_a -= limit.weight * past * limit.ga;
+        on_b -= limit.weight * past * limit.gb;
     }
     if (motor_) {
         const double torque = motorTorque(motorSlip(disp_a_, disp_b_));
@@ -224,7 +312,7 @@ void BodyJointMember::finish(int) {
 }
 
 double BodyJointMember::apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) {
-    const double move = alpha * (ja_.topRows<3>() * du_a_ + jb_.topRows<3>() * du_b_).norm();
+    const double move = alpha * (move_a_ * du_a_ + move_b_ * du_b_).norm();
     takeDisplacements(slot, displacement);
     return move / kPairMoveTolerance;
 }

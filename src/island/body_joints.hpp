@@ -6,6 +6,7 @@
 #include "island/body_pair.hpp"
 
 #include <algorithm>
+#include <array>
 #include <vector>
 
 namespace tearables::detail {
@@ -25,17 +26,29 @@ public:
     void finish(int) override;
 
 private:
+    /// A frame joint's rows: its locked coordinates into the residuals, its limited ones
+    /// into limits_.
+    void startFrame(const BodyJoint& joint, const RigidTable& rigids, double linear_weight, double angular_weight);
+
     /// The joint's residuals for the bodies' displacements d = (u, theta) from where the
-    /// solve started, linearised there: the pivots' separation and, for a hinge, the axes'
-    /// cross product (zero rows for a ball joint), each r0 + Ja d_a + Jb d_b.
+    /// solve started, linearised there, each r0 + Ja d_a + Jb d_b: the pivots' separation
+    /// and, for a hinge, the axes' cross product (zero rows for a ball joint); for a frame
+    /// joint its locked coordinates less their values (zero rows for the others).
     Eigen::Matrix<double, 6, 1> residual(const Vec6& da, const Vec6& db) const {
         return r0_ + ja_ * da + jb_ * db;
     }
 
-    /// A hinge's angle for the displacements, linearised: angle0 + ga . d_a + gb . d_b.
-    double angleAt(const Vec6& da, const Vec6& db) const { return angle0_ + ga_.dot(da) + gb_.dot(db); }
-    /// Its limits' penalty: how far the angle is past the nearer one (0 inside them).
-    double pastLimit(double angle) const { return angle < lower_ ? angle - lower_ : angle > upper_ ? angle - upper_ : 0.0; }
+    /// A one-sided coordinate: a hinge's angle, or a frame joint's limited coordinate,
+    /// linearised where the solve started (value0 + ga . d_a + gb . d_b), with its bounds
+    /// and the stiffness of its penalty past them.
+    struct Limit {
+        Vec6 ga = Vec6::Zero(), gb = Vec6::Zero();
+        double value0 = 0.0, lower = 0.0, upper = 0.0, weight = 0.0;
+        bool held = false;  ///< in the Newton system (past a bound, or the step runs past one)
+        double at(const Vec6& da, const Vec6& db) const { return value0 + ga.dot(da) + gb.dot(db); }
+        /// How far the coordinate is past the nearer bound (0 within them).
+        double past(double value) const { return value < lower ? value - lower : value > upper ? value - upper : 0.0; }
+    };
 
     /// A motor's slip for the displacements: the relative turn about the axis over the
     /// step less the motor's rate times h, s = a . (omega_a - omega_b) h + a . (theta_a -
@@ -49,10 +62,9 @@ private:
 
     BodyJoint* joint_ = nullptr;  ///< where finish() writes the impulses
     double h_ = 0.0;
-    bool limited_ = false;     ///< a hinge with limits
-    bool limit_held_ = false;  ///< the limit's row in the Newton system (past it, or the step runs past it)
-    double angle0_ = 0.0, lower_ = 0.0, upper_ = 0.0, limit_weight_ = 0.0;
-    Vec6 ga_ = Vec6::Zero(), gb_ = Vec6::Zero();
+    Mat36 move_a_ = Mat36::Zero(), move_b_ = Mat36::Zero();  ///< the pivots' relative move in d_a, d_b (apply)
+    std::array<Limit, 6> limits_;  ///< the first limit_count_ are the joint's
+    int limit_count_ = 0;
     bool motor_ = false;  ///< a hinge with a motor (motorSlip)
     double motor_offset_ = 0.0, motor_torque_ = 0.0, motor_weight_ = 0.0;
     Vec6 motor_a_ = Vec6::Zero(), motor_b_ = Vec6::Zero();

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -525,6 +526,239 @@ TEST(Islands, HingeMotorTurnsABoardAtItsRateUpToItsTorque) {
     // hinge, board and rope), or falls.
     EXPECT_NEAR(motorRun(up, 1.3 * gravity_torque * h, true, 60), 1.0, 0.01);
     EXPECT_LT(motorRun(up, 0.7 * gravity_torque * h, true, 30), -0.1);
+}
+
+namespace {
+/// The joints of a body's frame joint to the world that the sliding tests build: a slider
+/// (btSliderConstraint, its axis a frame's x), a 6-dof joint (btGeneric6DofConstraint) and
+/// its successor (btGeneric6DofSpring2Constraint), one of whose subclasses is btFixedConstraint.
+enum class Frame { Slider, SixDof, SixDofSpring2 };
+const char* frameName(Frame f) { return f == Frame::Slider ? "slider" : f == Frame::SixDof ? "6-dof" : "6-dof spring 2"; }
+
+/// A joint of `body` to the world at its local frame `frame`: free along the frame's
+/// `axis` (0-2) within [lower, upper] (lower > upper: free), every other coordinate locked
+/// (a slider: its x axis is the slide, so `frame` should carry x to the wanted axis).
+std::unique_ptr<btTypedConstraint> slideJoint(Frame kind, btRigidBody& body, const btTransform& frame, int axis, btScalar lower,
+                                              btScalar upper, bool reference_a = true) {
+    if (kind == Frame::Slider) {
+        auto slider = std::make_unique<btSliderConstraint>(body, frame, reference_a);
+        slider->setLowerLinLimit(lower);
+        slider->setUpperLinLimit(upper);
+        slider->setLowerAngLimit(0);
+        slider->setUpperAngLimit(0);
+        return slider;
+    }
+    btVector3 lo(0, 0, 0), hi(0, 0, 0);
+    lo[axis] = lower;
+    hi[axis] = upper;
+    if (kind == Frame::SixDof) {
+        auto d6 = std::make_unique<btGeneric6DofConstraint>(body, frame, true);
+        d6->setLinearLowerLimit(lo);
+        d6->setLinearUpperLimit(hi);
+        d6->setAngularLowerLimit(btVector3(0, 0, 0));
+        d6->setAngularUpperLimit(btVector3(0, 0, 0));
+        return d6;
+    }
+    auto d6 = std::make_unique<btGeneric6DofSpring2Constraint>(body, frame);
+    d6->setLinearLowerLimit(lo);
+    d6->setLinearUpperLimit(hi);
+    d6->setAngularLowerLimit(btVector3(0, 0, 0));
+    d6->setAngularUpperLimit(btVector3(0, 0, 0));
+    return d6;
+}
+
+/// A slider's frame whose x axis (the slide) is the world's y.
+btTransform upright() { return btTransform(btQuaternion(btVector3(0, 0, 1), static_cast<btScalar>(kPi / 2))); }
+}  // namespace
+
+// Sliders and 6-dof joints in an island: a 3 kg platform that slides up and down a
+// vertical guide (a joint to the world, free along y only), held by a rope from above at
+// its end, with a 60 kg crate on its middle. The guide carries no vertical force, so the
+// rope's pull is the whole weight, 63 g (0.5%), while the guide's locked coordinates take
+// the rope's off-centre moment (its joint feedback reports both); the crate rests on the
+// platform within 2 mm, and the platform stays level within the angular locks' give (the
+// moment, 150 N m, over 100 I / h^2: 1.5 mrad). Where Bullet
+// solved the guide and the strings the rope, the two solvers fought over the platform.
+TEST(Islands, SlidingPlatformHeldByARopeCarriesAHeavyCrate) {
+    for (const Frame kind : {Frame::Slider, Frame::SixDof, Frame::SixDofSpring2}) {
+        SCOPED_TRACE(frameName(kind));
+        Physics phys;
+        btRigidBody& platform = phys.box(btVector3(0.3f, 0.025f, 0.2f), 3.0, btVector3(0, 1.0f, 0));
+        platform.setActivationState(DISABLE_DEACTIVATION);
+        auto guide = slideJoint(kind, platform, kind == Frame::Slider ? upright() : btTransform::getIdentity(), 1, 1, -1);
+        btJointFeedback feedback;
+        guide->setJointFeedback(&feedback);
+        guide->enableFeedback(true);
+        phys.world->addConstraint(guide.get(), true);
+        BulletWorld ropes(*phys.world);
+        const StringId id = ropes.addString(rope({0.25, 2.0, 0}, {0.25, 1.025, 0}, 40));
+        ropes.attach(id, 0, btVector3(0.25f, 2.0f, 0));
+        ropes.attach(id, -1, platform, btVector3(0.25f, 0.025f, 0));
+        btRigidBody& crate = phys.box(btVector3(0.1f, 0.1f, 0.1f), 60.0, btVector3(0, 1.0f + 0.025f + 0.1f + 0.0005f, 0));
+        crate.setActivationState(DISABLE_DEACTIVATION);
+        double deepest = 0.0;
+        for (int i = 0; i < 300; ++i) {
+            phys.step(1);
+            const btTransform b = platform.getWorldTransform();
+            for (float x : {-0.1f, 0.1f})
+                for (float z : {-0.1f, 0.1f}) {
+                    const btVector3 corner = crate.getWorldTransform() * btVector3(x, -0.1f, z);
+                    deepest = std::max(deepest, 0.025 - static_cast<double>(b.invXform(corner).y()));
+                }
+            ASSERT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+        }
+        ASSERT_EQ(ropes.core().lastBodyJoints().size(), 1u) << "the guide is the island's";
+        EXPECT_LT(deepest, 0.002);
+        const auto view = ropes.core().view(id);
+        const Vec3 end = view.positions->back(), below = (*view.positions)[view.positions->size() - 2];
+        const double pull = view.tension->back() * (below - end).normalized().y();
+        EXPECT_NEAR(pull, 63.0 * kG, 0.005 * 63.0 * kG);
+        // The guide's force on the platform (its B: the world is A) has no vertical part,
+        // and its couple balances the pull's moment about the platform's centre, 0.25 m
+        // from the rope (the crate's and the platform's weights act at the centre).
+        EXPECT_NEAR(static_cast<double>(feedback.m_appliedForceBodyB.y()), 0.0, 0.005 * 63.0 * kG);
+        EXPECT_NEAR(static_cast<double>(feedback.m_appliedTorqueBodyB.z()), -0.25 * pull, 0.01 * 0.25 * pull);
+        EXPECT_LT(crate.getLinearVelocity().length(), 1e-2f);
+        // The guide held the platform level and on its line.
+        EXPECT_LT(platform.getWorldTransform().getBasis().getColumn(1).angle(btVector3(0, 1, 0)), 5e-3f);
+        EXPECT_LT(std::hypot(static_cast<double>(platform.getCenterOfMassPosition().x()), static_cast<double>(platform.getCenterOfMassPosition().z())),
+                  1e-3);
+        phys.world->removeConstraint(guide.get());
+    }
+}
+
+// A weld between two movable bodies (btFixedConstraint, a 6-dof joint with every
+// coordinate locked): two 3 kg boards welded end to end, each hung by a rope at its outer
+// end. The pair is one rigid beam, so by symmetry each rope carries half the weight, 3 g
+// (0.5%), and the weld carries the bending moment (3 g times the 0.5 m from each board's
+// centre to its rope, 14.7 N m): the beam stays straight within the locks' give (the
+// moment over 100 I / h^2, I = 0.25 kg m^2 for a board: 6e-5 rad) and level.
+TEST(Islands, WeldedBoardsHungAtTheirEndsAreOneBeam) {
+    Physics phys;
+    btRigidBody& left = phys.box(btVector3(0.5f, 0.025f, 0.15f), 3.0, btVector3(-0.5f, 1.0f, 0));
+    btRigidBody& right = phys.box(btVector3(0.5f, 0.025f, 0.15f), 3.0, btVector3(0.5f, 1.0f, 0));
+    for (btRigidBody* b : {&left, &right}) b->setActivationState(DISABLE_DEACTIVATION);
+    btFixedConstraint weld(left, right, btTransform(btQuaternion::getIdentity(), btVector3(0.5f, 0, 0)),
+                           btTransform(btQuaternion::getIdentity(), btVector3(-0.5f, 0, 0)));
+    phys.world->addConstraint(&weld, true);
+    BulletWorld ropes(*phys.world);
+    StringId ids[2];
+    for (int side = 0; side < 2; ++side) {
+        const double x = side == 0 ? -0.95 : 0.95;
+        ids[side] = ropes.addString(rope({x, 2.0, 0}, {x, 1.025, 0}, 40));
+        ropes.attach(ids[side], 0, btVector3(static_cast<btScalar>(x), 2.0f, 0));
+        ropes.attach(ids[side], -1, side == 0 ? left : right, btVector3(side == 0 ? -0.45f : 0.45f, 0.025f, 0));
+    }
+    for (int i = 0; i < 300; ++i) {
+        phys.step(1);
+        ASSERT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+    }
+    ASSERT_EQ(ropes.core().lastBodyJoints().size(), 1u) << "the weld is the island's";
+    ASSERT_EQ(ropes.core().lastIslands().size(), 1u);
+    for (StringId id : ids) {
+        const auto view = ropes.core().view(id);
+        const Vec3 end = view.positions->back(), below = (*view.positions)[view.positions->size() - 2];
+        EXPECT_NEAR(view.tension->back() * (below - end).normalized().y(), 3.0 * kG, 0.005 * 3.0 * kG);
+    }
+    const btVector3 xl = left.getWorldTransform().getBasis().getColumn(0), xr = right.getWorldTransform().getBasis().getColumn(0);
+    EXPECT_LT(xl.angle(xr), 1e-3f) << "the weld bent";
+    EXPECT_LT(xl.angle(btVector3(1, 0, 0)), 5e-3f) << "the beam tilted";
+    const btVector3 ends[2] = {left.getWorldTransform() * btVector3(0.5f, 0, 0), right.getWorldTransform() * btVector3(-0.5f, 0, 0)};
+    EXPECT_LT(ends[0].distance(ends[1]), 1e-3f) << "the weld parted";
+    phys.world->removeConstraint(&weld);
+}
+
+namespace {
+/// A 3 kg platform on a vertical guide (slideJoint along y, within [lower, upper] of the
+/// slide's coordinate) that falls from rest for 1 s, with a light rope hanging from it
+/// (which puts it in an island) or none (Bullet solves the guide). Returns its drop.
+double guidedDrop(Frame kind, btScalar lower, btScalar upper, bool reference_a, bool with_rope) {
+    Physics phys;
+    btRigidBody& platform = phys.box(btVector3(0.3f, 0.025f, 0.2f), 3.0, btVector3(0, 1.0f, 0));
+    platform.setActivationState(DISABLE_DEACTIVATION);
+    auto guide = slideJoint(kind, platform, kind == Frame::Slider ? upright() : btTransform::getIdentity(), 1, lower, upper, reference_a);
+    phys.world->addConstraint(guide.get(), true);
+    BulletWorld ropes(*phys.world);
+    if (with_rope) {
+        const StringId id = ropes.addString(rope({0.25, 0.975, 0}, {0.25, 0.575, 0}, 16));
+        ropes.attach(id, 0, platform, btVector3(0.25f, -0.025f, 0));
+    }
+    for (int i = 0; i < 100; ++i) phys.step(1);
+    EXPECT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+    EXPECT_EQ(ropes.core().lastBodyJoints().size(), with_rope ? 1u : 0u);
+    EXPECT_LT(platform.getWorldTransform().getBasis().getColumn(1).angle(btVector3(0, 1, 0)), 5e-3f);
+    phys.world->removeConstraint(guide.get());
+    return 1.0 - static_cast<double>(platform.getCenterOfMassPosition().y());
+}
+}  // namespace
+
+// A slider's or 6-dof joint's limits are hard stops in the island, in Bullet's conventions:
+// a platform that may drop 0.2 m along its guide falls onto that limit and rests there as
+// Bullet's own solver rests it (the give of the stop, m g over 100 m / h^2: 1e-5 m). The
+// slider's limits bound b's coordinate from a's pivot, or (linear reference b) a's from b's.
+TEST(Islands, GuideLimitStopsAFallingPlatformAsBulletDoes) {
+    for (const Frame kind : {Frame::Slider, Frame::SixDof, Frame::SixDofSpring2}) {
+        for (const bool reference_a : {true, false}) {
+            if (!reference_a && kind != Frame::Slider) continue;
+            SCOPED_TRACE(std::string(frameName(kind)) + (reference_a ? "" : ", linear reference b"));
+            // The slide's coordinate goes down with the platform (x is the world's y) from
+            // a's pivot, and up with it from b's.
+            const btScalar lower = reference_a ? -0.2f : 0.0f, upper = reference_a ? 0.0f : 0.2f;
+            const double bullet = guidedDrop(kind, lower, upper, reference_a, false);
+            ASSERT_NEAR(bullet, 0.2, 2e-3) << "Bullet's own rest on the limit";
+            EXPECT_NEAR(guidedDrop(kind, lower, upper, reference_a, true), bullet, 1e-3);
+        }
+    }
+}
+
+// A 6-dof joint's angular limit in the island: a 3 kg board held at one end by a 6-dof
+// joint to the world, locked but for its turn about z, limited to +-0.1 rad, with a rope
+// hanging from its free end, falls from level onto its limit and rests there as Bullet's
+// own solver rests it (without the rope), 0.1 rad down (1 mrad), its end still at the joint.
+TEST(Islands, SixDofAngularLimitStopsAFallingBoardAsBulletDoes) {
+    for (const Frame kind : {Frame::SixDof, Frame::SixDofSpring2}) {
+        SCOPED_TRACE(frameName(kind));
+        double turns[2];
+        for (const bool with_rope : {false, true}) {
+            Physics phys;
+            btRigidBody& board = phys.box(btVector3(0.5f, 0.025f, 0.15f), 3.0, btVector3(0.5f, 1.0f, 0));
+            board.setActivationState(DISABLE_DEACTIVATION);
+            const btTransform frame(btQuaternion::getIdentity(), btVector3(-0.5f, 0, 0));
+            std::unique_ptr<btTypedConstraint> joint;
+            if (kind == Frame::SixDof) {
+                auto d6 = std::make_unique<btGeneric6DofConstraint>(board, frame, true);
+                d6->setLinearLowerLimit(btVector3(0, 0, 0));
+                d6->setLinearUpperLimit(btVector3(0, 0, 0));
+                d6->setAngularLowerLimit(btVector3(0, 0, -0.1f));
+                d6->setAngularUpperLimit(btVector3(0, 0, 0.1f));
+                joint = std::move(d6);
+            } else {
+                auto d6 = std::make_unique<btGeneric6DofSpring2Constraint>(board, frame);
+                d6->setLinearLowerLimit(btVector3(0, 0, 0));
+                d6->setLinearUpperLimit(btVector3(0, 0, 0));
+                d6->setAngularLowerLimit(btVector3(0, 0, -0.1f));
+                d6->setAngularUpperLimit(btVector3(0, 0, 0.1f));
+                joint = std::move(d6);
+            }
+            phys.world->addConstraint(joint.get(), true);
+            BulletWorld ropes(*phys.world);
+            if (with_rope) {
+                const StringId id = ropes.addString(rope({0.95, 0.975, 0}, {0.95, 0.475, 0}, 20));
+                ropes.attach(id, 0, board, btVector3(0.45f, -0.025f, 0));
+            }
+            for (int i = 0; i < 200; ++i) phys.step(1);
+            ASSERT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+            EXPECT_EQ(ropes.core().lastBodyJoints().size(), with_rope ? 1u : 0u);
+            const btQuaternion q = board.getOrientation();
+            turns[with_rope ? 1 : 0] = 2.0 * std::atan2(static_cast<double>(q.z()), static_cast<double>(q.w()));
+            EXPECT_LT(board.getAngularVelocity().length(), 1e-2f);
+            const btVector3 pivot = board.getWorldTransform() * btVector3(-0.5f, 0, 0);
+            EXPECT_LT(pivot.distance(btVector3(0, 1, 0)), 1e-3f);
+            phys.world->removeConstraint(joint.get());
+        }
+        EXPECT_NEAR(turns[0], -0.1, 5e-3) << "Bullet's own rest on the limit";
+        EXPECT_NEAR(turns[1], -0.1, 1e-3);
+    }
 }
 
 namespace {
