@@ -662,8 +662,12 @@ Joint parseJoint(const Node& n, const NameMap& names, const std::vector<Body>& b
         j.kind = Joint::Kind::Ball;
     } else if (kind == "hinge") {
         j.kind = Joint::Kind::Hinge;
+    } else if (kind == "slider") {
+        j.kind = Joint::Kind::Slider;
+    } else if (kind == "fixed") {
+        j.kind = Joint::Kind::Fixed;
     } else {
-        type.fail("must be \"ball\" or \"hinge\" (got " + jsonQuoted(kind) + ")");
+        type.fail("must be \"ball\", \"hinge\", \"slider\" or \"fixed\" (got " + jsonQuoted(kind) + ")");
     }
     auto body = [&](const Node& field) -> const Body& {
         const std::string name = field.asString();
@@ -683,18 +687,21 @@ Joint parseJoint(const Node& n, const NameMap& names, const std::vector<Body>& b
         j.other = b.name;
     }
     j.pivot = n.required("pivot").asVec3(Range::bullet());
-    if (j.kind == Joint::Kind::Ball) {
-        for (const char* key : {"axis", "limits", "motor"})
-            if (const auto extra = n.field(key)) extra->fail("is for hinges only (this joint is a ball joint)");
-        return j;
+    const char* what = j.kind == Joint::Kind::Ball ? "a ball joint" : j.kind == Joint::Kind::Fixed ? "a fixed joint" : j.kind == Joint::Kind::Slider ? "a slider" : "a hinge";
+    if (j.kind == Joint::Kind::Ball || j.kind == Joint::Kind::Fixed) {
+        for (const char* key : {"axis", "limits"})
+            if (const auto extra = n.field(key)) extra->fail(std::string("is for hinges and sliders only (this joint is ") + what + ")");
     }
+    if (j.kind != Joint::Kind::Hinge)
+        if (const auto extra = n.field("motor")) extra->fail(std::string("is for hinges only (this joint is ") + what + ")");
+    if (j.kind == Joint::Kind::Ball || j.kind == Joint::Kind::Fixed) return j;
     const Node axis = n.required("axis");
     j.axis = axis.asVec3(Range::bullet());
     const double length = j.axis.stableNorm();
-    if (!(length > 1e-9)) axis.fail("must not be zero (a hinge turns about it)");
+    if (!(length > 1e-9)) axis.fail(j.kind == Joint::Kind::Slider ? "must not be zero (a slider moves along it)" : "must not be zero (a hinge turns about it)");
     j.axis /= length;
     if (const auto limits = n.field("limits")) {
-        const std::vector<double> v = limits->asNumbers(2, Range::closed(-kPi, kPi));
+        const std::vector<double> v = limits->asNumbers(2, j.kind == Joint::Kind::Slider ? Range::bullet() : Range::closed(-kPi, kPi));
         if (!(v[0] <= v[1])) limits->fail("must be [lower, upper] with lower <= upper (got [" + formatNumber(v[0]) + ", " + formatNumber(v[1]) + "])");
         j.limits = std::array<double, 2>{v[0], v[1]};
     }

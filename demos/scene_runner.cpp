@@ -52,7 +52,30 @@ void addBulletJoint(BulletScene& bs, const Joint& spec) {
     const btTransform ta = a.getWorldTransform();
     const btVector3 pivot_a = ta.invXform(pivot), axis_a = ta.getBasis().transpose() * axis;
     std::unique_ptr<btTypedConstraint> joint;
-    if (spec.kind == Joint::Kind::Ball) {
+    if (spec.kind == Joint::Kind::Slider || spec.kind == Joint::Kind::Fixed) {
+        // The joint's frame in the world: at the pivot, a slider's x along its axis (Bullet's
+        // slide), a fixed joint's the world's axes; in each body's frame where they start.
+        // A slider's a is the other body (or the world) and its b the body, so that its
+        // limits bound the body's travel from where it starts relative to the other.
+        btTransform frame(btQuaternion::getIdentity(), pivot);
+        if (spec.kind == Joint::Kind::Slider) {
+            btVector3 y, z;
+            btPlaneSpace1(axis, y, z);
+            frame.setBasis(btMatrix3x3(axis.x(), y.x(), z.x(), axis.y(), y.y(), z.y(), axis.z(), y.z(), z.z()));
+        }
+        const btTransform in_a = ta.inverse() * frame;
+        const btTransform in_b = b ? b->getWorldTransform().inverse() * frame : frame;  // the world's fixed body sits at the origin
+        if (spec.kind == Joint::Kind::Fixed) {
+            joint = std::make_unique<btFixedConstraint>(a, b ? *b : btTypedConstraint::getFixedBody(), in_a, in_b);
+        } else {
+            auto slider = b ? std::make_unique<btSliderConstraint>(*b, a, in_b, in_a, true) : std::make_unique<btSliderConstraint>(a, in_a, true);
+            if (spec.limits) {
+                slider->setLowerLinLimit(static_cast<btScalar>((*spec.limits)[0]));
+                slider->setUpperLinLimit(static_cast<btScalar>((*spec.limits)[1]));
+            }
+            joint = std::move(slider);
+        }
+    } else if (spec.kind == Joint::Kind::Ball) {
         joint = b ? std::make_unique<btPoint2PointConstraint>(a, *b, pivot_a, b->getWorldTransform().invXform(pivot))
                   : std::make_unique<btPoint2PointConstraint>(a, pivot_a);
     } else {

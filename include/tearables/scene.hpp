@@ -56,17 +56,21 @@ struct Body {
     double restitution = 0.0;            ///< [0, 1]
 };
 
-/// A Bullet joint (docs/SCENE_FORMAT.md, "joints"): a ball joint (btPoint2PointConstraint) or
-/// a hinge (btHingeConstraint) between a dynamic body and another body or the world, at a
-/// world point (and axis) where the bodies start.
+/// A Bullet joint (docs/SCENE_FORMAT.md, "joints"): a ball joint (btPoint2PointConstraint), a
+/// hinge (btHingeConstraint), a slider (btSliderConstraint) or a fixed joint
+/// (btFixedConstraint) between a dynamic body and another body or the world, at a world
+/// point (and axis) where the bodies start.
 struct Joint {
-    enum class Kind { Ball, Hinge };
+    enum class Kind { Ball, Hinge, Slider, Fixed };
     Kind kind = Kind::Hinge;
     std::string body;                      ///< a dynamic body's name
     std::optional<std::string> other;      ///< the other body's name (not `body`); none: the world
     Vec3 pivot = Vec3::Zero();             ///< m, world, where the bodies start
-    Vec3 axis = Vec3::UnitZ();             ///< hinge: world axis (normalised on load; non-zero)
-    std::optional<std::array<double, 2>> limits;  ///< hinge: [lower, upper] rad in [-pi, pi], lower <= upper
+    Vec3 axis = Vec3::UnitZ();             ///< hinge, slider: world axis (normalised on load; non-zero)
+    /// [lower, upper], lower <= upper: a hinge's angle, rad in [-pi, pi]; a slider's travel
+    /// along its axis, m: body's displacement relative to other (or the world) from where
+    /// they start. None: a hinge turns freely, a slider slides freely.
+    std::optional<std::array<double, 2>> limits;
     /// A hinge's angular motor (btHingeConstraint::enableAngularMotor): its target rate,
     /// rad/s in [-1e3, 1e3], and its largest impulse a step, N m s in (0, 1e6].
     struct Motor {

@@ -138,6 +138,51 @@ TEST(DemoScenes, DrawbridgeHoldsItsCratesOnTheHingedDeck) {
     EXPECT_NEAR(turning, load, 0.005 * load);
 }
 
+// The elevator: an 8 kg platform on a vertical slider (a "slider" joint, from 1.2 m below
+// where it starts to 0.5 m above), hung on two 2 mm ropes, with a 20 kg crate set on it;
+// then a 60 kg crate dropped onto that one tears both ropes (their rupture load is
+// 80 MPa pi r^2 = 1 kN, the landing's pull far more) and the platform drops to its stop.
+// Before the drop the slider carries no vertical force, so the ropes' pull at the platform is
+// its and the crate's weight, 28 g (0.5%). At the end, at rest: the platform on its stop,
+// 1.2 m down (2 mm), still on the slider's line and level (1 mm, 2 mrad), the crates stacked
+// on it (their centres half a crate and half the platform above it, 2 mm).
+TEST(DemoScenes, ElevatorTearsItsRopesAndDropsToItsStop) {
+    const fs::path out = run("elevator");
+    std::vector<json> frames;
+    {
+        std::ifstream trace(out / "trace.jsonl");
+        std::string line;
+        while (std::getline(trace, line)) frames.push_back(json::parse(line));
+    }
+    ASSERT_GT(frames.size(), 40u);
+    auto at = [](const json& f, const std::string& name) {
+        const json& p = f["bodies"][name]["p"];
+        return Eigen::Vector3d(p[0].get<double>(), p[1].get<double>(), p[2].get<double>());
+    };
+    const json& before = *std::min_element(frames.begin(), frames.end(), [](const json& a, const json& b) {
+        return std::abs(a["t"].get<double>() - 1.2) < std::abs(b["t"].get<double>() - 1.2);
+    });
+    double pull = 0.0;
+    for (const char* rope : {"left", "right"}) {
+        const json& x = before["strings"][rope]["x"];
+        const Eigen::Vector3d e(x[x.size() - 1][0].get<double>(), x[x.size() - 1][1].get<double>(), x[x.size() - 1][2].get<double>());
+        const Eigen::Vector3d a(x[x.size() - 2][0].get<double>(), x[x.size() - 2][1].get<double>(), x[x.size() - 2][2].get<double>());
+        pull += before["strings"][rope]["tension"].back().get<double>() * (a - e).normalized().y();
+    }
+    EXPECT_NEAR(pull, 28.0 * 9.81, 0.005 * 28.0 * 9.81);
+    std::vector<std::string> torn = tearOrder(out, "tension");
+    std::sort(torn.begin(), torn.end());
+    EXPECT_EQ(torn, (std::vector<std::string>{"left", "right"}));
+    const json& last = frames.back();
+    const Eigen::Vector3d platform = at(last, "platform");
+    EXPECT_NEAR(platform.y(), 1.5 - 1.2, 0.002);
+    EXPECT_LT(std::hypot(platform.x(), platform.z()), 1e-3);
+    const json& q = last["bodies"]["platform"]["q"];
+    EXPECT_LT(2.0 * std::asin(std::min(1.0, std::hypot(q[0].get<double>(), q[1].get<double>(), q[2].get<double>()))), 2e-3);
+    EXPECT_NEAR(at(last, "crate1").y() - platform.y(), 0.025 + 0.1, 0.002);
+    EXPECT_NEAR(at(last, "crate2").y() - at(last, "crate1").y(), 0.1 + 0.12, 0.002);
+}
+
 // The crane: a 5 kg boom hinged at its foot, its hinge's motor turning it at 0.5 rad/s with
 // up to 200 N m, lifts a 2 kg crate hanging from its tip on a rope; the hinge's limit stops
 // it at 0.8 rad. While it lifts (0.3-1.5 s), the boom turns at the motor's rate (1%: the

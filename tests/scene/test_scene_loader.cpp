@@ -746,8 +746,8 @@ const ErrorCase kErrorCases[] = {
     {"ShootHasNoTarget", driverScene(R"({"type": "shoot", "target": "rope", "ray": {"from": [0, 0, 0], "to": [1, 0, 0]}, "impulse": 1, "times": [1]})"),
      "drivers[0].target", "unknown field"},
     // --- joints
-    {"JointUnknownType", jointScene(R"({"type": "slider", "body": "b", "pivot": [0, 1, 0]})"), "joints[0].type",
-     "must be \"ball\" or \"hinge\" (got \"slider\")"},
+    {"JointUnknownType", jointScene(R"({"type": "cone", "body": "b", "pivot": [0, 1, 0]})"), "joints[0].type",
+     "must be \"ball\", \"hinge\", \"slider\" or \"fixed\" (got \"cone\")"},
     {"JointUnknownBody", jointScene(R"({"type": "ball", "body": "nobody", "pivot": [0, 1, 0]})"), "joints[0].body",
      "no body named \"nobody\""},
     {"JointStaticBody", jointScene(R"({"type": "ball", "body": "post", "pivot": [0, 1, 0]})"), "joints[0].body",
@@ -755,7 +755,17 @@ const ErrorCase kErrorCases[] = {
     {"JointOtherIsBody", jointScene(R"({"type": "ball", "body": "b", "other": "b", "pivot": [0, 1, 0]})"),
      "joints[0].other", "must name another body"},
     {"JointBallWithAxis", jointScene(R"({"type": "ball", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 1]})"),
-     "joints[0].axis", "is for hinges only"},
+     "joints[0].axis", "is for hinges and sliders only (this joint is a ball joint)"},
+    {"JointFixedWithLimits", jointScene(R"({"type": "fixed", "body": "b", "pivot": [0, 1, 0], "limits": [0, 1]})"),
+     "joints[0].limits", "is for hinges and sliders only (this joint is a fixed joint)"},
+    {"JointSliderWithoutAxis", jointScene(R"({"type": "slider", "body": "b", "pivot": [0, 1, 0]})"), "joints[0].axis",
+     "missing required field"},
+    {"JointSliderZeroAxis", jointScene(R"({"type": "slider", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 0]})"),
+     "joints[0].axis", "must not be zero (a slider moves along it)"},
+    {"JointSliderLimitsReversed", jointScene(R"({"type": "slider", "body": "b", "pivot": [0, 1, 0], "axis": [0, 1, 0], "limits": [0.5, -0.5]})"),
+     "joints[0].limits", "lower <= upper"},
+    {"JointSliderWithMotor", jointScene(R"({"type": "slider", "body": "b", "pivot": [0, 1, 0], "axis": [0, 1, 0], "motor": {"velocity": 1, "impulse": 1}})"),
+     "joints[0].motor", "is for hinges only (this joint is a slider)"},
     {"JointHingeWithoutAxis", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0]})"), "joints[0].axis",
      "missing required field"},
     {"JointZeroAxis", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 0]})"),
@@ -797,6 +807,23 @@ TEST(SceneLoader, JointsAreRead) {
     EXPECT_EQ((*s.joints[0].limits)[1], 0.25);
     EXPECT_FALSE(s.joints[0].motor.has_value());
     EXPECT_EQ(s.joints[1].kind, tearables::scene::Joint::Kind::Ball);
+    EXPECT_FALSE(s.joints[1].other.has_value());
+    EXPECT_EQ(s.joints[1].pivot, Vec3(1, 1, 0));
+}
+
+// A slider's limits are metres along its axis (a hinge's are radians within [-pi, pi]); a
+// fixed joint has a pivot only.
+TEST(SceneLoader, SlidersAndFixedJointsAreRead) {
+    const Scene s = parseScene(jointScene(
+        R"({"type": "slider", "body": "b", "other": "post", "pivot": [0, 1, 0], "axis": [0, -3, 0], "limits": [-5, 0.5]},
+           {"type": "fixed", "body": "b", "pivot": [1, 1, 0]})"));
+    ASSERT_EQ(s.joints.size(), 2u);
+    EXPECT_EQ(s.joints[0].kind, tearables::scene::Joint::Kind::Slider);
+    EXPECT_EQ(s.joints[0].axis, Vec3(0, -1, 0));  // normalised
+    ASSERT_TRUE(s.joints[0].limits.has_value());
+    EXPECT_EQ((*s.joints[0].limits)[0], -5.0);
+    EXPECT_EQ((*s.joints[0].limits)[1], 0.5);
+    EXPECT_EQ(s.joints[1].kind, tearables::scene::Joint::Kind::Fixed);
     EXPECT_FALSE(s.joints[1].other.has_value());
     EXPECT_EQ(s.joints[1].pivot, Vec3(1, 1, 0));
 }
