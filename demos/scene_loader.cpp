@@ -692,8 +692,8 @@ Joint parseJoint(const Node& n, const NameMap& names, const std::vector<Body>& b
         for (const char* key : {"axis", "limits"})
             if (const auto extra = n.field(key)) extra->fail(std::string("is for hinges and sliders only (this joint is ") + what + ")");
     }
-    if (j.kind != Joint::Kind::Hinge)
-        if (const auto extra = n.field("motor")) extra->fail(std::string("is for hinges only (this joint is ") + what + ")");
+    if (j.kind == Joint::Kind::Ball || j.kind == Joint::Kind::Fixed)
+        if (const auto extra = n.field("motor")) extra->fail(std::string("is for hinges and sliders only (this joint is ") + what + ")");
     if (j.kind == Joint::Kind::Ball || j.kind == Joint::Kind::Fixed) return j;
     const Node axis = n.required("axis");
     j.axis = axis.asVec3(Range::bullet());
@@ -706,10 +706,13 @@ Joint parseJoint(const Node& n, const NameMap& names, const std::vector<Body>& b
         j.limits = std::array<double, 2>{v[0], v[1]};
     }
     if (const auto motor = n.field("motor")) {
-        motor->checkNoUnknownFields({"velocity", "impulse"});
+        // A hinge's motor gives way past an impulse a step (btHingeConstraint), a slider's
+        // past a force (btSliderConstraint).
+        const bool slider = j.kind == Joint::Kind::Slider;
+        motor->checkNoUnknownFields({"velocity", slider ? "force" : "impulse"});
         Joint::Motor m;
         m.velocity = motor->required("velocity").asNumber(Range::closed(-1e3, 1e3));
-        m.impulse = motor->required("impulse").asNumber(Range{0.0, 1e6, true, false});
+        (slider ? m.force : m.impulse) = motor->required(slider ? "force" : "impulse").asNumber(Range{0.0, 1e6, true, false});
         j.motor = m;
     }
     return j;

@@ -73,6 +73,11 @@ void addBulletJoint(BulletScene& bs, const Joint& spec) {
                 slider->setLowerLinLimit(static_cast<btScalar>((*spec.limits)[0]));
                 slider->setUpperLinLimit(static_cast<btScalar>((*spec.limits)[1]));
             }
+            if (spec.motor) {
+                slider->setPoweredLinMotor(true);
+                slider->setTargetLinMotorVelocity(static_cast<btScalar>(spec.motor->velocity));
+                slider->setMaxLinMotorForce(static_cast<btScalar>(spec.motor->force));
+            }
             joint = std::move(slider);
         }
     } else if (spec.kind == Joint::Kind::Ball) {

@@ -34,11 +34,11 @@ namespace {
 
 /// Whether the island solve takes joint c from Bullet (BodyJoint): a ball joint
 /// (btPoint2PointConstraint); a hinge (btHingeConstraint, its limits as hard stops, its
-/// motor) not in angular-only mode; a slider (btSliderConstraint) without powered motors;
-/// a 6-dof joint (btGeneric6DofConstraint and btUniversalConstraint; btGeneric6DofSpring2Constraint
-/// and btFixedConstraint) without motors or springs; enabled (a breaking impulse is checked
-/// after the step, writeJointImpulses). Others (cone-twist, gear, the older spring 6-dof,
-/// hinge2's suspension spring, motors) leave their islands to Bullet.
+/// motor) not in angular-only mode; a slider (btSliderConstraint, its powered motors); a
+/// 6-dof joint (btGeneric6DofConstraint and btUniversalConstraint; btGeneric6DofSpring2Constraint
+/// and btFixedConstraint) with velocity motors but no servos or springs; enabled (a breaking
+/// impulse is checked after the step, writeJointImpulses). Others (cone-twist, gear, the
+/// older spring 6-dof, hinge2's suspension spring, servos) leave their islands to Bullet.
 bool islandJoint(const btTypedConstraint& c) {
     if (!c.isEnabled()) return false;
     auto& joint = const_cast<btTypedConstraint&>(c);  // Bullet's getters are not const
@@ -47,23 +47,16 @@ bool islandJoint(const btTypedConstraint& c) {
         return true;
     case HINGE_CONSTRAINT_TYPE:
         return !static_cast<btHingeConstraint&>(joint).getAngularOnly();
-    case SLIDER_CONSTRAINT_TYPE: {
-        auto& slider = static_cast<btSliderConstraint&>(joint);
-        return !slider.getPoweredLinMotor() && !slider.getPoweredAngMotor();
-    }
-    case D6_CONSTRAINT_TYPE: {
-        auto& d6 = static_cast<btGeneric6DofConstraint&>(joint);
-        for (int i = 0; i < 3; ++i)
-            if (d6.getTranslationalLimitMotor()->m_enableMotor[i] || d6.getRotationalLimitMotor(i)->m_enableMotor) return false;
+    case SLIDER_CONSTRAINT_TYPE:
+    case D6_CONSTRAINT_TYPE:
         return true;
-    }
     case D6_SPRING_2_CONSTRAINT_TYPE: {
         auto& d6 = static_cast<btGeneric6DofSpring2Constraint&>(joint);
         const btTranslationalLimitMotor2& linear = *d6.getTranslationalLimitMotor();
         for (int i = 0; i < 3; ++i) {
             const btRotationalLimitMotor2& angular = *d6.getRotationalLimitMotor(i);
-            if (linear.m_enableMotor[i] || linear.m_servoMotor[i] || linear.m_enableSpring[i] || angular.m_enableMotor ||
-                angular.m_servoMotor || angular.m_enableSpring)
+            if ((linear.m_enableMotor[i] && linear.m_servoMotor[i]) || linear.m_enableSpring[i] ||
+                (angular.m_enableMotor && angular.m_servoMotor) || angular.m_enableSpring)
                 return false;
         }
         return true;
@@ -181,6 +174,49 @@ BodyJoint frameJoint(btTypedConstraint& c, const btTransform& ta, const btTransf
             j.angle_rates(i, k) = -static_cast<double>(btNormalizeAngle(static_cast<btScalar>(up[i] - down[i]))) / (2.0 * static_cast<double>(eps));
     }
     angles(tb);  // a 6-dof joint's calculated transforms back at the poses
+    // Motors. Bullet drives a row w . (V_A - V_B) = target, w along or about an axis of the
+    // joint; a linear row along a's axis i is minus the rate of coordinate i, an angular
+    // row about w turns the bodies relatively by target w / |w|^2, which angle i follows
+    // at its rates (angle_rates (omega_A - omega_B)).
+    const auto angularDrive = [&j](int i, const btVector3& w, btScalar target, btScalar force) {
+        const Vec3 axis = tearables::toCore(w);
+        j.drive_velocity[3 + i] = j.angle_rates.row(i).dot(axis) / axis.squaredNorm() * static_cast<double>(target);
+        j.drive_force[3 + i] = static_cast<double>(force);
+    };
+    if (c.getConstraintType() == SLIDER_CONSTRAINT_TYPE) {
+        // The slider's linear row is written with its reference sign: it drives b's
+        // position along a's axis from a's pivot (a's from b's, linear reference b) at the
+        // target rate.
+        auto& slider = static_cast<btSliderConstraint&>(c);
+        if (slider.getPoweredLinMotor()) {
+            j.drive_velocity[0] = (slider.getUseLinearReferenceFrameA() ? 1.0 : -1.0) * static_cast<double>(slider.getTargetLinMotorVelocity());
+            j.drive_force[0] = static_cast<double>(slider.getMaxLinMotorForce());
+        }
+        if (slider.getPoweredAngMotor())
+            angularDrive(0, fa.getBasis().getColumn(0), slider.getTargetAngMotorVelocity(), slider.getMaxAngMotorForce());
+    } else if (c.getConstraintType() == D6_CONSTRAINT_TYPE) {
+        auto& d6 = static_cast<btGeneric6DofConstraint&>(c);
+        const btTranslationalLimitMotor& linear = *d6.getTranslationalLimitMotor();
+        for (int i = 0; i < 3; ++i) {
+            if (linear.m_enableMotor[i]) {
+                j.drive_velocity[i] = -static_cast<double>(linear.m_targetVelocity[i]);
+                j.drive_force[i] = static_cast<double>(linear.m_maxMotorForce[i]);
+            }
+            const btRotationalLimitMotor& angular = *d6.getRotationalLimitMotor(i);
+            if (angular.m_enableMotor) angularDrive(i, d6.getAxis(i), angular.m_targetVelocity, angular.m_maxMotorForce);
+        }
+    } else {
+        auto& d6 = static_cast<btGeneric6DofSpring2Constraint&>(c);
+        const btTranslationalLimitMotor2& linear = *d6.getTranslationalLimitMotor();
+        for (int i = 0; i < 3; ++i) {
+            if (linear.m_enableMotor[i]) {
+                j.drive_velocity[i] = -static_cast<double>(linear.m_targetVelocity[i]);
+                j.drive_force[i] = static_cast<double>(linear.m_maxMotorForce[i]);
+            }
+            const btRotationalLimitMotor2& angular = *d6.getRotationalLimitMotor(i);
+            if (angular.m_enableMotor) angularDrive(i, d6.getAxis(i), angular.m_targetVelocity, angular.m_maxMotorForce);
+        }
+    }
     return j;
 }
 

@@ -72,10 +72,14 @@ struct Joint {
     /// they start. None: a hinge turns freely, a slider slides freely.
     std::optional<std::array<double, 2>> limits;
     /// A hinge's angular motor (btHingeConstraint::enableAngularMotor): its target rate,
-    /// rad/s in [-1e3, 1e3], and its largest impulse a step, N m s in (0, 1e6].
+    /// rad/s in [-1e3, 1e3], and its largest impulse a step, N m s in (0, 1e6]; or a
+    /// slider's linear motor (btSliderConstraint::setPoweredLinMotor): body's target rate
+    /// along the axis relative to other, m/s in [-1e3, 1e3], and its largest force, N in
+    /// (0, 1e6].
     struct Motor {
         double velocity = 0.0;
-        double impulse = 0.0;
+        double impulse = 0.0;  ///< hinge
+        double force = 0.0;    ///< slider
     };
     std::optional<Motor> motor;
 };

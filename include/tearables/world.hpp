@@ -161,6 +161,11 @@ struct BodyJoint {
     Mat3 angle_rates = Mat3::Identity();
     Vec3 linear_lower = Vec3::Zero(), linear_upper = Vec3::Zero();    ///< m
     Vec3 angular_lower = Vec3::Zero(), angular_upper = Vec3::Zero();  ///< rad
+    /// A frame joint's motors, per coordinate (linear x, y, z, then the angles): each drives
+    /// its coordinate's rate to drive_velocity (m/s, rad/s) with at most drive_force (N,
+    /// N m; 0: no motor), giving way beyond it as a hinge's motor does; not on a locked
+    /// coordinate.
+    std::array<double, 6> drive_velocity{}, drive_force{};
     std::size_t host_tag = 0;      ///< the host's own name for the joint, returned unchanged
     // Out (World::lastBodyJoints), world frame: what the joint gave each body over the step,
     // as impulses (its force times h): linear, N s, and angular about the body's centre of

@@ -78,6 +78,10 @@ void prepareBodyJoints(std::vector<BodyJoint>& joints, const RigidTable& rigids)
                 if (!bounded(j.angular_lower[i], j.angular_upper[i]) || !std::isfinite(j.angles[i]))
                     j.angular_lower[i] = -inf, j.angular_upper[i] = inf;
             }
+            // A motor only with a finite rate and a positive, finite force.
+            for (int k = 0; k < 6; ++k)
+                if (!(j.drive_force[k] > 0.0 && std::isfinite(j.drive_force[k]) && std::isfinite(j.drive_velocity[k])))
+                    j.drive_force[k] = 0.0;
         }
         if (j.kind == BodyJoint::Kind::Hinge) {
             for (Vec3* axis : {&j.axis_a, &j.axis_b}) {
@@ -122,7 +126,7 @@ void BodyJointMember::start(BodyJoint& joint, const RigidTable& rigids, const St
     r0_.setZero();
     weight_.setZero();
     limit_count_ = 0;
-    motor_ = false;
+    motor_count_ = 0;
     move_a_ = pointJacobian(joint.pivot_a - a.position);
     move_b_ = b_moves_ ? Mat36(-pointJacobian(joint.pivot_b - rigids.bodies[joint.b.index].position)) : Mat36::Zero();
     if (joint.kind == BodyJoint::Kind::Frame) {
@@ -150,18 +154,17 @@ void BodyJointMember::start(BodyJoint& joint, const RigidTable& rigids, const St
             limit.ga.tail<3>() = joint.angle_sign * ax;
             if (b_moves_) limit.gb.tail<3>() = -joint.angle_sign * ax;
         }
-        motor_ = joint.motor;
-        if (motor_) {
+        if (joint.motor) {
             // The relative turn about the axis over the step: the free motion's (the bodies'
             // angular velocities now) and the solve's, against the motor's rate times h.
             const Vec3 spin_b = joint.b.valid() ? rigids.bodies[joint.b.index].angular_velocity : Vec3::Zero();
-            motor_a_.setZero();
-            motor_b_.setZero();
-            motor_a_.tail<3>() = ax;
-            if (b_moves_) motor_b_.tail<3>() = -ax;
-            motor_offset_ = (ax.dot(a.angular_velocity - spin_b) - joint.motor_velocity) * ctx.h;
-            motor_torque_ = joint.motor_impulse * ctx.inv_h;
-            motor_weight_ = kMotorStiffnessFactor * angular_weight;
+            Motor& motor = motors_[motor_count_++];
+            motor = Motor{};
+            motor.ga.tail<3>() = ax;
+            if (b_moves_) motor.gb.tail<3>() = -ax;
+            motor.offset = (ax.dot(a.angular_velocity - spin_b) - joint.motor_velocity) * ctx.h;
+            motor.force = joint.motor_impulse * ctx.inv_h;
+            motor.weight = kMotorStiffnessFactor * angular_weight;
         }
     }
 }
@@ -177,13 +180,20 @@ void BodyJointMember::startFrame(const BodyJoint& joint, const RigidTable& rigid
     const Vec3 centre_a = host_a.valid() ? rigids.bodies[host_a.index].position : pivot_a;
     const Vec3 centre_b = host_b.valid() ? rigids.bodies[host_b.index].position : pivot_b;
     const Vec3 offset = pivot_b - pivot_a;
+    // The bodies' velocities (u, theta rates) for a motor's free motion; none for a fixed frame.
+    const auto velocity = [&](RigidId id) {
+        Vec6 v = Vec6::Zero();
+        if (id.valid()) v << rigids.bodies[id.index].linear_velocity, rigids.bodies[id.index].angular_velocity;
+        return v;
+    };
     int locked = 0;
     for (int row = 0; row < 6; ++row) {
         const bool linear = row < 3;
         const int i = row % 3;
         const double lower = linear ? joint.linear_lower[i] : joint.angular_lower[i];
         const double upper = linear ? joint.linear_upper[i] : joint.angular_upper[i];
-        if (!std::isfinite(lower) && !std::isfinite(upper)) continue;  // free
+        const bool driven = joint.drive_force[row] > 0.0 && lower != upper;
+        if (!std::isfinite(lower) && !std::isfinite(upper) && !driven) continue;  // free
         // The coordinate's gradient in the host's a and b (u, theta).
         Vec6 host_ga = Vec6::Zero(), host_gb = Vec6::Zero();
         double value;
@@ -198,6 +208,18 @@ void BodyJointMember::startFrame(const BodyJoint& joint, const RigidTable& rigid
             host_gb.tail<3>() = -joint.angle_rates.row(i).transpose();
         }
         Vec6 ga = swapped ? host_gb : host_ga, gb = swapped ? host_ga : host_gb;
+        if (driven) {
+            // The coordinate's change over the step: the free motion's (the bodies'
+            // velocities now) and the solve's, against the motor's rate times h.
+            Motor& motor = motors_[motor_count_++];
+            motor = Motor{};
+            motor.ga = ga;
+            motor.gb = b_moves_ ? gb : Vec6::Zero();
+            motor.offset = (ga.dot(velocity(joint.a)) + gb.dot(velocity(joint.b)) - joint.drive_velocity[row]) * h_;
+            motor.force = joint.drive_force[row];
+            motor.weight = kMotorStiffnessFactor * (linear ? linear_weight : angular_weight);
+        }
+        if (!std::isfinite(lower) && !std::isfinite(upper)) continue;
         if (!b_moves_) gb.setZero();
         const double weight = linear ? linear_weight : angular_weight;
         if (lower == upper) {
@@ -225,16 +247,17 @@ void BodyJointMember::condense(bool fresh) {
     const Eigen::Matrix<double, 6, 1> r = residual(disp_a_, disp_b_);
     hessian_ = j.transpose() * weight_.asDiagonal() * j;
     gradient_ = j.transpose() * weight_.cwiseProduct(r);
-    if (motor_) {
+    for (int k = 0; k < motor_count_; ++k) {
+        const Motor& motor = motors_[k];
         Eigen::Matrix<double, 12, 1> g;
-        g << motor_a_, motor_b_;
-        // Beyond its torque the term is linear in |s|: its Hessian there is T / |s| (the
+        g << motor.ga, motor.gb;
+        // Beyond its force the term is linear in |s|: its Hessian there is T / |s| (the
         // quadratic through the point that lies above the term, as friction's lagged weight
         // does), not zero, so that a step from a saturated motor stops near its rate instead
-        // of running on under constant torque against the bodies' inertia alone.
-        const double slip = motorSlip(disp_a_, disp_b_);
-        gradient_ += motorTorque(slip) * g;
-        const double stiffness = std::abs(slip) * motor_weight_ < motor_torque_ ? motor_weight_ : motor_torque_ / std::abs(slip);
+        // of running on under constant force against the bodies' inertia alone.
+        const double slip = motor.slip(disp_a_, disp_b_);
+        gradient_ += motor.pull(slip) * g;
+        const double stiffness = std::abs(slip) * motor.weight < motor.force ? motor.weight : motor.force / std::abs(slip);
         hessian_ += stiffness * g * g.transpose();
     }
     for (int k = 0; k < limit_count_; ++k) {
@@ -279,10 +302,11 @@ double BodyJointMember::energy(double alpha) const {
         const double past = limits_[k].past(limits_[k].at(da, db));
         e += 0.5 * limits_[k].weight * past * past;
     }
-    if (motor_) {
-        // Huber's function of the slip: k s^2 / 2 within the torque's reach, then linear.
-        const double slip = std::abs(motorSlip(da, db)), reach = motor_torque_ / motor_weight_;
-        e += slip < reach ? 0.5 * motor_weight_ * slip * slip : motor_torque_ * (slip - 0.5 * reach);
+    for (int k = 0; k < motor_count_; ++k) {
+        // Huber's function of the slip: k s^2 / 2 within the force's reach, then linear.
+        const Motor& motor = motors_[k];
+        const double slip = std::abs(motor.slip(da, db)), reach = motor.force / motor.weight;
+        e += slip < reach ? 0.5 * motor.weight * slip * slip : motor.force * (slip - 0.5 * reach);
     }
     return e;
 }
@@ -298,10 +322,11 @@ void BodyJointMember::finish(int) {
         on_a -= limit.weight * past * limit.ga;
         on_b -= limit.weight * past * limit.gb;
     }
-    if (motor_) {
-        const double torque = motorTorque(motorSlip(disp_a_, disp_b_));
-        on_a -= torque * motor_a_;
-        on_b -= torque * motor_b_;
+    for (int k = 0; k < motor_count_; ++k) {
+        const Motor& motor = motors_[k];
+        const double pull = motor.pull(motor.slip(disp_a_, disp_b_));
+        on_a -= pull * motor.ga;
+        on_b -= pull * motor.gb;
     }
     joint_->impulse_a = h_ * on_a.head<3>();
     joint_->angular_impulse_a = h_ * on_a.tail<3>();

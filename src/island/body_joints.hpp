@@ -50,24 +50,28 @@ private:
         double past(double value) const { return value < lower ? value - lower : value > upper ? value - upper : 0.0; }
     };
 
-    /// A motor's slip for the displacements: the relative turn about the axis over the
-    /// step less the motor's rate times h, s = a . (omega_a - omega_b) h + a . (theta_a -
-    /// theta_b) - w h. Its energy is Huber's function of s, k s^2 / 2 up to the torque T
-    /// (|s| = T / k) and T |s| - T^2 / 2k beyond: the motor holds its rate stiffly (k ten
-    /// times the limits') and gives way at its largest torque, a convex term (as Coulomb
-    /// friction).
-    double motorSlip(const Vec6& da, const Vec6& db) const { return motor_offset_ + motor_a_.dot(da) + motor_b_.dot(db); }
-    /// The energy's derivative in the slip: k s within the torque, else +-T.
-    double motorTorque(double slip) const { return std::clamp(motor_weight_ * slip, -motor_torque_, motor_torque_); }
+    /// A motor: a coordinate (a hinge's turn about its axis, a frame joint's coordinate)
+    /// driven at a rate with at most a force or torque T. Its slip for the displacements is
+    /// the coordinate's change over the step less the rate times h, s = offset + ga . d_a +
+    /// gb . d_b (offset: the free motion's change, from the bodies' velocities now, less
+    /// the rate times h). Its energy is Huber's function of s, k s^2 / 2 up to T (|s| =
+    /// T / k) and T |s| - T^2 / 2k beyond: the motor holds its rate stiffly (k ten times the
+    /// limits') and gives way at its largest force, a convex term (as Coulomb friction).
+    struct Motor {
+        Vec6 ga = Vec6::Zero(), gb = Vec6::Zero();
+        double offset = 0.0, force = 0.0, weight = 0.0;
+        double slip(const Vec6& da, const Vec6& db) const { return offset + ga.dot(da) + gb.dot(db); }
+        /// The energy's derivative in the slip: k s within the largest force, else +-T.
+        double pull(double s) const { return std::clamp(weight * s, -force, force); }
+    };
 
     BodyJoint* joint_ = nullptr;  ///< where finish() writes the impulses
     double h_ = 0.0;
     Mat36 move_a_ = Mat36::Zero(), move_b_ = Mat36::Zero();  ///< the pivots' relative move in d_a, d_b (apply)
     std::array<Limit, 6> limits_;  ///< the first limit_count_ are the joint's
     int limit_count_ = 0;
-    bool motor_ = false;  ///< a hinge with a motor (motorSlip)
-    double motor_offset_ = 0.0, motor_torque_ = 0.0, motor_weight_ = 0.0;
-    Vec6 motor_a_ = Vec6::Zero(), motor_b_ = Vec6::Zero();
+    std::array<Motor, 6> motors_;  ///< the first motor_count_ are the joint's
+    int motor_count_ = 0;
     Eigen::Matrix<double, 6, 1> r0_ = Eigen::Matrix<double, 6, 1>::Zero();
     Eigen::Matrix<double, 6, 6> ja_ = Eigen::Matrix<double, 6, 6>::Zero(), jb_ = Eigen::Matrix<double, 6, 6>::Zero();
     Eigen::Matrix<double, 6, 1> weight_ = Eigen::Matrix<double, 6, 1>::Zero();  ///< per residual: its stiffness

@@ -762,6 +762,137 @@ TEST(Islands, SixDofAngularLimitStopsAFallingBoardAsBulletDoes) {
 }
 
 namespace {
+/// A 3 kg platform on a vertical guide (slideJoint along y, free), its motor driving the
+/// slide's coordinate at Bullet's target `rate` with at most `force` N, for `steps` steps of
+/// 1/100 s from rest, with a light rope hanging from it (the island's) or none (Bullet's).
+/// Returns the platform's vertical velocity.
+double guideMotorRun(Frame kind, double rate, double force, bool reference_a, bool with_rope, int steps) {
+    Physics phys;
+    btRigidBody& platform = phys.box(btVector3(0.3f, 0.025f, 0.2f), 3.0, btVector3(0, 1.0f, 0));
+    platform.setActivationState(DISABLE_DEACTIVATION);
+    auto guide = slideJoint(kind, platform, kind == Frame::Slider ? upright() : btTransform::getIdentity(), 1, 1, -1, reference_a);
+    const auto v = static_cast<btScalar>(rate), f = static_cast<btScalar>(force);
+    if (kind == Frame::Slider) {
+        auto& slider = static_cast<btSliderConstraint&>(*guide);
+        slider.setPoweredLinMotor(true);
+        slider.setTargetLinMotorVelocity(v);
+        slider.setMaxLinMotorForce(f);
+    } else if (kind == Frame::SixDof) {
+        btTranslationalLimitMotor& motor = *static_cast<btGeneric6DofConstraint&>(*guide).getTranslationalLimitMotor();
+        motor.m_enableMotor[1] = true;
+        motor.m_targetVelocity[1] = v;
+        motor.m_maxMotorForce[1] = f;
+    } else {
+        auto& d6 = static_cast<btGeneric6DofSpring2Constraint&>(*guide);
+        d6.enableMotor(1, true);
+        d6.setTargetVelocity(1, v);
+        d6.setMaxMotorForce(1, f);
+    }
+    phys.world->addConstraint(guide.get(), true);
+    BulletWorld ropes(*phys.world);
+    if (with_rope) {
+        const StringId id = ropes.addString(rope({0.25, 0.975, 0}, {0.25, 0.575, 0}, 16));
+        ropes.attach(id, 0, platform, btVector3(0.25f, -0.025f, 0));
+    }
+    for (int i = 0; i < steps; ++i) phys.step(1);
+    EXPECT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+    EXPECT_EQ(ropes.core().lastBodyJoints().size(), with_rope ? 1u : 0u);
+    phys.world->removeConstraint(guide.get());
+    return static_cast<double>(platform.getLinearVelocity().y());
+}
+}  // namespace
+
+// A slider's and a 6-dof joint's motors in an island drive their coordinate at the target
+// rate, in Bullet's direction, up to their force: a 3 kg platform on a vertical guide (with
+// a light rope, 16 segments, hanging from it) is moved at Bullet's own rate (1%; the motor
+// gives L / (k h) under its load L ~ 30 N, k = 1000 m / h^2: 1e-4 of the rate), lifted
+// where the motor's force is 1.3 times the weight and falling where it is 0.7 times.
+TEST(Islands, GuideMotorDrivesItsPlatformAsBulletDoes) {
+    const double weight = kG * (3.0 + ropeMass(rope({0, 0, 0}, {0, 0.4, 0}, 16), 0.4));
+    for (const Frame kind : {Frame::Slider, Frame::SixDof, Frame::SixDofSpring2}) {
+        for (const bool reference_a : {true, false}) {
+            if (!reference_a && kind != Frame::Slider) continue;
+            SCOPED_TRACE(std::string(frameName(kind)) + (reference_a ? "" : ", linear reference b"));
+            const double bullet = guideMotorRun(kind, 0.5, 10.0 * weight, reference_a, false, 30);
+            ASSERT_NEAR(std::abs(bullet), 0.5, 0.01) << "Bullet's own rate";
+            EXPECT_NEAR(guideMotorRun(kind, 0.5, 10.0 * weight, reference_a, true, 30), bullet, 0.005);
+            const double up = bullet > 0.0 ? 0.5 : -0.5;  // the target that lifts the platform
+            EXPECT_NEAR(guideMotorRun(kind, up, 1.3 * weight, reference_a, true, 60), 0.5, 0.005);
+            EXPECT_LT(guideMotorRun(kind, up, 0.7 * weight, reference_a, true, 30), -0.1);
+        }
+    }
+}
+
+namespace {
+/// A 3 kg board held at one end by a 6-dof joint to the world (or a slider along x, its
+/// turn about x free) that leaves only its turn about `axis` (x or z) free, driven by the
+/// joint's angular motor at Bullet's target `rate` with at most `torque`, gravity off, for
+/// 30 steps of 1/100 s, with a rope hanging from its far end (the island's) or none. Returns
+/// the board's turn rate about that axis.
+double turnMotorRun(Frame kind, double rate, double torque, bool with_rope) {
+    Physics phys(0.0);
+    btRigidBody& board = phys.box(btVector3(0.5f, 0.025f, 0.15f), 3.0, btVector3(0.5f, 1.0f, 0));
+    board.setActivationState(DISABLE_DEACTIVATION);
+    const btTransform frame(btQuaternion::getIdentity(), btVector3(-0.5f, 0, 0));
+    const auto v = static_cast<btScalar>(rate), t = static_cast<btScalar>(torque);
+    std::unique_ptr<btTypedConstraint> joint;
+    int axis = 2;
+    if (kind == Frame::Slider) {
+        axis = 0;
+        auto slider = std::make_unique<btSliderConstraint>(board, frame, true);
+        slider->setLowerLinLimit(0);
+        slider->setUpperLinLimit(0);
+        slider->setLowerAngLimit(1);
+        slider->setUpperAngLimit(-1);
+        slider->setPoweredAngMotor(true);
+        slider->setTargetAngMotorVelocity(v);
+        slider->setMaxAngMotorForce(t);
+        joint = std::move(slider);
+    } else if (kind == Frame::SixDof) {
+        auto d6 = std::make_unique<btGeneric6DofConstraint>(board, frame, true);
+        d6->setAngularLowerLimit(btVector3(0, 0, 1));
+        d6->setAngularUpperLimit(btVector3(0, 0, -1));
+        d6->getRotationalLimitMotor(2)->m_enableMotor = true;
+        d6->getRotationalLimitMotor(2)->m_targetVelocity = v;
+        d6->getRotationalLimitMotor(2)->m_maxMotorForce = t;
+        joint = std::move(d6);
+    } else {
+        auto d6 = std::make_unique<btGeneric6DofSpring2Constraint>(board, frame);
+        d6->setLinearLowerLimit(btVector3(0, 0, 0));
+        d6->setLinearUpperLimit(btVector3(0, 0, 0));
+        d6->setAngularLowerLimit(btVector3(0, 0, 1));
+        d6->setAngularUpperLimit(btVector3(0, 0, -1));
+        d6->enableMotor(5, true);
+        d6->setTargetVelocity(5, v);
+        d6->setMaxMotorForce(5, t);
+        joint = std::move(d6);
+    }
+    phys.world->addConstraint(joint.get(), true);
+    BulletWorld ropes(*phys.world);
+    if (with_rope) {
+        const StringId id = ropes.addString(rope({0.95, 0.975, 0}, {0.95, 0.775, 0}, 8));
+        ropes.attach(id, 0, board, btVector3(0.45f, -0.025f, 0));
+    }
+    for (int i = 0; i < 30; ++i) phys.step(1);
+    EXPECT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+    EXPECT_EQ(ropes.core().lastBodyJoints().size(), with_rope ? 1u : 0u);
+    phys.world->removeConstraint(joint.get());
+    return static_cast<double>(board.getAngularVelocity()[axis]);
+}
+}  // namespace
+
+// The angular motors of a slider and of 6-dof joints in an island turn a board at Bullet's
+// own rate and direction (a strong motor, no gravity: 1% of the 1 rad/s).
+TEST(Islands, AngularMotorsTurnABoardAsBulletDoes) {
+    for (const Frame kind : {Frame::Slider, Frame::SixDof, Frame::SixDofSpring2}) {
+        SCOPED_TRACE(frameName(kind));
+        const double bullet = turnMotorRun(kind, 1.0, 100.0, false);
+        ASSERT_NEAR(std::abs(bullet), 1.0, 0.02) << "Bullet's own rate";
+        EXPECT_NEAR(turnMotorRun(kind, 1.0, 100.0, true), bullet, 0.01);
+    }
+}
+
+namespace {
 /// What a ball joint did over a run of blockOnABallJoint.
 struct JointRun {
     double applied = 0.0;  ///< the joint's applied impulse, averaged over the run's second half, N s

@@ -764,8 +764,12 @@ const ErrorCase kErrorCases[] = {
      "joints[0].axis", "must not be zero (a slider moves along it)"},
     {"JointSliderLimitsReversed", jointScene(R"({"type": "slider", "body": "b", "pivot": [0, 1, 0], "axis": [0, 1, 0], "limits": [0.5, -0.5]})"),
      "joints[0].limits", "lower <= upper"},
-    {"JointSliderWithMotor", jointScene(R"({"type": "slider", "body": "b", "pivot": [0, 1, 0], "axis": [0, 1, 0], "motor": {"velocity": 1, "impulse": 1}})"),
-     "joints[0].motor", "is for hinges only (this joint is a slider)"},
+    {"JointSliderMotorWithImpulse", jointScene(R"({"type": "slider", "body": "b", "pivot": [0, 1, 0], "axis": [0, 1, 0], "motor": {"velocity": 1, "impulse": 1}})"),
+     "joints[0].motor.impulse", "unknown field"},
+    {"JointSliderMotorWithoutForce", jointScene(R"({"type": "slider", "body": "b", "pivot": [0, 1, 0], "axis": [0, 1, 0], "motor": {"velocity": 1}})"),
+     "joints[0].motor.force", "missing required field"},
+    {"JointFixedWithMotor", jointScene(R"({"type": "fixed", "body": "b", "pivot": [0, 1, 0], "motor": {"velocity": 1, "force": 1}})"),
+     "joints[0].motor", "is for hinges and sliders only (this joint is a fixed joint)"},
     {"JointHingeWithoutAxis", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0]})"), "joints[0].axis",
      "missing required field"},
     {"JointZeroAxis", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 0]})"),
@@ -775,7 +779,7 @@ const ErrorCase kErrorCases[] = {
     {"JointLimitPastPi", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 1], "limits": [-4, 0]})"),
      "joints[0].limits[0]", "must be in"},
     {"JointBallWithMotor", jointScene(R"({"type": "ball", "body": "b", "pivot": [0, 1, 0], "motor": {"velocity": 1, "impulse": 1}})"),
-     "joints[0].motor", "is for hinges only"},
+     "joints[0].motor", "is for hinges and sliders only"},
     {"JointMotorWithoutImpulse", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 1], "motor": {"velocity": 1}})"),
      "joints[0].motor.impulse", "missing required field"},
     {"JointMotorZeroImpulse", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 1], "motor": {"velocity": 1, "impulse": 0}})"),
@@ -811,11 +815,11 @@ TEST(SceneLoader, JointsAreRead) {
     EXPECT_EQ(s.joints[1].pivot, Vec3(1, 1, 0));
 }
 
-// A slider's limits are metres along its axis (a hinge's are radians within [-pi, pi]); a
-// fixed joint has a pivot only.
+// A slider's limits are metres along its axis (a hinge's are radians within [-pi, pi]) and
+// its motor's bound a force (a hinge's an impulse); a fixed joint has a pivot only.
 TEST(SceneLoader, SlidersAndFixedJointsAreRead) {
     const Scene s = parseScene(jointScene(
-        R"({"type": "slider", "body": "b", "other": "post", "pivot": [0, 1, 0], "axis": [0, -3, 0], "limits": [-5, 0.5]},
+        R"({"type": "slider", "body": "b", "other": "post", "pivot": [0, 1, 0], "axis": [0, -3, 0], "limits": [-5, 0.5], "motor": {"velocity": -0.25, "force": 40}},
            {"type": "fixed", "body": "b", "pivot": [1, 1, 0]})"));
     ASSERT_EQ(s.joints.size(), 2u);
     EXPECT_EQ(s.joints[0].kind, tearables::scene::Joint::Kind::Slider);
@@ -823,6 +827,9 @@ TEST(SceneLoader, SlidersAndFixedJointsAreRead) {
     ASSERT_TRUE(s.joints[0].limits.has_value());
     EXPECT_EQ((*s.joints[0].limits)[0], -5.0);
     EXPECT_EQ((*s.joints[0].limits)[1], 0.5);
+    ASSERT_TRUE(s.joints[0].motor.has_value());
+    EXPECT_EQ(s.joints[0].motor->velocity, -0.25);
+    EXPECT_EQ(s.joints[0].motor->force, 40.0);
     EXPECT_EQ(s.joints[1].kind, tearables::scene::Joint::Kind::Fixed);
     EXPECT_FALSE(s.joints[1].other.has_value());
     EXPECT_EQ(s.joints[1].pivot, Vec3(1, 1, 0));
@@ -951,6 +958,28 @@ TEST(SceneRun, ForceAndRampActOnlyBetweenFromAndUntil) {
     }
     EXPECT_NEAR(pushed.back(), force_impulse, 1e-6 * force_impulse);
     EXPECT_NEAR(ramped.back(), ramp_impulse, 1e-6 * ramp_impulse);
+}
+
+// A scene's slider motor drives its body along the axis relative to the world at its
+// velocity up to its force, and its limits stop it: a 3 kg platform on a vertical slider
+// with a light rope hanging from it (so the island solves it), its motor at 0.3 m/s with
+// 200 N (seven times its weight), rises at 0.3 m/s (1%) and rests on its upper limit, 0.1 m
+// above where it started (1 mm).
+TEST(SceneRun, SliderMotorLiftsItsPlatformToItsLimit) {
+    const Scene scene = parseScene(R"({"dt": 0.01, "steps": 100, "gravity": [0, -9.81, 0],
+      "bodies": [{"name": "platform", "shape": {"box": [0.3, 0.025, 0.2]}, "mass": 3, "position": [0, 1, 0]}],
+      "joints": [{"type": "slider", "body": "platform", "pivot": [0, 1, 0], "axis": [0, 1, 0], "limits": [-1, 0.1],
+                  "motor": {"velocity": 0.3, "force": 200}}],
+      "strings": [{"name": "tail", "from": [0.25, 0.975, 0], "to": [0.25, 0.775, 0], "segments": 8, "radius": 0.002, "density": 1150,
+                   "attachments": [{"particle": 0, "body": "platform", "local": [0.25, -0.025, 0]}]}]})");
+    std::vector<double> heights;
+    RunOptions options;
+    options.every = 1;
+    options.on_frame = [&](const FrameState& f) { heights.push_back(f.bodies.at(0).position.y()); };
+    runScene(scene, options);
+    ASSERT_EQ(heights.size(), 101u);
+    EXPECT_NEAR((heights[25] - heights[15]) / 0.1, 0.3, 0.003);  // rising, well before the limit (0.33 s)
+    EXPECT_NEAR(heights.back(), 1.1, 1e-3);
 }
 
 // The same on sheets (SCENE_FORMAT.md, drivers: "force" on a cloth or paper vertex):
