@@ -906,12 +906,15 @@ struct JointRun {
 /// A 2 kg block hung from a pin by a 0.5 m rope (which puts it in an island), and a 3 kg
 /// block hung 10 cm below it by a ball joint (btPoint2PointConstraint) of breaking impulse
 /// `breaking` (N s), both at rest where they start; `steps` steps of h.
-JointRun blockOnABallJoint(double breaking, int steps, double h) {
+JointRun blockOnABallJoint(double breaking, int steps, double h, bool weld = false) {
     Physics phys;
     btRigidBody& upper = phys.box(btVector3(0.05f, 0.05f, 0.05f), 2.0, btVector3(0, 1.0f, 0));
     btRigidBody& lower = phys.box(btVector3(0.05f, 0.05f, 0.05f), 3.0, btVector3(0, 0.9f, 0));
     for (btRigidBody* b : {&upper, &lower}) b->setActivationState(DISABLE_DEACTIVATION);
-    btPoint2PointConstraint joint(upper, lower, btVector3(0, -0.05f, 0), btVector3(0, 0.05f, 0));
+    btPoint2PointConstraint ball(upper, lower, btVector3(0, -0.05f, 0), btVector3(0, 0.05f, 0));
+    btFixedConstraint fixed(upper, lower, btTransform(btQuaternion::getIdentity(), btVector3(0, -0.05f, 0)),
+                            btTransform(btQuaternion::getIdentity(), btVector3(0, 0.05f, 0)));
+    btTypedConstraint& joint = weld ? static_cast<btTypedConstraint&>(fixed) : ball;
     joint.setBreakingImpulseThreshold(static_cast<btScalar>(breaking));
     btJointFeedback feedback;
     joint.setJointFeedback(&feedback);
@@ -951,33 +954,37 @@ JointRun blockOnABallJoint(double breaking, int steps, double h) {
 }  // namespace
 
 // A joint the island solves leaves on its constraint what Bullet's solver would: the
-// impulse it applied and its joint feedback. The ball joint carries the lower block: on
+// impulse it applied and its joint feedback. The ball joint (or a weld, btFixedConstraint,
+// whose rows are along and about the upper block's axes) carries the lower block: on
 // average over a second it pulls the upper block (A) down and the lower (B) up by m g (the
 // rope's bounce averages out), and its applied impulse, the sum of its world-axis rows'
 // impulses on A, is -m g h. A joint whose impulse reaches its breaking threshold breaks,
 // as in Bullet: disabled, and the block falls freely from there (Bullet's semi-implicit
 // Euler: v0 t - g h^2 n (n + 1) / 2 after n steps), while a threshold three times the load
 // (above the sudden load's twofold bounce) holds it.
-TEST(Islands, BallJointReportsItsImpulseAndBreaksAtItsThreshold) {
-    const double m = 3.0, h = 1.0 / 240.0, load = m * kG * h;
-    const JointRun held = blockOnABallJoint(3.0 * load, 480, h);
-    EXPECT_EQ(held.broke_at, -1);
-    // A breakable joint is the island's, not Bullet's, from the second step (the plugin
-    // claims a rope's bodies at the end of a step, for the next).
-    EXPECT_EQ(held.in_island, 479);
-    EXPECT_NEAR(held.y_end, 0.9, 0.01);
-    EXPECT_NEAR(held.applied, -load, 0.01 * load);
-    EXPECT_NEAR(held.force_a.y(), -m * kG, 0.01 * m * kG);
-    EXPECT_NEAR(held.force_b.y(), m * kG, 0.01 * m * kG);
-    EXPECT_LT(std::hypot(held.force_a.x(), held.force_a.z()), 0.01 * m * kG);
+TEST(Islands, BallJointAndWeldReportTheirImpulseAndBreakAtTheirThreshold) {
+    for (const bool weld : {false, true}) {
+        SCOPED_TRACE(weld ? "a weld" : "a ball joint");
+        const double m = 3.0, h = 1.0 / 240.0, load = m * kG * h;
+        const JointRun held = blockOnABallJoint(3.0 * load, 480, h, weld);
+        EXPECT_EQ(held.broke_at, -1);
+        // A breakable joint is the island's, not Bullet's, from the second step (the plugin
+        // claims a rope's bodies at the end of a step, for the next).
+        EXPECT_EQ(held.in_island, 479);
+        EXPECT_NEAR(held.y_end, 0.9, 0.01);
+        EXPECT_NEAR(held.applied, -load, 0.01 * load);
+        EXPECT_NEAR(held.force_a.y(), -m * kG, 0.01 * m * kG);
+        EXPECT_NEAR(held.force_b.y(), m * kG, 0.01 * m * kG);
+        EXPECT_LT(std::hypot(held.force_a.x(), held.force_a.z()), 0.01 * m * kG);
 
-    const int steps = 240;
-    const JointRun broke = blockOnABallJoint(0.5 * load, steps, h);
-    ASSERT_GE(broke.broke_at, 0);
-    ASSERT_LT(broke.broke_at, 60);
-    EXPECT_EQ(broke.in_island, broke.broke_at);  // the island broke it; disabled, it is Bullet's
-    const double n = steps - 1 - broke.broke_at, drop = -broke.v_break * n * h + 0.5 * kG * h * h * n * (n + 1);
-    EXPECT_NEAR(broke.y_break - broke.y_end, drop, 0.01 * drop);
+        const int steps = 240;
+        const JointRun broke = blockOnABallJoint(0.5 * load, steps, h, weld);
+        ASSERT_GE(broke.broke_at, 0);
+        ASSERT_LT(broke.broke_at, 60);
+        EXPECT_EQ(broke.in_island, broke.broke_at);  // the island broke it; disabled, it is Bullet's
+        const double n = steps - 1 - broke.broke_at, drop = -broke.v_break * n * h + 0.5 * kG * h * h * n * (n + 1);
+        EXPECT_NEAR(broke.y_break - broke.y_end, drop, 0.01 * drop);
+    }
 }
 
 // A joint to the world reports the world's side as Bullet's feedback does: the reaction.
