@@ -15,6 +15,11 @@ struct RigidTable {
     // per-step bookkeeping
     std::vector<Vec3> start_position;
     std::vector<Quat> start_orientation;
+    /// 1 for a body added since the last step: what it overlaps where the step starts, it
+    /// was placed onto, an overlap the step did not make (pushed out gently, as a string
+    /// made inside a body is).
+    std::vector<std::uint8_t> fresh;
+    bool isFresh(RigidId id) const { return id.valid() && id.index < fresh.size() && fresh[id.index]; }
     /// Whether `id` names a body of the table that the host has not removed.
     bool holds(RigidId id) const {
         return id.valid() && id.index < bodies.size() && used[id.index] && bodies[id.index].present;

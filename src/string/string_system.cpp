@@ -479,7 +479,10 @@ void StringSystem::collideBodies(RigidTable& rigids, const HostContacts& host, c
         // on it) is pushed out over several steps, a fraction a step (Bullet's contact ERP
         // for bodies, 0.2), not in one: all at once would stretch the string past its
         // rupture and fling it out at depth / h. Shallower overlaps, the contacts' own give
-        // under load (F / k_c, micrometres), keep the exact constraint.
+        // under load (F / k_c, micrometres), keep the exact constraint. A body added since
+        // the last step was placed where the step starts: its deep overlaps are such starts.
+        if (c.segment < s.made_inside.size() && rigids.isFresh(c.body) && sc.start_depth > kDeepOverlap * sc.gap)
+            s.made_inside[c.segment] = 1;
         if (c.segment < s.made_inside.size() && s.made_inside[c.segment] && sc.start_depth > kDeepOverlap * sc.gap)
             sc.gap -= (1.0 - kOverlapRecovery) * sc.start_depth;
         if (repeatsEndContact(s, sc)) continue;

@@ -886,6 +886,7 @@ void saveSnapshot(const World& world, std::ostream& out, const std::vector<Snaps
         io(s, w.rigids->start_position);
         std::vector<Quat> orientations = w.rigids->start_orientation;
         io(s, orientations);
+        io(s, w.rigids->fresh);
         section("RIGD", s.bytes);
     }
     for (detail::StringState& string : *w.strings) {
@@ -980,9 +981,10 @@ Snapshot Snapshot::read(std::istream& in) {
             io(s, d.rigids.used);
             io(s, d.rigids.start_position);
             io(s, d.rigids.start_orientation);
+            io(s, d.rigids.fresh);
             const std::size_t n = d.rigids.bodies.size();
             if (n != bodies || d.rigids.used.size() != n || d.rigids.start_position.size() != n ||
-                d.rigids.start_orientation.size() != n)
+                d.rigids.start_orientation.size() != n || d.rigids.fresh.size() != n)
                 s.fail("the rigid table's arrays disagree");
             for (std::size_t i = 0; i < n; ++i) {
                 const RigidState& b = d.rigids.bodies[i];

@@ -326,10 +326,12 @@ RigidId World::addRigid(const RigidState& state) {
         if (!t.used[i]) {
             t.bodies[i] = state;
             t.used[i] = 1;
+            t.fresh[i] = 1;
             return RigidId{static_cast<std::uint32_t>(i)};
         }
     t.bodies.push_back(state);
     t.used.push_back(1);
+    t.fresh.push_back(1);
     t.start_position.emplace_back(Vec3::Zero());
     t.start_orientation.emplace_back(Quat::Identity());
     return RigidId{static_cast<std::uint32_t>(t.bodies.size() - 1)};
@@ -368,6 +370,7 @@ void World::step(double h) {
     w.strings.step(w.rigids, ctx, host, w.events);
     w.cloths.step(w.rigids, ctx, host, w.events);
     w.papers.step(w.rigids, ctx, host, w.events);
+    std::fill(w.rigids.fresh.begin(), w.rigids.fresh.end(), 0);
     StageTimer timer;
     w.applyBodyVelocities(ctx);
 
