@@ -81,6 +81,53 @@ Mat3 basisToCore(const btMatrix3x3& m) {
     return out;
 }
 
+/// Bullet's bounds of a joint coordinate as BodyJoint's: lower > upper leaves it free.
+void bulletBounds(btScalar lower, btScalar upper, double& lo, double& hi) {
+    const double inf = std::numeric_limits<double>::infinity();
+    lo = lower > upper ? -inf : static_cast<double>(lower);
+    hi = lower > upper ? inf : static_cast<double>(upper);
+}
+
+/// A 6-dof joint's frames at the bodies' poses ta and tb, its bounds into `j`, and its
+/// angles for a pose of b (Bullet's Euler angles of b's frame relative to a's, after
+/// calculateTransforms). btGeneric6DofConstraint and btGeneric6DofSpring2Constraint share
+/// these methods, not a base.
+template <class SixDof>
+std::function<Vec3(const btTransform&)> readSixDof(SixDof& d6, const btTransform& ta, const btTransform& tb, btTransform& fa,
+                                                   btTransform& fb, BodyJoint& j) {
+    d6.calculateTransforms(ta, tb);
+    fa = d6.getCalculatedTransformA();
+    fb = d6.getCalculatedTransformB();
+    btVector3 lin_lo, lin_hi, ang_lo, ang_hi;
+    d6.getLinearLowerLimit(lin_lo);
+    d6.getLinearUpperLimit(lin_hi);
+    d6.getAngularLowerLimit(ang_lo);
+    d6.getAngularUpperLimit(ang_hi);
+    for (int i = 0; i < 3; ++i) {
+        bulletBounds(lin_lo[i], lin_hi[i], j.linear_lower[i], j.linear_upper[i]);
+        bulletBounds(ang_lo[i], ang_hi[i], j.angular_lower[i], j.angular_upper[i]);
+    }
+    return [&d6, ta](const btTransform& b) {
+        d6.calculateTransforms(ta, b);
+        return Vec3(static_cast<double>(d6.getAngle(0)), static_cast<double>(d6.getAngle(1)), static_cast<double>(d6.getAngle(2)));
+    };
+}
+
+/// A 6-dof joint's velocity motors into `j` (frameJoint has the signs): a linear row along
+/// a's axis i runs coordinate i at minus its target; an angular one goes to angularDrive.
+template <class SixDof, class AngularDrive>
+void readSixDofMotors(SixDof& d6, BodyJoint& j, const AngularDrive& angularDrive) {
+    const auto& linear = *d6.getTranslationalLimitMotor();
+    for (int i = 0; i < 3; ++i) {
+        if (linear.m_enableMotor[i]) {
+            j.drive_velocity[i] = -static_cast<double>(linear.m_targetVelocity[i]);
+            j.drive_force[i] = static_cast<double>(linear.m_maxMotorForce[i]);
+        }
+        const auto& angular = *d6.getRotationalLimitMotor(i);
+        if (angular.m_enableMotor) angularDrive(i, d6.getAxis(i), angular.m_targetVelocity, angular.m_maxMotorForce);
+    }
+}
+
 /// A frame joint (BodyJoint::Kind::Frame) from a slider or a 6-dof joint at the bodies'
 /// poses ta and tb (islandJoint's types): its frames, Bullet's coordinates and bounds (a
 /// coordinate Bullet leaves free, lower > upper, is free), and how its angles turn,
@@ -89,11 +136,6 @@ Mat3 basisToCore(const btMatrix3x3& m) {
 BodyJoint frameJoint(btTypedConstraint& c, const btTransform& ta, const btTransform& tb) {
     BodyJoint j;
     j.kind = BodyJoint::Kind::Frame;
-    const double inf = std::numeric_limits<double>::infinity();
-    const auto bounds = [inf](btScalar lower, btScalar upper, double& lo, double& hi) {
-        lo = lower > upper ? -inf : static_cast<double>(lower);
-        hi = lower > upper ? inf : static_cast<double>(upper);
-    };
     std::function<Vec3(const btTransform&)> angles;  // of b's frame relative to a's, b at a pose
     btTransform fa, fb;
     if (c.getConstraintType() == SLIDER_CONSTRAINT_TYPE) {
@@ -104,13 +146,13 @@ BodyJoint frameJoint(btTypedConstraint& c, const btTransform& ta, const btTransf
         // (from b's to a's where the linear reference is b's); its turn about it, b's y axis
         // in a's (y, z); about a's y and z axes, the x axes' misalignment (ax x bx).
         const btScalar lower = slider.getLowerLinLimit(), upper = slider.getUpperLinLimit();
-        bounds(lower, upper, j.linear_lower.x(), j.linear_upper.x());
+        bulletBounds(lower, upper, j.linear_lower.x(), j.linear_upper.x());
         if (!slider.getUseLinearReferenceFrameA() && lower <= upper) {
             j.linear_lower.x() = -static_cast<double>(upper);
             j.linear_upper.x() = -static_cast<double>(lower);
         }
         const btScalar ang_lower = slider.getLowerAngLimit(), ang_upper = slider.getUpperAngLimit();
-        bounds(ang_lower, ang_upper, j.angular_lower.x(), j.angular_upper.x());
+        bulletBounds(ang_lower, ang_upper, j.angular_lower.x(), j.angular_upper.x());
         angles = [fa, &slider](const btTransform& b) {
             const btMatrix3x3 frame_b = b.getBasis() * slider.getFrameOffsetB().getBasis();
             const btVector3 ax = fa.getBasis().getColumn(0), ay = fa.getBasis().getColumn(1), az = fa.getBasis().getColumn(2);
@@ -121,40 +163,10 @@ BodyJoint frameJoint(btTypedConstraint& c, const btTransform& ta, const btTransf
             return Vec3(static_cast<double>(turn), static_cast<double>(misalign.dot(ay)), static_cast<double>(misalign.dot(az)));
         };
     } else {
-        // A 6-dof joint: Bullet's Euler angles of b's frame relative to a's and b's pivot in
-        // a's frame (calculateTransforms), bounds per axis.
-        btVector3 lin_lo, lin_hi, ang_lo, ang_hi;
-        if (c.getConstraintType() == D6_CONSTRAINT_TYPE) {
-            auto& d6 = static_cast<btGeneric6DofConstraint&>(c);
-            d6.calculateTransforms(ta, tb);
-            fa = d6.getCalculatedTransformA();
-            fb = d6.getCalculatedTransformB();
-            d6.getLinearLowerLimit(lin_lo);
-            d6.getLinearUpperLimit(lin_hi);
-            d6.getAngularLowerLimit(ang_lo);
-            d6.getAngularUpperLimit(ang_hi);
-            angles = [&d6, ta](const btTransform& b) {
-                d6.calculateTransforms(ta, b);
-                return Vec3(static_cast<double>(d6.getAngle(0)), static_cast<double>(d6.getAngle(1)), static_cast<double>(d6.getAngle(2)));
-            };
-        } else {
-            auto& d6 = static_cast<btGeneric6DofSpring2Constraint&>(c);
-            d6.calculateTransforms(ta, tb);
-            fa = d6.getCalculatedTransformA();
-            fb = d6.getCalculatedTransformB();
-            d6.getLinearLowerLimit(lin_lo);
-            d6.getLinearUpperLimit(lin_hi);
-            d6.getAngularLowerLimit(ang_lo);
-            d6.getAngularUpperLimit(ang_hi);
-            angles = [&d6, ta](const btTransform& b) {
-                d6.calculateTransforms(ta, b);
-                return Vec3(static_cast<double>(d6.getAngle(0)), static_cast<double>(d6.getAngle(1)), static_cast<double>(d6.getAngle(2)));
-            };
-        }
-        for (int i = 0; i < 3; ++i) {
-            bounds(lin_lo[i], lin_hi[i], j.linear_lower[i], j.linear_upper[i]);
-            bounds(ang_lo[i], ang_hi[i], j.angular_lower[i], j.angular_upper[i]);
-        }
+        if (c.getConstraintType() == D6_CONSTRAINT_TYPE)
+            angles = readSixDof(static_cast<btGeneric6DofConstraint&>(c), ta, tb, fa, fb, j);
+        else
+            angles = readSixDof(static_cast<btGeneric6DofSpring2Constraint&>(c), ta, tb, fa, fb, j);
     }
     j.pivot_a = tearables::toCore(fa.getOrigin());
     j.pivot_b = tearables::toCore(fb.getOrigin());
@@ -195,27 +207,9 @@ BodyJoint frameJoint(btTypedConstraint& c, const btTransform& ta, const btTransf
         if (slider.getPoweredAngMotor())
             angularDrive(0, fa.getBasis().getColumn(0), slider.getTargetAngMotorVelocity(), slider.getMaxAngMotorForce());
     } else if (c.getConstraintType() == D6_CONSTRAINT_TYPE) {
-        auto& d6 = static_cast<btGeneric6DofConstraint&>(c);
-        const btTranslationalLimitMotor& linear = *d6.getTranslationalLimitMotor();
-        for (int i = 0; i < 3; ++i) {
-            if (linear.m_enableMotor[i]) {
-                j.drive_velocity[i] = -static_cast<double>(linear.m_targetVelocity[i]);
-                j.drive_force[i] = static_cast<double>(linear.m_maxMotorForce[i]);
-            }
-            const btRotationalLimitMotor& angular = *d6.getRotationalLimitMotor(i);
-            if (angular.m_enableMotor) angularDrive(i, d6.getAxis(i), angular.m_targetVelocity, angular.m_maxMotorForce);
-        }
+        readSixDofMotors(static_cast<btGeneric6DofConstraint&>(c), j, angularDrive);
     } else {
-        auto& d6 = static_cast<btGeneric6DofSpring2Constraint&>(c);
-        const btTranslationalLimitMotor2& linear = *d6.getTranslationalLimitMotor();
-        for (int i = 0; i < 3; ++i) {
-            if (linear.m_enableMotor[i]) {
-                j.drive_velocity[i] = -static_cast<double>(linear.m_targetVelocity[i]);
-                j.drive_force[i] = static_cast<double>(linear.m_maxMotorForce[i]);
-            }
-            const btRotationalLimitMotor2& angular = *d6.getRotationalLimitMotor(i);
-            if (angular.m_enableMotor) angularDrive(i, d6.getAxis(i), angular.m_targetVelocity, angular.m_maxMotorForce);
-        }
+        readSixDofMotors(static_cast<btGeneric6DofSpring2Constraint&>(c), j, angularDrive);
     }
     return j;
 }

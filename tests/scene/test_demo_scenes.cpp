@@ -59,6 +59,15 @@ double length(const json& frame, const std::string& name) {
     return sum;
 }
 
+/// Every frame of a run's trace, in order.
+std::vector<json> traceFrames(const fs::path& out) {
+    std::vector<json> frames;
+    std::ifstream trace(out / "trace.jsonl");
+    std::string line;
+    while (std::getline(trace, line)) frames.push_back(json::parse(line));
+    return frames;
+}
+
 json lastFrame(const fs::path& out) {
     std::ifstream trace(out / "trace.jsonl");
     std::string line, last;
@@ -148,12 +157,7 @@ TEST(DemoScenes, DrawbridgeHoldsItsCratesOnTheHingedDeck) {
 // on it (their centres half a crate and half the platform above it, 2 mm).
 TEST(DemoScenes, ElevatorTearsItsRopesAndDropsToItsStop) {
     const fs::path out = run("elevator");
-    std::vector<json> frames;
-    {
-        std::ifstream trace(out / "trace.jsonl");
-        std::string line;
-        while (std::getline(trace, line)) frames.push_back(json::parse(line));
-    }
+    const std::vector<json> frames = traceFrames(out);
     ASSERT_GT(frames.size(), 40u);
     auto at = [](const json& f, const std::string& name) {
         const json& p = f["bodies"][name]["p"];
@@ -190,13 +194,7 @@ TEST(DemoScenes, ElevatorTearsItsRopesAndDropsToItsStop) {
 // and the rope's top carries the crate's and the rope's weight, on average over the last
 // second while the crate swings (1.5%).
 TEST(DemoScenes, CraneLiftsItsCrateAtTheMotorsRate) {
-    const fs::path out = run("crane");
-    std::vector<json> frames;
-    {
-        std::ifstream trace(out / "trace.jsonl");
-        std::string line;
-        while (std::getline(trace, line)) frames.push_back(json::parse(line));
-    }
+    const std::vector<json> frames = traceFrames(run("crane"));
     ASSERT_GT(frames.size(), 20u);
     auto angle = [](const json& f) {
         const json& q = f["bodies"]["boom"]["q"];
