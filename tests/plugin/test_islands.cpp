@@ -711,19 +711,23 @@ TEST(Islands, GuideLimitStopsAFallingPlatformAsBulletDoes) {
     }
 }
 
-// A 6-dof joint's angular limit in the island: a 3 kg board held at one end by a 6-dof
-// joint to the world, locked but for its turn about z, limited to +-0.1 rad, with a rope
-// hanging from its free end, falls from level onto its limit and rests there as Bullet's
-// own solver rests it (without the rope), 0.1 rad down (1 mrad), its end still at the joint.
-TEST(Islands, SixDofAngularLimitStopsAFallingBoardAsBulletDoes) {
-    for (const Frame kind : {Frame::SixDof, Frame::SixDofSpring2}) {
+// An angular limit of a 6-dof joint or a slider in the island: a 3 kg board held at one end
+// by a 6-dof joint to the world, locked but for its turn about z, limited to +-0.1 rad, or
+// on a slider along x 0.15 m to one side of its centre, locked along it, its turn about that
+// line limited likewise, with a rope hanging from its free end, falls from level onto its
+// limit and rests there as Bullet's own solver rests it (without the rope), 0.1 rad down
+// (1 mrad), its end still at the joint.
+TEST(Islands, AngularLimitStopsAFallingBoardAsBulletDoes) {
+    for (const Frame kind : {Frame::SixDof, Frame::SixDofSpring2, Frame::Slider}) {
         SCOPED_TRACE(frameName(kind));
+        const bool slider = kind == Frame::Slider;
+        const btVector3 pivot(-0.5f, 0, slider ? -0.15f : 0.0f);  // in the board's frame
         double turns[2];
         for (const bool with_rope : {false, true}) {
             Physics phys;
             btRigidBody& board = phys.box(btVector3(0.5f, 0.025f, 0.15f), 3.0, btVector3(0.5f, 1.0f, 0));
             board.setActivationState(DISABLE_DEACTIVATION);
-            const btTransform frame(btQuaternion::getIdentity(), btVector3(-0.5f, 0, 0));
+            const btTransform frame(btQuaternion::getIdentity(), pivot);
             std::unique_ptr<btTypedConstraint> joint;
             if (kind == Frame::SixDof) {
                 auto d6 = std::make_unique<btGeneric6DofConstraint>(board, frame, true);
@@ -732,13 +736,20 @@ TEST(Islands, SixDofAngularLimitStopsAFallingBoardAsBulletDoes) {
                 d6->setAngularLowerLimit(btVector3(0, 0, -0.1f));
                 d6->setAngularUpperLimit(btVector3(0, 0, 0.1f));
                 joint = std::move(d6);
-            } else {
+            } else if (kind == Frame::SixDofSpring2) {
                 auto d6 = std::make_unique<btGeneric6DofSpring2Constraint>(board, frame);
                 d6->setLinearLowerLimit(btVector3(0, 0, 0));
                 d6->setLinearUpperLimit(btVector3(0, 0, 0));
                 d6->setAngularLowerLimit(btVector3(0, 0, -0.1f));
                 d6->setAngularUpperLimit(btVector3(0, 0, 0.1f));
                 joint = std::move(d6);
+            } else {
+                auto s = std::make_unique<btSliderConstraint>(board, frame, true);
+                s->setLowerLinLimit(0);
+                s->setUpperLinLimit(0);
+                s->setLowerAngLimit(-0.1f);
+                s->setUpperAngLimit(0.1f);
+                joint = std::move(s);
             }
             phys.world->addConstraint(joint.get(), true);
             BulletWorld ropes(*phys.world);
@@ -750,14 +761,19 @@ TEST(Islands, SixDofAngularLimitStopsAFallingBoardAsBulletDoes) {
             ASSERT_TRUE(ropes.lastError().empty()) << ropes.lastError();
             EXPECT_EQ(ropes.core().lastBodyJoints().size(), with_rope ? 1u : 0u);
             const btQuaternion q = board.getOrientation();
-            turns[with_rope ? 1 : 0] = 2.0 * std::atan2(static_cast<double>(q.z()), static_cast<double>(q.w()));
-            EXPECT_LT(board.getAngularVelocity().length(), 1e-2f);
-            const btVector3 pivot = board.getWorldTransform() * btVector3(-0.5f, 0, 0);
-            EXPECT_LT(pivot.distance(btVector3(0, 1, 0)), 1e-3f);
+            turns[with_rope ? 1 : 0] = 2.0 * std::atan2(static_cast<double>(slider ? q.x() : q.z()), static_cast<double>(q.w()));
+            // At rest in the island; Bullet's slider limit bounces (its restitution, 1 -
+            // dampingLimAng, is 1 by default) where the island's stops are inelastic.
+            if (with_rope || !slider) EXPECT_LT(board.getAngularVelocity().length(), 1e-2f);
+            const btVector3 end = board.getWorldTransform() * pivot;
+            EXPECT_LT(end.distance(btVector3(0, 1, pivot.z())), 1e-3f);
             phys.world->removeConstraint(joint.get());
         }
-        EXPECT_NEAR(turns[0], -0.1, 5e-3) << "Bullet's own rest on the limit";
-        EXPECT_NEAR(turns[1], -0.1, 1e-3);
+        // Down: clockwise about +z for the board held at its end; about +x for the board
+        // hanging off the slider's line on the +z side.
+        const double down = slider ? 0.1 : -0.1;
+        EXPECT_NEAR(turns[0], down, 5e-3) << "Bullet's own rest on the limit";
+        EXPECT_NEAR(turns[1], down, 1e-3);
     }
 }
 
