@@ -38,5 +38,7 @@ frame twist-game         twist-game --png --size 640x360 --steps 555 --every 555
 frame telephone-cord     telephone-cord --png --size 640x360 --every 750
 frame torsion-nonuniform torsion-nonuniform --png --size 640x360 --every 300
 plot  twist-game-plot    twist-game --plot --plot-size 640x480
+frame elevator           elevator --png --size 640x360 --steps 170 --every 170
+frame elevator-dropped   elevator --png --size 640x360 --steps 250 --every 250
 xvfb-run -a -s '-screen 0 1600x1200x24' "$build/tearables-view" swing --size 1280x720 \
     --screenshot "$here/viewer-swing.png" --steps 150
