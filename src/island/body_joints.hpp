@@ -1,6 +1,7 @@
-// A joint between bodies as a member of an island (sim/island.hpp): a ball joint or a
-// hinge the host handed over (BodyJoint), solved in the same Newton system as the strings
-// that hold the bodies and the contacts between them, so that no solver undoes another.
+// A joint between bodies as a member of an island (sim/island.hpp): a ball joint, a hinge
+// or a frame joint (a slider, a 6-dof joint, a weld) the host handed over (BodyJoint),
+// solved in the same Newton system as the strings that hold the bodies and the contacts
+// between them, so that no solver undoes another.
 #pragma once
 
 #include "island/body_pair.hpp"
@@ -27,7 +28,7 @@ public:
 
 private:
     /// A frame joint's rows: its locked coordinates into the residuals, its limited ones
-    /// into limits_.
+    /// into limits_, its motors into motors_.
     void startFrame(const BodyJoint& joint, const RigidTable& rigids, double linear_weight, double angular_weight);
 
     /// The joint's residuals for the bodies' displacements d = (u, theta) from where the
