@@ -982,6 +982,51 @@ TEST(SceneRun, SliderMotorLiftsItsPlatformToItsLimit) {
     EXPECT_NEAR(heights.back(), 1.1, 1e-3);
 }
 
+// A scene's slider to another body bounds body's travel relative to that body, and a fixed
+// joint welds two bodies where they start: a platform on a slider along a static post's
+// axis, free to drop 0.2 m relative to it, drops 0.2 m (2 mm); two boards welded end to
+// end, each held by a rope at its outer end, stay one straight beam (their ends together
+// within 1 mm, their x axes within 1 mrad) while each rope carries half their weight (1%).
+TEST(SceneRun, SliderToABodyAndFixedJointHoldWhatTheySay) {
+    const Scene scene = parseScene(R"({"dt": 0.01, "steps": 200, "gravity": [0, -9.81, 0],
+      "bodies": [{"name": "post", "shape": {"box": [0.05, 1, 0.05]}, "mass": 0, "position": [-1, 1, 0]},
+                 {"name": "platform", "shape": {"box": [0.3, 0.025, 0.2]}, "mass": 3, "position": [-0.6, 1, 0]},
+                 {"name": "left", "shape": {"box": [0.5, 0.025, 0.15]}, "mass": 3, "position": [0.5, 1, 0]},
+                 {"name": "right", "shape": {"box": [0.5, 0.025, 0.15]}, "mass": 3, "position": [1.5, 1, 0]}],
+      "joints": [{"type": "slider", "body": "platform", "other": "post", "pivot": [-1, 1, 0], "axis": [0, 1, 0], "limits": [-0.2, 0]},
+                 {"type": "fixed", "body": "right", "other": "left", "pivot": [1, 1, 0]}],
+      "strings": [{"name": "tail", "from": [-0.4, 0.975, 0], "to": [-0.4, 0.775, 0], "segments": 8, "radius": 0.002, "density": 1150,
+                   "attachments": [{"particle": 0, "body": "platform", "local": [0.2, -0.025, 0]}]},
+                  {"name": "a", "from": [0.05, 2, 0], "to": [0.05, 1.025, 0], "segments": 40, "radius": 0.002, "density": 1150,
+                   "attachments": [{"particle": 0, "world": [0.05, 2, 0]}, {"particle": -1, "body": "left", "local": [-0.45, 0.025, 0]}]},
+                  {"name": "b", "from": [1.95, 2, 0], "to": [1.95, 1.025, 0], "segments": 40, "radius": 0.002, "density": 1150,
+                   "attachments": [{"particle": 0, "world": [1.95, 2, 0]}, {"particle": -1, "body": "right", "local": [0.45, 0.025, 0]}]}]})");
+    FrameState last;
+    std::vector<double> pulls;
+    RunOptions options;
+    options.every = 200;
+    options.on_frame = [&](const FrameState& f) {
+        last.bodies = f.bodies;
+        pulls.clear();
+        for (const FrameString& str : f.strings) {
+            if (str.name == "tail") continue;
+            const auto& x = *str.view.positions;
+            pulls.push_back(str.view.tension->back() * (x[x.size() - 2] - x.back()).normalized().y());
+        }
+    };
+    runScene(scene, options);
+    ASSERT_EQ(last.bodies.size(), 4u);
+    EXPECT_NEAR(last.bodies[1].position.y(), 0.8, 0.002);
+    EXPECT_NEAR(last.bodies[1].position.x(), -0.6, 1e-3);
+    const FrameBody& left = last.bodies[2];
+    const FrameBody& right = last.bodies[3];
+    EXPECT_LT(((left.position + left.orientation * Vec3(0.5, 0, 0)) - (right.position + right.orientation * Vec3(-0.5, 0, 0))).norm(), 1e-3);
+    EXPECT_LT((left.orientation * Vec3::UnitX()).cross(right.orientation * Vec3::UnitX()).norm(), 1e-3);
+    ASSERT_EQ(pulls.size(), 2u);
+    for (const double pull : pulls) EXPECT_NEAR(pull, 3.0 * 9.81, 0.01 * 3.0 * 9.81);
+}
+
+
 // The same on sheets (SCENE_FORMAT.md, drivers: "force" on a cloth or paper vertex):
 // free, without gravity, a sheet's springs and yarns act in pairs, so its momentum is the
 // force's impulse, F dt per driven step, along F (a corner pushed: the sheet also turns
