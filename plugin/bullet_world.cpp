@@ -34,11 +34,13 @@ namespace {
 
 /// Whether the island solve takes joint c from Bullet (BodyJoint): a ball joint
 /// (btPoint2PointConstraint); a hinge (btHingeConstraint, its limits as hard stops, its
-/// motor) not in angular-only mode; a slider (btSliderConstraint, its powered motors); a
+/// motor) not in angular-only mode; a cone-twist joint (btConeTwistConstraint, its cone and
+/// twist limits; no motor); a slider (btSliderConstraint, its powered motors); a
 /// 6-dof joint (btGeneric6DofConstraint and btUniversalConstraint; btGeneric6DofSpring2Constraint
 /// and btFixedConstraint) with velocity motors but no servos or springs; enabled (a breaking
 /// impulse is checked after the step, writeJointImpulses). Others (cone-twist, gear, the
-/// older spring 6-dof, hinge2's suspension spring, servos) leave their islands to Bullet.
+/// older spring 6-dof, hinge2's suspension spring, servos, a cone-twist joint's motor or
+/// fixed spans) leave their islands to Bullet.
 bool islandJoint(const btTypedConstraint& c) {
     if (!c.isEnabled()) return false;
     auto& joint = const_cast<btTypedConstraint&>(c);  // Bullet's getters are not const
@@ -50,6 +52,13 @@ bool islandJoint(const btTypedConstraint& c) {
     case SLIDER_CONSTRAINT_TYPE:
     case D6_CONSTRAINT_TYPE:
         return true;
+    case CONETWIST_CONSTRAINT_TYPE: {
+        // A cone and a twist limit (frameJoint): not angular-only, no motor, and spans
+        // Bullet solves as a cone (both swing spans at least its fix threshold).
+        auto& cone = static_cast<btConeTwistConstraint&>(joint);
+        return !cone.getAngularOnly() && !cone.isMotorEnabled() && cone.getSwingSpan1() >= cone.getFixThresh() &&
+               cone.getSwingSpan2() >= cone.getFixThresh() && cone.getTwistSpan() >= cone.getFixThresh();
+    }
     case D6_SPRING_2_CONSTRAINT_TYPE: {
         auto& d6 = static_cast<btGeneric6DofSpring2Constraint&>(joint);
         const btTranslationalLimitMotor2& linear = *d6.getTranslationalLimitMotor();
@@ -128,8 +137,8 @@ void readSixDofMotors(SixDof& d6, BodyJoint& j, const AngularDrive& angularDrive
     }
 }
 
-/// A frame joint (BodyJoint::Kind::Frame) from a slider or a 6-dof joint at the bodies'
-/// poses ta and tb (islandJoint's types): its frames, Bullet's coordinates and bounds (a
+/// A frame joint (BodyJoint::Kind::Frame) from a cone-twist joint, a slider or a 6-dof joint
+/// at the bodies' poses ta and tb (islandJoint's types): its frames, Bullet's coordinates and bounds (a
 /// coordinate Bullet leaves free, lower > upper, is free), and how its angles turn,
 /// measured by small turns of b's pose about each world axis (Bullet's angle conventions,
 /// Euler angles in a joint's rotation order, have no rates to read).
@@ -138,7 +147,36 @@ BodyJoint frameJoint(btTypedConstraint& c, const btTransform& ta, const btTransf
     j.kind = BodyJoint::Kind::Frame;
     std::function<Vec3(const btTransform&)> angles;  // of b's frame relative to a's, b at a pose
     btTransform fa, fb;
-    if (c.getConstraintType() == SLIDER_CONSTRAINT_TYPE) {
+    if (c.getConstraintType() == CONETWIST_CONSTRAINT_TYPE) {
+        // Bullet's cone-twist joint: b's frame relative to a's, q = q_a^-1 q_b, is a swing
+        // (the shortest turn taking a's x axis to b's) after a twist about x. The twist is
+        // limited to +-twistSpan; the swing, a rotation vector phi in a's (y, z) plane, to an
+        // ellipse (btConeTwistConstraint::computeConeLimitInfo): its angle at most
+        // 1 / sqrt(y^2 / span2^2 + z^2 / span1^2) along the unit direction (y, z), that is
+        // |(phi_y / span2, phi_z / span1)| <= 1, the coordinate given here.
+        auto& cone = static_cast<btConeTwistConstraint&>(c);
+        fa = ta * cone.getAFrame();
+        fb = tb * cone.getBFrame();
+        const double inf = std::numeric_limits<double>::infinity();
+        j.angular_lower = Vec3(-static_cast<double>(cone.getTwistSpan()), -inf, -inf);
+        j.angular_upper = Vec3(static_cast<double>(cone.getTwistSpan()), 1.0, inf);
+        if (cone.getTwistSpan() >= btScalar(kPi)) j.angular_lower.x() = -inf, j.angular_upper.x() = inf;
+        const double span1 = static_cast<double>(cone.getSwingSpan1()), span2 = static_cast<double>(cone.getSwingSpan2());
+        angles = [fa, &cone, span1, span2](const btTransform& b) {
+            const btQuaternion q = fa.getRotation().inverse() * (b * cone.getBFrame()).getRotation();  // in a's frame
+            const btVector3 x(1, 0, 0);
+            const btQuaternion swing = shortestArcQuat(x, quatRotate(q, x));
+            const btQuaternion twist = swing.inverse() * q;
+            const double twist_angle = 2.0 * std::atan2(static_cast<double>(twist.x()), static_cast<double>(twist.w()));
+            // The swing's rotation vector (its axis lies in a's (y, z) plane).
+            const double half = std::atan2(std::sqrt(static_cast<double>(swing.y() * swing.y() + swing.z() * swing.z())),
+                                           static_cast<double>(swing.w()));
+            const double norm = std::sqrt(static_cast<double>(swing.y() * swing.y() + swing.z() * swing.z()));
+            const double scale = norm > 0.0 ? 2.0 * half / norm : 2.0;
+            const double phi_y = scale * static_cast<double>(swing.y()), phi_z = scale * static_cast<double>(swing.z());
+            return Vec3(twist_angle, std::hypot(phi_y / span2, phi_z / span1), 0.0);
+        };
+    } else if (c.getConstraintType() == SLIDER_CONSTRAINT_TYPE) {
         auto& slider = static_cast<btSliderConstraint&>(c);
         fa = ta * slider.getFrameOffsetA();
         fb = tb * slider.getFrameOffsetB();
@@ -162,11 +200,10 @@ BodyJoint frameJoint(btTypedConstraint& c, const btTransform& ta, const btTransf
                 turn = btAdjustAngleToLimits(turn, slider.getLowerAngLimit(), slider.getUpperAngLimit());
             return Vec3(static_cast<double>(turn), static_cast<double>(misalign.dot(ay)), static_cast<double>(misalign.dot(az)));
         };
+    } else if (c.getConstraintType() == D6_CONSTRAINT_TYPE) {
+        angles = readSixDof(static_cast<btGeneric6DofConstraint&>(c), ta, tb, fa, fb, j);
     } else {
-        if (c.getConstraintType() == D6_CONSTRAINT_TYPE)
-            angles = readSixDof(static_cast<btGeneric6DofConstraint&>(c), ta, tb, fa, fb, j);
-        else
-            angles = readSixDof(static_cast<btGeneric6DofSpring2Constraint&>(c), ta, tb, fa, fb, j);
+        angles = readSixDof(static_cast<btGeneric6DofSpring2Constraint&>(c), ta, tb, fa, fb, j);
     }
     j.pivot_a = tearables::toCore(fa.getOrigin());
     j.pivot_b = tearables::toCore(fb.getOrigin());
@@ -208,7 +245,7 @@ BodyJoint frameJoint(btTypedConstraint& c, const btTransform& ta, const btTransf
             angularDrive(0, fa.getBasis().getColumn(0), slider.getTargetAngMotorVelocity(), slider.getMaxAngMotorForce());
     } else if (c.getConstraintType() == D6_CONSTRAINT_TYPE) {
         readSixDofMotors(static_cast<btGeneric6DofConstraint&>(c), j, angularDrive);
-    } else {
+    } else if (c.getConstraintType() == D6_SPRING_2_CONSTRAINT_TYPE) {
         readSixDofMotors(static_cast<btGeneric6DofSpring2Constraint&>(c), j, angularDrive);
     }
     return j;

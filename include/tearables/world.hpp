@@ -123,8 +123,8 @@ struct BodyContact {
 /// itself: the body or bodies then move in one system with the strings that hold them
 /// and the contacts they touch. A ball joint keeps the two pivots together; a hinge also
 /// keeps the two axes parallel, free to turn about them within its limits; a frame joint
-/// (a slider, a 6-dof joint, a weld) holds each of six coordinates of b's frame relative
-/// to a's, locked, limited or free.
+/// (a slider, a 6-dof joint, a weld, a cone-twist joint) holds each of six coordinates of
+/// b's frame relative to a's, locked, limited or free.
 struct BodyJoint {
     enum class Kind { Ball, Hinge, Frame };
     Kind kind = Kind::Ball;

@@ -909,6 +909,54 @@ TEST(Islands, AngularMotorsTurnABoardAsBulletDoes) {
 }
 
 namespace {
+/// A 3 kg board held at one end by a cone-twist joint to the world (btConeTwistConstraint,
+/// its twist axis, the frame's x, along the board, the frame turned by `roll` about it),
+/// swing spans 0.3 (about the frame's z) and 0.5 (about its y), twist span 0.2, anchored
+/// to a static body at the board's end (the joint's b), falling
+/// from level for 2 s, with a rope hanging from its free end (the island's) or none
+/// (Bullet's). Returns the board's turn about the world's z (it swings down about z).
+double coneTwistRest(double roll, bool with_rope) {
+    Physics phys;
+    btRigidBody& board = phys.box(btVector3(0.5f, 0.025f, 0.15f), 3.0, btVector3(0.5f, 1.0f, 0));
+    board.setActivationState(DISABLE_DEACTIVATION);
+    btRigidBody& anchor = phys.box(btVector3(0.01f, 0.01f, 0.01f), 0.0, btVector3(0, 1.0f, 0));
+    const btQuaternion rolled(btVector3(1, 0, 0), static_cast<btScalar>(roll));
+    btConeTwistConstraint joint(board, anchor, btTransform(rolled, btVector3(-0.5f, 0, 0)), btTransform(rolled));
+    joint.setLimit(0.3f, 0.5f, 0.2f);
+    phys.world->addConstraint(&joint, true);
+    BulletWorld ropes(*phys.world);
+    if (with_rope) {
+        const StringId id = ropes.addString(rope({0.95, 0.975, 0}, {0.95, 0.475, 0}, 20));
+        ropes.attach(id, 0, board, btVector3(0.45f, -0.025f, 0));
+    }
+    for (int i = 0; i < 200; ++i) phys.step(1);
+    EXPECT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+    EXPECT_EQ(ropes.core().lastBodyJoints().size(), with_rope ? 1u : 0u);
+    const btVector3 end = board.getWorldTransform() * btVector3(-0.5f, 0, 0);
+    EXPECT_LT(end.distance(btVector3(0, 1, 0)), 2e-3f) << "the board's end left the joint";
+    if (with_rope) EXPECT_LT(board.getAngularVelocity().length(), 1e-2f);
+    phys.world->removeConstraint(&joint);
+    const btVector3 along = board.getWorldTransform().getBasis().getColumn(0);
+    return std::atan2(static_cast<double>(along.y()), static_cast<double>(along.x()));
+}
+}  // namespace
+
+// A cone-twist joint's cone in the island, in Bullet's convention (an ellipse of the two
+// swing spans, each about its own axis of the frame): a board held at one end swings down
+// onto the cone and rests there as Bullet's own solver rests it. The swing is about the
+// world's z: with the frame as is, about the frame's z, so the cone stops it at span1 =
+// 0.3 rad; with the frame rolled a quarter turn about the board, about the frame's y, at
+// span2 = 0.5 rad (1 mrad).
+TEST(Islands, ConeTwistLimitHoldsABoardAsBulletDoes) {
+    for (const double roll : {0.0, kPi / 2}) {
+        SCOPED_TRACE(roll == 0.0 ? "frame as is" : "frame rolled a quarter turn");
+        const double limit = roll == 0.0 ? 0.3 : 0.5;
+        EXPECT_NEAR(coneTwistRest(roll, false), -limit, 0.005) << "Bullet's own rest on the cone";
+        EXPECT_NEAR(coneTwistRest(roll, true), -limit, 0.001);
+    }
+}
+
+namespace {
 /// What a ball joint did over a run of blockOnABallJoint.
 struct JointRun {
     double applied = 0.0;  ///< the joint's applied impulse, averaged over the run's second half, N s
