@@ -373,24 +373,15 @@ bool traceIsFinite(const fs::path& out, std::string* where) {
         }
         return true;
     };
-    std::ifstream trace(out / "trace.jsonl");
-    std::string line;
-    for (int frame = 0; std::getline(trace, line); ++frame)
-        if (!finite(json::parse(line), "frame " + std::to_string(frame))) return false;
+    const std::vector<json> frames = traceFrames(out);
+    for (std::size_t frame = 0; frame < frames.size(); ++frame)
+        if (!finite(frames[frame], "frame " + std::to_string(frame))) return false;
     return true;
 }
 
 std::vector<json> events(const fs::path& out) {
     std::vector<json> list;
     std::ifstream in(out / "events.jsonl");
-    std::string line;
-    while (std::getline(in, line)) list.push_back(json::parse(line));
-    return list;
-}
-
-std::vector<json> frames(const fs::path& out) {
-    std::vector<json> list;
-    std::ifstream in(out / "trace.jsonl");
     std::string line;
     while (std::getline(in, line)) list.push_back(json::parse(line));
     return list;
@@ -468,7 +459,7 @@ TEST(DemoScenes, TwistGameShotsTearTheStringByTorsion) {
     // The box turned about the string: at the last frame before the tear, the string's
     // twist is past the yield point; at the end the box lies on the floor.
     double twist_before = 0.0;
-    for (const json& f : frames(out)) {
+    for (const json& f : traceFrames(out)) {
         if (f["t"].get<double>() >= tear_time) break;
         const json& tw = f["strings"]["string"]["twist"];
         twist_before = std::abs(tw.back().get<double>() - tw.front().get<double>());
@@ -492,7 +483,7 @@ TEST(DemoScenes, TelephoneCordCoilsWhereTheUntwistedCordOnlyBends) {
         return d;
     };
     double taut_writhe = 0.0;  // at 3 s: twisted, not yet moved
-    for (const json& f : frames(out))
+    for (const json& f : traceFrames(out))
         if (std::abs(f["t"].get<double>() - 3.0) < 1e-9) taut_writhe = writhe(points(f, "cord"));
     const json last = lastFrame(out);
     const std::vector<Point> cord = points(last, "cord"), plain = points(last, "plain");
