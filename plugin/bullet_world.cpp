@@ -38,9 +38,9 @@ namespace {
 /// twist limits; no motor); a slider (btSliderConstraint, its powered motors); a
 /// 6-dof joint (btGeneric6DofConstraint and btUniversalConstraint; btGeneric6DofSpring2Constraint
 /// and btFixedConstraint) with velocity motors but no servos or springs; enabled (a breaking
-/// impulse is checked after the step, writeJointImpulses). Others (cone-twist, gear, the
-/// older spring 6-dof, hinge2's suspension spring, servos, a cone-twist joint's motor or
-/// fixed spans) leave their islands to Bullet.
+/// impulse is checked after the step, writeJointImpulses). Others (gear, the older spring
+/// 6-dof, hinge2's suspension spring, servos, a cone-twist joint's motor or fixed spans)
+/// leave their islands to Bullet.
 bool islandJoint(const btTypedConstraint& c) {
     if (!c.isEnabled()) return false;
     auto& joint = const_cast<btTypedConstraint&>(c);  // Bullet's getters are not const
@@ -168,11 +168,10 @@ BodyJoint frameJoint(btTypedConstraint& c, const btTransform& ta, const btTransf
             const btQuaternion swing = shortestArcQuat(x, quatRotate(q, x));
             const btQuaternion twist = swing.inverse() * q;
             const double twist_angle = 2.0 * std::atan2(static_cast<double>(twist.x()), static_cast<double>(twist.w()));
-            // The swing's rotation vector (its axis lies in a's (y, z) plane).
-            const double half = std::atan2(std::sqrt(static_cast<double>(swing.y() * swing.y() + swing.z() * swing.z())),
-                                           static_cast<double>(swing.w()));
+            // The swing's rotation vector (its axis lies in a's (y, z) plane): its angle,
+            // 2 atan2(|v|, w) of the quaternion (w, v), along v.
             const double norm = std::sqrt(static_cast<double>(swing.y() * swing.y() + swing.z() * swing.z()));
-            const double scale = norm > 0.0 ? 2.0 * half / norm : 2.0;
+            const double scale = norm > 0.0 ? 2.0 * std::atan2(norm, static_cast<double>(swing.w())) / norm : 2.0;
             const double phi_y = scale * static_cast<double>(swing.y()), phi_z = scale * static_cast<double>(swing.z());
             return Vec3(twist_angle, std::hypot(phi_y / span2, phi_z / span1), 0.0);
         };
@@ -511,8 +510,8 @@ public:
                 const auto& hinge = static_cast<const btHingeConstraint&>(*c);
                 const btTransform fa = sa.now * hinge.getAFrame(), fb = sb.now * hinge.getBFrame();
                 j.kind = BodyJoint::Kind::Hinge;
-                j.pivot_a = tearables::toCore(fa.getOrigin());
-                j.pivot_b = tearables::toCore(fb.getOrigin());
+                j.pivot_a = toCore(fa.getOrigin());
+                j.pivot_b = toCore(fb.getOrigin());
                 j.axis_a = toCore(fa.getBasis().getColumn(2));
                 j.axis_b = toCore(fb.getBasis().getColumn(2));
                 auto& limited = const_cast<btHingeConstraint&>(hinge);  // Bullet's getters are not const

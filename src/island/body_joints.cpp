@@ -72,8 +72,8 @@ void prepareBodyJoints(std::vector<BodyJoint>& joints, const RigidTable& rigids)
                 !j.angle_rates.allFinite())
                 return false;
             const double inf = std::numeric_limits<double>::infinity();
+            const auto bounded = [](double lower, double upper) { return lower <= upper && (lower < upper || std::isfinite(lower)); };
             for (int i = 0; i < 3; ++i) {
-                const auto bounded = [](double lower, double upper) { return lower <= upper && (lower < upper || std::isfinite(lower)); };
                 if (!bounded(j.linear_lower[i], j.linear_upper[i])) j.linear_lower[i] = -inf, j.linear_upper[i] = inf;
                 if (!bounded(j.angular_lower[i], j.angular_upper[i]) || !std::isfinite(j.angles[i]))
                     j.angular_lower[i] = -inf, j.angular_upper[i] = inf;
@@ -193,6 +193,7 @@ void BodyJointMember::startFrame(const BodyJoint& joint, const RigidTable& rigid
         const double lower = linear ? joint.linear_lower[i] : joint.angular_lower[i];
         const double upper = linear ? joint.linear_upper[i] : joint.angular_upper[i];
         const bool driven = joint.drive_force[row] > 0.0 && lower != upper;
+        const double weight = linear ? linear_weight : angular_weight;
         if (!std::isfinite(lower) && !std::isfinite(upper) && !driven) continue;  // free
         // The coordinate's gradient in the host's a and b (u, theta).
         Vec6 host_ga = Vec6::Zero(), host_gb = Vec6::Zero();
@@ -217,11 +218,10 @@ void BodyJointMember::startFrame(const BodyJoint& joint, const RigidTable& rigid
             motor.gb = b_moves_ ? gb : Vec6::Zero();
             motor.offset = (ga.dot(velocity(joint.a)) + gb.dot(velocity(joint.b)) - joint.drive_velocity[row]) * h_;
             motor.force = joint.drive_force[row];
-            motor.weight = kMotorStiffnessFactor * (linear ? linear_weight : angular_weight);
+            motor.weight = kMotorStiffnessFactor * weight;
         }
         if (!std::isfinite(lower) && !std::isfinite(upper)) continue;
         if (!b_moves_) gb.setZero();
-        const double weight = linear ? linear_weight : angular_weight;
         if (lower == upper) {
             r0_[locked] = (1.0 - kSeparationRecovery) * (value - lower);
             ja_.row(locked) = ga.transpose();

@@ -43,9 +43,6 @@ constexpr double kStringContactStiffness = 1.0;
 constexpr double kStringAxisContact = 1e-3;
 /// Another pass when a contact's closest points (fractions) or normal moved by more.
 constexpr double kStringRelinearise = 1e-3;
-/// Another pass when a contact's friction missed Coulomb's law, with the forces the pass
-/// ended with, by more than this fraction (coulombMiss).
-constexpr double kStringFrictionSettled = 1e-2;
 /// Times per Newton iteration that contacts the step would hit are added and the step
 /// solved again.
 constexpr int kStringPredictRounds = 4;
@@ -993,7 +990,7 @@ private:
         changed = sc_.was_shadowed != sc_.shadowed;
         for (StringPairContact& c : contacts_) c.active = !skipped(c) && gapAt(c, 0.0) < 0.0;
         // Friction's bounds follow the new forces: the passes end at a Coulomb solution.
-        if (weighFriction() > kStringFrictionSettled) changed = true;
+        if (weighFriction() > kFrictionSettled) changed = true;
         return changed || moved > kStringRelinearise;
     }
 

@@ -59,8 +59,6 @@ constexpr int kPredictRounds = 4;
 /// The relative rounding of a string's step energy (a sum over its particles and
 /// segments) that a line search of a string yielding in the solve does not count as a rise.
 constexpr double kEnergyRounding = 1e-12;
-/// Friction's passes end when no weight changed by more than this fraction.
-constexpr double kFrictionSettled = 1e-2;
 
 /// Moves a body by a position-level impulse P (kg m) applied at lever arm r.
 void applyBodyImpulse(RigidState& body, const Vec3& r, const Vec3& impulse) {

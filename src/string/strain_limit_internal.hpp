@@ -88,6 +88,9 @@ FrictionTerm addFrictionRows(StringState& s, const RigidSegmentContact& c, bool 
 /// both are 0. The measure that ends friction's passes (weighRigidFriction, the string-pair
 /// solve).
 double coulombMiss(double applied, double bound, double slip, double eps, double largest_bound);
+/// Friction's passes end once no contact's coulombMiss is over this fraction (a string's
+/// own solve, the string-pair solve).
+constexpr double kFrictionSettled = 1e-2;
 /// Friction's normal forces for the next pass: each contact's penalty force now. Returns
 /// how far the pass's friction missed Coulomb's law with these forces: the largest miss of
 /// a contact (a sliding one's |f - mu N|, a sticking one's excess over mu N) relative to
