@@ -61,7 +61,11 @@ Vec6 bodyMotion(const StringState& s, const RigidSegmentContact& c, const Vec6* 
 void linearisePlanes(StringState& s, const RigidTable& rigids) {
     for (RigidSegmentContact& c : s.contacts) {
         c.plane_point = contactPoint(c, rigids);
-        c.plane_normal = contactNormal(c, rigids);
+        // Unit to rounding: a host's orientation in single precision turns the local
+        // normal into one 5e-8 off unit length, and I - n n^T is then no projector, so a
+        // sticking friction's stiff spring (2 mu N / eps) gives the string a normal force
+        // the body's tangent rows do not return (a momentum leak of ~1 N).
+        c.plane_normal = contactNormal(c, rigids).normalized();
         c.plane_turn.setZero();
         c.plane_arm.setZero();
         c.start_point = c.plane_point;
