@@ -694,6 +694,33 @@ void straightChainShapeMatchingGoals(const Vec3* x, const Vec3* rest, const doub
 
 namespace tearables::detail {
 
+namespace {
+
+/// The shift of the free particles of piece [first, last] that gives back the momentum
+/// the colliding particles' weight (csm_mass above their mass) takes from the goals:
+/// alpha sum (m~ - m)(g - x) / sum m over the free particles (zero without a colliding one).
+/// Only for a piece whose momentum is its own and its movable bodies' (free and glued to
+/// movable bodies): a pin or a static body takes what the goals leave, as in the paper.
+Vec3 collidingMomentum(const StringState& s, std::size_t first, std::size_t last, double alpha) {
+    Vec3 lost = Vec3::Zero();
+    double free_mass = 0.0;
+    bool any = false;
+    for (std::size_t q = first; q <= last; ++q) {
+        // glue_movable is the last strain limit's (empty before a string's first).
+        const bool movable = q < s.glue_movable.size() && s.glue_movable[q];
+        if (s.hold[q].kind == ParticleHold::Kind::Pin || (s.hold[q].kind == ParticleHold::Kind::Glue && !movable))
+            return Vec3::Zero();
+        if (s.hold[q].kind != ParticleHold::Kind::Free) continue;
+        free_mass += s.mass[q];
+        if (!s.colliding[q]) continue;
+        lost += (s.csm_mass[q] - s.mass[q]) * (s.scratch.csm_goal[q] - s.x[q]);
+        any = true;
+    }
+    return any && free_mass > 0.0 ? Vec3(alpha * lost / free_mass) : Vec3::Zero();
+}
+
+}  // namespace
+
 void updateRestShape(StringState& s) {
     // The rest shape has the lengths the material currently allows, L_max = L_rest
     // (1 + sigma/E), along the directions the string was created with: shape matching,
@@ -761,11 +788,17 @@ void shapeMatch(StringState& s, ThreadPool* pool) {
             // the piece's momentum (sum m~ g = sum m~ x), so what the free particles gain
             // a held one gives: a glued particle's share, m~ alpha (g - x) (kg m), is its
             // body's to take (prepareStrainLimit), not lost to the clamp.
+            // A colliding particle weighs 3 m in the goals but moves with its mass m, so
+            // the goals' balance leaves the free particles a momentum of
+            // -alpha sum (m~ - m)(g - x) over the colliding ones; it is given back as one
+            // shift of every free particle of the piece, `restore` (a velocity change of
+            // the piece as a whole: its shape's correction stays the goals').
+            const Vec3 restore = collidingMomentum(s, first, p, alpha);
             forRanges(pool, p - first + 1, kParallelItems, [&](std::size_t k0, std::size_t k1, std::size_t) {
                 for (std::size_t q = first + k0; q < first + k1; ++q) {
                     const Vec3 toward = alpha * (s.scratch.csm_goal[q] - s.x[q]);
                     switch (s.hold[q].kind) {
-                        case ParticleHold::Kind::Free: s.scratch.csm_goal[q] = toward; break;
+                        case ParticleHold::Kind::Free: s.scratch.csm_goal[q] = toward + restore; break;
                         case ParticleHold::Kind::Glue: s.scratch.csm_goal[q] = s.csm_mass[q] * toward; break;
                         case ParticleHold::Kind::Pin: s.scratch.csm_goal[q] = Vec3::Zero(); break;
                     }
