@@ -48,7 +48,7 @@
 namespace tearables {
 
 /// The version this build writes and the only one it reads.
-constexpr std::uint32_t kSnapshotVersion = 14;
+constexpr std::uint32_t kSnapshotVersion = 15;
 
 /// A snapshot was refused: field() is "snapshot" or "snapshot.<section>", problem() says
 /// what is wrong (wrong magic, version, checksum, truncated, inconsistent section).

@@ -43,6 +43,15 @@ struct WorldSettings {
     /// shape in one pass over its particles; a curved one is searched (BENCHMARKS.md).
     /// Turn off for ropes that never meet.
     bool string_collisions = true;
+    /// Strings that touch each other where one of them holds or touches a movable body are
+    /// solved with that body's island, the bodies moving with the strings' contacts
+    /// (momentum then passes between strings and bodies exactly; with it off the bodies are
+    /// held still in the strings' joint solve, which leaks up to a few percent of a body's
+    /// momentum where it presses a rope onto another). The island is solved a second time
+    /// where such contacts exist, and a second solve that does not converge is undone (the
+    /// held solve is taken for that step): the `bridge` scene steps 3x slower with it on
+    /// (docs/island-plan.md). Off by default until those solves converge.
+    bool island_string_contacts = false;
     /// Threads that step independent strings in parallel, 0..64: 1 steps on the calling
     /// thread only, 0 uses every core the machine reports. Where a stage has one string
     /// to step and it has 4096 particles or more (one long rope), the string's own work is

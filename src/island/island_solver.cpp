@@ -66,6 +66,33 @@ constexpr double kSlowestRate = 0.99;
 void IslandSolver::setBodyContacts(const std::vector<BodyContact>& contacts, const RigidTable& rigids) {
     body_contacts_.assign(contacts.begin(), contacts.end());
     prepareBodyContacts(body_contacts_, rigids);
+    last_forces_.resize(body_contacts_.size());
+    for (std::size_t k = 0; k < body_contacts_.size(); ++k) last_forces_[k] = body_contacts_[k].force;
+}
+
+/// A contact's force is the last step's on the way in (its friction's first weight) and
+/// the solve's on the way out.
+void IslandSolver::restart() {
+    for (std::size_t k = 0; k < body_contacts_.size(); ++k) body_contacts_[k].force = last_forces_[k];
+    resume_ = true;
+}
+
+void IslandSolver::keepOutcome() {
+    kept_.contacts = body_contacts_;
+    kept_.joints = body_joints_;
+    kept_.reports = reports_;
+    kept_.displacement = last_displacement_;
+}
+
+void IslandSolver::restoreOutcome() {
+    body_contacts_ = kept_.contacts;
+    body_joints_ = kept_.joints;
+    reports_ = kept_.reports;
+    last_displacement_ = kept_.displacement;
+}
+
+bool IslandSolver::converged() const {
+    return std::all_of(reports_.begin(), reports_.end(), [](const IslandSummary& r) { return r.residual < 1.0; });
 }
 
 void IslandSolver::setBodyJoints(const std::vector<BodyJoint>& joints, const RigidTable& rigids) {
@@ -94,6 +121,7 @@ void IslandSolver::solve(const std::vector<IslandMember*>& members, RigidTable& 
     inv_h2_ = ctx.inv_h * ctx.inv_h;
     pool_ = ctx.pool;
     for (std::size_t i = 0; i < used_; ++i) reports_.push_back(solveIsland(islands_[i], rigids, ctx));
+    resume_ = false;
 }
 
 void IslandSolver::group(const std::vector<IslandMember*>& members, const RigidTable& rigids) {
@@ -252,6 +280,21 @@ bool IslandSolver::warmStart(Island& island, RigidTable& rigids, const StepConte
     const std::size_t bodies = island.bodies.size();
     du_.setZero(static_cast<Eigen::Index>(6 * bodies));
     pass_start_ = displacement_;
+    if (resume_) {
+        // Solved again: each body where the last solve left it, the members' own unknowns
+        // where they are (the first solve's), whatever the energy says (a start, not a step).
+        for (std::size_t b = 0; b < bodies; ++b) {
+            const std::size_t index = island.bodies[b].index;
+            if (index < last_displacement_.size()) du_.segment<6>(static_cast<Eigen::Index>(6 * b)) = last_displacement_[index];
+        }
+        for (std::size_t k = 0; k < island.members.size(); ++k) {
+            island.members[k]->beginPass();
+            island.members[k]->holdStep(island.slots[k], du_);
+        }
+        moveBodies(island, rigids, ctx, 1.0);
+        forMembers(island, [&](std::size_t k) { island.members[k]->apply(1.0, island.slots[k], displacement_); });
+        return true;
+    }
     if (ctx.cold_strain_starts) return false;
     for (const IslandMember* m : island.members)
         if (m->touchesBodies()) return false;
@@ -279,7 +322,7 @@ bool IslandSolver::warmStart(Island& island, RigidTable& rigids, const StepConte
 
 IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, const StepContext& ctx) {
     IslandSummary report;
-    for (const IslandMember* m : island.members) report.strings += m->isBodyContacts() ? 0 : 1;
+    for (const IslandMember* m : island.members) report.strings += m->stringCount();
     report.bodies = island.bodies.size();
     mass_.resize(island.bodies.size());
     for (std::size_t b = 0; b < island.bodies.size(); ++b) mass_[b] = bodyMass(rigids.bodies[island.bodies[b].index]);
@@ -366,6 +409,9 @@ IslandSummary IslandSolver::solveIsland(Island& island, RigidTable& rigids, cons
         if (converged && change < kFrictionSettled) break;
     }
     for (IslandMember* m : island.members) m->finish(report.iterations);
+    if (last_displacement_.size() < rigids.bodies.size()) last_displacement_.resize(rigids.bodies.size(), Vec6::Zero());
+    for (std::size_t b = 0; b < island.bodies.size(); ++b)
+        last_displacement_[island.bodies[b].index] = displacement_.segment<6>(static_cast<Eigen::Index>(6 * b));
     return report;
 }
 

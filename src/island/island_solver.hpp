@@ -21,6 +21,10 @@ class IslandSolver final : public IslandSolve {
 public:
     void solve(const std::vector<IslandMember*>& members, RigidTable& rigids, const StepContext& ctx) override;
     bool hasOwnMembers() const override { return !body_contacts_.empty() || !body_joints_.empty(); }
+    void restart() override;
+    void keepOutcome() override;
+    void restoreOutcome() override;
+    bool converged() const override;
     /// The host's contacts between bodies for this step (ContactProvider::findBodyContacts):
     /// those the solve can keep (prepareBodyContacts) join the islands of their bodies.
     void setBodyContacts(const std::vector<BodyContact>& contacts, const RigidTable& rigids);
@@ -61,6 +65,17 @@ private:
     bool warmStart(Island& island, RigidTable& rigids, const StepContext& ctx);
 
     std::vector<BodyContact> body_contacts_;      ///< grouped by pair (prepareBodyContacts)
+    std::vector<double> last_forces_;             ///< their forces as the step gave them (restart)
+    std::vector<Vec6> last_displacement_;         ///< per body of the table: the last solve's displacement
+    bool resume_ = false;                         ///< the next solve starts where the last ended (restart)
+    /// keepOutcome's copies.
+    struct Outcome {
+        std::vector<BodyContact> contacts;
+        std::vector<BodyJoint> joints;
+        std::vector<IslandSummary> reports;
+        std::vector<Vec6> displacement;
+    };
+    Outcome kept_;
     std::vector<BodyContactMember> body_members_;  ///< one per pair; kept from step to step
     std::vector<BodyJoint> body_joints_;           ///< prepareBodyJoints
     std::vector<BodyJointMember> joint_members_;   ///< one per joint; kept from step to step

@@ -9,6 +9,7 @@
 // each member takes its own step back (back substitution); a line search on E.
 #pragma once
 
+#include "sim/body_motion.hpp"
 #include "sim/rigid_table.hpp"
 #include "sim/step_context.hpp"
 
@@ -36,6 +37,9 @@ public:
     /// The warm start's step: the bodies' `du`, the member's own its last step's
     /// correction. The island takes it where it lowers the energy.
     virtual void warmStep(const std::vector<int>& slot, const Eigen::VectorXd& du) = 0;
+    /// A step of the bodies alone, `du`, the member's own unknowns held: an island solved
+    /// again starts from where the first solve left its bodies (IslandSolve::restart).
+    virtual void holdStep(const std::vector<int>& slot, const Eigen::VectorXd& du) { backSubstitute(slot, du); }
     /// Start of a pass: contacts linearised where the bodies are now.
     virtual void beginPass() = 0;
     /// The Newton system at the current state, condensed onto the member's bodies (its
@@ -80,6 +84,8 @@ public:
     virtual void finish(int iterations) = 0;
     /// Whether the member is contacts between bodies rather than a string (reports count strings).
     virtual bool isBodyContacts() const { return false; }
+    /// The strings the member solves (reports count them).
+    virtual std::size_t stringCount() const { return isBodyContacts() ? 0 : 1; }
 };
 
 /// Groups members into islands (members sharing a body) and solves each.
@@ -90,6 +96,17 @@ public:
     /// Whether the step has members of the solve's own (contacts between bodies): it is
     /// then called even where no string holds or touches a movable body.
     virtual bool hasOwnMembers() const = 0;
+    /// Before the step's islands are solved again (the bodies back where the first solve
+    /// found them): its own members' inputs as the step gave them, and the next solve
+    /// starts each body where the first solve left it (IslandMember::holdStep).
+    virtual void restart() = 0;
+    /// Keeps the last solve's outcome (what it wrote to its own members' contacts and
+    /// joints, its reports, its bodies' displacements), and puts it back: a solve again
+    /// that does not converge is undone.
+    virtual void keepOutcome() = 0;
+    virtual void restoreOutcome() = 0;
+    /// Whether every island of the last solve converged.
+    virtual bool converged() const = 0;
 };
 
 }  // namespace tearables::detail

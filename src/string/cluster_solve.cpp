@@ -14,6 +14,8 @@
 // are fixed within a pass (a convex problem) and measured again between passes. Movable
 // bodies are held where the strings' own solves left them (no body unknowns here).
 #include "collision/capsule.hpp"
+#include "string/cluster_member.hpp"
+#include "string/string_island.hpp"
 #include "string/strain_limit_internal.hpp"
 
 #include <Eigen/Cholesky>
@@ -165,10 +167,13 @@ struct ChainSolver {
 namespace cluster {
 
 /// One entry of a contact direction's gradient u: coefficient of a particle's motion.
+/// `held`: a particle glued to a body of an island, which moves with the body (in an
+/// island's cluster only: elsewhere a held particle has no entry).
 struct UEntry {
     std::uint32_t string;
     std::size_t particle;
     Vec3 coef;
+    bool held = false;
 };
 
 /// A rank-1 term of the joint Hessian (a contact's normal, or a friction tangent).
@@ -347,13 +352,77 @@ public:
         finish();
     }
 
+    // --- as a member of an island (ClusterIslandMember) -----------------------------------
+    // The strings' systems are their island members' (the bodies' unknowns condensed out of
+    // them) and the step is the island's; this solver gives the contacts' terms, directions
+    // and columns of Z, their energy, predicted set and passes.
+
+    /// The contacts' geometry and weights where the strings are (no choice of start: the
+    /// island's strings are where it left them); false where no pair touches.
+    bool startInIsland() {
+        island_ = true;
+        return setup(false);
+    }
+    void beginIslandPass() { beginPass(); }
+    /// After the members assembled the strings' systems: the contacts' gradients, and the
+    /// held contacts' gaps (their model's k_c (g + u^T dx)^2 / 2: gradient k_c g u), into
+    /// blk_rhs. The columns of Z are then to be solved again (islandColumns).
+    void addIslandTerms(bool fresh) {
+        held_rhs_.resize(count_);
+        for (std::size_t i = 0; i < count_; ++i) held_rhs_[i].assign(strings_[i]->particles(), Vec3::Zero());
+        addContactTerms(fresh);
+        for (const Direction& d : sc_.dirs)
+            if (!d.off && d.gap != 0.0)
+                for (int e = 0; e < d.entries; ++e) addRhs(d.u[e], -d.weight * d.gap * d.u[e].coef);
+        sc_.pool.clear();
+        solved_ = 0;
+    }
+    /// The contacts' gradient at the glued particles of string i (addIslandTerms).
+    const std::vector<Vec3>& heldRhs(std::size_t i) const { return held_rhs_[i]; }
+    /// Z = A^-1 U for every direction, through the chains' factorisations (the members').
+    void islandColumns() { columns(); }
+    const std::vector<Direction>& directions() const { return sc_.dirs; }
+    Vec3 column(const Direction& d, std::uint32_t string, std::size_t p) const { return zAt(d, string, p); }
+    void subtractIslandColumn(const Direction& d, double f) { subtractColumn(d, f); }
+    StringState& string(std::size_t i) const { return *strings_[i]; }
+    /// The island's step is in blk_rhs: the contacts it can reach.
+    void islandStepKnown() { findCandidates(stepReach()); }
+    bool predictIslandContacts() { return predictContacts(); }
+    double contactEnergy(double alpha) const {
+        double e = 0.0;
+        for (std::size_t ci : sc_.candidates) addContactEnergy(ci, alpha, e);
+        return e;
+    }
+    /// Before the strings take alpha of the step: the travel that bounds the contacts' gaps.
+    void islandMoves(double alpha) {
+        double worst = 0.0;
+        for (const StringState* sp : strings_)
+            for (std::size_t p = 0; p < sp->particles(); ++p) {
+                const Vec3 dx = alpha * stepOf(*sp, p);
+                if (dx.allFinite()) worst = std::max(worst, dx.norm());
+            }
+        travel_ += 2.0 * worst;
+    }
+    bool endIslandPass() { return endPass(); }
+    /// After the members finished their strings (finishChain).
+    void finishInIsland() { pressRows(); }
+
 private:
     // --- the contacts' geometry ---------------------------------------------------------
 
-    /// Positions along the current Newton step (held in blk_rhs), alpha of the way.
+    /// Positions along the current Newton step (held in blk_rhs; a glued particle's, in an
+    /// island, in held_step), alpha of the way.
     static Vec3 at(const StringState& s, std::size_t p, double alpha) {
-        return freeParticle(s, p) ? Vec3(s.x[p] + alpha * s.scratch.blk_rhs[p]) : s.x[p];
+        if (freeParticle(s, p)) return s.x[p] + alpha * s.scratch.blk_rhs[p];
+        return s.scratch.held_step.empty() ? s.x[p] : Vec3(s.x[p] + alpha * s.scratch.held_step[p]);
     }
+    /// The whole step's move of particle p (at(s, p, 1) - x).
+    static Vec3 stepOf(const StringState& s, std::size_t p) {
+        if (freeParticle(s, p)) return s.scratch.blk_rhs[p];
+        return s.scratch.held_step.empty() ? Vec3::Zero() : s.scratch.held_step[p];
+    }
+    /// A particle that moves with a body of the island (an entry of its own, `held`).
+    bool moves(const StringState& s, std::size_t p) const { return island_ && s.glue_movable[p]; }
     static Vec3 sidePoint(const StringState& s, std::size_t j, double f, double alpha) {
         return Vec3((1.0 - f) * at(s, j, alpha) + f * at(s, j + 1, alpha));
     }
@@ -379,11 +448,27 @@ private:
         int k = 0;
         const StringState& a = *strings_[c.string];
         const StringState& b = *strings_[c.partner];
-        if (freeParticle(a, c.segment)) out[k++] = {c.string, c.segment, (1.0 - c.s) * e};
-        if (freeParticle(a, c.segment + 1)) out[k++] = {c.string, c.segment + 1, c.s * e};
-        if (freeParticle(b, c.partner_segment)) out[k++] = {c.partner, c.partner_segment, -(1.0 - c.partner_s) * e};
-        if (freeParticle(b, c.partner_segment + 1)) out[k++] = {c.partner, c.partner_segment + 1, -c.partner_s * e};
+        auto add = [&](std::uint32_t string, const StringState& s, std::size_t p, const Vec3& coef) {
+            if (freeParticle(s, p)) {
+                out[k++] = {string, p, coef, false};
+            } else if (moves(s, p)) {
+                out[k++] = {string, p, coef, true};
+            }
+        };
+        add(c.string, a, c.segment, (1.0 - c.s) * e);
+        add(c.string, a, c.segment + 1, c.s * e);
+        add(c.partner, b, c.partner_segment, -(1.0 - c.partner_s) * e);
+        add(c.partner, b, c.partner_segment + 1, -c.partner_s * e);
         return k;
+    }
+    /// Adds v to the right-hand side at entry e's particle (a held one's: held_rhs, which
+    /// the island's member gives the particle's body).
+    void addRhs(const UEntry& e, const Vec3& v) {
+        if (e.held) {
+            held_rhs_[e.string][e.particle] += v;
+        } else {
+            strings_[e.string]->scratch.blk_rhs[e.particle] += v;
+        }
     }
 
     /// Closest points and normal at the given positions: the predicted ones in the first
@@ -559,8 +644,7 @@ private:
         double largest = 0.0;
         for (const StringState* sp : strings_)
             for (std::size_t p = 0; p < sp->particles(); ++p) {
-                if (!freeParticle(*sp, p)) continue;
-                const double d = sp->scratch.blk_rhs[p].squaredNorm();
+                const double d = stepOf(*sp, p).squaredNorm();
                 largest = std::isfinite(d) ? std::max(largest, d) : std::numeric_limits<double>::infinity();
             }
         return 2.0 * std::sqrt(largest);
@@ -576,7 +660,7 @@ private:
     /// Planes, tolerance, penalties, the contacts' first closest points and normals, and
     /// friction weights. False where the strings' own solves already keep every pair apart
     /// (and no pair pressed at the end of the last step): that state is the joint optimum.
-    bool setup() {
+    bool setup(bool choose_start = true) {
         // The rigid contacts' planes where the bodies are now (other strings' solves may
         // have moved them since this string's own); the bodies stay there in this solve.
         for (StringState* s : strings_) linearisePlanes(*s, rigids_);
@@ -609,7 +693,7 @@ private:
         for (std::size_t i = 0; i < contacts_.size(); ++i)
             touching = touching || contacts_[i].active || sc_.friction_bound[i] > 0.0;
         if (!touching) return false;
-        chooseStart();
+        if (choose_start) chooseStart();
 
         if (sc_.solvers.size() < count_) {
             sc_.solvers.resize(count_);
@@ -681,7 +765,7 @@ private:
 
     /// Each string's own system (glued particles held: no body unknowns here), then the
     /// contacts' gradients into the strings' right-hand sides and their Hessians' rank-1
-    /// directions into `dirs`.
+    /// directions into `dirs` (addContactTerms).
     void assemble() {
         for (StringState* sp : strings_) {
             StringState& s = *sp;
@@ -696,25 +780,35 @@ private:
             }
             for (auto& step : s.scratch.node_step) step.setZero();
         }
+        addContactTerms(true);
+    }
+
+    /// The contacts' gradients into the strings' right-hand sides; with `fresh`, their
+    /// active set (the contacts that penetrate now) and their Hessians' rank-1 directions
+    /// into `dirs` (else the set and directions of the last fresh call, the state unmoved
+    /// since: an island's member assembles its strings again within one iteration).
+    void addContactTerms(bool fresh) {
         std::vector<Direction>& dirs = sc_.dirs;
-        dirs.clear();
+        if (fresh) dirs.clear();
         for (std::size_t ci : sc_.live) {
             StringPairContact& c = contacts_[ci];
             // The penalty k_c/2 min(0, g)^2 is one-sided: it never pulls, so a normal that
-            // turned at a corner cannot drag the strings together.
-            const double g = clear(ci, 0.0) ? 1.0 : seeGap(ci);
-            sc_.predicted[ci] = 0;
-            c.active = g < 0.0;
-            if (c.active) {
+            // turned at a corner cannot drag the strings together. (A contact held since
+            // the fresh call, predictContacts, has its term in its direction, with its gap.)
+            const double g = !fresh ? (c.active && !sc_.predicted[ci] ? gapAt(c, 0.0) : 1.0) : clear(ci, 0.0) ? 1.0 : seeGap(ci);
+            if (fresh) {
+                sc_.predicted[ci] = 0;
+                c.active = g < 0.0;
+            }
+            if (g < 0.0) {
                 // Normal: gradient k g u, Hessian k u u^T.
                 UEntry u[4];
                 const int k = entries(c, c.normal, u);
-                for (int i = 0; i < k; ++i)
-                    strings_[u[i].string]->scratch.blk_rhs[u[i].particle] -= c.stiffness * g * u[i].coef;
+                for (int i = 0; i < k; ++i) addRhs(u[i], -c.stiffness * g * u[i].coef);
                 Direction dn;
                 dn.entries = entries(c, c.normal, dn.u);
                 dn.weight = c.stiffness;
-                if (dn.entries > 0) dirs.push_back(dn);
+                if (fresh && dn.entries > 0) dirs.push_back(dn);
             }
             const double bound = sc_.friction_bound[ci];
             if (!(bound > 0.0)) continue;
@@ -730,12 +824,17 @@ private:
             const int kg = entries(c, Vec3::Ones(), ug);
             for (int i = 0; i < kg; ++i) {
                 const double f = ug[i].coef.x();  // the fraction (with its sign)
-                strings_[ug[i].string]->scratch.blk_rhs[ug[i].particle] -= f * grad;
+                addRhs(ug[i], -f * grad);
             }
             const Vec3 along = y > 0.0 ? Vec3(slip / y) : c.normal.unitOrthogonal();
             const Vec3 tangents[2] = {along, c.normal.cross(along)};
-            const double weights[2] = {bound * (y > 0.0 ? m.df1 : m.f1_over_y), bound * m.f1_over_y};
-            for (int t = 0; t < 2; ++t) {
+            // In an island the majoriser (f1(y) / y along the slip as well): with the exact
+            // f1' = 0 of a slide, full steps of a system coupled through movable bodies
+            // leave the stick range and cycle, as a rope's friction on a movable body does
+            // (rigidFrictionTerm); the majoriser's steps do not overshoot.
+            const double along_weight = y > 0.0 && !island_ ? m.df1 : m.f1_over_y;
+            const double weights[2] = {bound * along_weight, bound * m.f1_over_y};
+            for (int t = 0; t < 2 && fresh; ++t) {
                 if (!(weights[t] > 0.0)) continue;  // sliding: no stiffness along the slip
                 Direction dt;
                 dt.entries = entries(c, tangents[t], dt.u);
@@ -770,6 +869,7 @@ private:
             Direction& d = sc_.dirs[solved_];
             d.strings = 0;
             for (int e = 0; e < d.entries; ++e) {
+                if (d.u[e].held) continue;  // a body's unknowns: not in the chain's system
                 bool known = false;
                 for (int i = 0; i < d.strings; ++i) known = known || d.string[i] == d.u[e].string;
                 if (!known) d.string[d.strings++] = d.u[e].string;
@@ -779,11 +879,16 @@ private:
                 scratch.assign(s.particles(), Vec3::Zero());
                 std::size_t first = s.particles();
                 for (int e = 0; e < d.entries; ++e)
-                    if (d.u[e].string == d.string[i]) {
+                    if (d.u[e].string == d.string[i] && !d.u[e].held) {
                         scratch[d.u[e].particle] += d.u[e].coef;
                         first = std::min(first, d.u[e].particle);
                     }
-                sc_.solvers[d.string[i]].solve(s, scratch, first);
+                if (island_) {
+                    solveFactored(s.particles(), s.scratch.blk_off.data(), s.scratch.blk_factor.data(),
+                                  s.scratch.blk_factor_gain.data(), s.scratch.blk_coupled.data(), scratch.data(), first);
+                } else {
+                    sc_.solvers[d.string[i]].solve(s, scratch, first);
+                }
                 for (std::size_t p = 0; p < s.particles(); ++p)
                     if (!freeParticle(s, p) || !scratch[p].allFinite()) scratch[p].setZero();
                 d.column[i] = sc_.pool.size();
@@ -1001,6 +1106,9 @@ private:
             sp->scratch.predicted_taut.clear();
             finishChain(*sp, rigids_, ctx_);
         }
+        pressRows();
+    }
+    void pressRows() {
         for (const StringPairContact& c : contacts_) {
             if (skipped(c) || gapAt(c, 0.0) > kContactSlop * c.gap) continue;
             Vec3 dirs_c[2] = {c.normal, Vec3::Zero()};
@@ -1011,6 +1119,7 @@ private:
             UEntry u[4];
             const int k = entries(c, Vec3::Ones(), u);
             for (int i = 0; i < k; ++i) {
+                if (u[i].held) continue;
                 StringState& s = *strings_[u[i].string];
                 for (const Vec3& dir : dirs_c) {
                     const Vec3 left = s.scratch.row_projector[u[i].particle] * dir;  // what is left of it
@@ -1035,6 +1144,8 @@ private:
     std::size_t solved_ = 0;              ///< directions whose columns of Z are in `pool`
     std::size_t cluster_particles_ = 0;
     bool plain_next_ = false;             ///< the next Newton step holds no contact it runs into
+    bool island_ = false;                 ///< a member of an island (the chains are the members')
+    std::vector<std::vector<Vec3>> held_rhs_;  ///< per string and particle: the contacts' gradient at glued particles
 };
 
 }  // namespace
@@ -1042,6 +1153,238 @@ private:
 void solveStringCluster(const std::vector<StringState*>& strings, std::vector<StringPairContact>& contacts,
                         RigidTable& rigids, const StepContext& ctx, ClusterScratch& work) {
     ClusterSolver(strings, contacts, rigids, ctx, work).solve();
+}
+
+// --- ClusterIslandMember (cluster_member.hpp) ------------------------------------------------
+
+struct ClusterIslandMember::Impl {
+    Impl(const std::vector<StringState*>& strings, std::vector<StringPairContact>& contacts, RigidTable& rigids,
+         const StepContext& ctx, ClusterScratch& work)
+        : solver(strings, contacts, rigids, ctx, work) {}
+
+    /// Member k's body slots in the island, from the island's slots of this member's bodies.
+    const std::vector<int>& slotsOf(std::size_t k, const std::vector<int>& slot) const {
+        std::vector<int>& out = member_slot[k];
+        out.resize(node_of[k].size());
+        for (std::size_t j = 0; j < out.size(); ++j) out[j] = slot[static_cast<std::size_t>(node_of[k][j])];
+        return out;
+    }
+    /// U_x^T y for a direction: its particles' entries against the strings' blk_rhs.
+    double alongBlkRhs(const Direction& d) const {
+        double v = 0.0;
+        for (int e = 0; e < d.entries; ++e)
+            if (!d.u[e].held) v += d.u[e].coef.dot(solver.string(d.u[e].string).scratch.blk_rhs[d.u[e].particle]);
+        return v;
+    }
+    /// U_x^T dx + U_b^T du for a direction: every entry against its particle's move, a
+    /// glued one's in its body's step (held_step).
+    double alongStep(const Direction& d) const {
+        double v = 0.0;
+        for (int e = 0; e < d.entries; ++e) {
+            const StringState& s = solver.string(d.u[e].string);
+            v += d.u[e].coef.dot(d.u[e].held ? s.scratch.held_step[d.u[e].particle] : s.scratch.blk_rhs[d.u[e].particle]);
+        }
+        return v;
+    }
+    /// Adds J^T v at glued particle p of member k to the 6-vector of its body in `out`
+    /// (rows from `row`), J its motion in its body's unknowns.
+    template <class Out>
+    void addToBody(std::size_t k, std::size_t p, const Vec3& v, Out&& out) const {
+        const int node = members[k].gluedNode(p);
+        if (node < 0) return;
+        out.template segment<6>(6 * node_of[k][static_cast<std::size_t>(node)]) += members[k].glueJacobianAt(p).transpose() * v;
+    }
+
+    ClusterSolver solver;
+    std::vector<StringIslandMember> members;  ///< one per string, in the cluster's order
+    std::vector<RigidId> bodies;              ///< every member's bodies, each once
+    std::vector<std::vector<int>> node_of;    ///< per member: the index in `bodies` of each of its bodies
+    mutable std::vector<std::vector<int>> member_slot;
+    std::vector<std::size_t> on;  ///< the directions in the step (not let go)
+    Eigen::MatrixXd w;            ///< W = B^T Z: 6 rows a body, a column a direction of `on`
+    Eigen::LDLT<Eigen::MatrixXd> c;
+    Eigen::MatrixXd schur;        ///< W C^-1 W^T
+    Eigen::VectorXd rs;           ///< W C^-1 U^T y
+};
+
+ClusterIslandMember::ClusterIslandMember() = default;
+ClusterIslandMember::~ClusterIslandMember() = default;
+ClusterIslandMember::ClusterIslandMember(ClusterIslandMember&&) noexcept = default;
+ClusterIslandMember& ClusterIslandMember::operator=(ClusterIslandMember&&) noexcept = default;
+
+bool ClusterIslandMember::start(const std::vector<StringState*>& strings, std::vector<StringPairContact>& contacts,
+                                RigidTable& rigids, const StepContext& ctx, ClusterScratch& work) {
+    impl_ = std::make_unique<Impl>(strings, contacts, rigids, ctx, work);
+    Impl& m = *impl_;
+    if (!m.solver.startInIsland()) {
+        impl_.reset();
+        return false;
+    }
+    for (StringState* s : strings) s->scratch.held_step.clear();
+    m.members.resize(strings.size());
+    m.node_of.assign(strings.size(), {});
+    m.member_slot.resize(strings.size());
+    for (std::size_t k = 0; k < strings.size(); ++k) {
+        m.members[k].start(*strings[k], rigids, ctx);
+        for (RigidId b : m.members[k].bodies()) {
+            std::size_t at = 0;
+            while (at < m.bodies.size() && !(m.bodies[at] == b)) ++at;
+            if (at == m.bodies.size()) m.bodies.push_back(b);
+            m.node_of[k].push_back(static_cast<int>(at));
+        }
+    }
+    return true;
+}
+
+const std::vector<RigidId>& ClusterIslandMember::bodies() const { return impl_->bodies; }
+
+std::size_t ClusterIslandMember::stringCount() const { return impl_->members.size(); }
+void ClusterIslandMember::holdStep(const std::vector<int>& slot, const Eigen::VectorXd& du) {
+    Impl& m = *impl_;
+    for (std::size_t k = 0; k < m.members.size(); ++k) {
+        m.members[k].holdStep(m.slotsOf(k, slot), du);
+        m.solver.string(k).scratch.held_step.clear();
+    }
+}
+
+void ClusterIslandMember::beginPass() {
+    for (StringIslandMember& member : impl_->members) member.beginPass();
+    impl_->solver.beginIslandPass();
+}
+
+void ClusterIslandMember::condense(bool fresh) {
+    Impl& m = *impl_;
+    for (StringIslandMember& member : m.members) member.assembleSystem(fresh);
+    m.solver.addIslandTerms(fresh);
+    for (StringIslandMember& member : m.members) member.factorAndCondense();  // y = A^-1 r in blk_rhs
+    m.solver.islandColumns();
+    const std::vector<Direction>& dirs = m.solver.directions();
+    m.on.clear();
+    for (std::size_t d = 0; d < dirs.size(); ++d)
+        if (!dirs[d].off) m.on.push_back(d);
+    const auto dim = static_cast<Eigen::Index>(m.on.size());
+    const auto nb = static_cast<Eigen::Index>(6 * m.bodies.size());
+    m.schur.setZero(nb, nb);
+    m.rs.setZero(nb);
+    // The contacts' gradient at glued particles is their bodies'.
+    for (std::size_t k = 0; k < m.members.size(); ++k) {
+        const std::vector<Vec3>& held = m.solver.heldRhs(k);
+        for (std::size_t p = 0; p < held.size(); ++p)
+            if (!held[p].isZero(0.0)) m.addToBody(k, p, held[p], m.rs);
+    }
+    if (dim == 0) return;
+    Eigen::MatrixXd sys(dim, dim);
+    Eigen::VectorXd uy(dim);
+    m.w.setZero(nb, dim);
+    for (Eigen::Index r = 0; r < dim; ++r) {
+        const Direction& dr = dirs[m.on[static_cast<std::size_t>(r)]];
+        uy[r] = m.alongBlkRhs(dr);
+        for (Eigen::Index col = 0; col < dim; ++col) {
+            const Direction& dc = dirs[m.on[static_cast<std::size_t>(col)]];
+            double v = 0.0;
+            for (int e = 0; e < dr.entries; ++e) v += dr.u[e].coef.dot(m.solver.column(dc, dr.u[e].string, dr.u[e].particle));
+            sys(r, col) = v;
+        }
+        sys(r, r) += 1.0 / dr.weight;
+        // W's column: B^T z - U_b, each string's couplings to its bodies (B's 3 x 6 blocks
+        // at the particles the bodies' rows touch) against the direction's column of Z, less
+        // the direction's own entries at glued particles, J^T u (header).
+        for (int e = 0; e < dr.entries; ++e)
+            if (dr.u[e].held) m.addToBody(dr.u[e].string, dr.u[e].particle, -dr.u[e].coef, m.w.col(r));
+        for (int i = 0; i < dr.strings; ++i) {
+            const std::uint32_t k = dr.string[i];
+            const StringState& s = m.solver.string(k);
+            const StringScratch::NodeScratch& ns = s.scratch.node_scratch;
+            for (std::size_t b = 0; b < s.body_nodes.size(); ++b) {
+                Vec6 wb = Vec6::Zero();
+                for (const auto& [p, blk] : ns.coupling[b]) wb += blk.transpose() * m.solver.column(dr, k, p);
+                m.w.block<6, 1>(6 * m.node_of[k][b], r) += wb;
+            }
+        }
+    }
+    m.c.compute(sys);  // symmetric to rounding; the lower triangle is read
+    const Eigen::MatrixXd cw = m.c.solve(m.w.transpose());
+    m.schur.noalias() = m.w * cw;
+    m.rs.noalias() += cw.transpose() * uy;
+}
+
+void ClusterIslandMember::addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const {
+    const Impl& m = *impl_;
+    for (std::size_t k = 0; k < m.members.size(); ++k) m.members[k].addTo(m.slotsOf(k, slot), system, rhs);
+    for (std::size_t a = 0; a < m.bodies.size(); ++a) {
+        const Eigen::Index ra = 6 * slot[a], ca = static_cast<Eigen::Index>(6 * a);
+        rhs.segment<6>(ra) += m.rs.segment<6>(ca);
+        for (std::size_t b = 0; b < m.bodies.size(); ++b)
+            system.block<6, 6>(ra, 6 * slot[b]) += m.schur.block<6, 6>(ca, static_cast<Eigen::Index>(6 * b));
+    }
+}
+
+void ClusterIslandMember::addTurningSoftening(const std::vector<int>& slot, std::vector<Mat3>& softening) const {
+    const Impl& m = *impl_;
+    for (std::size_t k = 0; k < m.members.size(); ++k) m.members[k].addTurningSoftening(m.slotsOf(k, slot), softening);
+}
+
+void ClusterIslandMember::backSubstitute(const std::vector<int>& slot, const Eigen::VectorXd& du) {
+    Impl& m = *impl_;
+    for (std::size_t k = 0; k < m.members.size(); ++k) {
+        m.members[k].backSubstitute(m.slotsOf(k, slot), du);
+        // Each glued particle's move in its body's step.
+        StringState& s = m.solver.string(k);
+        s.scratch.held_step.assign(s.particles(), Vec3::Zero());
+        for (std::size_t p = 0; p < s.particles(); ++p) {
+            const int node = m.members[k].gluedNode(p);
+            if (node >= 0) s.scratch.held_step[p] = m.members[k].glueJacobianAt(p) * s.scratch.node_step[static_cast<std::size_t>(node)];
+        }
+    }
+    const auto dim = static_cast<Eigen::Index>(m.on.size());
+    if (dim > 0) {
+        const std::vector<Direction>& dirs = m.solver.directions();
+        Eigen::VectorXd v(dim);
+        for (Eigen::Index r = 0; r < dim; ++r) v[r] = m.alongStep(dirs[m.on[static_cast<std::size_t>(r)]]);
+        const Eigen::VectorXd t = m.c.solve(v);
+        if (t.allFinite())
+            for (Eigen::Index r = 0; r < dim; ++r) m.solver.subtractIslandColumn(dirs[m.on[static_cast<std::size_t>(r)]], t[r]);
+    }
+    m.solver.islandStepKnown();
+}
+
+bool ClusterIslandMember::addPredictedContacts() {
+    Impl& m = *impl_;
+    bool changed = false;
+    for (StringIslandMember& member : m.members) changed = member.addPredictedContacts() || changed;
+    return m.solver.predictIslandContacts() || changed;
+}
+
+double ClusterIslandMember::energy(double alpha) const {
+    const Impl& m = *impl_;
+    double e = 0.0;
+    for (const StringIslandMember& member : m.members) e += member.energy(alpha);
+    return e + m.solver.contactEnergy(alpha);
+}
+
+double ClusterIslandMember::apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) {
+    Impl& m = *impl_;
+    m.solver.islandMoves(alpha);
+    double worst = 0.0;
+    for (std::size_t k = 0; k < m.members.size(); ++k)
+        worst = std::max(worst, m.members[k].apply(alpha, m.slotsOf(k, slot), displacement));
+    return worst;
+}
+
+double ClusterIslandMember::reweigh() {
+    Impl& m = *impl_;
+    double change = 0.0;
+    for (StringIslandMember& member : m.members) change = std::max(change, member.reweigh());
+    // A pass whose contacts moved (closest points, normals, shadows) or whose friction
+    // missed Coulomb's law with the new forces asks for another.
+    return m.solver.endIslandPass() ? std::max(change, 1.0) : change;
+}
+
+void ClusterIslandMember::finish(int iterations) {
+    Impl& m = *impl_;
+    for (StringIslandMember& member : m.members) member.finish(iterations);
+    m.solver.finishInIsland();
+    for (std::size_t k = 0; k < m.members.size(); ++k) m.solver.string(k).scratch.held_step.clear();
 }
 
 }  // namespace tearables::detail

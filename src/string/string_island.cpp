@@ -40,6 +40,12 @@ void StringIslandMember::start(StringState& s, RigidTable& rigids, const StepCon
     const std::size_t n = s.particles();
     s.island_glue = true;
     contact_nodes_ = s.body_nodes.size();
+    // The solve's displacements start at zero (an island solved again starts afresh).
+    for (BodyNode& node : s.body_nodes) {
+        node.impulse.setZero();
+        node.displacement.setZero();
+        node.linearised_at.setZero();
+    }
     glued_index_.assign(n, -1);
     for (std::size_t p = 0; p < n; ++p) {
         if (!s.glue_movable[p]) continue;
@@ -118,6 +124,11 @@ void StringIslandMember::addWarmHints(const std::vector<int>& slot, std::vector<
 void StringIslandMember::warmStep(const std::vector<int>& slot, const Eigen::VectorXd& du) {
     StringState& s = *string_;
     for (std::size_t b = 0; b < s.body_nodes.size(); ++b) s.scratch.node_step[b] = du.segment<6>(6 * slot[b]);
+}
+
+void StringIslandMember::holdStep(const std::vector<int>& slot, const Eigen::VectorXd& du) {
+    warmStep(slot, du);
+    std::fill(string_->scratch.blk_rhs.begin(), string_->scratch.blk_rhs.end(), Vec3::Zero());
 }
 
 void StringIslandMember::beginPass() {
@@ -289,6 +300,11 @@ void StringIslandMember::addTurningSoftening(const std::vector<int>& slot, std::
 }
 
 void StringIslandMember::condense(bool fresh) {
+    assembleSystem(fresh);
+    factorAndCondense();
+}
+
+void StringIslandMember::assembleSystem(bool fresh) {
     StringState& s = *string_;
     if (fresh) {
         s.scratch.exact_slack = iteration_++ >= kTautBandIterations;
@@ -311,6 +327,11 @@ void StringIslandMember::condense(bool fresh) {
     assembleGlue(true);
     assembleGlueContacts();
     addTurningStiffness();
+}
+
+void StringIslandMember::factorAndCondense() {
+    StringState& s = *string_;
+    StringScratch::NodeScratch& ns = s.scratch.node_scratch;
     factorChain(s);
     if (condenseRows()) return;
     solveFactored(s.particles(), s.scratch.blk_off.data(), s.scratch.blk_factor.data(), s.scratch.blk_factor_gain.data(),

@@ -19,11 +19,25 @@ public:
     void start(StringState& s, RigidTable& rigids, const StepContext& ctx);
 
     const std::vector<RigidId>& bodies() const override { return bodies_; }
+    StringState& string() const { return *string_; }
+    /// Particle p's body node where it is glued to a movable body (its motion is the
+    /// body's: J = glueJacobianAt(p), dx = J du), else -1.
+    int gluedNode(std::size_t p) const {
+        return glued_index_[p] < 0 ? -1 : static_cast<int>(glued_[static_cast<std::size_t>(glued_index_[p])].node);
+    }
+    Mat36 glueJacobianAt(std::size_t p) const { return glueJacobian(glued_[static_cast<std::size_t>(glued_index_[p])]); }
     bool touchesBodies() const override { return !string_->contacts.empty(); }
     void addWarmHints(const std::vector<int>& slot, std::vector<Mat6>& normal, Eigen::VectorXd& rhs) const override;
     void warmStep(const std::vector<int>& slot, const Eigen::VectorXd& du) override;
+    void holdStep(const std::vector<int>& slot, const Eigen::VectorXd& du) override;
     void beginPass() override;
     void condense(bool fresh) override;
+    /// condense() in two halves, for a member that adds terms of its own to the string's
+    /// system between them (ClusterIslandMember): the chain's, its contacts' and its glue's
+    /// blocks and gradient (blk_diag, blk_off, blk_rhs and the node scratch), then the
+    /// chain's factorisation, y = A^-1 r into blk_rhs and the Schur complement.
+    void assembleSystem(bool fresh);
+    void factorAndCondense();
     bool condenseChord() override;
     void cancelChord() override { --iteration_; }
     void addTo(const std::vector<int>& slot, Eigen::MatrixXd& system, Eigen::VectorXd& rhs) const override;

@@ -398,13 +398,71 @@ double StringPairs::nodesSeparationNeeded(const ChainTree::NodeBounds& a, const 
 
 /// After every string's own strain limit, before the tension stage: finds the pairs
 /// and solves each cluster of touching strings jointly (see above).
-void StringPairs::couple(std::vector<StringState>& strings, RigidTable& rigids, const StepContext& ctx) {
+void StringPairs::couple(std::vector<StringState>& strings, RigidTable& rigids, const StepContext& ctx,
+                         const std::vector<std::uint8_t>& in_island) {
     strings_ = &strings;
     pool_ = ctx.pool;
+    cluster_count_ = 0;
     findPairs();
     if (string_pairs_.empty()) return;
     warmStart();
-    solveClusters(groupClusters(), rigids, ctx);
+    cluster_count_ = groupClusters();
+    for (std::size_t q = 0; q < cluster_count_; ++q) {
+        Cluster& cl = clusters_[q];
+        cl.coupled = std::any_of(cl.strings.begin(), cl.strings.end(), [&](const StringState* s) {
+            const auto slot = static_cast<std::size_t>(s - strings.data());
+            return slot < in_island.size() && in_island[slot];
+        });
+    }
+    solveClusters(cluster_count_, rigids, ctx);
+}
+
+const std::vector<IslandMember*>& StringPairs::startCoupled(RigidTable& rigids, const StepContext& ctx,
+                                                            std::vector<std::uint8_t>& solved) {
+    coupled_.clear();
+    for (std::size_t q = 0; q < cluster_count_; ++q) {
+        Cluster& cl = clusters_[q];
+        if (!cl.coupled || !cl.member.start(cl.strings, cl.contacts, rigids, ctx, cl.scratch)) continue;
+        coupled_.push_back(&cl.member);
+        for (const StringState* s : cl.strings) solved[static_cast<std::size_t>(s - strings_->data())] = 1;
+    }
+    return coupled_;
+}
+
+void StringPairs::finishCoupled() {
+    for (std::size_t q = 0; q < cluster_count_; ++q)
+        if (clusters_[q].coupled) keepForces(clusters_[q]);
+}
+
+void StringPairs::markCoupled(std::vector<std::uint8_t>& mark) const {
+    for (std::size_t q = 0; q < cluster_count_; ++q)
+        if (clusters_[q].coupled)
+            for (const StringState* s : clusters_[q].strings) mark[static_cast<std::size_t>(s - strings_->data())] = 1;
+}
+
+void StringPairs::solveCoupledHeld(RigidTable& rigids, const StepContext& ctx) {
+    for (std::size_t q = 0; q < cluster_count_; ++q) {
+        Cluster& cl = clusters_[q];
+        if (!cl.coupled) continue;
+        // The pairs as groupClusters made them (the member's solve changed them).
+        for (std::size_t i = 0; i < cl.contacts.size(); ++i) {
+            const StringPairContact& c = string_pairs_[cl.index[i]];
+            cl.contacts[i] = c;
+            cl.contacts[i].string = cluster_local_[c.string];
+            cl.contacts[i].partner = cluster_local_[c.partner];
+        }
+        cl.scratch.always_sparse = sparse_joint_steps;
+        solveStringCluster(cl.strings, cl.contacts, rigids, ctx, cl.scratch);
+        keepForces(cl);
+    }
+}
+
+void StringPairs::keepForces(const Cluster& cl) {
+    for (std::size_t i = 0; i < cl.contacts.size(); ++i) {
+        StringPairContact& c = string_pairs_[cl.index[i]];
+        c.force = cl.contacts[i].force;
+        c.normal = cl.contacts[i].normal;
+    }
 }
 
 /// The force a pair pressed with at the end of the last step bounds its friction in the
@@ -468,17 +526,15 @@ std::size_t StringPairs::groupClusters() {
 }
 
 /// Clusters share no string (and the joint solve moves no body), so they are solved on
-/// the pool; each writes only its own strings and its own pairs.
+/// the pool; each writes only its own strings and its own pairs. Those with a string in an
+/// island are left to the islands (startCoupled).
 void StringPairs::solveClusters(std::size_t count, RigidTable& rigids, const StepContext& ctx) {
     pool_->forEach(count, [&](std::size_t q) {
         Cluster& cl = clusters_[q];
+        if (cl.coupled) return;
         cl.scratch.always_sparse = sparse_joint_steps;
         solveStringCluster(cl.strings, cl.contacts, rigids, ctx, cl.scratch);
-        for (std::size_t i = 0; i < cl.contacts.size(); ++i) {
-            StringPairContact& c = string_pairs_[cl.index[i]];
-            c.force = cl.contacts[i].force;
-            c.normal = cl.contacts[i].normal;
-        }
+        keepForces(cl);
     });
 }
 

@@ -11,6 +11,7 @@
 #include "collision/grid.hpp"
 #include "sim/rigid_table.hpp"
 #include "sim/step_context.hpp"
+#include "string/cluster_member.hpp"
 #include "string/string_state.hpp"
 
 #include <cstdint>
@@ -23,8 +24,22 @@ namespace tearables::detail {
 class StringPairs {
 public:
     /// After every string's own strain limit, before the tension stage: finds the pairs
-    /// and solves each cluster of touching strings jointly.
-    void couple(std::vector<StringState>& strings, RigidTable& rigids, const StepContext& ctx);
+    /// and solves each cluster of touching strings jointly, except those with a string in
+    /// an island (`in_island`, per string slot), which startCoupled hands to the islands.
+    void couple(std::vector<StringState>& strings, RigidTable& rigids, const StepContext& ctx,
+                const std::vector<std::uint8_t>& in_island);
+    /// The clusters couple left to the islands, each started as one island member (its
+    /// strings' contacts and the bodies' unknowns solved together); `solved` gets 1 at the
+    /// slots of their strings. Empty where no such cluster has a pair that touches.
+    const std::vector<IslandMember*>& startCoupled(RigidTable& rigids, const StepContext& ctx, std::vector<std::uint8_t>& solved);
+    /// After the islands solved startCoupled's members: their contacts' forces and normals.
+    void finishCoupled();
+    /// Marks (1 at its slot) every string of a cluster that couple left to the islands.
+    void markCoupled(std::vector<std::uint8_t>& mark) const;
+    /// Instead of finishCoupled, where the islands' solve with the clusters did not
+    /// converge and was undone: each such cluster solved as couple solves the others
+    /// (the bodies held where the islands left them).
+    void solveCoupledHeld(RigidTable& rigids, const StepContext& ctx);
     /// After the tension stage: projects away the overlap the joint solve left, marks the
     /// colliding particles and keeps the warm start of the next step.
     void finish(std::vector<StringState>& strings);
@@ -64,6 +79,8 @@ private:
         std::vector<StringPairContact> contacts;
         std::vector<std::size_t> index;
         ClusterScratch scratch;  // kept so that a running step does not allocate
+        bool coupled = false;    // a string of it is in an island: solved there
+        ClusterIslandMember member;
     };
     static constexpr std::uint8_t kPairDropped = 0, kPairDeep = 1, kPairContact = 2;
 
@@ -79,6 +96,8 @@ private:
     void warmStart();
     std::size_t groupClusters();
     void solveClusters(std::size_t count, RigidTable& rigids, const StepContext& ctx);
+    /// Copies a solved cluster's contacts' forces and normals into string_pairs_.
+    void keepForces(const Cluster& cl);
 
     std::vector<StringState>* strings_ = nullptr;  // this step's strings (couple, finish)
     ThreadPool* pool_ = nullptr;
@@ -102,7 +121,9 @@ private:
     // Pairs that started a step deeper than kStringDeepStart (sorted) and have not come
     // apart since: no contacts until they have.
     std::vector<PairKey> deep_pairs_, deep_next_;
-    std::vector<Cluster> clusters_;  // reused; the first `count` of a step are in use
+    std::vector<Cluster> clusters_;  // reused; the first `cluster_count_` of a step are in use
+    std::size_t cluster_count_ = 0;
+    std::vector<IslandMember*> coupled_;  // startCoupled's members
     std::vector<std::uint32_t> cluster_root_, cluster_local_, pair_root_;
     std::vector<std::size_t> cluster_first_, cluster_fill_, cluster_order_;
 };

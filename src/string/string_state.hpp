@@ -96,6 +96,10 @@ struct StringScratch {
     /// iteration's step stretches (predictSprings) joins the Newton model with its slack
     /// carried, as a contact the step runs into does.
     std::vector<std::uint8_t> predicted_taut;
+    /// Per particle (empty: none), set while the string's contacts with other strings are
+    /// solved in an island (ClusterIslandMember): a glued particle's move in its body's
+    /// step (zero for the others).
+    std::vector<Vec3> held_step;
     std::vector<double> geometric_tension;  ///< per segment: the tension estimate of the chain Hessian's geometric term, N
     /// This step's strain solve of the string converged (false where its own solve stopped
     /// at the iteration cap): the return mapping of yield_in_solve trusts only a converged

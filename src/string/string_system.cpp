@@ -369,7 +369,8 @@ void StringSystem::step(RigidTable& rigids, const StepContext& ctx, const HostCo
     // their motion; what overlap that leaves is projected away after it (so it never
     // counts as tension).
     if (ctx.settings->string_collisions) {
-        pairs_.couple(strings_, rigids, ctx);         timer.lap(t.collision);
+        pairs_.couple(strings_, rigids, ctx, ctx.settings->island_string_contacts ? in_island_ : no_island_);
+        solveCoupledClusters(rigids, ctx);            timer.lap(t.collision);
     }
     solveTwist(rigids, ctx);                          timer.lap(t.twist);
     estimateTension(ctx);                             timer.lap(t.tension);
@@ -587,12 +588,14 @@ void StringSystem::limitStrain(RigidTable& rigids, const StepContext& ctx) {
         }
     }
     pool_->forEach(own_.size(), [&](std::size_t k) { detail::limitStrain(strings_[own_[k]], rigids, ctx); });
+    in_island_.assign(strings_.size(), 0);
     for (std::size_t i = 0; i < strings_.size(); ++i) {
         StringState& s = strings_[i];
         if (!live(s) || is_own_[i]) continue;
         if (ctx.islands && touchesMovableBody(s)) {
             if (members_.size() == used_members_) members_.emplace_back();
             members_[used_members_++].start(s, rigids, ctx);
+            in_island_[i] = 1;
         } else {
             detail::limitStrain(s, rigids, ctx);
         }
@@ -600,7 +603,63 @@ void StringSystem::limitStrain(RigidTable& rigids, const StepContext& ctx) {
     if (used_members_ > 0 || (ctx.islands && ctx.islands->hasOwnMembers())) {
         member_list_.clear();
         for (std::size_t k = 0; k < used_members_; ++k) member_list_.push_back(&members_[k]);
+        if (ctx.settings->string_collisions && ctx.settings->island_string_contacts && used_members_ > 0)
+            island_start_ = rigids.bodies;
         ctx.islands->solve(member_list_, rigids, ctx);
+    }
+    eachLive([&](StringState& s) { clampTravel(s, ctx); });
+}
+
+/// Strings that touch each other where one of them is in an island
+/// (WorldSettings::island_string_contacts): the islands are solved again, each such
+/// cluster one member (ClusterIslandMember) in place of its strings', so that the bodies
+/// move with the strings' contacts instead of being held still in the joint solve. The
+/// solve starts where the first one ended (its bodies' displacements, IslandSolve::restart;
+/// the strings where it left them), not warm (the warm start reads each string's last
+/// correction, which the first solve overwrote). Where it does not converge it is undone
+/// and the clusters take the joint solve with the bodies held.
+void StringSystem::solveCoupledClusters(RigidTable& rigids, const StepContext& ctx) {
+    if (used_members_ == 0 || !ctx.islands || !ctx.settings->island_string_contacts) return;
+    kept_mark_.assign(strings_.size(), 0);
+    pairs_.markCoupled(kept_mark_);
+    if (std::find(kept_mark_.begin(), kept_mark_.end(), 1) == kept_mark_.end()) return;
+    StepContext cold = ctx;
+    cold.cold_strain_starts = true;
+    // The first solve's outcome, for a solve again that does not converge: the strings it
+    // may change (the islands' and the clusters'), the bodies and the islands' own.
+    for (std::size_t k = 0; k < used_members_; ++k) kept_mark_[static_cast<std::size_t>(&members_[k].string() - strings_.data())] = 1;
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < strings_.size(); ++i) {
+        if (!kept_mark_[i]) continue;
+        if (kept_strings_.size() == kept) kept_strings_.emplace_back();
+        kept_strings_[kept].first = i;
+        kept_strings_[kept++].second = strings_[i];
+    }
+    first_bodies_ = rigids.bodies;
+    ctx.islands->keepOutcome();
+    in_cluster_.assign(strings_.size(), 0);
+    const std::vector<IslandMember*>& coupled = pairs_.startCoupled(rigids, cold, in_cluster_);
+    if (coupled.empty()) return;
+    rigids.bodies = island_start_;
+    ctx.islands->restart();
+    member_list_.clear();
+    for (std::size_t k = 0; k < used_members_; ++k) {
+        StringState& s = members_[k].string();
+        if (in_cluster_[static_cast<std::size_t>(&s - strings_.data())]) continue;
+        members_[k].start(s, rigids, cold);
+        member_list_.push_back(&members_[k]);
+    }
+    member_list_.insert(member_list_.end(), coupled.begin(), coupled.end());
+    ctx.islands->solve(member_list_, rigids, cold);
+    if (ctx.islands->converged()) {
+        pairs_.finishCoupled();
+    } else {
+        // Undone: the strings and bodies as the first solve left them, the clusters solved
+        // with the bodies held (momentum leaks there, docs/island-plan.md).
+        for (std::size_t k = 0; k < kept; ++k) strings_[kept_strings_[k].first] = kept_strings_[k].second;
+        rigids.bodies = first_bodies_;
+        ctx.islands->restoreOutcome();
+        pairs_.solveCoupledHeld(rigids, ctx);
     }
     eachLive([&](StringState& s) { clampTravel(s, ctx); });
 }

@@ -65,6 +65,7 @@ private:
     void collideBodies(RigidTable& rigids, const HostContacts& host, const StepContext& ctx, std::vector<Event>& events);
     void reportStartOverlaps(const StepContext& ctx, std::vector<Event>& events);
     void limitStrain(RigidTable& rigids, const StepContext& ctx);
+    void solveCoupledClusters(RigidTable& rigids, const StepContext& ctx);
     void solveTwist(RigidTable& rigids, const StepContext& ctx);
     void estimateTension(const StepContext& ctx);
     void respondMaterial(const StepContext& ctx, std::vector<Event>& events);
@@ -81,6 +82,14 @@ private:
     std::vector<StringIslandMember> members_;  // the others that touch a movable body (kept: reused)
     std::size_t used_members_ = 0;             // of which this step's
     std::vector<IslandMember*> member_list_;
+    std::vector<std::uint8_t> in_island_;     // per slot: a member of this step's islands
+    std::vector<std::uint8_t> no_island_;     // couple's in_island without island_string_contacts (empty)
+    std::vector<std::uint8_t> in_cluster_;    // per slot: solved in an island by its cluster's member
+    std::vector<RigidState> island_start_;    // the bodies before the islands' solve
+    // solveCoupledClusters: the first solve's outcome, put back where the solve again fails.
+    std::vector<RigidState> first_bodies_;
+    std::vector<std::uint8_t> kept_mark_;
+    std::vector<std::pair<std::size_t, StringState>> kept_strings_;
     std::vector<std::uint8_t> bad_state_;    // per live string: non-finite after the step
     std::vector<std::vector<Event>> live_events_;  // per live string: its material events of this step
     CollisionQuery query_;

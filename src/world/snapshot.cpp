@@ -267,6 +267,7 @@ void io(A& a, WorldSettings& s) {
     io(a, s.max_speed);
     io(a, s.rigid_contacts);
     io(a, s.string_collisions);
+    io(a, s.island_string_contacts);
 }
 template <class A>
 void io(A& a, detail::ParticleHold& h) {

@@ -235,9 +235,12 @@ void capstan(double theta, const char* label, bool hanging) {
 // ropes' density (1150 nylon: 0.09 kg a rope; 20000: 1.6 kg). Nothing tears. Drift: the
 // largest |P(t) - P(0)| / |P(0)| over 1 s (P: every rope particle and body); energy: the
 // largest E(t) / E(0) (kinetic; no potential in zero gravity, the ropes do not stretch
-// measurably).
-void momentum(bool crossing, double density) {
-    Rig rig(0.0);
+// measurably). `island_contacts`: WorldSettings::island_string_contacts (the strings'
+// contacts solved with the bodies).
+void momentum(bool crossing, double density, bool island_contacts = false) {
+    WorldSettings settings;
+    settings.island_string_contacts = island_contacts;
+    Rig rig(0.0, settings);
     std::vector<btRigidBody*> bodies;
     std::vector<StringId> ropes;
     auto holdRope = [&](const Vec3& from, const Vec3& to) {
@@ -289,7 +292,8 @@ void momentum(bool crossing, double density) {
         drift = std::max(drift, (p - p0).norm() / p0.norm());
         gain = std::max(gain, e / e0);
     }
-    const std::string name = fmt(crossing ? "box thrown at a rope on a crossing rope, ropes %.2f kg"
+    const std::string name = fmt(crossing ? (island_contacts ? "box thrown at a rope on a crossing rope, ropes %.2f kg, island_string_contacts"
+                                                             : "box thrown at a rope on a crossing rope, ropes %.2f kg")
                                           : "box thrown at a rope held by 2 bodies, rope %.2f kg",
                                  rope_mass / static_cast<double>(ropes.size()));
     line(name.c_str(), fmt("momentum drift %.3f%%, largest E/E0 %.4f", 100 * drift, gain), "drift < 0.1%, E/E0 <= 1",
@@ -434,6 +438,7 @@ int main(int argc, char** argv) {
         momentum(false, 1150);
         momentum(false, 20000);
         momentum(true, 1150);
+        momentum(true, 1150, true);
     }
     // `rest`: the bridge at rest (BM_IslandRopesVsPinned/1's island), the Newton iterations
     // and final residual of its solve in 10 steps after 100 of settling; `rest-swing [crate]`

@@ -287,8 +287,8 @@ TEST(Snapshot, OtherVersionsTruncatedAndCorruptFilesAreRefusedAndChangeNothing) 
     std::string wrld = good;
     const std::size_t at = wrld.find("WRLD");
     ASSERT_NE(at, std::string::npos);
-    // WRLD payload: settings (3 + 2 + 2 + 2 words), time, steps, then the slot count.
-    const std::size_t slots = at + 4 + 8 + 8 * (3 + 2 + 2 + 2 + 2);
+    // WRLD payload: settings (3 + 2 + 2 + 3 words), time, steps, then the slot count.
+    const std::size_t slots = at + 4 + 8 + 8 * (3 + 2 + 2 + 3 + 2);
     wrld[slots] = static_cast<char>(wrld[slots] + 1);
     expectRefused(resealed(wrld), "snapshot", "string sections for " + std::to_string(a.world.strings().size() + 1) + " slots", "slot count");
     wrld[slots] = static_cast<char>(wrld[slots] - 2);

@@ -487,8 +487,8 @@ TEST(SnapshotMeshes, WorldWithOtherClothsOrSheetsRefusesAndChangesNothing) {
     };
     const std::size_t at = bytes.find("WRLD");
     ASSERT_NE(at, std::string::npos);
-    // WRLD payload: settings (3 + 2 + 2 + 2 words), time, steps, string, body, cloth, paper slots.
-    const std::size_t cloth_slots = at + 4 + 8 + 8 * (3 + 2 + 2 + 2 + 2 + 2);
+    // WRLD payload: settings (3 + 2 + 2 + 3 words), time, steps, string, body, cloth, paper slots.
+    const std::size_t cloth_slots = at + 4 + 8 + 8 * (3 + 2 + 2 + 3 + 2 + 2);
     std::string more = bytes;
     more[cloth_slots] = static_cast<char>(more[cloth_slots] + 1);
     World fresh;
