@@ -48,10 +48,9 @@ struct WorldSettings {
     /// (momentum then passes between strings and bodies exactly; with it off the bodies are
     /// held still in the strings' joint solve, which leaks up to a few percent of a body's
     /// momentum where it presses a rope onto another). The island is solved a second time
-    /// where such contacts exist, and a second solve that does not converge is undone (the
-    /// held solve is taken for that step): the `bridge` scene steps 3x slower with it on
-    /// (docs/island-plan.md). Off by default until those solves converge.
-    bool island_string_contacts = false;
+    /// where such contacts exist (the `bridge` scene steps 1.1x slower), and a second solve
+    /// that does not converge is undone: that step takes the held solve (docs/island-plan.md).
+    bool island_string_contacts = true;
     /// Threads that step independent strings in parallel, 0..64: 1 steps on the calling
     /// thread only, 0 uses every core the machine reports. Where a stage has one string
     /// to step and it has 4096 particles or more (one long rope), the string's own work is
