@@ -27,6 +27,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <optional>
 
 namespace tearables::detail {
 
@@ -1158,10 +1159,6 @@ void solveStringCluster(const std::vector<StringState*>& strings, std::vector<St
 // --- ClusterIslandMember (cluster_member.hpp) ------------------------------------------------
 
 struct ClusterIslandMember::Impl {
-    Impl(const std::vector<StringState*>& strings, std::vector<StringPairContact>& contacts, RigidTable& rigids,
-         const StepContext& ctx, ClusterScratch& work)
-        : solver(strings, contacts, rigids, ctx, work) {}
-
     /// Member k's body slots in the island, from the island's slots of this member's bodies.
     const std::vector<int>& slotsOf(std::size_t k, const std::vector<int>& slot) const {
         std::vector<int>& out = member_slot[k];
@@ -1173,7 +1170,7 @@ struct ClusterIslandMember::Impl {
     double alongBlkRhs(const Direction& d) const {
         double v = 0.0;
         for (int e = 0; e < d.entries; ++e)
-            if (!d.u[e].held) v += d.u[e].coef.dot(solver.string(d.u[e].string).scratch.blk_rhs[d.u[e].particle]);
+            if (!d.u[e].held) v += d.u[e].coef.dot(solver->string(d.u[e].string).scratch.blk_rhs[d.u[e].particle]);
         return v;
     }
     /// U_x^T dx + U_b^T du for a direction: every entry against its particle's move, a
@@ -1181,7 +1178,7 @@ struct ClusterIslandMember::Impl {
     double alongStep(const Direction& d) const {
         double v = 0.0;
         for (int e = 0; e < d.entries; ++e) {
-            const StringState& s = solver.string(d.u[e].string);
+            const StringState& s = solver->string(d.u[e].string);
             v += d.u[e].coef.dot(d.u[e].held ? s.scratch.held_step[d.u[e].particle] : s.scratch.blk_rhs[d.u[e].particle]);
         }
         return v;
@@ -1195,7 +1192,7 @@ struct ClusterIslandMember::Impl {
         out.template segment<6>(6 * node_of[k][static_cast<std::size_t>(node)]) += members[k].glueJacobianAt(p).transpose() * v;
     }
 
-    ClusterSolver solver;
+    std::optional<ClusterSolver> solver;  ///< this step's (it holds the step's references)
     std::vector<StringIslandMember> members;  ///< one per string, in the cluster's order
     std::vector<RigidId> bodies;              ///< every member's bodies, each once
     std::vector<std::vector<int>> node_of;    ///< per member: the index in `bodies` of each of its bodies
@@ -1214,12 +1211,11 @@ ClusterIslandMember& ClusterIslandMember::operator=(ClusterIslandMember&&) noexc
 
 bool ClusterIslandMember::start(const std::vector<StringState*>& strings, std::vector<StringPairContact>& contacts,
                                 RigidTable& rigids, const StepContext& ctx, ClusterScratch& work) {
-    impl_ = std::make_unique<Impl>(strings, contacts, rigids, ctx, work);
+    if (!impl_) impl_ = std::make_unique<Impl>();
     Impl& m = *impl_;
-    if (!m.solver.startInIsland()) {
-        impl_.reset();
-        return false;
-    }
+    m.solver.emplace(strings, contacts, rigids, ctx, work);
+    m.bodies.clear();
+    if (!m.solver->startInIsland()) return false;
     for (StringState* s : strings) s->scratch.held_step.clear();
     m.members.resize(strings.size());
     m.node_of.assign(strings.size(), {});
@@ -1249,22 +1245,22 @@ void ClusterIslandMember::holdStep(const std::vector<int>& slot, const Eigen::Ve
     Impl& m = *impl_;
     for (std::size_t k = 0; k < m.members.size(); ++k) {
         m.members[k].holdStep(m.slotsOf(k, slot), du);
-        m.solver.string(k).scratch.held_step.clear();
+        m.solver->string(k).scratch.held_step.clear();
     }
 }
 
 void ClusterIslandMember::beginPass() {
     for (StringIslandMember& member : impl_->members) member.beginPass();
-    impl_->solver.beginIslandPass();
+    impl_->solver->beginIslandPass();
 }
 
 void ClusterIslandMember::condense(bool fresh) {
     Impl& m = *impl_;
     for (StringIslandMember& member : m.members) member.assembleSystem(fresh);
-    m.solver.addIslandTerms(fresh);
+    m.solver->addIslandTerms(fresh);
     for (StringIslandMember& member : m.members) member.factorAndCondense();  // y = A^-1 r in blk_rhs
-    m.solver.islandColumns();
-    const std::vector<Direction>& dirs = m.solver.directions();
+    m.solver->islandColumns();
+    const std::vector<Direction>& dirs = m.solver->directions();
     m.on.clear();
     for (std::size_t d = 0; d < dirs.size(); ++d)
         if (!dirs[d].off) m.on.push_back(d);
@@ -1274,7 +1270,7 @@ void ClusterIslandMember::condense(bool fresh) {
     m.rs.setZero(nb);
     // The contacts' gradient at glued particles is their bodies'.
     for (std::size_t k = 0; k < m.members.size(); ++k) {
-        const std::vector<Vec3>& held = m.solver.heldRhs(k);
+        const std::vector<Vec3>& held = m.solver->heldRhs(k);
         for (std::size_t p = 0; p < held.size(); ++p)
             if (!held[p].isZero(0.0)) m.addToBody(k, p, held[p], m.rs);
     }
@@ -1288,7 +1284,7 @@ void ClusterIslandMember::condense(bool fresh) {
         for (Eigen::Index col = 0; col < dim; ++col) {
             const Direction& dc = dirs[m.on[static_cast<std::size_t>(col)]];
             double v = 0.0;
-            for (int e = 0; e < dr.entries; ++e) v += dr.u[e].coef.dot(m.solver.column(dc, dr.u[e].string, dr.u[e].particle));
+            for (int e = 0; e < dr.entries; ++e) v += dr.u[e].coef.dot(m.solver->column(dc, dr.u[e].string, dr.u[e].particle));
             sys(r, col) = v;
         }
         sys(r, r) += 1.0 / dr.weight;
@@ -1299,11 +1295,11 @@ void ClusterIslandMember::condense(bool fresh) {
             if (dr.u[e].held) m.addToBody(dr.u[e].string, dr.u[e].particle, -dr.u[e].coef, m.w.col(r));
         for (int i = 0; i < dr.strings; ++i) {
             const std::uint32_t k = dr.string[i];
-            const StringState& s = m.solver.string(k);
+            const StringState& s = m.solver->string(k);
             const StringScratch::NodeScratch& ns = s.scratch.node_scratch;
             for (std::size_t b = 0; b < s.body_nodes.size(); ++b) {
                 Vec6 wb = Vec6::Zero();
-                for (const auto& [p, blk] : ns.coupling[b]) wb += blk.transpose() * m.solver.column(dr, k, p);
+                for (const auto& [p, blk] : ns.coupling[b]) wb += blk.transpose() * m.solver->column(dr, k, p);
                 m.w.block<6, 1>(6 * m.node_of[k][b], r) += wb;
             }
         }
@@ -1335,7 +1331,7 @@ void ClusterIslandMember::backSubstitute(const std::vector<int>& slot, const Eig
     for (std::size_t k = 0; k < m.members.size(); ++k) {
         m.members[k].backSubstitute(m.slotsOf(k, slot), du);
         // Each glued particle's move in its body's step.
-        StringState& s = m.solver.string(k);
+        StringState& s = m.solver->string(k);
         s.scratch.held_step.assign(s.particles(), Vec3::Zero());
         for (std::size_t p = 0; p < s.particles(); ++p) {
             const int node = m.members[k].gluedNode(p);
@@ -1344,33 +1340,33 @@ void ClusterIslandMember::backSubstitute(const std::vector<int>& slot, const Eig
     }
     const auto dim = static_cast<Eigen::Index>(m.on.size());
     if (dim > 0) {
-        const std::vector<Direction>& dirs = m.solver.directions();
+        const std::vector<Direction>& dirs = m.solver->directions();
         Eigen::VectorXd v(dim);
         for (Eigen::Index r = 0; r < dim; ++r) v[r] = m.alongStep(dirs[m.on[static_cast<std::size_t>(r)]]);
         const Eigen::VectorXd t = m.c.solve(v);
         if (t.allFinite())
-            for (Eigen::Index r = 0; r < dim; ++r) m.solver.subtractIslandColumn(dirs[m.on[static_cast<std::size_t>(r)]], t[r]);
+            for (Eigen::Index r = 0; r < dim; ++r) m.solver->subtractIslandColumn(dirs[m.on[static_cast<std::size_t>(r)]], t[r]);
     }
-    m.solver.islandStepKnown();
+    m.solver->islandStepKnown();
 }
 
 bool ClusterIslandMember::addPredictedContacts() {
     Impl& m = *impl_;
     bool changed = false;
     for (StringIslandMember& member : m.members) changed = member.addPredictedContacts() || changed;
-    return m.solver.predictIslandContacts() || changed;
+    return m.solver->predictIslandContacts() || changed;
 }
 
 double ClusterIslandMember::energy(double alpha) const {
     const Impl& m = *impl_;
     double e = 0.0;
     for (const StringIslandMember& member : m.members) e += member.energy(alpha);
-    return e + m.solver.contactEnergy(alpha);
+    return e + m.solver->contactEnergy(alpha);
 }
 
 double ClusterIslandMember::apply(double alpha, const std::vector<int>& slot, const Eigen::VectorXd& displacement) {
     Impl& m = *impl_;
-    m.solver.islandMoves(alpha);
+    m.solver->islandMoves(alpha);
     double worst = 0.0;
     for (std::size_t k = 0; k < m.members.size(); ++k)
         worst = std::max(worst, m.members[k].apply(alpha, m.slotsOf(k, slot), displacement));
@@ -1383,14 +1379,14 @@ double ClusterIslandMember::reweigh() {
     for (StringIslandMember& member : m.members) change = std::max(change, member.reweigh());
     // A pass whose contacts moved (closest points, normals, shadows) or whose friction
     // missed Coulomb's law with the new forces asks for another.
-    return m.solver.endIslandPass() ? std::max(change, 1.0) : change;
+    return m.solver->endIslandPass() ? std::max(change, 1.0) : change;
 }
 
 void ClusterIslandMember::finish(int iterations) {
     Impl& m = *impl_;
     for (StringIslandMember& member : m.members) member.finish(iterations);
-    m.solver.finishInIsland();
-    for (std::size_t k = 0; k < m.members.size(); ++k) m.solver.string(k).scratch.held_step.clear();
+    m.solver->finishInIsland();
+    for (std::size_t k = 0; k < m.members.size(); ++k) m.solver->string(k).scratch.held_step.clear();
 }
 
 }  // namespace tearables::detail

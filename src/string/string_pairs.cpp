@@ -445,12 +445,7 @@ void StringPairs::solveCoupledHeld(RigidTable& rigids, const StepContext& ctx) {
         Cluster& cl = clusters_[q];
         if (!cl.coupled) continue;
         // The pairs as groupClusters made them (the member's solve changed them).
-        for (std::size_t i = 0; i < cl.contacts.size(); ++i) {
-            const StringPairContact& c = string_pairs_[cl.index[i]];
-            cl.contacts[i] = c;
-            cl.contacts[i].string = cluster_local_[c.string];
-            cl.contacts[i].partner = cluster_local_[c.partner];
-        }
+        for (std::size_t i = 0; i < cl.contacts.size(); ++i) cl.contacts[i] = localContact(string_pairs_[cl.index[i]]);
         cl.scratch.always_sparse = sparse_joint_steps;
         solveStringCluster(cl.strings, cl.contacts, rigids, ctx, cl.scratch);
         keepForces(cl);
@@ -473,6 +468,14 @@ void StringPairs::warmStart() {
         while (k < previous_pairs_.size() && previous_pairs_[k].key() < c.key()) ++k;
         if (k < previous_pairs_.size() && previous_pairs_[k].key() == c.key()) c.force = previous_pairs_[k].force;
     }
+}
+
+/// A pair with its strings numbered within their cluster (cluster_local_).
+StringPairContact StringPairs::localContact(const StringPairContact& c) const {
+    StringPairContact local = c;
+    local.string = cluster_local_[c.string];
+    local.partner = cluster_local_[c.partner];
+    return local;
 }
 
 /// Clusters: strings connected through pairs (union-find over string slots). Returns how
@@ -515,10 +518,7 @@ std::size_t StringPairs::groupClusters() {
                     cluster_local_[sidx] = static_cast<std::uint32_t>(cl.strings.size());
                     cl.strings.push_back(&strings[sidx]);
                 }
-            StringPairContact local = c;
-            local.string = cluster_local_[c.string];
-            local.partner = cluster_local_[c.partner];
-            cl.contacts.push_back(local);
+            cl.contacts.push_back(localContact(c));
             cl.index.push_back(i);
         }
     }

@@ -95,6 +95,7 @@ private:
     double nodesSeparationNeeded(const ChainTree::NodeBounds& a, const ChainTree::NodeBounds& b) const;
     void warmStart();
     std::size_t groupClusters();
+    StringPairContact localContact(const StringPairContact& c) const;
     void solveClusters(std::size_t count, RigidTable& rigids, const StepContext& ctx);
     /// Copies a solved cluster's contacts' forces and normals into string_pairs_.
     void keepForces(const Cluster& cl);
