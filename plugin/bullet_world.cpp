@@ -36,11 +36,11 @@ namespace {
 /// (btPoint2PointConstraint); a hinge (btHingeConstraint, its limits as hard stops, its
 /// motor) not in angular-only mode; a cone-twist joint (btConeTwistConstraint, its cone and
 /// twist limits; no motor); a slider (btSliderConstraint, its powered motors); a
-/// 6-dof joint (btGeneric6DofConstraint and btUniversalConstraint; btGeneric6DofSpring2Constraint
-/// and btFixedConstraint) with velocity motors but no servos or springs; enabled (a breaking
-/// impulse is checked after the step, writeJointImpulses). Others (gear, the older spring
-/// 6-dof, hinge2's suspension spring, servos, a cone-twist joint's motor or fixed spans)
-/// leave their islands to Bullet.
+/// 6-dof joint (btGeneric6DofConstraint and btUniversalConstraint; btGeneric6DofSpring2Constraint,
+/// btFixedConstraint and btHinge2Constraint, with their motors, servos and springs); enabled
+/// (a breaking impulse is checked after the step, writeJointImpulses). Others (gear, the
+/// older spring 6-dof, a cone-twist joint's motor or fixed spans) leave their islands to
+/// Bullet.
 bool islandJoint(const btTypedConstraint& c) {
     if (!c.isEnabled()) return false;
     auto& joint = const_cast<btTypedConstraint&>(c);  // Bullet's getters are not const
@@ -51,6 +51,7 @@ bool islandJoint(const btTypedConstraint& c) {
         return !static_cast<btHingeConstraint&>(joint).getAngularOnly();
     case SLIDER_CONSTRAINT_TYPE:
     case D6_CONSTRAINT_TYPE:
+    case D6_SPRING_2_CONSTRAINT_TYPE:
         return true;
     case CONETWIST_CONSTRAINT_TYPE: {
         // A cone and a twist limit (frameJoint): not angular-only, no motor, and spans
@@ -58,17 +59,6 @@ bool islandJoint(const btTypedConstraint& c) {
         auto& cone = static_cast<btConeTwistConstraint&>(joint);
         return !cone.getAngularOnly() && !cone.isMotorEnabled() && cone.getSwingSpan1() >= cone.getFixThresh() &&
                cone.getSwingSpan2() >= cone.getFixThresh() && cone.getTwistSpan() >= cone.getFixThresh();
-    }
-    case D6_SPRING_2_CONSTRAINT_TYPE: {
-        auto& d6 = static_cast<btGeneric6DofSpring2Constraint&>(joint);
-        const btTranslationalLimitMotor2& linear = *d6.getTranslationalLimitMotor();
-        for (int i = 0; i < 3; ++i) {
-            const btRotationalLimitMotor2& angular = *d6.getRotationalLimitMotor(i);
-            if ((linear.m_enableMotor[i] && linear.m_servoMotor[i]) || linear.m_enableSpring[i] ||
-                (angular.m_enableMotor && angular.m_servoMotor) || angular.m_enableSpring)
-                return false;
-        }
-        return true;
     }
     default:
         return false;
@@ -137,12 +127,69 @@ void readSixDofMotors(SixDof& d6, BodyJoint& j, const AngularDrive& angularDrive
     }
 }
 
+/// btGeneric6DofSpring2Constraint's servos and springs into `j`, for internal steps of h.
+/// A servo is a motor readSixDofMotors read, its speed the size of the rate it gave. Where
+/// the joint limits a spring (setStiffness and setDamping do by default), its stiffness and
+/// damping are Bullet's limited ones (btGeneric6DofSpring2Constraint::get_limit_motor_info2):
+/// the stiffness at most m / (16 h^2), so that the spring's angular frequency is at most a
+/// quarter of the rate of steps, and the damping at most m / h, with m the lighter body's
+/// mass (about an angle's axis: its mass times its arm squared plus its moment about the
+/// axis).
+void readSpring2(btGeneric6DofSpring2Constraint& d6, double h, BodyJoint& j) {
+    const btRigidBody& a = d6.getRigidBodyA();
+    const btRigidBody& b = d6.getRigidBodyB();
+    const auto mass = [&](bool angular, const btVector3& axis) {
+        double lightest = std::numeric_limits<double>::infinity();
+        for (const btRigidBody* body : {&a, &b}) {
+            if (!(body->getInvMass() > 0)) continue;
+            double m = 1.0 / static_cast<double>(body->getInvMass());
+            if (angular) {
+                const btTransform& frame = body == &a ? d6.getCalculatedTransformA() : d6.getCalculatedTransformB();
+                const double arm2 = static_cast<double>((frame.getOrigin() - body->getCenterOfMassPosition()).length2());
+                m = m * arm2 + 1.0 / static_cast<double>((body->getInvInertiaTensorWorld() * axis).length());
+            }
+            lightest = std::min(lightest, m);
+        }
+        return lightest;
+    };
+    const auto spring = [&](int row, bool enabled, btScalar stiffness, bool stiffness_limited, btScalar damping,
+                            bool damping_limited, btScalar rest, bool angular, const btVector3& axis) {
+        if (!enabled) return;
+        double k = static_cast<double>(stiffness), c = static_cast<double>(damping);
+        const double m = mass(angular, axis);
+        if (stiffness_limited && std::sqrt(k / m) * h > 0.25) k = m / (16.0 * h * h);
+        if (damping_limited && c * h > m) c = m / h;
+        j.spring_stiffness[static_cast<std::size_t>(row)] = k;
+        j.spring_damping[static_cast<std::size_t>(row)] = c;
+        j.spring_rest[static_cast<std::size_t>(row)] = static_cast<double>(rest);
+    };
+    const btTranslationalLimitMotor2& linear = *d6.getTranslationalLimitMotor();
+    for (int i = 0; i < 3; ++i) {
+        const auto row = static_cast<std::size_t>(i);
+        if (linear.m_enableMotor[i] && linear.m_servoMotor[i]) {
+            j.servo[row] = true;
+            j.servo_target[row] = static_cast<double>(linear.m_servoTarget[i]);
+            j.drive_velocity[row] = std::abs(j.drive_velocity[row]);
+        }
+        spring(i, linear.m_enableSpring[i], linear.m_springStiffness[i], linear.m_springStiffnessLimited[i],
+               linear.m_springDamping[i], linear.m_springDampingLimited[i], linear.m_equilibriumPoint[i], false, d6.getAxis(i));
+        const btRotationalLimitMotor2& angular = *d6.getRotationalLimitMotor(i);
+        if (angular.m_enableMotor && angular.m_servoMotor) {
+            j.servo[3 + row] = true;
+            j.servo_target[3 + row] = static_cast<double>(angular.m_servoTarget);
+            j.drive_velocity[3 + row] = std::abs(j.drive_velocity[3 + row]);
+        }
+        spring(3 + i, angular.m_enableSpring, angular.m_springStiffness, angular.m_springStiffnessLimited,
+               angular.m_springDamping, angular.m_springDampingLimited, angular.m_equilibriumPoint, true, d6.getAxis(i));
+    }
+}
+
 /// A frame joint (BodyJoint::Kind::Frame) from a cone-twist joint, a slider or a 6-dof joint
 /// at the bodies' poses ta and tb (islandJoint's types): its frames, Bullet's coordinates and bounds (a
 /// coordinate Bullet leaves free, lower > upper, is free), and how its angles turn,
 /// measured by small turns of b's pose about each world axis (Bullet's angle conventions,
 /// Euler angles in a joint's rotation order, have no rates to read).
-BodyJoint frameJoint(btTypedConstraint& c, const btTransform& ta, const btTransform& tb) {
+BodyJoint frameJoint(btTypedConstraint& c, const btTransform& ta, const btTransform& tb, double h) {
     BodyJoint j;
     j.kind = BodyJoint::Kind::Frame;
     std::function<Vec3(const btTransform&)> angles;  // of b's frame relative to a's, b at a pose
@@ -246,6 +293,7 @@ BodyJoint frameJoint(btTypedConstraint& c, const btTransform& ta, const btTransf
         readSixDofMotors(static_cast<btGeneric6DofConstraint&>(c), j, angularDrive);
     } else if (c.getConstraintType() == D6_SPRING_2_CONSTRAINT_TYPE) {
         readSixDofMotors(static_cast<btGeneric6DofSpring2Constraint&>(c), j, angularDrive);
+        readSpring2(static_cast<btGeneric6DofSpring2Constraint&>(c), h, j);
     }
     return j;
 }
@@ -497,7 +545,7 @@ public:
             const Side sa = side(c->getRigidBodyA(), h), sb = side(c->getRigidBodyB(), h);
             if (!sa.body.valid() && !sb.body.valid()) continue;
             const int type = c->getConstraintType();
-            BodyJoint j = type == POINT2POINT_CONSTRAINT_TYPE || type == HINGE_CONSTRAINT_TYPE ? BodyJoint{} : frameJoint(*c, sa.now, sb.now);
+            BodyJoint j = type == POINT2POINT_CONSTRAINT_TYPE || type == HINGE_CONSTRAINT_TYPE ? BodyJoint{} : frameJoint(*c, sa.now, sb.now, h);
             j.host_tag = joints_.size();
             joints_.push_back(c);
             j.a = sa.body;

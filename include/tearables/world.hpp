@@ -174,6 +174,19 @@ struct BodyJoint {
     /// N m; 0: no motor), giving way beyond it as a hinge's motor does; not on a locked
     /// coordinate.
     std::array<double, 6> drive_velocity{}, drive_force{};
+    /// A frame joint's servos, per coordinate: its motor (drive_velocity a speed, m/s or
+    /// rad/s, its sign ignored; drive_force) drives the coordinate toward servo_target (m,
+    /// rad; an angle's error taken within +-pi) and holds it there, at no more than the
+    /// speed that reaches it within the step, as btGeneric6DofSpring2Constraint's servo does.
+    std::array<bool, 6> servo{};
+    std::array<double, 6> servo_target{};
+    /// A frame joint's springs, per coordinate q (not a locked one): a force (N, N m) on q of
+    /// -spring_stiffness (q - spring_rest) - spring_damping dq/dt (N/m or N m/rad; N s/m or
+    /// N m s/rad), the elastic part read where the step starts and held over it, as
+    /// btGeneric6DofSpring2Constraint applies its springs (stable where Bullet's solver
+    /// is: sqrt(k / m) h < 2), the damping at the rate the step ends with; 0 stiffness and
+    /// damping: none.
+    std::array<double, 6> spring_stiffness{}, spring_damping{}, spring_rest{};
     std::size_t host_tag = 0;      ///< the host's own name for the joint, returned unchanged
     // Out (World::lastBodyJoints), world frame: what the joint gave each body over the step,
     // as impulses (its force times h): linear, N s, and angular about the body's centre of

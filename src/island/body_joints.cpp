@@ -40,6 +40,7 @@ constexpr double kSeparationRecovery = 0.2;
 /// rate by L / (k h), 1/kMotorStiffnessFactor of what the limits' stiffness would give (a
 /// 5 kg boom lifting 2 kg at 1 m: 0.2% of 0.5 rad/s instead of 2%).
 constexpr double kMotorStiffnessFactor = 10.0;
+constexpr double kPi = 3.14159265358979323846;
 
 /// The body's largest principal moment of inertia, kg m^2 (its mass times a square metre
 /// where the inertia is not finite: a body that does not turn).
@@ -78,10 +79,17 @@ void prepareBodyJoints(std::vector<BodyJoint>& joints, const RigidTable& rigids)
                 if (!bounded(j.angular_lower[i], j.angular_upper[i]) || !std::isfinite(j.angles[i]))
                     j.angular_lower[i] = -inf, j.angular_upper[i] = inf;
             }
-            // A motor only with a finite rate and a positive, finite force.
-            for (int k = 0; k < 6; ++k)
-                if (!(j.drive_force[k] > 0.0 && std::isfinite(j.drive_force[k]) && std::isfinite(j.drive_velocity[k])))
+            // A motor only with a finite rate and a positive, finite force (a servo with a
+            // finite target too); a spring only with a finite rest, finite and non-negative
+            // stiffness and damping.
+            for (int k = 0; k < 6; ++k) {
+                if (!(j.drive_force[k] > 0.0 && std::isfinite(j.drive_force[k]) && std::isfinite(j.drive_velocity[k]) &&
+                      (!j.servo[k] || std::isfinite(j.servo_target[k]))))
                     j.drive_force[k] = 0.0;
+                if (!(j.spring_stiffness[k] >= 0.0 && std::isfinite(j.spring_stiffness[k]) && j.spring_damping[k] >= 0.0 &&
+                      std::isfinite(j.spring_damping[k]) && std::isfinite(j.spring_rest[k])))
+                    j.spring_stiffness[k] = j.spring_damping[k] = 0.0;
+            }
         }
         if (j.kind == BodyJoint::Kind::Hinge) {
             for (Vec3* axis : {&j.axis_a, &j.axis_b}) {
@@ -127,6 +135,7 @@ void BodyJointMember::start(BodyJoint& joint, const RigidTable& rigids, const St
     weight_.setZero();
     limit_count_ = 0;
     motor_count_ = 0;
+    spring_count_ = 0;
     move_a_ = pointJacobian(joint.pivot_a - a.position);
     move_b_ = b_moves_ ? Mat36(-pointJacobian(joint.pivot_b - rigids.bodies[joint.b.index].position)) : Mat36::Zero();
     if (joint.kind == BodyJoint::Kind::Frame) {
@@ -193,8 +202,9 @@ void BodyJointMember::startFrame(const BodyJoint& joint, const RigidTable& rigid
         const double lower = linear ? joint.linear_lower[i] : joint.angular_lower[i];
         const double upper = linear ? joint.linear_upper[i] : joint.angular_upper[i];
         const bool driven = joint.drive_force[row] > 0.0 && lower != upper;
+        const bool sprung = (joint.spring_stiffness[row] > 0.0 || joint.spring_damping[row] > 0.0) && lower != upper;
         const double weight = linear ? linear_weight : angular_weight;
-        if (!std::isfinite(lower) && !std::isfinite(upper) && !driven) continue;  // free
+        if (!std::isfinite(lower) && !std::isfinite(upper) && !driven && !sprung) continue;  // free
         // The coordinate's gradient in the host's a and b (u, theta).
         Vec6 host_ga = Vec6::Zero(), host_gb = Vec6::Zero();
         double value;
@@ -209,16 +219,42 @@ void BodyJointMember::startFrame(const BodyJoint& joint, const RigidTable& rigid
             host_gb.tail<3>() = -joint.angle_rates.row(i).transpose();
         }
         Vec6 ga = swapped ? host_gb : host_ga, gb = swapped ? host_ga : host_gb;
+        // The coordinate's rate now and its value where the step starts (the poses are the
+        // free motion's, a step of h at these velocities on).
+        const double rate = ga.dot(velocity(joint.a)) + gb.dot(velocity(joint.b));
+        const double start = value - rate * h_;
         if (driven) {
             // The coordinate's change over the step: the free motion's (the bodies'
-            // velocities now) and the solve's, against the motor's rate times h.
+            // velocities now) and the solve's, against the motor's rate times h. A servo's
+            // rate: toward its target at the motor's speed, the rest of the way where that
+            // would pass it.
+            double target_rate = joint.drive_velocity[row];
+            if (joint.servo[row]) {
+                double error = joint.servo_target[row] - start;
+                if (!linear) error = std::remainder(error, 2.0 * kPi);
+                const double speed = std::abs(joint.drive_velocity[row]);
+                target_rate = std::clamp(error / h_, -speed, speed);
+            }
             Motor& motor = motors_[motor_count_++];
             motor = Motor{};
             motor.ga = ga;
             motor.gb = b_moves_ ? gb : Vec6::Zero();
-            motor.offset = (ga.dot(velocity(joint.a)) + gb.dot(velocity(joint.b)) - joint.drive_velocity[row]) * h_;
+            motor.offset = (rate - target_rate) * h_;
             motor.force = joint.drive_force[row];
             motor.weight = kMotorStiffnessFactor * weight;
+        }
+        if (sprung) {
+            // The elastic force -k (q - rest) where the step starts, held over it (as Bullet's
+            // solver applies it: with the rate the step ends at, Bullet's symplectic Euler,
+            // which keeps an undamped spring's swing); the damper -c dq/dt at the rate where
+            // the step ends (implicit: the rate where it starts already carries gravity's
+            // h g, a force c h g that would hold a body at rest off its rest).
+            Spring& spring = springs_[spring_count_++];
+            spring.ga = ga;
+            spring.gb = b_moves_ ? gb : Vec6::Zero();
+            spring.force = -joint.spring_stiffness[row] * (start - joint.spring_rest[row]);
+            spring.damping = joint.spring_damping[row];
+            spring.offset = rate * h_;
         }
         if (!std::isfinite(lower) && !std::isfinite(upper)) continue;
         if (!b_moves_) gb.setZero();
@@ -259,6 +295,13 @@ void BodyJointMember::condense(bool fresh) {
         gradient_ += motor.pull(slip) * g;
         const double stiffness = std::abs(slip) * motor.weight < motor.force ? motor.weight : motor.force / std::abs(slip);
         hessian_ += stiffness * g * g.transpose();
+    }
+    for (int k = 0; k < spring_count_; ++k) {
+        const Spring& spring = springs_[k];
+        const Eigen::Matrix<double, 12, 1> g = spring.g();
+        const double weight = spring.damping / h_;
+        gradient_ += (weight * spring.change(disp_a_, disp_b_) - spring.force) * g;
+        hessian_ += weight * g * g.transpose();
     }
     for (int k = 0; k < limit_count_; ++k) {
         Limit& limit = limits_[k];
@@ -308,6 +351,11 @@ double BodyJointMember::energy(double alpha) const {
         const double slip = std::abs(motor.slip(da, db)), reach = motor.force / motor.weight;
         e += slip < reach ? 0.5 * motor.weight * slip * slip : motor.force * (slip - 0.5 * reach);
     }
+    for (int k = 0; k < spring_count_; ++k) {
+        const Spring& spring = springs_[k];
+        const double change = spring.change(da, db);
+        e += 0.5 * spring.damping / h_ * change * change - spring.force * (change - spring.offset);
+    }
     return e;
 }
 
@@ -327,6 +375,12 @@ void BodyJointMember::finish(int) {
         const double pull = motor.pull(motor.slip(disp_a_, disp_b_));
         on_a -= pull * motor.ga;
         on_b -= pull * motor.gb;
+    }
+    for (int k = 0; k < spring_count_; ++k) {
+        const Spring& spring = springs_[k];
+        const double force = spring.force - spring.damping / h_ * spring.change(disp_a_, disp_b_);
+        on_a += force * spring.ga;
+        on_b += force * spring.gb;
     }
     joint_->impulse_a = h_ * on_a.head<3>();
     joint_->angular_impulse_a = h_ * on_a.tail<3>();

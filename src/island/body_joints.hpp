@@ -66,6 +66,21 @@ private:
         double pull(double s) const { return std::clamp(weight * s, -force, force); }
     };
 
+    /// A spring on a coordinate: its elastic force held over the step (read where it
+    /// starts), the energy's term -force (ga . d_a + gb . d_b); and its damper on the
+    /// coordinate's rate where the step ends, (change / h), the change over the step
+    /// offset + ga . d_a + gb . d_b: the term damping / (2 h) change^2, convex.
+    struct Spring {
+        Vec6 ga = Vec6::Zero(), gb = Vec6::Zero();
+        double force = 0.0, damping = 0.0, offset = 0.0;
+        double change(const Vec6& da, const Vec6& db) const { return offset + ga.dot(da) + gb.dot(db); }
+        Eigen::Matrix<double, 12, 1> g() const {
+            Eigen::Matrix<double, 12, 1> out;
+            out << ga, gb;
+            return out;
+        }
+    };
+
     BodyJoint* joint_ = nullptr;  ///< where finish() writes the impulses
     double h_ = 0.0;
     Mat36 move_a_ = Mat36::Zero(), move_b_ = Mat36::Zero();  ///< the pivots' relative move in d_a, d_b (apply)
@@ -73,6 +88,8 @@ private:
     int limit_count_ = 0;
     std::array<Motor, 6> motors_;  ///< the first motor_count_ are the joint's
     int motor_count_ = 0;
+    std::array<Spring, 6> springs_;  ///< the first spring_count_ are the joint's
+    int spring_count_ = 0;
     Eigen::Matrix<double, 6, 1> r0_ = Eigen::Matrix<double, 6, 1>::Zero();
     Eigen::Matrix<double, 6, 6> ja_ = Eigen::Matrix<double, 6, 6>::Zero(), jb_ = Eigen::Matrix<double, 6, 6>::Zero();
     Eigen::Matrix<double, 6, 1> weight_ = Eigen::Matrix<double, 6, 1>::Zero();  ///< per residual: its stiffness

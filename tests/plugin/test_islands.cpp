@@ -969,6 +969,149 @@ TEST(Islands, AngularMotorsTurnABoardAsBulletDoes) {
 }
 
 namespace {
+/// A 3 kg platform on a vertical btGeneric6DofSpring2Constraint to the world, free along y
+/// only, on a spring along y (stiffness k, damping c, at rest where the platform starts),
+/// released from rest, with a light rope hanging from it (the island's) or none (Bullet's):
+/// its height over 200 steps of 1/100 s, and the platform's and rope's mass.
+struct SpringRun {
+    std::vector<double> y;
+    double mass = 0.0;
+};
+SpringRun springRun(double k, double c, bool with_rope) {
+    Physics phys;
+    btRigidBody& platform = phys.box(btVector3(0.3f, 0.025f, 0.2f), 3.0, btVector3(0, 1.0f, 0));
+    platform.setActivationState(DISABLE_DEACTIVATION);
+    auto guide = slideJoint(Frame::SixDofSpring2, platform, btTransform::getIdentity(), 1, 1, -1);
+    auto& d6 = static_cast<btGeneric6DofSpring2Constraint&>(*guide);
+    d6.enableSpring(1, true);
+    d6.setStiffness(1, static_cast<btScalar>(k));
+    d6.setDamping(1, static_cast<btScalar>(c));
+    d6.setEquilibriumPoint(1, 0);
+    phys.world->addConstraint(guide.get(), true);
+    BulletWorld ropes(*phys.world);
+    SpringRun run;
+    run.mass = 3.0;
+    if (with_rope) {
+        const StringDesc hanging = rope({0.25, 0.975, 0}, {0.25, 0.575, 0}, 16);
+        const StringId id = ropes.addString(hanging);
+        ropes.attach(id, 0, platform, btVector3(0.25f, -0.025f, 0));
+        run.mass += ropeMass(hanging, 0.4);
+    }
+    for (int i = 0; i < 200; ++i) {
+        phys.step(1);
+        run.y.push_back(static_cast<double>(platform.getCenterOfMassPosition().y()) - 1.0);
+    }
+    EXPECT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+    EXPECT_EQ(ropes.core().lastBodyJoints().size(), with_rope ? 1u : 0u);
+    phys.world->removeConstraint(guide.get());
+    return run;
+}
+
+/// The times (s, steps of 1/100 s) of a sampled motion's lowest points, each where its
+/// velocity turns from down to up, placed by the parabola through the three samples around it.
+std::vector<double> lowestPoints(const std::vector<double>& y) {
+    std::vector<double> out;
+    for (std::size_t i = 1; i + 1 < y.size(); ++i)
+        if (y[i] < y[i - 1] && y[i] <= y[i + 1]) {
+            const double curvature = y[i - 1] - 2.0 * y[i] + y[i + 1];
+            const double shift = curvature > 0.0 ? 0.5 * (y[i - 1] - y[i + 1]) / curvature : 0.0;
+            out.push_back(0.01 * (static_cast<double>(i + 1) + shift));
+        }
+    return out;
+}
+}  // namespace
+
+// A 6-dof spring joint's springs in an island act as Bullet applies them (each step the
+// spring's force where the step starts, -k (q - rest) - c dq/dt): a 3 kg platform on a
+// vertical spring of 300 N/m, released at the spring's rest length with a light rope
+// hanging from it, oscillates about its static sag m g / k with the period 2 pi sqrt(m / k)
+// (0.63 s; 1%: the step's phase error, sqrt(k / m) h = 0.1, is 0.2%) and keeps its swing
+// (symplectic, as Bullet's: its lowest point after two periods within 3% of the first,
+// 2 m g / k down), where a spring solved implicitly would lose a quarter of its swing a
+// period. Damped (c = sqrt(k m), a damping ratio of 1/2) it settles at the sag, within
+// 0.5%, as Bullet's own solver settles it; and a spring too stiff for the step is limited
+// as Bullet limits it.
+TEST(Islands, SixDofSpringsActAsBulletsSprings) {
+    const double k = 300.0;
+    for (const bool with_rope : {false, true}) {
+        SCOPED_TRACE(with_rope ? "island" : "Bullet");
+        const SpringRun run = springRun(k, 0.0, with_rope);
+        const double sag = run.mass * kG / k, period = 2.0 * kPi * std::sqrt(run.mass / k);
+        const std::vector<double> lows = lowestPoints(run.y);
+        ASSERT_GE(lows.size(), 2u);
+        EXPECT_NEAR(lows[1] - lows[0], period, 0.01 * period);
+        EXPECT_NEAR(lows[0], 0.5 * period, 0.02 * period);
+        // The lowest points of the first and third swings (at 0.32 s and 1.58 s).
+        const double first = *std::min_element(run.y.begin(), run.y.begin() + 64);
+        const double third = *std::min_element(run.y.begin() + 127, run.y.begin() + 190);
+        EXPECT_NEAR(first, -2.0 * sag, 0.03 * 2.0 * sag);
+        EXPECT_NEAR(third, first, 0.03 * 2.0 * sag) << "the swing was damped";
+        const SpringRun damped = springRun(k, std::sqrt(k * run.mass), with_rope);
+        EXPECT_NEAR(damped.y.back(), -sag, 0.005 * sag);
+        // Too stiff for the step (sqrt(k / m) h = 5.8), the spring is limited as Bullet limits
+        // it (setStiffness's default): to 3 kg / (16 h^2), a quarter of the rate of steps.
+        const SpringRun stiff = springRun(1e6, 0.0, with_rope);
+        const double limited = 2.0 * kPi * std::sqrt(stiff.mass / (3.0 / (16.0 * 0.01 * 0.01)));
+        const std::vector<double> stiff_lows = lowestPoints(stiff.y);
+        ASSERT_GE(stiff_lows.size(), 2u);
+        EXPECT_NEAR(stiff_lows[1] - stiff_lows[0], limited, 0.01 * limited);
+    }
+}
+
+namespace {
+/// A 3 kg board held at one end by a btGeneric6DofSpring2Constraint to the world that leaves
+/// only its turn about z free, turned by the joint's servo toward `target` rad at 1 rad/s
+/// with at most 100 N m, gravity off, for `steps` steps of 1/100 s, with a rope hanging
+/// from its far end (the island's) or none (Bullet's). Returns the board's turn about z and
+/// its rate.
+std::pair<double, double> servoRun(double target, bool with_rope, int steps) {
+    Physics phys(0.0);
+    btRigidBody& board = phys.box(btVector3(0.5f, 0.025f, 0.15f), 3.0, btVector3(0.5f, 1.0f, 0));
+    board.setActivationState(DISABLE_DEACTIVATION);
+    auto d6 = std::make_unique<btGeneric6DofSpring2Constraint>(board, btTransform(btQuaternion::getIdentity(), btVector3(-0.5f, 0, 0)));
+    d6->setLinearLowerLimit(btVector3(0, 0, 0));
+    d6->setLinearUpperLimit(btVector3(0, 0, 0));
+    d6->setAngularLowerLimit(btVector3(0, 0, 1));
+    d6->setAngularUpperLimit(btVector3(0, 0, -1));
+    d6->enableMotor(5, true);
+    d6->setServo(5, true);
+    d6->setServoTarget(5, static_cast<btScalar>(target));
+    d6->setTargetVelocity(5, 1.0f);
+    d6->setMaxMotorForce(5, 100.0f);
+    phys.world->addConstraint(d6.get(), true);
+    BulletWorld ropes(*phys.world);
+    if (with_rope) {
+        const StringId id = ropes.addString(rope({0.95, 0.975, 0}, {0.95, 0.775, 0}, 8));
+        ropes.attach(id, 0, board, btVector3(0.45f, -0.025f, 0));
+    }
+    for (int i = 0; i < steps; ++i) phys.step(1);
+    EXPECT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+    EXPECT_EQ(ropes.core().lastBodyJoints().size(), with_rope ? 1u : 0u);
+    phys.world->removeConstraint(d6.get());
+    const btQuaternion q = board.getOrientation();
+    return {2.0 * std::atan2(static_cast<double>(q.z()), static_cast<double>(q.w())), static_cast<double>(board.getAngularVelocity().z())};
+}
+}  // namespace
+
+// A 6-dof spring joint's servo in an island turns its coordinate toward the target at the
+// motor's speed and stops there, as Bullet's own servo does: a board turned to 0.5 rad and
+// to -0.5 rad at 1 rad/s turns at Bullet's rate (1%) on its way, and rests at the target
+// within 1 mrad after 1 s (Bullet's rests within 1%).
+TEST(Islands, SixDofServoTurnsABoardToItsTargetAsBulletDoes) {
+    for (const double target : {0.5, -0.5}) {
+        SCOPED_TRACE(target);
+        const auto bullet_moving = servoRun(target, false, 20), bullet_rest = servoRun(target, false, 100);
+        ASSERT_NEAR(std::abs(bullet_moving.second), 1.0, 0.02) << "Bullet's own rate";
+        ASSERT_NEAR(std::abs(bullet_rest.first), std::abs(target), 0.01 * std::abs(target)) << "Bullet's own rest";
+        const auto moving = servoRun(target, true, 20), rest = servoRun(target, true, 100);
+        EXPECT_NEAR(moving.second, bullet_moving.second, 0.01);
+        EXPECT_NEAR(rest.first, bullet_rest.first, 1e-3);
+        EXPECT_NEAR(std::abs(rest.first), std::abs(target), 1e-3);
+        EXPECT_LT(std::abs(rest.second), 1e-2);
+    }
+}
+
+namespace {
 /// A 3 kg board held at one end by a cone-twist joint to the world (btConeTwistConstraint,
 /// its twist axis, the frame's x, along the board, the frame turned by `roll` about it),
 /// swing spans 0.3 (about the frame's z) and 0.5 (about its y), twist span 0.2, anchored
