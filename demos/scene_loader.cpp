@@ -654,7 +654,7 @@ constexpr double kPi = 3.14159265358979323846;
 
 /// A joint (joints[]) between the scene's `bodies` (`names`: their names).
 Joint parseJoint(const Node& n, const NameMap& names, const std::vector<Body>& bodies) {
-    n.checkNoUnknownFields({"type", "body", "other", "pivot", "axis", "limits", "motor"});
+    n.checkNoUnknownFields({"type", "body", "other", "pivot", "axis", "limits", "motor", "stiffness", "damping"});
     Joint j;
     const Node type = n.required("type");
     const std::string kind = type.asString();
@@ -666,8 +666,10 @@ Joint parseJoint(const Node& n, const NameMap& names, const std::vector<Body>& b
         j.kind = Joint::Kind::Slider;
     } else if (kind == "fixed") {
         j.kind = Joint::Kind::Fixed;
+    } else if (kind == "spring") {
+        j.kind = Joint::Kind::Spring;
     } else {
-        type.fail("must be \"ball\", \"hinge\", \"slider\" or \"fixed\" (got " + jsonQuoted(kind) + ")");
+        type.fail("must be \"ball\", \"hinge\", \"slider\", \"fixed\" or \"spring\" (got " + jsonQuoted(kind) + ")");
     }
     auto body = [&](const Node& field) -> const Body& {
         const std::string name = field.asString();
@@ -687,21 +689,35 @@ Joint parseJoint(const Node& n, const NameMap& names, const std::vector<Body>& b
         j.other = b.name;
     }
     j.pivot = n.required("pivot").asVec3(Range::bullet());
-    const char* what = j.kind == Joint::Kind::Ball ? "a ball joint" : j.kind == Joint::Kind::Fixed ? "a fixed joint" : j.kind == Joint::Kind::Slider ? "a slider" : "a hinge";
+    const bool linear = j.kind == Joint::Kind::Slider || j.kind == Joint::Kind::Spring;
+    const char* what = j.kind == Joint::Kind::Ball     ? "a ball joint"
+                       : j.kind == Joint::Kind::Fixed  ? "a fixed joint"
+                       : j.kind == Joint::Kind::Slider ? "a slider"
+                       : j.kind == Joint::Kind::Spring ? "a spring"
+                                                       : "a hinge";
     if (j.kind == Joint::Kind::Ball || j.kind == Joint::Kind::Fixed) {
         for (const char* key : {"axis", "limits"})
-            if (const auto extra = n.field(key)) extra->fail(std::string("is for hinges and sliders only (this joint is ") + what + ")");
+            if (const auto extra = n.field(key)) extra->fail(std::string("is for hinges, sliders and springs only (this joint is ") + what + ")");
     }
-    if (j.kind == Joint::Kind::Ball || j.kind == Joint::Kind::Fixed)
+    if (j.kind != Joint::Kind::Hinge && j.kind != Joint::Kind::Slider)
         if (const auto extra = n.field("motor")) extra->fail(std::string("is for hinges and sliders only (this joint is ") + what + ")");
+    if (j.kind != Joint::Kind::Spring) {
+        for (const char* key : {"stiffness", "damping"})
+            if (const auto extra = n.field(key)) extra->fail(std::string("is for springs only (this joint is ") + what + ")");
+    }
     if (j.kind == Joint::Kind::Ball || j.kind == Joint::Kind::Fixed) return j;
     const Node axis = n.required("axis");
     j.axis = axis.asVec3(Range::bullet());
     const double length = j.axis.stableNorm();
-    if (!(length > 1e-9)) axis.fail(j.kind == Joint::Kind::Slider ? "must not be zero (a slider moves along it)" : "must not be zero (a hinge turns about it)");
+    if (!(length > 1e-9))
+        axis.fail(j.kind == Joint::Kind::Hinge ? "must not be zero (a hinge turns about it)" : std::string("must not be zero (") + what + " moves along it)");
     j.axis /= length;
+    if (j.kind == Joint::Kind::Spring) {
+        j.stiffness = n.required("stiffness").asNumber(Range{0.0, 1e9, true, false});
+        j.damping = n.number("damping", 0.0, Range::closed(0.0, 1e9));
+    }
     if (const auto limits = n.field("limits")) {
-        const std::vector<double> v = limits->asNumbers(2, j.kind == Joint::Kind::Slider ? Range::bullet() : Range::closed(-kPi, kPi));
+        const std::vector<double> v = limits->asNumbers(2, linear ? Range::bullet() : Range::closed(-kPi, kPi));
         if (!(v[0] <= v[1])) limits->fail("must be [lower, upper] with lower <= upper (got [" + formatNumber(v[0]) + ", " + formatNumber(v[1]) + "])");
         j.limits = std::array<double, 2>{v[0], v[1]};
     }

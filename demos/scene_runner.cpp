@@ -52,13 +52,14 @@ void addBulletJoint(BulletScene& bs, const Joint& spec) {
     const btTransform ta = a.getWorldTransform();
     const btVector3 pivot_a = ta.invXform(pivot), axis_a = ta.getBasis().transpose() * axis;
     std::unique_ptr<btTypedConstraint> joint;
-    if (spec.kind == Joint::Kind::Slider || spec.kind == Joint::Kind::Fixed) {
-        // The joint's frame in the world: at the pivot, a slider's x along its axis (Bullet's
-        // slide), a fixed joint's the world's axes; in each body's frame where they start.
-        // A slider's a is the other body (or the world) and its b the body, so that its
-        // limits bound the body's travel from where it starts relative to the other.
+    if (spec.kind == Joint::Kind::Slider || spec.kind == Joint::Kind::Fixed || spec.kind == Joint::Kind::Spring) {
+        // The joint's frame in the world: at the pivot, a slider's or spring's x along its
+        // axis (Bullet's slide), a fixed joint's the world's axes; in each body's frame where
+        // they start. A slider's or spring's a is the other body (or the world) and its b the
+        // body, so that its coordinate is the body's travel from where it starts relative to
+        // the other.
         btTransform frame(btQuaternion::getIdentity(), pivot);
-        if (spec.kind == Joint::Kind::Slider) {
+        if (spec.kind != Joint::Kind::Fixed) {
             btVector3 y, z;
             btPlaneSpace1(axis, y, z);
             frame.setBasis(btMatrix3x3(axis.x(), y.x(), z.x(), axis.y(), y.y(), z.y(), axis.z(), y.z(), z.z()));
@@ -67,6 +68,23 @@ void addBulletJoint(BulletScene& bs, const Joint& spec) {
         const btTransform in_b = b ? b->getWorldTransform().inverse() * frame : frame;  // the world's fixed body sits at the origin
         if (spec.kind == Joint::Kind::Fixed) {
             joint = std::make_unique<btFixedConstraint>(a, b ? *b : btTypedConstraint::getFixedBody(), in_a, in_b);
+        } else if (spec.kind == Joint::Kind::Spring) {
+            // Free along x only (lower > upper: free), within the limits where given, on a
+            // spring at rest where the bodies start (setStiffness limits a spring too stiff for
+            // the step, as Bullet does by default).
+            auto spring = b ? std::make_unique<btGeneric6DofSpring2Constraint>(*b, a, in_b, in_a)
+                            : std::make_unique<btGeneric6DofSpring2Constraint>(a, in_a);
+            const btScalar lower = spec.limits ? static_cast<btScalar>((*spec.limits)[0]) : 1;
+            const btScalar upper = spec.limits ? static_cast<btScalar>((*spec.limits)[1]) : -1;
+            spring->setLinearLowerLimit(btVector3(lower, 0, 0));
+            spring->setLinearUpperLimit(btVector3(upper, 0, 0));
+            spring->setAngularLowerLimit(btVector3(0, 0, 0));
+            spring->setAngularUpperLimit(btVector3(0, 0, 0));
+            spring->enableSpring(0, true);
+            spring->setStiffness(0, static_cast<btScalar>(spec.stiffness));
+            spring->setDamping(0, static_cast<btScalar>(spec.damping));
+            spring->setEquilibriumPoint(0, 0);
+            joint = std::move(spring);
         } else {
             auto slider = b ? std::make_unique<btSliderConstraint>(*b, a, in_b, in_a, true) : std::make_unique<btSliderConstraint>(a, in_a, true);
             if (spec.limits) {

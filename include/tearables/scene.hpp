@@ -57,19 +57,20 @@ struct Body {
 };
 
 /// A Bullet joint (docs/SCENE_FORMAT.md, "joints"): a ball joint (btPoint2PointConstraint), a
-/// hinge (btHingeConstraint), a slider (btSliderConstraint) or a fixed joint
-/// (btFixedConstraint) between a dynamic body and another body or the world, at a world
+/// hinge (btHingeConstraint), a slider (btSliderConstraint), a fixed joint
+/// (btFixedConstraint) or a spring (btGeneric6DofSpring2Constraint free along its axis only,
+/// on a spring there) between a dynamic body and another body or the world, at a world
 /// point (and axis) where the bodies start.
 struct Joint {
-    enum class Kind { Ball, Hinge, Slider, Fixed };
+    enum class Kind { Ball, Hinge, Slider, Fixed, Spring };
     Kind kind = Kind::Hinge;
     std::string body;                      ///< a dynamic body's name
     std::optional<std::string> other;      ///< the other body's name (not `body`); none: the world
     Vec3 pivot = Vec3::Zero();             ///< m, world, where the bodies start
-    Vec3 axis = Vec3::UnitZ();             ///< hinge, slider: world axis (normalised on load; non-zero)
-    /// [lower, upper], lower <= upper: a hinge's angle, rad in [-pi, pi]; a slider's travel
-    /// along its axis, m: body's displacement relative to other (or the world) from where
-    /// they start. None: a hinge turns freely, a slider slides freely.
+    Vec3 axis = Vec3::UnitZ();             ///< hinge, slider, spring: world axis (normalised on load; non-zero)
+    /// [lower, upper], lower <= upper: a hinge's angle, rad in [-pi, pi]; a slider's or a
+    /// spring's travel along its axis, m: body's displacement relative to other (or the
+    /// world) from where they start. None: a hinge turns freely, a slider slides freely.
     std::optional<std::array<double, 2>> limits;
     /// A hinge's angular motor (btHingeConstraint::enableAngularMotor): its target rate,
     /// rad/s in [-1e3, 1e3], and its largest impulse a step, N m s in (0, 1e6]; or a
@@ -82,6 +83,10 @@ struct Joint {
         double force = 0.0;    ///< slider
     };
     std::optional<Motor> motor;
+    /// A spring's stiffness, N/m in (0, 1e9], and damping, N s/m in [0, 1e9]: it pulls body
+    /// back along the axis toward where it started relative to other.
+    double stiffness = 0.0;
+    double damping = 0.0;
 };
 
 /// What holds a string's particle (the same words as a sheet's: docs/SCENE_FORMAT.md, "Words").

@@ -747,7 +747,7 @@ const ErrorCase kErrorCases[] = {
      "drivers[0].target", "unknown field"},
     // --- joints
     {"JointUnknownType", jointScene(R"({"type": "cone", "body": "b", "pivot": [0, 1, 0]})"), "joints[0].type",
-     "must be \"ball\", \"hinge\", \"slider\" or \"fixed\" (got \"cone\")"},
+     "must be \"ball\", \"hinge\", \"slider\", \"fixed\" or \"spring\" (got \"cone\")"},
     {"JointUnknownBody", jointScene(R"({"type": "ball", "body": "nobody", "pivot": [0, 1, 0]})"), "joints[0].body",
      "no body named \"nobody\""},
     {"JointStaticBody", jointScene(R"({"type": "ball", "body": "post", "pivot": [0, 1, 0]})"), "joints[0].body",
@@ -755,9 +755,9 @@ const ErrorCase kErrorCases[] = {
     {"JointOtherIsBody", jointScene(R"({"type": "ball", "body": "b", "other": "b", "pivot": [0, 1, 0]})"),
      "joints[0].other", "must name another body"},
     {"JointBallWithAxis", jointScene(R"({"type": "ball", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 1]})"),
-     "joints[0].axis", "is for hinges and sliders only (this joint is a ball joint)"},
+     "joints[0].axis", "is for hinges, sliders and springs only (this joint is a ball joint)"},
     {"JointFixedWithLimits", jointScene(R"({"type": "fixed", "body": "b", "pivot": [0, 1, 0], "limits": [0, 1]})"),
-     "joints[0].limits", "is for hinges and sliders only (this joint is a fixed joint)"},
+     "joints[0].limits", "is for hinges, sliders and springs only (this joint is a fixed joint)"},
     {"JointSliderWithoutAxis", jointScene(R"({"type": "slider", "body": "b", "pivot": [0, 1, 0]})"), "joints[0].axis",
      "missing required field"},
     {"JointSliderZeroAxis", jointScene(R"({"type": "slider", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 0]})"),
@@ -786,6 +786,18 @@ const ErrorCase kErrorCases[] = {
      "joints[0].motor.impulse", "must be in"},
     {"JointMotorTooFast", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 1], "motor": {"velocity": 1e4, "impulse": 1}})"),
      "joints[0].motor.velocity", "must be in"},
+    {"JointSpringWithoutStiffness", jointScene(R"({"type": "spring", "body": "b", "pivot": [0, 1, 0], "axis": [0, 1, 0]})"),
+     "joints[0].stiffness", "missing required field"},
+    {"JointSpringZeroStiffness", jointScene(R"({"type": "spring", "body": "b", "pivot": [0, 1, 0], "axis": [0, 1, 0], "stiffness": 0})"),
+     "joints[0].stiffness", "must be in"},
+    {"JointSpringNegativeDamping", jointScene(R"({"type": "spring", "body": "b", "pivot": [0, 1, 0], "axis": [0, 1, 0], "stiffness": 1, "damping": -1})"),
+     "joints[0].damping", "must be in"},
+    {"JointSpringZeroAxis", jointScene(R"({"type": "spring", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 0], "stiffness": 1})"),
+     "joints[0].axis", "must not be zero (a spring moves along it)"},
+    {"JointSpringWithMotor", jointScene(R"({"type": "spring", "body": "b", "pivot": [0, 1, 0], "axis": [0, 1, 0], "stiffness": 1, "motor": {"velocity": 1, "force": 1}})"),
+     "joints[0].motor", "is for hinges and sliders only (this joint is a spring)"},
+    {"JointSliderWithStiffness", jointScene(R"({"type": "slider", "body": "b", "pivot": [0, 1, 0], "axis": [0, 1, 0], "stiffness": 1})"),
+     "joints[0].stiffness", "is for springs only (this joint is a slider)"},
     {"JointMotorUnknownField", jointScene(R"({"type": "hinge", "body": "b", "pivot": [0, 1, 0], "axis": [0, 0, 1], "motor": {"velocity": 1, "impulse": 1, "torque": 2}})"),
      "joints[0].motor.torque", "unknown field"},
 };
@@ -833,6 +845,21 @@ TEST(SceneLoader, SlidersAndFixedJointsAreRead) {
     EXPECT_EQ(s.joints[1].kind, tearables::scene::Joint::Kind::Fixed);
     EXPECT_FALSE(s.joints[1].other.has_value());
     EXPECT_EQ(s.joints[1].pivot, Vec3(1, 1, 0));
+}
+
+TEST(SceneLoader, SpringJointIsRead) {
+    const Scene s = parseScene(jointScene(
+        R"({"type": "spring", "body": "b", "other": "post", "pivot": [0, 1, 0], "axis": [0, 2, 0], "stiffness": 300, "damping": 12.5, "limits": [-0.3, 0.1]},
+           {"type": "spring", "body": "b", "pivot": [0, 1, 0], "axis": [1, 0, 0], "stiffness": 5})"));
+    ASSERT_EQ(s.joints.size(), 2u);
+    EXPECT_EQ(s.joints[0].kind, tearables::scene::Joint::Kind::Spring);
+    EXPECT_EQ(s.joints[0].axis, Vec3(0, 1, 0));  // normalised
+    EXPECT_EQ(s.joints[0].stiffness, 300.0);
+    EXPECT_EQ(s.joints[0].damping, 12.5);
+    ASSERT_TRUE(s.joints[0].limits.has_value());
+    EXPECT_EQ((*s.joints[0].limits)[0], -0.3);
+    EXPECT_EQ(s.joints[1].damping, 0.0);  // the default
+    EXPECT_FALSE(s.joints[1].limits.has_value());
 }
 
 TEST(SceneLoader, HingeMotorIsRead) {
@@ -980,6 +1007,40 @@ TEST(SceneRun, SliderMotorLiftsItsPlatformToItsLimit) {
     ASSERT_EQ(heights.size(), 101u);
     EXPECT_NEAR((heights[25] - heights[15]) / 0.1, 0.3, 0.003);  // rising, well before the limit (0.33 s)
     EXPECT_NEAR(heights.back(), 1.1, 1e-3);
+}
+
+// A scene's spring joint is a spring along its axis, at rest where the bodies start: a 3 kg
+// platform on a vertical spring of 300 N/m with a light rope hanging from it (so the island
+// solves it), released there, swings down to twice its static sag, 2 m g / k (3%), and back
+// with the period 2 pi sqrt(m / k) (its lowest points 0.63 s apart, 1%); damped at a ratio
+// of 1/2 it settles at the sag m g / k (0.5%).
+TEST(SceneRun, SpringJointHoldsItsBodyAtItsSag) {
+    constexpr double kPi = 3.14159265358979323846;
+    for (const double damping : {0.0, 30.0}) {
+        SCOPED_TRACE(damping);
+        const Scene scene = parseScene(R"({"dt": 0.01, "steps": 200, "gravity": [0, -9.81, 0],
+          "bodies": [{"name": "platform", "shape": {"box": [0.3, 0.025, 0.2]}, "mass": 3, "position": [0, 1, 0]}],
+          "joints": [{"type": "spring", "body": "platform", "pivot": [0, 1, 0], "axis": [0, 1, 0], "stiffness": 300, "damping": )" +
+                                       std::to_string(damping) + R"(}],
+          "strings": [{"name": "tail", "from": [0.25, 0.975, 0], "to": [0.25, 0.775, 0], "segments": 8, "radius": 0.002, "density": 1150,
+                       "attachments": [{"particle": 0, "body": "platform", "local": [0.25, -0.025, 0]}]}]})");
+        const double mass = 3.0 + 1150.0 * kPi * 0.002 * 0.002 * 0.2, sag = mass * 9.81 / 300.0;
+        std::vector<double> heights;
+        RunOptions options;
+        options.every = 1;
+        options.on_frame = [&](const FrameState& f) { heights.push_back(f.bodies.at(0).position.y() - 1.0); };
+        runScene(scene, options);
+        ASSERT_EQ(heights.size(), 201u);
+        if (damping > 0.0) {
+            EXPECT_NEAR(heights.back(), -sag, 0.005 * sag);
+            continue;
+        }
+        const auto lowest = std::min_element(heights.begin(), heights.begin() + 64);
+        EXPECT_NEAR(*lowest, -2.0 * sag, 0.03 * 2.0 * sag);
+        const auto next = std::min_element(heights.begin() + 64, heights.begin() + 127);
+        const double period = 2.0 * kPi * std::sqrt(mass / 300.0);
+        EXPECT_NEAR(0.01 * static_cast<double>(next - lowest), period, 0.01 * period + 0.01);  // whole frames
+    }
 }
 
 // A scene's slider to another body bounds body's travel relative to that body, and a fixed
