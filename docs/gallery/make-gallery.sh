@@ -40,5 +40,7 @@ frame torsion-nonuniform torsion-nonuniform --png --size 640x360 --every 300
 plot  twist-game-plot    twist-game --plot --plot-size 640x480
 frame elevator           elevator --png --size 640x360 --steps 170 --every 170
 frame elevator-dropped   elevator --png --size 640x360 --steps 250 --every 250
+frame banner             banner --png --size 640x360 --steps 190 --every 190
+frame banner-torn        banner --png --size 640x360 --steps 230 --every 230
 xvfb-run -a -s '-screen 0 1600x1200x24' "$build/tearables-view" swing --size 1280x720 \
     --screenshot "$here/viewer-swing.png" --steps 150
