@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -900,12 +901,18 @@ TEST(Islands, GuideMotorDrivesItsPlatformAsBulletDoes) {
 }
 
 namespace {
+/// A board's turn about a joint's free axis: its angle (from the quaternion) and rate, rad, rad/s.
+struct Turn {
+    double angle = 0.0, rate = 0.0;
+};
+
 /// A 3 kg board held at one end by a 6-dof joint to the world (or a slider along x, its
 /// turn about x free) that leaves only its turn about `axis` (x or z) free, driven by the
-/// joint's angular motor at Bullet's target `rate` with at most `torque`, gravity off, for
-/// 30 steps of 1/100 s, with a rope hanging from its far end (the island's) or none. Returns
-/// the board's turn rate about that axis.
-double turnMotorRun(Frame kind, double rate, double torque, bool with_rope) {
+/// joint's angular motor at Bullet's target `rate` with at most `torque` (a 6-dof spring-2
+/// joint's motor as a servo toward `servo` rad where given), gravity off, for `steps`
+/// steps of 1/100 s, with a rope hanging from its far end (the island's) or none. Returns
+/// the board's turn about that axis.
+Turn turnMotorRun(Frame kind, double rate, double torque, bool with_rope, int steps = 30, std::optional<double> servo = std::nullopt) {
     Physics phys(0.0);
     btRigidBody& board = phys.box(btVector3(0.5f, 0.025f, 0.15f), 3.0, btVector3(0.5f, 1.0f, 0));
     board.setActivationState(DISABLE_DEACTIVATION);
@@ -941,6 +948,10 @@ double turnMotorRun(Frame kind, double rate, double torque, bool with_rope) {
         d6->enableMotor(5, true);
         d6->setTargetVelocity(5, v);
         d6->setMaxMotorForce(5, t);
+        if (servo) {
+            d6->setServo(5, true);
+            d6->setServoTarget(5, static_cast<btScalar>(*servo));
+        }
         joint = std::move(d6);
     }
     phys.world->addConstraint(joint.get(), true);
@@ -949,11 +960,12 @@ double turnMotorRun(Frame kind, double rate, double torque, bool with_rope) {
         const StringId id = ropes.addString(rope({0.95, 0.975, 0}, {0.95, 0.775, 0}, 8));
         ropes.attach(id, 0, board, btVector3(0.45f, -0.025f, 0));
     }
-    for (int i = 0; i < 30; ++i) phys.step(1);
+    for (int i = 0; i < steps; ++i) phys.step(1);
     EXPECT_TRUE(ropes.lastError().empty()) << ropes.lastError();
     EXPECT_EQ(ropes.core().lastBodyJoints().size(), with_rope ? 1u : 0u);
     phys.world->removeConstraint(joint.get());
-    return static_cast<double>(board.getAngularVelocity()[axis]);
+    const btQuaternion q = board.getOrientation();
+    return {2.0 * std::atan2(static_cast<double>(q[axis]), static_cast<double>(q.w())), static_cast<double>(board.getAngularVelocity()[axis])};
 }
 }  // namespace
 
@@ -962,9 +974,9 @@ double turnMotorRun(Frame kind, double rate, double torque, bool with_rope) {
 TEST(Islands, AngularMotorsTurnABoardAsBulletDoes) {
     for (const Frame kind : {Frame::Slider, Frame::SixDof, Frame::SixDofSpring2}) {
         SCOPED_TRACE(frameName(kind));
-        const double bullet = turnMotorRun(kind, 1.0, 100.0, false);
+        const double bullet = turnMotorRun(kind, 1.0, 100.0, false).rate;
         ASSERT_NEAR(std::abs(bullet), 1.0, 0.02) << "Bullet's own rate";
-        EXPECT_NEAR(turnMotorRun(kind, 1.0, 100.0, true), bullet, 0.01);
+        EXPECT_NEAR(turnMotorRun(kind, 1.0, 100.0, true).rate, bullet, 0.01);
     }
 }
 
@@ -1105,41 +1117,6 @@ TEST(Islands, Hinge2WheelHangsOnItsSuspensionAsBulletDoes) {
     EXPECT_NEAR(island.second, bullet.second, 0.05);
 }
 
-namespace {
-/// A 3 kg board held at one end by a btGeneric6DofSpring2Constraint to the world that leaves
-/// only its turn about z free, turned by the joint's servo toward `target` rad at 1 rad/s
-/// with at most 100 N m, gravity off, for `steps` steps of 1/100 s, with a rope hanging
-/// from its far end (the island's) or none (Bullet's). Returns the board's turn about z and
-/// its rate.
-std::pair<double, double> servoRun(double target, bool with_rope, int steps) {
-    Physics phys(0.0);
-    btRigidBody& board = phys.box(btVector3(0.5f, 0.025f, 0.15f), 3.0, btVector3(0.5f, 1.0f, 0));
-    board.setActivationState(DISABLE_DEACTIVATION);
-    auto d6 = std::make_unique<btGeneric6DofSpring2Constraint>(board, btTransform(btQuaternion::getIdentity(), btVector3(-0.5f, 0, 0)));
-    d6->setLinearLowerLimit(btVector3(0, 0, 0));
-    d6->setLinearUpperLimit(btVector3(0, 0, 0));
-    d6->setAngularLowerLimit(btVector3(0, 0, 1));
-    d6->setAngularUpperLimit(btVector3(0, 0, -1));
-    d6->enableMotor(5, true);
-    d6->setServo(5, true);
-    d6->setServoTarget(5, static_cast<btScalar>(target));
-    d6->setTargetVelocity(5, 1.0f);
-    d6->setMaxMotorForce(5, 100.0f);
-    phys.world->addConstraint(d6.get(), true);
-    BulletWorld ropes(*phys.world);
-    if (with_rope) {
-        const StringId id = ropes.addString(rope({0.95, 0.975, 0}, {0.95, 0.775, 0}, 8));
-        ropes.attach(id, 0, board, btVector3(0.45f, -0.025f, 0));
-    }
-    for (int i = 0; i < steps; ++i) phys.step(1);
-    EXPECT_TRUE(ropes.lastError().empty()) << ropes.lastError();
-    EXPECT_EQ(ropes.core().lastBodyJoints().size(), with_rope ? 1u : 0u);
-    phys.world->removeConstraint(d6.get());
-    const btQuaternion q = board.getOrientation();
-    return {2.0 * std::atan2(static_cast<double>(q.z()), static_cast<double>(q.w())), static_cast<double>(board.getAngularVelocity().z())};
-}
-}  // namespace
-
 // A 6-dof spring joint's servo in an island turns its coordinate toward the target at the
 // motor's speed and stops there, as Bullet's own servo does: a board turned to 0.5 rad and
 // to -0.5 rad at 1 rad/s turns at Bullet's rate (1%) on its way, and rests at the target
@@ -1147,14 +1124,15 @@ std::pair<double, double> servoRun(double target, bool with_rope, int steps) {
 TEST(Islands, SixDofServoTurnsABoardToItsTargetAsBulletDoes) {
     for (const double target : {0.5, -0.5}) {
         SCOPED_TRACE(target);
-        const auto bullet_moving = servoRun(target, false, 20), bullet_rest = servoRun(target, false, 100);
-        ASSERT_NEAR(std::abs(bullet_moving.second), 1.0, 0.02) << "Bullet's own rate";
-        ASSERT_NEAR(std::abs(bullet_rest.first), std::abs(target), 0.01 * std::abs(target)) << "Bullet's own rest";
-        const auto moving = servoRun(target, true, 20), rest = servoRun(target, true, 100);
-        EXPECT_NEAR(moving.second, bullet_moving.second, 0.01);
-        EXPECT_NEAR(rest.first, bullet_rest.first, 1e-3);
-        EXPECT_NEAR(std::abs(rest.first), std::abs(target), 1e-3);
-        EXPECT_LT(std::abs(rest.second), 1e-2);
+        const auto run = [&](bool with_rope, int steps) { return turnMotorRun(Frame::SixDofSpring2, 1.0, 100.0, with_rope, steps, target); };
+        const Turn bullet_moving = run(false, 20), bullet_rest = run(false, 100);
+        ASSERT_NEAR(std::abs(bullet_moving.rate), 1.0, 0.02) << "Bullet's own rate";
+        ASSERT_NEAR(std::abs(bullet_rest.angle), std::abs(target), 0.01 * std::abs(target)) << "Bullet's own rest";
+        const Turn moving = run(true, 20), rest = run(true, 100);
+        EXPECT_NEAR(moving.rate, bullet_moving.rate, 0.01);
+        EXPECT_NEAR(rest.angle, bullet_rest.angle, 1e-3);
+        EXPECT_NEAR(std::abs(rest.angle), std::abs(target), 1e-3);
+        EXPECT_LT(std::abs(rest.rate), 1e-2);
     }
 }
 
