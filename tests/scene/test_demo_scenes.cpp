@@ -68,6 +68,15 @@ std::vector<json> traceFrames(const fs::path& out) {
     return frames;
 }
 
+/// Every event of a run, in order.
+std::vector<json> events(const fs::path& out) {
+    std::vector<json> list;
+    std::ifstream in(out / "events.jsonl");
+    std::string line;
+    while (std::getline(in, line)) list.push_back(json::parse(line));
+    return list;
+}
+
 json lastFrame(const fs::path& out) {
     std::ifstream trace(out / "trace.jsonl");
     std::string line, last;
@@ -254,10 +263,7 @@ TEST(DemoScenes, ClothTearRunsAcrossThePull) {
     const fs::path out = run("cloth-tear");
     std::vector<int> torn, rows;
     double first_stress = -1.0;
-    std::ifstream events(out / "events.jsonl");
-    std::string line;
-    while (std::getline(events, line)) {
-        const json e = json::parse(line);
+    for (const json& e : events(out)) {
         if (e["type"] != "tear") continue;
         const int segment = e["segment"];
         ASSERT_LT(segment, warp_count) << "a weft yarn tore: the pull is along the warp";
@@ -290,10 +296,7 @@ TEST(DemoScenes, BannerTearsFromItsPoleInTheGust) {
     const int nu = desc.resolution[0], nv = desc.resolution[1];
     const fs::path out = run("banner");
     std::map<int, int> rows_at_pole;  // column 0 or nu - 2 -> rows torn there
-    std::ifstream events(out / "events.jsonl");
-    std::string line;
-    while (std::getline(events, line)) {
-        const json e = json::parse(line);
+    for (const json& e : events(out)) {
         if (e["type"] != "tear") continue;
         const double t = e["t"];
         EXPECT_GE(t, 2.0) << "the breeze tore a yarn";
@@ -419,14 +422,6 @@ bool traceIsFinite(const fs::path& out, std::string* where) {
     for (std::size_t frame = 0; frame < frames.size(); ++frame)
         if (!finite(frames[frame], "frame " + std::to_string(frame))) return false;
     return true;
-}
-
-std::vector<json> events(const fs::path& out) {
-    std::vector<json> list;
-    std::ifstream in(out / "events.jsonl");
-    std::string line;
-    while (std::getline(in, line)) list.push_back(json::parse(line));
-    return list;
 }
 
 using Point = std::array<double, 3>;
