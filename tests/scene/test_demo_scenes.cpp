@@ -59,23 +59,20 @@ double length(const json& frame, const std::string& name) {
     return sum;
 }
 
-/// Every frame of a run's trace, in order.
-std::vector<json> traceFrames(const fs::path& out) {
-    std::vector<json> frames;
-    std::ifstream trace(out / "trace.jsonl");
-    std::string line;
-    while (std::getline(trace, line)) frames.push_back(json::parse(line));
-    return frames;
-}
-
-/// Every event of a run, in order.
-std::vector<json> events(const fs::path& out) {
+/// Every line of a JSON-lines file, in order.
+std::vector<json> jsonLines(const fs::path& file) {
     std::vector<json> list;
-    std::ifstream in(out / "events.jsonl");
+    std::ifstream in(file);
     std::string line;
     while (std::getline(in, line)) list.push_back(json::parse(line));
     return list;
 }
+
+/// Every frame of a run's trace, in order.
+std::vector<json> traceFrames(const fs::path& out) { return jsonLines(out / "trace.jsonl"); }
+
+/// Every event of a run, in order.
+std::vector<json> events(const fs::path& out) { return jsonLines(out / "events.jsonl"); }
 
 json lastFrame(const fs::path& out) {
     std::ifstream trace(out / "trace.jsonl");
