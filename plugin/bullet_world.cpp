@@ -38,9 +38,9 @@ namespace {
 /// twist limits; no motor); a slider (btSliderConstraint, its powered motors); a
 /// 6-dof joint (btGeneric6DofConstraint and btUniversalConstraint; btGeneric6DofSpring2Constraint,
 /// btFixedConstraint and btHinge2Constraint, with their motors, servos and springs); enabled
-/// (a breaking impulse is checked after the step, writeJointImpulses). Others (gear, the
-/// older spring 6-dof, a cone-twist joint's motor or fixed spans) leave their islands to
-/// Bullet.
+/// (a breaking impulse is checked after the step, writeJointImpulses); a gear
+/// (btGearConstraint). Others (the older spring 6-dof, a cone-twist joint's motor or fixed
+/// spans) leave their islands to Bullet.
 bool islandJoint(const btTypedConstraint& c) {
     if (!c.isEnabled()) return false;
     auto& joint = const_cast<btTypedConstraint&>(c);  // Bullet's getters are not const
@@ -52,6 +52,7 @@ bool islandJoint(const btTypedConstraint& c) {
     case SLIDER_CONSTRAINT_TYPE:
     case D6_CONSTRAINT_TYPE:
     case D6_SPRING_2_CONSTRAINT_TYPE:
+    case GEAR_CONSTRAINT_TYPE:
         return true;
     case CONETWIST_CONSTRAINT_TYPE: {
         // A cone and a twist limit (frameJoint): not angular-only, no motor, and spans
@@ -545,12 +546,22 @@ public:
             const Side sa = side(c->getRigidBodyA(), h), sb = side(c->getRigidBodyB(), h);
             if (!sa.body.valid() && !sb.body.valid()) continue;
             const int type = c->getConstraintType();
-            BodyJoint j = type == POINT2POINT_CONSTRAINT_TYPE || type == HINGE_CONSTRAINT_TYPE ? BodyJoint{} : frameJoint(*c, sa.now, sb.now, h);
+            const bool frame = type != POINT2POINT_CONSTRAINT_TYPE && type != HINGE_CONSTRAINT_TYPE && type != GEAR_CONSTRAINT_TYPE;
+            BodyJoint j = frame ? frameJoint(*c, sa.now, sb.now, h) : BodyJoint{};
             j.host_tag = joints_.size();
             joints_.push_back(c);
             j.a = sa.body;
             j.b = sb.body;
-            if (type == POINT2POINT_CONSTRAINT_TYPE) {
+            if (type == GEAR_CONSTRAINT_TYPE) {
+                // Bullet's row: (omega_A . axisA + ratio omega_B . axisB) = 0, the axes turning
+                // with their bodies; no pivot (the bodies' centres stand for it).
+                const auto& gear = static_cast<const btGearConstraint&>(*c);
+                j.kind = BodyJoint::Kind::Gear;
+                j.axis_a = toCore(sa.now.getBasis() * gear.getAxisA());
+                j.axis_b = static_cast<double>(gear.getRatio()) * toCore(sb.now.getBasis() * gear.getAxisB());
+                j.pivot_a = toCore(sa.now.getOrigin());
+                j.pivot_b = toCore(sb.now.getOrigin());
+            } else if (type == POINT2POINT_CONSTRAINT_TYPE) {
                 const auto& ball = static_cast<const btPoint2PointConstraint&>(*c);
                 j.pivot_a = toCore(sa.now * ball.getPivotInA());
                 j.pivot_b = toCore(sb.now * ball.getPivotInB());
@@ -645,6 +656,11 @@ public:
                     sum += along + about;
                     largest = std::max({largest, std::abs(along), std::abs(about)});
                 }
+            } else if (j.kind == BodyJoint::Kind::Gear) {
+                // The one row: its impulse turns A about A's axis (the host's, unit).
+                const Vec3 axis = j.swapped ? j.axis_b : j.axis_a;
+                sum = axis.dot(ang_a);
+                largest = std::abs(sum);
             } else if (j.kind == BodyJoint::Kind::Hinge) {
                 // The angular rows about A's axis frame: the two across it (alignment) and
                 // the axis itself (the limit), each the angular impulse's component less

@@ -132,16 +132,18 @@ struct BodyContact {
 /// and the contacts they touch. A ball joint keeps the two pivots together; a hinge also
 /// keeps the two axes parallel, free to turn about them within its limits; a frame joint
 /// (a slider, a 6-dof joint, a weld, a cone-twist joint) holds each of six coordinates of
-/// b's frame relative to a's, locked, limited or free.
+/// b's frame relative to a's, locked, limited or free; a gear ties the bodies' turn rates
+/// about two axes, axis_a . omega_a + axis_b . omega_b = 0 (btGearConstraint: axis_b is b's
+/// axis times the gear's ratio).
 struct BodyJoint {
-    enum class Kind { Ball, Hinge, Frame };
+    enum class Kind { Ball, Hinge, Frame, Gear };
     Kind kind = Kind::Ball;
     RigidId a;                     ///< a movable body's proxy
     RigidId b;                     ///< the other body's proxy, or none: a frame only the host moves
     Vec3 pivot_a = Vec3::Zero();   ///< world, m: the joint's point on a, at the poses in the table
     Vec3 pivot_b = Vec3::Zero();   ///< world, m: its point on b (or the fixed frame)
-    Vec3 axis_a = Vec3::UnitZ();   ///< world, unit: a hinge's axis on a
-    Vec3 axis_b = Vec3::UnitZ();   ///< world, unit: on b
+    Vec3 axis_a = Vec3::UnitZ();   ///< world, unit: a hinge's axis on a (a gear's: any length)
+    Vec3 axis_b = Vec3::UnitZ();   ///< world, unit: on b (a gear's: any length)
     /// A hinge's angle now, rad, in the host's convention, which turns by
     /// angle_sign * axis_a . (theta_a - theta_b) for small turns theta of the bodies; and its
     /// limits (lower <= angle <= upper; infinite: none).

@@ -91,6 +91,7 @@ void prepareBodyJoints(std::vector<BodyJoint>& joints, const RigidTable& rigids)
                     j.spring_stiffness[k] = j.spring_damping[k] = 0.0;
             }
         }
+        if (j.kind == BodyJoint::Kind::Gear && !(j.axis_a.allFinite() && j.axis_b.allFinite())) return false;
         if (j.kind == BodyJoint::Kind::Hinge) {
             for (Vec3* axis : {&j.axis_a, &j.axis_b}) {
                 const double n = axis->norm();
@@ -140,6 +141,21 @@ void BodyJointMember::start(BodyJoint& joint, const RigidTable& rigids, const St
     move_b_ = b_moves_ ? Mat36(-pointJacobian(joint.pivot_b - rigids.bodies[joint.b.index].position)) : Mat36::Zero();
     if (joint.kind == BodyJoint::Kind::Frame) {
         startFrame(joint, rigids, linear_weight, angular_weight);
+        return;
+    }
+    if (joint.kind == BodyJoint::Kind::Gear) {
+        // The bodies' turns over the step about their axes, the free motion's (their
+        // angular velocities now) and the solve's, held to a . theta_a + b . theta_b = 0: a
+        // motor at rate 0 without a largest torque (Bullet's gear row is a velocity
+        // constraint; it keeps no angle either).
+        const Vec3 spin_b = joint.b.valid() ? rigids.bodies[joint.b.index].angular_velocity : Vec3::Zero();
+        Motor& gear = motors_[motor_count_++];
+        gear = Motor{};
+        gear.ga.tail<3>() = joint.axis_a;
+        if (b_moves_) gear.gb.tail<3>() = joint.axis_b;
+        gear.offset = (joint.axis_a.dot(a.angular_velocity) + joint.axis_b.dot(spin_b)) * ctx.h;
+        gear.force = std::numeric_limits<double>::infinity();
+        gear.weight = kMotorStiffnessFactor * angular_weight;
         return;
     }
     r0_.head<3>() = (1.0 - kSeparationRecovery) * (joint.pivot_a - joint.pivot_b);

@@ -1117,6 +1117,56 @@ TEST(Islands, Hinge2WheelHangsOnItsSuspensionAsBulletDoes) {
     EXPECT_NEAR(island.second, bullet.second, 0.05);
 }
 
+namespace {
+/// Two wheels (1 kg discs, radius 0.1 m: I = m r^2 / 2 about their axles) on hinges to the
+/// world about z, 0.3 m apart, geared (btGearConstraint, axes z, ratio 2), gravity off; the
+/// first spun at 2 rad/s, the second at rest. With a light rope glued to the second's axle
+/// outside its face (the island's: no moment about the axle) or none (Bullet's). Returns
+/// both wheels' turn rates about z after `steps` steps of 1/100 s.
+std::pair<double, double> gearRun(bool with_rope, int steps) {
+    Physics phys(0.0);
+    btRigidBody* wheels[2];
+    for (int k = 0; k < 2; ++k) {
+        wheels[k] = &phys.add(std::make_unique<btCylinderShapeZ>(btVector3(0.1f, 0.1f, 0.02f)), 1.0, btVector3(0.3f * static_cast<btScalar>(k), 1.0f, 0));
+        wheels[k]->setActivationState(DISABLE_DEACTIVATION);
+    }
+    wheels[0]->setAngularVelocity(btVector3(0, 0, 2));
+    btHingeConstraint axle0(*wheels[0], btVector3(0, 0, 0), btVector3(0, 0, 1));
+    btHingeConstraint axle1(*wheels[1], btVector3(0, 0, 0), btVector3(0, 0, 1));
+    btGearConstraint gear(*wheels[0], *wheels[1], btVector3(0, 0, 1), btVector3(0, 0, 1), 2.0f);
+    for (btTypedConstraint* c : {static_cast<btTypedConstraint*>(&axle0), static_cast<btTypedConstraint*>(&axle1),
+                                 static_cast<btTypedConstraint*>(&gear)})
+        phys.world->addConstraint(c, true);
+    BulletWorld ropes(*phys.world);
+    if (with_rope) {
+        const StringId id = ropes.addString(rope({0.3, 1.0, 0.05}, {0.3, 0.8, 0.05}, 8));
+        ropes.attach(id, 0, *wheels[1], btVector3(0, 0, 0.05f));
+    }
+    for (int i = 0; i < steps; ++i) phys.step(1);
+    EXPECT_TRUE(ropes.lastError().empty()) << ropes.lastError();
+    EXPECT_EQ(ropes.core().lastBodyJoints().size(), with_rope ? 3u : 0u);
+    for (btTypedConstraint* c : {static_cast<btTypedConstraint*>(&gear), static_cast<btTypedConstraint*>(&axle1),
+                                 static_cast<btTypedConstraint*>(&axle0)})
+        phys.world->removeConstraint(c);
+    return {static_cast<double>(wheels[0]->getAngularVelocity().z()), static_cast<double>(wheels[1]->getAngularVelocity().z())};
+}
+}  // namespace
+
+// A gear in an island ties its wheels' rates as Bullet's does, omega_0 + 2 omega_1 = 0: two
+// equal wheels, the first spun at 2 rad/s, engage by one impulse J along the row (1, 2):
+// omega_0 = 2 + J / I, omega_1 = 2 J / I, so J = -2 I / 5 and the wheels turn at 1.6 and
+// -0.8 rad/s (1%), and keep turning so, as under Bullet's own solver.
+TEST(Islands, GearTiesItsWheelsRatesAsBulletDoes) {
+    for (const int steps : {5, 50}) {
+        SCOPED_TRACE(steps);
+        const auto bullet = gearRun(false, steps), island = gearRun(true, steps);
+        ASSERT_NEAR(bullet.first, 1.6, 0.016) << "Bullet's own";
+        ASSERT_NEAR(bullet.second, -0.8, 0.008) << "Bullet's own";
+        EXPECT_NEAR(island.first, 1.6, 0.016);
+        EXPECT_NEAR(island.second, -0.8, 0.008);
+    }
+}
+
 // A 6-dof spring joint's servo in an island turns its coordinate toward the target at the
 // motor's speed and stops there, as Bullet's own servo does: a board turned to 0.5 rad and
 // to -0.5 rad at 1 rad/s turns at Bullet's rate (1%) on its way, and rests at the target
