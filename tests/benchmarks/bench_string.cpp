@@ -11,7 +11,8 @@
 // (100 segments each, side by side, not touching), on 1 and 2 threads
 // (WorldSettings::threads). And the shape matching kernel alone (BM_CsmKernel).
 // And the step in which a long rope tears (BM_LongRopeTear).
-// And Table 1's 746-segment rope stepped by BDF2 (BM_Table1RopeBdf2), and with its plastic
+// And Table 1's 746-segment rope stepped by BDF2 (BM_Table1RopeBdf2; BM_Table1RopeFirstSwing
+// against backward Euler where both move it alike), and with its plastic
 // flow solved in the strain limit (BM_Table1RopeYield).
 // Run: build/tests/benchmarks/tearables_bench --benchmark_filter='Table1|Segments|CsmKernel|LongRopeTear'
 #include "world/world_access.hpp"
@@ -104,6 +105,28 @@ void BM_Table1RopeBdf2(benchmark::State& state) {
     state.SetItemsProcessed(state.iterations() * segments);
 }
 BENCHMARK(BM_Table1RopeBdf2)->Arg(746)->Iterations(300)->Unit(benchmark::kMicrosecond);
+
+/// Table 1's 746-segment rope, released level, by backward Euler (range(0) = 0) or BDF2
+/// (1), timed over steps 10-30 of its fall, where both integrators move it alike (later
+/// BDF2's keeps its swing and backward Euler's loses it, so the two time different
+/// motions): what the integrator itself costs a step.
+void BM_Table1RopeFirstSwing(benchmark::State& state) {
+    tearables::World world;
+    tearables::StringDesc desc = rope({0, 0, 0}, 746, 10.0);
+    if (state.range(0) != 0) desc.integrator = tearables::StringIntegrator::BDF2;
+    const auto id = world.addString(desc);
+    world.attachToPoint(id, 0, {0, 0, 0});
+    for (int i = 0; i < 10; ++i) world.step(0.01);
+    StageCounters stages;
+    for (auto _ : state) {
+        world.step(0.01);
+        stages.add(world);
+        benchmark::DoNotOptimize(world.view(id).tension->data());
+    }
+    stages.report(state);
+    state.SetItemsProcessed(state.iterations() * 746);
+}
+BENCHMARK(BM_Table1RopeFirstSwing)->ArgName("bdf2")->Arg(0)->Arg(1)->Iterations(20)->Unit(benchmark::kMicrosecond);
 
 /// BM_Table1Rope's rope with its plastic flow solved in the strain limit
 /// (StringDesc::yield_in_solve = range(1)): the option's cost. range(2) = 0: the default
