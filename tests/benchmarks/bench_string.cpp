@@ -58,13 +58,13 @@ struct StageCounters {
     }
 };
 
-/// One rope pinned at its first particle, 200 steps of settling into the swing, then the
+/// One rope pinned at its first particle, `settle` steps (200: into the swing), then the
 /// benchmark's iterations measured, one step each, with the stages' times.
-void timeSwing(benchmark::State& state, const tearables::StringDesc& desc) {
+void timeSwing(benchmark::State& state, const tearables::StringDesc& desc, int settle = 200) {
     tearables::World world;
     const auto id = world.addString(desc);
     world.attachToPoint(id, 0, {0, 0, 0});
-    for (int i = 0; i < 200; ++i) world.step(0.01);
+    for (int i = 0; i < settle; ++i) world.step(0.01);
     StageCounters stages;
     for (auto _ : state) {
         world.step(0.01);
@@ -111,20 +111,9 @@ BENCHMARK(BM_Table1RopeBdf2)->Arg(746)->Iterations(300)->Unit(benchmark::kMicros
 /// BDF2's keeps its swing and backward Euler's loses it, so the two time different
 /// motions): what the integrator itself costs a step.
 void BM_Table1RopeFirstSwing(benchmark::State& state) {
-    tearables::World world;
     tearables::StringDesc desc = rope({0, 0, 0}, 746, 10.0);
     if (state.range(0) != 0) desc.integrator = tearables::StringIntegrator::BDF2;
-    const auto id = world.addString(desc);
-    world.attachToPoint(id, 0, {0, 0, 0});
-    for (int i = 0; i < 10; ++i) world.step(0.01);
-    StageCounters stages;
-    for (auto _ : state) {
-        world.step(0.01);
-        stages.add(world);
-        benchmark::DoNotOptimize(world.view(id).tension->data());
-    }
-    stages.report(state);
-    state.SetItemsProcessed(state.iterations() * 746);
+    timeSwing(state, desc, 10);
 }
 BENCHMARK(BM_Table1RopeFirstSwing)->ArgName("bdf2")->Arg(0)->Arg(1)->Iterations(20)->Unit(benchmark::kMicrosecond);
 
