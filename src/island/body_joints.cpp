@@ -260,11 +260,11 @@ void BodyJointMember::startFrame(const BodyJoint& joint, const RigidTable& rigid
             motor.weight = kMotorStiffnessFactor * weight;
         }
         if (sprung) {
-            // The elastic force -k (q - rest) where the step starts, held over it (as Bullet's
-            // solver applies it: with the rate the step ends at, Bullet's symplectic Euler,
-            // which keeps an undamped spring's swing); the damper -c dq/dt at the rate where
-            // the step ends (implicit: the rate where it starts already carries gravity's
-            // h g, a force c h g that would hold a body at rest off its rest).
+            // The elastic force -k (q - rest) where the step starts, held over it as Bullet's
+            // solver applies it: with the positions stepped at the rate the step ends with,
+            // symplectic Euler, which keeps an undamped spring's swing. The damper -c dq/dt
+            // at the rate where the step ends (implicit): the rate where it starts already
+            // carries gravity's h g, a force c h g that would hold a body at rest off its rest.
             Spring& spring = springs_[spring_count_++];
             spring.ga = ga;
             spring.gb = b_moves_ ? gb : Vec6::Zero();
