@@ -657,9 +657,10 @@ public:
                     largest = std::max({largest, std::abs(along), std::abs(about)});
                 }
             } else if (j.kind == BodyJoint::Kind::Gear) {
-                // The one row: its impulse turns A about A's axis (the host's, unit).
+                // The one row, its Jacobian on A the host's axis of A: the angular impulse on A
+                // is the row's impulse times that axis.
                 const Vec3 axis = j.swapped ? j.axis_b : j.axis_a;
-                sum = axis.dot(ang_a);
+                sum = axis.squaredNorm() > 0.0 ? axis.dot(ang_a) / axis.squaredNorm() : 0.0;
                 largest = std::abs(sum);
             } else if (j.kind == BodyJoint::Kind::Hinge) {
                 // The angular rows about A's axis frame: the two across it (alignment) and
