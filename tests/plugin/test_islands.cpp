@@ -1136,8 +1136,12 @@ namespace {
 /// world about z, 0.3 m apart, geared (btGearConstraint, axes z, ratio 2), gravity off; the
 /// first spun at 2 rad/s, the second at rest. With a light rope glued to the second's axle
 /// outside its face (the island's: no moment about the axle) or none (Bullet's). Returns
-/// both wheels' turn rates about z after `steps` steps of 1/100 s.
-std::pair<double, double> gearRun(bool with_rope, int steps) {
+/// both wheels' turn rates about z after `steps` steps of 1/100 s, and the gear's applied
+/// impulse in the first step.
+struct GearRun {
+    double first = 0.0, second = 0.0, impulse = 0.0;
+};
+GearRun gearRun(bool with_rope, int steps) {
     Physics phys(0.0);
     btRigidBody* wheels[2];
     for (int k = 0; k < 2; ++k) {
@@ -1156,28 +1160,37 @@ std::pair<double, double> gearRun(bool with_rope, int steps) {
         const StringId id = ropes.addString(rope({0.3, 1.0, 0.05}, {0.3, 0.8, 0.05}, 8));
         ropes.attach(id, 0, *wheels[1], btVector3(0, 0, 0.05f));
     }
-    for (int i = 0; i < steps; ++i) phys.step(1);
+    GearRun run;
+    for (int i = 0; i < steps; ++i) {
+        phys.step(1);
+        if (i == 0) run.impulse = static_cast<double>(gear.getAppliedImpulse());
+    }
     EXPECT_TRUE(ropes.lastError().empty()) << ropes.lastError();
     EXPECT_EQ(ropes.core().lastBodyJoints().size(), with_rope ? 3u : 0u);
     for (btTypedConstraint* c : {static_cast<btTypedConstraint*>(&gear), static_cast<btTypedConstraint*>(&axle1),
                                  static_cast<btTypedConstraint*>(&axle0)})
         phys.world->removeConstraint(c);
-    return {static_cast<double>(wheels[0]->getAngularVelocity().z()), static_cast<double>(wheels[1]->getAngularVelocity().z())};
+    run.first = static_cast<double>(wheels[0]->getAngularVelocity().z());
+    run.second = static_cast<double>(wheels[1]->getAngularVelocity().z());
+    return run;
 }
 }  // namespace
 
 // A gear in an island ties its wheels' rates as Bullet's does, omega_0 + 2 omega_1 = 0: two
 // equal wheels, the first spun at 2 rad/s, engage by one impulse J along the row (1, 2):
 // omega_0 = 2 + J / I, omega_1 = 2 J / I, so J = -2 I / 5 and the wheels turn at 1.6 and
-// -0.8 rad/s (1%), and keep turning so, as under Bullet's own solver.
+// -0.8 rad/s (1%), and keep turning so, as under Bullet's own solver; the gear reports the
+// engaging impulse, |J| = 2 I / 5 = 0.002 N m s (1%), as its applied impulse.
 TEST(Islands, GearTiesItsWheelsRatesAsBulletDoes) {
     for (const int steps : {5, 50}) {
         SCOPED_TRACE(steps);
-        const auto bullet = gearRun(false, steps), island = gearRun(true, steps);
+        const GearRun bullet = gearRun(false, steps), island = gearRun(true, steps);
         ASSERT_NEAR(bullet.first, 1.6, 0.016) << "Bullet's own";
         ASSERT_NEAR(bullet.second, -0.8, 0.008) << "Bullet's own";
         EXPECT_NEAR(island.first, 1.6, 0.016);
         EXPECT_NEAR(island.second, -0.8, 0.008);
+        EXPECT_NEAR(std::abs(island.impulse), 0.002, 2e-5);
+        EXPECT_NEAR(island.impulse, bullet.impulse, 2e-5);
     }
 }
 
