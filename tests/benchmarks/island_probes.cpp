@@ -244,22 +244,7 @@ void momentum(bool crossing, double density, bool island_contacts = true) {
     std::vector<btRigidBody*> bodies;
     std::vector<StringId> ropes;
     auto holdRope = [&](const Vec3& from, const Vec3& to) {
-        StringDesc d = StringDesc::straight(from, to, 40);
-        d.radius = 0.005;
-        d.density = density;
-        d.tearable = false;
-        d.material.variation = 0.0;
-        const StringId id = rig.ropes->addString(d);
-        const Vec3 dir = (to - from).normalized();
-        for (int end : {0, -1}) {
-            const Vec3 p = end == 0 ? from : to;
-            const Vec3 out = end == 0 ? Vec3(-dir) : dir;
-            btRigidBody& b = rig.phys.box(btVector3(0.05f, 0.05f, 0.05f), 1.0, toBullet(p + 0.06 * out));
-            b.setActivationState(DISABLE_DEACTIVATION);
-            rig.ropes->attach(id, end, b, toBullet(-0.06 * out));
-            bodies.push_back(&b);
-        }
-        ropes.push_back(id);
+        ropes.push_back(island::ropeHeldByBoxes(rig.phys, *rig.ropes, from, to, density, bodies));
     };
     holdRope({-0.5, 0, 0}, {0.5, 0, 0});
     if (crossing) holdRope({0, -0.012, -0.5}, {0, -0.012, 0.5});

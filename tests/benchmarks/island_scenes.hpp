@@ -26,6 +26,29 @@ struct Rig {
     void step() { phys.world->stepSimulation(0.01f, 1, 0.01f); }
 };
 
+/// A free rope from `from` to `to` (40 segments, radius 5 mm, untearable, no material
+/// scatter) of fibre `density`, glued at each end to a free 1 kg box (a 0.1 m cube) just
+/// beyond it, as the momentum rigs of issue 30 (item 3) hold their ropes. The boxes are
+/// appended to `bodies`.
+inline StringId ropeHeldByBoxes(testing::Physics& phys, BulletWorld& ropes, const Vec3& from, const Vec3& to, double density,
+                                std::vector<btRigidBody*>& bodies) {
+    StringDesc d = StringDesc::straight(from, to, 40);
+    d.radius = 0.005;
+    d.density = density;
+    d.tearable = false;
+    d.material.variation = 0.0;
+    const StringId id = ropes.addString(d);
+    const Vec3 dir = (to - from).normalized();
+    for (int end : {0, -1}) {
+        const Vec3 out = end == 0 ? Vec3(-dir) : dir;
+        btRigidBody& b = phys.box(btVector3(0.05f, 0.05f, 0.05f), 1.0, toBullet((end == 0 ? from : to) + 0.06 * out));
+        b.setActivationState(DISABLE_DEACTIVATION);
+        ropes.attach(id, end, b, toBullet(-0.06 * out));
+        bodies.push_back(&b);
+    }
+    return id;
+}
+
 /// Sum over a string's particles of m v (kg m/s).
 inline Vec3 ropeMomentum(const World& w, StringId id) {
     const auto v = w.view(id);

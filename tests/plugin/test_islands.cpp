@@ -249,20 +249,7 @@ TEST(Islands, BoxPressingARopeOntoACrossingRopeKeepsItsMomentum) {
         std::vector<btRigidBody*> bodies;
         std::vector<StringId> ids;
         auto holdRope = [&](const Vec3& from, const Vec3& to) {
-            StringDesc d = StringDesc::straight(from, to, 40);
-            d.radius = 0.005;
-            d.tearable = false;
-            d.material.variation = 0.0;
-            const StringId id = ropes.addString(d);
-            const Vec3 dir = (to - from).normalized();
-            for (int end : {0, -1}) {
-                const Vec3 out = end == 0 ? Vec3(-dir) : dir;
-                btRigidBody& b = phys.box(btVector3(0.05f, 0.05f, 0.05f), 1.0, tearables::toBullet((end == 0 ? from : to) + 0.06 * out));
-                b.setActivationState(DISABLE_DEACTIVATION);
-                ropes.attach(id, end, b, tearables::toBullet(-0.06 * out));
-                bodies.push_back(&b);
-            }
-            ids.push_back(id);
+            ids.push_back(tearables::island::ropeHeldByBoxes(phys, ropes, from, to, StringDesc{}.density, bodies));
         };
         holdRope({-0.5, 0, 0}, {0.5, 0, 0});
         holdRope({0, -0.012, -0.5}, {0, -0.012, 0.5});
